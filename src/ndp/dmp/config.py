@@ -1,0 +1,107 @@
+"""Typed configuration of a Dynamic Movement Primitive (DMP) integrator."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+RBF_KINDS = ("gaussian", "multiquadric", "inverse_quadric", "inverse_multiquadric", "linear")
+FORCING_FORMS = ("released", "supplement")
+
+
+@dataclass(frozen=True)
+class DMPConfig:
+    """Settings of one DMP integrator; every field is validated on construction.
+
+    The three clocks: ``steps`` Euler integration steps of length ``dt`` make one DMP rollout of
+    duration ``steps * dt`` (``tau`` by default); the rollout is reported every ``subsample``
+    integration steps, so a rollout has ``steps // subsample`` output intervals (the k sub-steps
+    of one policy decision in RL, 300 pen points in imitation).
+    """
+
+    n_basis: int = 30
+    """N, the number of radial basis functions of the forcing term per degree of freedom."""
+    a_z: float = 25.0
+    """Spring constant alpha_z of the transformation system (ignored when a_z is learned)."""
+    b_z: float | None = None
+    """Damper constant beta_z; ``None`` means a_z / 4 (critical damping)."""
+    a_x: float = 1.0
+    """Decay rate alpha_x of the canonical system x (x starts at 1)."""
+    tau: float = 1.0
+    """Temporal scaling tau (z = tau * dy)."""
+    steps: int = 300
+    """T, the number of explicit Euler integration steps of one rollout."""
+    dt: float | None = None
+    """Integration step; ``None`` means tau / steps (the rollout lasts tau)."""
+    rbf: str = "gaussian"
+    """Basis kind: gaussian, multiquadric, inverse_quadric, inverse_multiquadric or linear."""
+    forcing: str = "released"
+    """Where f enters: 'released' (outside a_z, the default) or 'supplement' (inside a_z)."""
+    only_g: bool = False
+    """Ablation: forcing term switched off (a critically damped spring to the goal)."""
+    learn_az: bool = False
+    """a_z is predicted per sample and passed to the integrator, clamped to ``az_range``."""
+    az_range: tuple[float, float] = field(default=(0.5, 30.0))
+    """Clamp applied to a learned a_z (low, high)."""
+    subsample: int = 1
+    """Report every l-th integration step; ``steps`` must be a multiple of it."""
+
+    def __post_init__(self) -> None:
+        _check_int("n_basis", self.n_basis, 1)
+        _check_int("steps", self.steps, 1)
+        _check_int("subsample", self.subsample, 1)
+        _check_pos("a_z", self.a_z)
+        if self.b_z is not None:
+            _check_pos("b_z", self.b_z)
+        _check_pos("a_x", self.a_x)
+        _check_pos("tau", self.tau)
+        if self.dt is not None:
+            _check_pos("dt", self.dt)
+        if self.rbf not in RBF_KINDS:
+            raise ValueError(f"rbf: expected one of {', '.join(RBF_KINDS)}, got {self.rbf!r}")
+        if self.forcing not in FORCING_FORMS:
+            raise ValueError(
+                f"forcing: expected one of {', '.join(FORCING_FORMS)}, got {self.forcing!r}"
+            )
+        lo, hi = self.az_range
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo <= hi):
+            raise ValueError(f"az_range: expected 0 < low <= high, got {self.az_range!r}")
+        if self.a_x * self.step_dt / self.tau >= 1.0:
+            raise ValueError(
+                f"dt: expected a_x * dt / tau < 1 so the canonical phase decays monotonically, "
+                f"got a_x={self.a_x}, dt={self.step_dt}, tau={self.tau}"
+            )
+        if self.steps % self.subsample:
+            raise ValueError(
+                f"subsample: expected a divisor of steps={self.steps}, got {self.subsample}"
+            )
+
+    @property
+    def bz(self) -> float:
+        """The resolved damper constant (a_z / 4 unless set)."""
+        return self.a_z / 4.0 if self.b_z is None else float(self.b_z)
+
+    @property
+    def step_dt(self) -> float:
+        """The resolved integration step."""
+        return self.tau / self.steps if self.dt is None else float(self.dt)
+
+    @property
+    def n_out(self) -> int:
+        """Number of reported points per rollout, start included: steps // subsample + 1."""
+        return self.steps // self.subsample + 1
+
+
+def _check_int(name: str, value: object, low: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+
+
+def _check_pos(name: str, value: object) -> None:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not math.isfinite(value)
+        or value <= 0
+    ):
+        raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")

@@ -1,0 +1,88 @@
+"""Least-squares fit of DMP parameters (g, w) to demonstrated trajectories.
+
+Positions are affine in (v, g) with v = w * (g - y0) (see :func:`ndp.dmp.linear_map_f64`):
+
+    y_t = P^v_t v + P^g_t g + P^y0_t y0 + P^dy0_t dy0.
+
+Given a demonstration on the DMP's reported time grid, y0 = its first point and dy0 known, the
+fit solves the linear least-squares problem for (v, g) (or for v alone with a given goal) with a
+small ridge term, then recovers w = v / (g - y0). When g is close to y0 (a closed loop such as a
+"0") the forcing term's scale g - y0 is small and the weights grow accordingly: this is a property
+of the DMP formulation, not of the fit.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from ndp.dmp.config import DMPConfig
+from ndp.dmp.integrate import _linear_map_f64
+
+
+def fit_dmp(
+    demo: torch.Tensor,
+    cfg: DMPConfig | None = None,
+    dy0: torch.Tensor | None = None,
+    goal: torch.Tensor | None = None,
+    ridge: float = 1e-8,
+    min_scale: float = 1e-6,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Fit goal and weights so that the DMP rollout reproduces ``demo``.
+
+    Args:
+        demo: demonstrated positions [B, n_out, D] on the reported grid of ``cfg``
+            (n_out = steps // subsample + 1); ``demo[:, 0]`` is used as y0.
+        cfg: integrator settings (fixed a_z; ``only_g`` is not fittable for weights).
+        dy0: start velocity [B, D] (``None``: zeros, a demonstration starting at rest).
+        goal: optional fixed goal [B, D]; if ``None`` the goal is fitted jointly.
+        ridge: Tikhonov weight on the forcing coefficients, relative to their mean curvature.
+        min_scale: |g - y0| is floored at this value (keeping its sign) when recovering w.
+
+    Returns:
+        (goal [B, D], weights [B, D, N]) in the dtype and device of ``demo``.
+    """
+    cfg = cfg or DMPConfig()
+    if cfg.learn_az:
+        raise ValueError("cfg: fit_dmp needs a fixed a_z (learn_az=False)")
+    if cfg.only_g:
+        raise ValueError("cfg: fit_dmp fits forcing weights; only_g=True has none")
+    if not isinstance(demo, torch.Tensor) or demo.ndim != 3 or not demo.is_floating_point():
+        raise ValueError("demo: expected a floating-point tensor [B, n_out, D]")
+    b, t1, d = demo.shape
+    if t1 != cfg.n_out:
+        raise ValueError(
+            f"demo: expected {cfg.n_out} points per trajectory (steps // subsample + 1), got {t1}"
+        )
+    if not bool(torch.isfinite(demo).all()):
+        raise ValueError("demo: expected finite values, found NaN or Inf")
+    n = cfg.n_basis
+    m = torch.as_tensor(_linear_map_f64(cfg, None)[:, :t1].copy())  # [N + 3, n_out] positions
+    y = demo.detach().to(torch.float64, copy=True).cpu()
+    y0 = y[:, 0]  # [B, D]
+    dy0_ = torch.zeros_like(y0) if dy0 is None else dy0.detach().to(torch.float64).cpu()
+    if dy0_.shape != (b, d):
+        raise ValueError(f"dy0: expected shape {(b, d)}, got {tuple(dy0_.shape)}")
+    # Residual after the known inputs: [B, D, n_out].
+    rhs = y.transpose(1, 2) - y0.unsqueeze(-1) * m[n + 1] - dy0_.unsqueeze(-1) * m[n + 2]
+    if goal is None:
+        design = m[: n + 1].T  # [n_out, N + 1]: columns v_1..v_N, g
+    else:
+        if goal.shape != (b, d):
+            raise ValueError(f"goal: expected shape {(b, d)}, got {tuple(goal.shape)}")
+        g_fixed = goal.detach().to(torch.float64).cpu()
+        rhs = rhs - g_fixed.unsqueeze(-1) * m[n]
+        design = m[:n].T  # [n_out, N]
+    # The map is badly conditioned (late basis functions barely move the trajectory), so a
+    # ridge term penalises the forcing coefficients v (never the goal), scaled to their block.
+    gram = design.T @ design
+    reg = torch.zeros(gram.shape[0], dtype=gram.dtype)
+    reg[:n] = ridge * gram.diagonal()[:n].mean()
+    sol = torch.linalg.solve(gram + torch.diag(reg), design.T @ rhs.reshape(b * d, t1).T).T
+    sol = sol.reshape(b, d, -1)
+    v = sol[..., :n]
+    g = sol[..., n] if goal is None else g_fixed
+    scale = g - y0
+    sign = torch.where(scale >= 0, 1.0, -1.0).to(scale)
+    scale = torch.where(scale.abs() < min_scale, sign * min_scale, scale)
+    w = v / scale.unsqueeze(-1)
+    return g.to(demo), w.to(demo)

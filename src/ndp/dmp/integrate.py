@@ -1,0 +1,338 @@
+"""DMP integrators: a readable reference Euler loop and a fast linear-map path.
+
+Both follow the released integration order (ndp-method.md section 2), per degree of freedom and
+batched over samples. For every step t = 1..T:
+
+    x_t  = x_{t-1} - a_x * x_{t-1} / tau * dt
+    f_t  = (sum_i psi_i(x_t) w_i / sum_j psi_j(x_t)) * x_t * (g - y0)
+    dz   = (a_z * (b_z * (g - y_{t-1}) - z_{t-1}) + f_t) / tau        (released form)
+    dz   = a_z * (b_z * (g - y_{t-1}) - z_{t-1} + f_t) / tau          (supplement form)
+    y_t  = y_{t-1} + z_{t-1} / tau * dt
+    z_t  = z_{t-1} + dz * dt
+
+with z_0 = tau * dy0. Velocities are dy_t = z_t / tau and accelerations ddy_t = dz / tau of the
+step that produced z_t (ddy_0 = 0).
+
+For a fixed a_z the rollout is linear in u = (w * (g - y0), g, y0, dy0): the fast path
+precomputes that linear map once (in float64, by running the same recursion on unit inputs) and
+applies it with one matrix product.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import numpy as np
+import torch
+
+from ndp.dmp.basis import basis_centres, forcing_features, rbf
+from ndp.dmp.config import DMPConfig
+
+
+class DMPTrajectory(NamedTuple):
+    """A batch of DMP rollouts; each field is [B, n_out, D] with n_out = steps // subsample + 1."""
+
+    pos: torch.Tensor
+    """Positions y_t; ``pos[:, 0] == y0``."""
+    vel: torch.Tensor
+    """Velocities dy_t = z_t / tau; ``vel[:, 0] == dy0``."""
+    acc: torch.Tensor
+    """Accelerations ddy_t = dz / tau of the step ending at t; ``acc[:, 0] == 0``."""
+
+
+# --------------------------------------------------------------------------------------------
+# Input checks
+# --------------------------------------------------------------------------------------------
+def _check_tensor(name: str, t: object, ndim: int, shape_doc: str) -> torch.Tensor:
+    if not isinstance(t, torch.Tensor):
+        raise ValueError(f"{name}: expected a torch.Tensor of shape {shape_doc}, got {type(t)}")
+    if t.ndim != ndim:
+        raise ValueError(f"{name}: expected shape {shape_doc}, got {tuple(t.shape)}")
+    if not t.is_floating_point():
+        raise ValueError(f"{name}: expected a floating-point tensor, got dtype {t.dtype}")
+    return t
+
+
+def validate_inputs(
+    cfg: DMPConfig,
+    goal: torch.Tensor,
+    weights: torch.Tensor | None,
+    y0: torch.Tensor,
+    dy0: torch.Tensor | None,
+    a_z: torch.Tensor | None = None,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor | None]:
+    """Check shapes, dtypes and devices; fill defaults.
+
+    Args:
+        goal: [B, D].
+        weights: [B, D, N], or ``None`` only when ``cfg.only_g``.
+        y0: [B, D].
+        dy0: [B, D] or ``None`` (zeros).
+        a_z: ``None``, or per-sample spring constants [B], [B, 1] or [B, D].
+
+    Returns:
+        (goal, weights, y0, dy0, a_z) with weights zero-filled if omitted and a_z as [B, D].
+
+    Raises:
+        ValueError: naming the offending argument and the expected shape.
+    """
+    goal = _check_tensor("goal", goal, 2, "[B, D]")
+    b, d = goal.shape
+    y0 = _check_tensor("y0", y0, 2, "[B, D]")
+    if y0.shape != goal.shape:
+        raise ValueError(f"y0: expected shape {(b, d)} like goal, got {tuple(y0.shape)}")
+    if dy0 is None:
+        dy0 = torch.zeros_like(y0)
+    dy0 = _check_tensor("dy0", dy0, 2, "[B, D]")
+    if dy0.shape != goal.shape:
+        raise ValueError(f"dy0: expected shape {(b, d)} like goal, got {tuple(dy0.shape)}")
+    n = cfg.n_basis
+    if weights is None:
+        if not cfg.only_g:
+            raise ValueError("weights: expected a tensor [B, D, N] (None only with only_g=True)")
+        weights = goal.new_zeros(b, d, n)
+    weights = _check_tensor("weights", weights, 3, "[B, D, N]")
+    if weights.shape != (b, d, n):
+        raise ValueError(
+            f"weights: expected shape {(b, d, n)} (B, D, n_basis), got {tuple(weights.shape)}"
+        )
+    for name, t in (("y0", y0), ("dy0", dy0), ("weights", weights)):
+        if t.dtype != goal.dtype or t.device != goal.device:
+            raise ValueError(
+                f"{name}: expected dtype {goal.dtype} on {goal.device} like goal, "
+                f"got {t.dtype} on {t.device}"
+            )
+    if a_z is not None:
+        if not isinstance(a_z, torch.Tensor) or not a_z.is_floating_point():
+            raise ValueError("a_z: expected a floating-point tensor [B], [B, 1] or [B, D]")
+        if a_z.ndim == 1:
+            a_z = a_z.unsqueeze(-1)
+        if a_z.ndim != 2 or a_z.shape[0] != b or a_z.shape[1] not in (1, d):
+            raise ValueError(f"a_z: expected shape [B], [B, 1] or [B, D], got {tuple(a_z.shape)}")
+        a_z = a_z.to(goal.dtype).expand(b, d)
+    return goal, weights, y0, dy0, a_z
+
+
+def check_finite(**tensors: torch.Tensor | None) -> None:
+    """Raise ``FloatingPointError`` naming the first tensor that holds NaN or Inf.
+
+    Trainers call this on DMP parameters before integrating (the layer does it by default).
+    """
+    for name, t in tensors.items():
+        if t is not None and not bool(torch.isfinite(t).all()):
+            raise FloatingPointError(f"{name}: expected finite values, found NaN or Inf")
+
+
+# --------------------------------------------------------------------------------------------
+# Reference loop
+# --------------------------------------------------------------------------------------------
+def dmp_rollout_reference(
+    goal: torch.Tensor,
+    weights: torch.Tensor | None,
+    y0: torch.Tensor,
+    dy0: torch.Tensor | None = None,
+    cfg: DMPConfig | None = None,
+    a_z: torch.Tensor | None = None,
+) -> DMPTrajectory:
+    """Integrate the DMP with the explicit Euler loop, step by step, as written in the paper.
+
+    Args:
+        goal: g [B, D].
+        weights: w [B, D, N] (``None`` allowed with ``only_g``).
+        y0: start position [B, D].
+        dy0: start velocity [B, D] (``None``: zeros).
+        cfg: integrator settings (default :class:`DMPConfig`).
+        a_z: optional per-sample spring constant [B], [B, 1] or [B, D] (used as given; the
+            layer clamps learned values); b_z is then a_z / 4.
+
+    Returns:
+        :class:`DMPTrajectory` with fields [B, steps // subsample + 1, D].
+    """
+    cfg = cfg or DMPConfig()
+    return _reference(cfg, *validate_inputs(cfg, goal, weights, y0, dy0, a_z))
+
+
+def _reference(
+    cfg: DMPConfig,
+    goal: torch.Tensor,
+    weights: torch.Tensor,
+    y0: torch.Tensor,
+    dy0: torch.Tensor,
+    a_z_t: torch.Tensor | None,
+) -> DMPTrajectory:
+    dtype, device = goal.dtype, goal.device
+    if a_z_t is None:
+        az: torch.Tensor | float = cfg.a_z
+        bz: torch.Tensor | float = cfg.bz
+    else:
+        az, bz = a_z_t, a_z_t / 4.0
+    tau, dt, a_x = cfg.tau, cfg.step_dt, cfg.a_x
+    c, h = basis_centres(cfg.n_basis, a_x, dtype)
+    c, h = c.to(device), h.to(device)
+
+    x = 1.0
+    y = y0
+    z = tau * dy0
+    pos, vel, acc = [y0], [dy0], [torch.zeros_like(y0)]
+    for _ in range(cfg.steps):
+        x = x - a_x * x / tau * dt
+        psi = rbf(torch.tensor(x, dtype=dtype, device=device), c, h, cfg.rbf)  # [N]
+        if cfg.only_g:
+            f = torch.zeros_like(y0)
+        else:
+            f = (weights @ psi) / psi.sum() * x * (goal - y0)  # [B, D]
+        if cfg.forcing == "released":
+            dz = (az * (bz * (goal - y) - z) + f) / tau
+        else:
+            dz = az * (bz * (goal - y) - z + f) / tau
+        dy = z / tau
+        y = y + dy * dt
+        z = z + dz * dt
+        pos.append(y)
+        vel.append(z / tau)
+        acc.append(dz / tau)
+    sl = slice(None, None, cfg.subsample)
+    return DMPTrajectory(
+        torch.stack(pos[sl], dim=1), torch.stack(vel[sl], dim=1), torch.stack(acc[sl], dim=1)
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Fast linear-map path
+# --------------------------------------------------------------------------------------------
+def linear_map_f64(cfg: DMPConfig, a_z: float | None = None) -> np.ndarray:
+    """The rollout as a linear map of u = (v_1..v_N, g, y0, dy0) with v = w * (g - y0).
+
+    Built by running the Euler recursion on the N + 3 unit inputs at once (float64), so that
+    position, velocity and acceleration at every reported step are ``u @ M``.
+
+    Args:
+        cfg: integrator settings.
+        a_z: spring constant to build the map for (default ``cfg.a_z``; b_z follows cfg or a_z/4).
+
+    Returns:
+        M: [N + 3, 3 * n_out] float64, columns ordered (pos_0..pos_T, vel_0.., acc_0..).
+    """
+    return _linear_map_f64(cfg, None if a_z is None else float(a_z)).copy()
+
+
+@functools.lru_cache(maxsize=64)
+def _linear_map_f64(cfg: DMPConfig, a_z: float | None) -> np.ndarray:
+    n = cfg.n_basis
+    az = cfg.a_z if a_z is None else a_z
+    bz = cfg.bz if a_z is None else a_z / 4.0
+    tau, dt = cfg.tau, cfg.step_dt
+    feats = forcing_features(cfg).numpy()  # [T, N]
+    if cfg.only_g:
+        feats = np.zeros_like(feats)
+    # Coefficient rows of y and z on the inputs (v_1..v_N, g, y0, dy0).
+    y = np.zeros(n + 3)
+    z = np.zeros(n + 3)
+    y[n + 1] = 1.0
+    z[n + 2] = tau
+    unit_g = np.zeros(n + 3)
+    unit_g[n] = 1.0
+    f = np.zeros(n + 3)
+    pos, vel, acc = [y.copy()], [z / tau], [np.zeros(n + 3)]
+    for t in range(cfg.steps):
+        f[:n] = feats[t]
+        if cfg.forcing == "released":
+            dz = (az * (bz * (unit_g - y) - z) + f) / tau
+        else:
+            dz = az * (bz * (unit_g - y) - z + f) / tau
+        y = y + z / tau * dt
+        z = z + dz * dt
+        pos.append(y)
+        vel.append(z / tau)
+        acc.append(dz / tau)
+    sl = slice(None, None, cfg.subsample)
+    m = np.concatenate([np.stack(pos[sl], 1), np.stack(vel[sl], 1), np.stack(acc[sl], 1)], 1)
+    m.setflags(write=False)
+    return m
+
+
+@functools.lru_cache(maxsize=64)
+def _linear_map(
+    cfg: DMPConfig, a_z: float | None, device: torch.device, dtype: torch.dtype
+) -> torch.Tensor:
+    return torch.as_tensor(_linear_map_f64(cfg, a_z).copy(), dtype=dtype, device=device)
+
+
+def dmp_rollout_fast(
+    goal: torch.Tensor,
+    weights: torch.Tensor | None,
+    y0: torch.Tensor,
+    dy0: torch.Tensor | None = None,
+    cfg: DMPConfig | None = None,
+) -> DMPTrajectory:
+    """Integrate the DMP by one matrix product with the precomputed linear map.
+
+    Same arguments and result as :func:`dmp_rollout_reference` for a fixed a_z. The returned
+    fields are views of one [3, B, n_out, D]-strided buffer (call ``.contiguous()`` if needed).
+    """
+    cfg = cfg or DMPConfig()
+    goal, weights, y0, dy0, _ = validate_inputs(cfg, goal, weights, y0, dy0)
+    return _fast(cfg, goal, weights, y0, dy0)
+
+
+def _fast(
+    cfg: DMPConfig, goal: torch.Tensor, weights: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+) -> DMPTrajectory:
+    m = _linear_map(cfg, None, goal.device, goal.dtype)
+    b, d = goal.shape
+    n = cfg.n_basis
+    if cfg.only_g:
+        u = torch.stack((goal, y0, dy0), dim=-1)  # [B, D, 3]
+        m = m[n:]
+    else:
+        v = weights * (goal - y0).unsqueeze(-1)  # [B, D, N]
+        u = torch.cat((v, goal.unsqueeze(-1), y0.unsqueeze(-1), dy0.unsqueeze(-1)), dim=-1)
+    out = (u.reshape(b * d, -1) @ m).view(b, d, 3, cfg.n_out).permute(2, 0, 3, 1)
+    return DMPTrajectory(out[0], out[1], out[2])
+
+
+def dmp_rollout(
+    goal: torch.Tensor,
+    weights: torch.Tensor | None,
+    y0: torch.Tensor,
+    dy0: torch.Tensor | None = None,
+    cfg: DMPConfig | None = None,
+    a_z: torch.Tensor | None = None,
+    method: str = "auto",
+    check: bool = False,
+) -> DMPTrajectory:
+    """Integrate a batch of DMPs (pure function).
+
+    Args:
+        goal: g [B, D].
+        weights: w [B, D, N] (``None`` allowed with ``cfg.only_g``).
+        y0: start position [B, D].
+        dy0: start velocity [B, D] (``None``: zeros).
+        cfg: integrator settings (default :class:`DMPConfig`).
+        a_z: optional per-sample spring constant [B], [B, 1] or [B, D]; requires
+            ``cfg.learn_az`` and is clamped to ``cfg.az_range``.
+        method: 'auto' (fast path unless a_z is per-sample), 'fast' or 'loop'.
+        check: raise ``FloatingPointError`` if any input holds NaN or Inf.
+
+    Returns:
+        :class:`DMPTrajectory`, each field [B, steps // subsample + 1, D].
+    """
+    cfg = cfg or DMPConfig()
+    if method not in ("auto", "fast", "loop"):
+        raise ValueError(f"method: expected 'auto', 'fast' or 'loop', got {method!r}")
+    if cfg.learn_az and a_z is None:
+        raise ValueError("a_z: expected a per-sample tensor because cfg.learn_az is True")
+    if not cfg.learn_az and a_z is not None:
+        raise ValueError("a_z: per-sample a_z given but cfg.learn_az is False")
+    goal, weights, y0, dy0, a_z = validate_inputs(cfg, goal, weights, y0, dy0, a_z)
+    if check:
+        check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0, a_z=a_z)
+    if cfg.learn_az:
+        if method == "fast":
+            raise ValueError("method: 'fast' needs a fixed a_z; use 'loop' or 'auto' with learn_az")
+        lo, hi = cfg.az_range
+        return _reference(cfg, goal, weights, y0, dy0, a_z.clamp(lo, hi))
+    if method == "loop":
+        return _reference(cfg, goal, weights, y0, dy0, None)
+    return _fast(cfg, goal, weights, y0, dy0)

@@ -1,1 +1,32 @@
-"""ndp.envs"""
+"""Tasks of the paper behind one interface.
+
+- :data:`TASKS` / :func:`get_task_spec`: per-task spec table (DMP coordinates, units, action
+  bounds and scale, inverse controller, horizon, clocks).
+- :func:`make_env`: plain per-step env for the 50 Meta-World v3 tasks and Jaco Throw / Pick.
+- :class:`ChunkedEnv`: k sub-steps per decision with the stale-world reward rule.
+- :func:`write_mp4`: save rendered frames.
+
+All tasks are registered with gymnasium as ``ndp/<name>`` (``ndp/push-v3``,
+``ndp/JacoThrow-v0``, ``ndp/JacoPick-v0``) when this package is imported.
+"""
+
+from ndp.envs.chunked import ChunkedEnv
+from ndp.envs.factory import make_env, register_envs
+from ndp.envs.jaco import JacoEnv
+from ndp.envs.metaworld_env import MetaWorldEnv
+from ndp.envs.render import write_mp4
+from ndp.envs.spec import TASKS, TaskSpec, get_task_spec
+
+register_envs()
+
+__all__ = [
+    "TASKS",
+    "ChunkedEnv",
+    "JacoEnv",
+    "MetaWorldEnv",
+    "TaskSpec",
+    "get_task_spec",
+    "make_env",
+    "register_envs",
+    "write_mp4",
+]

@@ -1,0 +1,80 @@
+"""One factory for every task, and gymnasium registration (ids ``ndp/<name>``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+
+from ndp.envs.jaco import JacoEnv
+from ndp.envs.metaworld_env import MetaWorldEnv
+from ndp.envs.spec import TASKS, get_task_spec
+
+
+def make_env(
+    name: str,
+    *,
+    seed: int | None = None,
+    horizon: int | None = None,
+    render_mode: str | None = None,
+    **kw: Any,
+) -> gym.Env:
+    """Create the plain per-step env of a task.
+
+    Picklable factories work with ``gymnasium.vector.SyncVectorEnv`` / ``AsyncVectorEnv``, e.g.
+    ``AsyncVectorEnv([lambda i=i: make_env("push-v3", seed=s + i) for i in range(n)])``.
+
+    Args:
+        name: Task name or alias (see :data:`ndp.envs.TASKS`).
+        seed: Seed used by the first ``reset()`` that is not given one (object/goal sampling)
+            and for the action space's sampler; None leaves both unseeded.
+        horizon: Episode length in env steps; default ``spec.horizon`` (150). Meta-World's own
+            is 500.
+        render_mode: None or ``"rgb_array"``.
+        **kw: Passed to the env class (``width``, ``height``, ``camera_name`` for Meta-World,
+            ``camera`` for Jaco).
+
+    Returns:
+        A :class:`~ndp.envs.metaworld_env.MetaWorldEnv` or :class:`~ndp.envs.jaco.JacoEnv`.
+
+    Raises:
+        ValueError: unknown name (with close names), bad horizon or render mode.
+    """
+    spec = get_task_spec(name)
+    if horizon is None:
+        horizon = spec.horizon
+    if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
+        raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
+    if spec.family == "metaworld":
+        env: gym.Env = MetaWorldEnv(
+            spec.metaworld_name or spec.name, horizon=horizon, render_mode=render_mode, **kw
+        )
+    else:
+        env = JacoEnv(spec.name, horizon=horizon, render_mode=render_mode, **kw)
+    if seed is not None:
+        env.seed_next_reset(int(seed))  # type: ignore[attr-defined]
+        env.action_space.seed(int(seed))
+    return env
+
+
+def _make_registered(name: str, **kw: Any) -> gym.Env:
+    """gymnasium entry point."""
+    return make_env(name, **kw)
+
+
+def register_envs() -> list[str]:
+    """Register every task with gymnasium (idempotent).
+
+    Returns:
+        The registered ids, e.g. ``"ndp/push-v3"``, ``"ndp/JacoThrow-v0"``.
+    """
+    ids = []
+    for name, spec in TASKS.items():
+        if spec.env_id not in gym.registry:
+            gym.register(
+                id=spec.env_id,
+                entry_point="ndp.envs.factory:_make_registered",
+                kwargs={"name": name},
+            )
+        ids.append(spec.env_id)
+    return ids

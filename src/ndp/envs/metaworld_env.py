@@ -1,0 +1,274 @@
+"""Meta-World v3 tasks (metaworld 3.1.1) behind one adapter with seeded random goals.
+
+Every reset samples a fresh object + goal configuration from the task's own distribution
+(``_random_reset_space``, the same distribution ``metaworld.MT1`` draws its 50 goals from),
+with the env's own rejection loops, using a generator seeded by ``reset(seed=...)`` (or by
+``make_env(..., seed=...)`` on the first reset). The goal is observed (``_partially_observable``
+off, as in Meta-World's MT benchmarks). Same seed, same sequence of tasks for every method.
+
+Clocks: MuJoCo timestep 0.0025 s, ``frame_skip`` 5, so one env step = 0.0125 s (80 Hz).
+
+Observation (39, float64): hand xyz [0:3], gripper opening [3], object block [4:18] (positions
+and quaternions of up to two objects), the previous frame's 18 values [18:36], goal xyz [36:39].
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils.ezpickle import EzPickle
+
+from ndp.envs.jaco import _warning_count
+
+METAWORLD_POS_SCALE = 0.01
+"""Metres the hand target (mocap) moves per env step for an xyz action of 1 (metaworld default)."""
+ROBOT_JOINTS = frozenset(
+    [f"right_j{i}" for i in range(7)] + ["r_close", "l_close"]
+)
+"""Sawyer joints; every other joint of a Meta-World model is world (objects, doors, ...)."""
+WORLD_OBS = np.r_[4:18, 22:36, 36:39]
+"""Observation indices that describe the world (objects of both frames and the goal)."""
+
+
+def metaworld_env_names() -> list[str]:
+    """The 50 Meta-World v3 task names, in metaworld's order."""
+    from metaworld.env_dict import ALL_V3_ENVIRONMENTS
+
+    return list(ALL_V3_ENVIRONMENTS)
+
+
+class MetaWorldEnv(gym.Env, EzPickle):
+    """One Meta-World v3 task with random goals on every reset and a configurable horizon.
+
+    Actions [4] in ``[-1, 1]`` (clipped): hand-target displacement / ``METAWORLD_POS_SCALE`` for
+    xyz and the absolute gripper command (-1 open, +1 closed). The DMP-driven robot state (D = 4)
+    is the hand position (m, body ``hand``) with its linear velocity (m/s), and the last gripper
+    command (unitless) with its rate of change (1/s).
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 80}
+
+    def __init__(
+        self,
+        task: str = "reach-v3",
+        horizon: int = 150,
+        render_mode: str | None = None,
+        width: int = 480,
+        height: int = 480,
+        camera_name: str = "corner",
+    ) -> None:
+        """Create the env.
+
+        Args:
+            task: A Meta-World v3 name, e.g. ``"push-v3"``.
+            horizon: Env steps per episode (the paper uses 150; Meta-World's own is 500).
+            render_mode: ``None`` or ``"rgb_array"``.
+            width: Rendered frame width (px).
+            height: Rendered frame height (px).
+            camera_name: A Meta-World camera (``corner``, ``corner2``, ``corner3``,
+                ``topview``, ``behindGripper``, ``gripperPOV``).
+        """
+        from metaworld.env_dict import ALL_V3_ENVIRONMENTS
+
+        EzPickle.__init__(self, task, horizon, render_mode, width, height, camera_name)
+        if task not in ALL_V3_ENVIRONMENTS:
+            raise ValueError(f"task: expected a Meta-World v3 name, got {task!r}")
+        if int(horizon) < 1:
+            raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
+        self.task = task
+        self.horizon = int(horizon)
+        self.render_mode = render_mode
+        env = ALL_V3_ENVIRONMENTS[task](
+            render_mode=render_mode, camera_name=camera_name, width=width, height=height
+        )
+        # Task setup as metaworld's own benchmark construction does it, but with the random
+        # reset vector drawn fresh from our seeded generator at every reset.
+        env._set_task_called = True
+        env._freeze_rand_vec = False
+        env.seeded_rand_vec = True
+        env._partially_observable = False
+        del env.sawyer_observation_space  # cached property: recompute with the goal visible
+        env.max_path_length = self.horizon
+        self.mw = env
+        self.model: mujoco.MjModel = env.model
+        self.data: mujoco.MjData = env.data
+        self.observation_space = env.sawyer_observation_space
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
+        m = self.model
+        world_q: list[int] = []
+        world_v: list[int] = []
+        for j in range(m.njnt):
+            if m.joint(j).name in ROBOT_JOINTS:
+                continue
+            nq = {0: 7, 1: 4, 2: 1, 3: 1}[int(m.jnt_type[j])]
+            nv = {0: 6, 1: 3, 2: 1, 3: 1}[int(m.jnt_type[j])]
+            world_q += range(m.jnt_qposadr[j], m.jnt_qposadr[j] + nq)
+            world_v += range(m.jnt_dofadr[j], m.jnt_dofadr[j] + nv)
+        self._world_q = np.array(world_q, dtype=int)
+        self._world_v = np.array(world_v, dtype=int)
+        self._hand = m.body("hand").id
+        self._gripper = -1.0
+        self._gripper_rate = 0.0
+        self._obs: np.ndarray | None = None
+        self._unstable = False
+        self._pending_seed: int | None = None
+        self._vel6 = np.zeros(6)
+        self.control_dt = float(m.opt.timestep * env.frame_skip)
+
+    def seed_next_reset(self, seed: int | None) -> None:
+        """Use ``seed`` on the next reset that is not given one (``make_env(seed=...)``)."""
+        self._pending_seed = seed
+
+    # ------------------------------------------------------------------ state access
+    def robot_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """DMP-driven robot state now.
+
+        Returns:
+            ``(pos [4], vel [4])``: hand xyz (m) and last gripper command; hand linear velocity
+            (m/s, world frame) and the gripper command's rate (1/s).
+        """
+        mujoco.mj_objectVelocity(
+            self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self._hand, self._vel6, 0
+        )
+        pos = np.append(self.data.xpos[self._hand], self._gripper)
+        vel = np.append(self._vel6[3:], self._gripper_rate)
+        return pos, vel
+
+    def world_snapshot(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Copy of the world state: world qpos, world qvel and the last observation.
+
+        Returns:
+            ``(qpos_world, qvel_world, obs [39])``.
+        """
+        assert self._obs is not None
+        return (
+            self.data.qpos[self._world_q].copy(),
+            self.data.qvel[self._world_v].copy(),
+            self._obs.copy(),
+        )
+
+    def stale_reward(
+        self, snapshot: tuple[np.ndarray, np.ndarray, np.ndarray], action: np.ndarray
+    ) -> float:
+        """Task reward for the live robot and the world of ``snapshot``.
+
+        The world joints are set to the snapshot, positions are recomputed (``mj_kinematics``,
+        ``mj_comPos``), the task's own ``compute_reward`` runs on the current observation whose
+        world part (``WORLD_OBS``) is the snapshot's, and the live state is restored and
+        recomputed. ``compute_reward`` of the v3 tasks has no side effects on the env once the
+        episode's first step has run (checked for all 50 tasks in tests/envs; see docs/envs.md).
+
+        Args:
+            snapshot: From :meth:`world_snapshot`.
+            action: The sub-action [4] just executed (some rewards use the gripper command).
+
+        Returns:
+            The stale-world reward.
+        """
+        assert self._obs is not None
+        qw, vw, obs_w = snapshot
+        m, d = self.model, self.data
+        live_q = d.qpos[self._world_q].copy()
+        live_v = d.qvel[self._world_v].copy()
+        obs = self._obs.copy()
+        obs[WORLD_OBS] = obs_w[WORLD_OBS]
+        d.qpos[self._world_q] = qw
+        d.qvel[self._world_v] = vw
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        try:
+            reward = float(self.mw.compute_reward(np.asarray(action, dtype=np.float64), obs)[0])
+        finally:
+            d.qpos[self._world_q] = live_q
+            d.qvel[self._world_v] = live_v
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+        return reward
+
+    # ------------------------------------------------------------------ gym API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset with a new random object + goal configuration (seeded)."""
+        if seed is None and self._pending_seed is not None:
+            seed, self._pending_seed = self._pending_seed, None
+        super().reset(seed=seed)
+        self.mw.np_random = self.np_random  # metaworld draws its reset vector from this
+        obs, _ = self.mw.reset()
+        self._gripper = -1.0  # metaworld's hand reset leaves the gripper open (command -1)
+        self._gripper_rate = 0.0
+        self._unstable = False
+        self._obs = np.asarray(obs, dtype=np.float64)
+        pos, vel = self.robot_state()
+        return self._obs.copy(), {
+            "success": False,
+            "robot_pos": pos,
+            "robot_vel": vel,
+            "sim_unstable": False,
+        }
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """One env step.
+
+        Args:
+            action: [4]; clipped to ``[-1, 1]``.
+
+        Returns:
+            ``(obs [39], reward, terminated (always False), truncated, info)``; info has
+            metaworld's keys plus ``success`` (bool), ``robot_pos`` [4], ``robot_vel`` [4],
+            ``sim_unstable``.
+
+        Raises:
+            ValueError: wrong shape or non-finite values in ``action``.
+        """
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (4,):
+            raise ValueError(f"action: expected shape (4,), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError("action: expected finite values, got NaN or inf")
+        if self._obs is None:
+            raise RuntimeError("call reset() before step()")
+        if self._unstable or self.mw.curr_path_length >= self.horizon:
+            raise RuntimeError("episode is over: call reset()")
+        a = np.clip(a, -1.0, 1.0).astype(np.float32)
+        warn_before = _warning_count(self.data)
+        obs, reward, _, truncated, mw_info = self.mw.step(a)
+        self._gripper_rate = (float(a[3]) - self._gripper) / self.control_dt
+        self._gripper = float(a[3])
+        unstable = _warning_count(self.data) > warn_before or not (
+            np.all(np.isfinite(self.data.qpos)) and np.all(np.isfinite(self.data.qvel))
+        )
+        pos, vel = self.robot_state()
+        info: dict[str, Any] = {k: float(v) for k, v in mw_info.items()}
+        if unstable:
+            self._unstable = True
+            info.update(success=False, robot_pos=np.nan_to_num(pos),
+                        robot_vel=np.nan_to_num(vel), sim_unstable=True)
+            return self._obs.copy(), 0.0, False, True, info
+        self._obs = np.asarray(obs, dtype=np.float64)
+        info.update(
+            success=bool(mw_info["success"] > 0.5),
+            robot_pos=pos,
+            robot_vel=vel,
+            sim_unstable=False,
+        )
+        return self._obs.copy(), float(reward), False, bool(truncated), info
+
+    def render(self) -> np.ndarray | None:
+        """Upright RGB frame [H, W, 3] uint8 (``render_mode="rgb_array"``)."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without render_mode='rgb_array'")
+            return None
+        frame = self.mw.render()
+        # metaworld's cameras come out of MuJoCo's renderer bottom row first: flip to upright.
+        return None if frame is None else np.ascontiguousarray(frame[::-1])
+
+    def close(self) -> None:
+        """Close the Meta-World env (and its renderer)."""
+        self.mw.close()

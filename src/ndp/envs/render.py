@@ -1,0 +1,45 @@
+"""Rendering helpers: collect upright rgb_array frames and write mp4 files (imageio-ffmpeg).
+
+Headless rendering needs ``MUJOCO_GL=egl`` (or ``osmesa``) set before MuJoCo's renderer is
+first used; the Makefile exports it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+
+def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> Path:
+    """Write RGB frames to an H.264 mp4.
+
+    Args:
+        frames: Sequence of [H, W, 3] uint8 frames (all the same size).
+        path: Output file; parent folders are created.
+        fps: Frames per second.
+
+    Returns:
+        The written path.
+
+    Raises:
+        ValueError: no frames, or frames that are not [H, W, 3] uint8 of one size.
+    """
+    import imageio.v2 as imageio
+
+    if len(frames) == 0:
+        raise ValueError("frames: expected at least one frame, got none")
+    shape = np.asarray(frames[0]).shape
+    for f in frames:
+        f = np.asarray(f)
+        if f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3 or f.shape != shape:
+            raise ValueError(f"frames: expected [H, W, 3] uint8 frames of shape {shape}, "
+                             f"got {f.dtype} {f.shape}")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # macro_block_size=1 keeps odd sizes as they are instead of resizing them.
+    with imageio.get_writer(str(path), fps=fps, codec="libx264", macro_block_size=1) as w:
+        for f in frames:
+            w.append_data(np.asarray(f))
+    return path

@@ -1,0 +1,217 @@
+"""Per-task spec table: what a DMP drives, in which units, and how trajectories become actions.
+
+No code anywhere should branch on task-name strings; it reads a :class:`TaskSpec` instead.
+
+Inverse controllers (pure torch, batched, differentiable up to the clip):
+
+- Meta-World (D = 4, A = 4): for sub-step ``t`` of a trajectory ``p`` [..., k+1, 4] in physical
+  units, ``a[t, :3] = clip((p[t+1, :3] - p[t, :3]) / 0.01, -1, 1)`` (metaworld moves the hand
+  target 0.01 m per unit action per step) and ``a[t, 3] = clip(p[t+1, 3], -1, 1)``: the DMP's
+  fourth coordinate IS the absolute gripper command, so its ``y0`` is the last command sent
+  (-1 = open after reset).
+- Jaco (D = 7, A = 7): ``a[t] = clip((p[t+1] - p[t]) / scale, -1, 1)`` with ``scale`` =
+  0.05 rad for the 6 arm joints and 0.1 rad for the tied finger coordinate (the env adds
+  ``a * scale`` to its joint-position targets).
+
+If ``robot_pos`` [..., D] is given it replaces ``p[..., 0, :]`` (the measured start).
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass, field
+from typing import Literal
+
+import torch
+
+from ndp.envs import jaco
+from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, metaworld_env_names
+
+Family = Literal["metaworld", "jaco"]
+
+
+def _inverse_delta(
+    traj: torch.Tensor,
+    scale: torch.Tensor,
+    absolute: torch.Tensor,
+    low: torch.Tensor,
+    high: torch.Tensor,
+    robot_pos: torch.Tensor | None,
+) -> torch.Tensor:
+    """Shared inverse controller: deltas / scale, or absolute values, then clip.
+
+    Args:
+        traj: Trajectory points [..., k+1, D] (physical units).
+        scale: [D] physical change per unit action (for delta coordinates).
+        absolute: [D] bool; True where the action is the trajectory value itself.
+        low: [D] action lower bounds.
+        high: [D] action upper bounds.
+        robot_pos: Optional measured start [..., D] replacing ``traj[..., 0, :]``.
+
+    Returns:
+        Actions [..., k, D] within ``[low, high]``.
+    """
+    if traj.dim() < 2 or traj.shape[-2] < 2:
+        raise ValueError(f"traj: expected shape [..., k+1, D] with k >= 1, got {tuple(traj.shape)}")
+    if traj.shape[-1] != scale.shape[0]:
+        raise ValueError(f"traj: expected last dim {scale.shape[0]}, got {traj.shape[-1]}")
+    if robot_pos is not None:
+        traj = torch.cat([robot_pos.unsqueeze(-2).to(traj), traj[..., 1:, :]], dim=-2)
+    dev, dt = traj.device, traj.dtype
+    scale, absolute = scale.to(dev, dt), absolute.to(dev)
+    low, high = low.to(dev, dt), high.to(dev, dt)
+    delta = (traj[..., 1:, :] - traj[..., :-1, :]) / scale
+    act = torch.where(absolute, traj[..., 1:, :], delta)
+    return torch.maximum(torch.minimum(act, high), low)
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """Everything the trainer needs to know about one task."""
+
+    name: str
+    """Canonical task name (a key of :data:`TASKS`)."""
+    family: Family
+    """``"metaworld"`` (Sawyer, end-effector control) or ``"jaco"`` (joint-angle control)."""
+    env_id: str
+    """Registered gymnasium id, usable with ``gymnasium.make``."""
+    dmp_dofs: int
+    """D: coordinates a DMP drives (Meta-World 4: hand xyz, gripper; Jaco 7: 6 joints, fingers)."""
+    dof_names: tuple[str, ...]
+    """Name of each DMP coordinate, length D."""
+    dof_units: tuple[str, ...]
+    """Physical unit of each DMP coordinate (``m``, ``rad``, ``cmd``), length D."""
+    y0_source: str
+    """Where ``robot_pos`` / ``robot_vel`` (the DMP's y0, dy0) are read, in words."""
+    action_dim: int
+    """A: size of one env action."""
+    action_low: tuple[float, ...]
+    """Lower bounds of one env action (out-of-range actions are clipped to these)."""
+    action_high: tuple[float, ...]
+    """Upper bounds of one env action."""
+    action_scale: tuple[float, ...]
+    """Physical change per unit action, per DMP coordinate (0 where the action is absolute)."""
+    action_absolute: tuple[bool, ...]
+    """True where the action is the trajectory value itself rather than a scaled delta."""
+    horizon: int
+    """Default episode length in env steps (Meta-World: 150 as in the paper; Jaco: 150)."""
+    control_dt: float
+    """Seconds per env step (= per sub-step of a chunked decision)."""
+    sim_dt: float
+    """MuJoCo timestep (s); ``control_dt / sim_dt`` simulator steps per env step."""
+    obs_dim: int
+    """Observation size."""
+    metaworld_name: str | None = None
+    """The metaworld v3 name for Meta-World tasks, else None."""
+    aliases: tuple[str, ...] = field(default=())
+    """Other names :func:`get_task_spec` accepts for this task."""
+
+    def inverse_controller(
+        self, traj: torch.Tensor, robot_pos: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """Map DMP trajectory points to bounded env actions (see the module docstring).
+
+        Args:
+            traj: [..., k+1, D] trajectory points in physical units; ``traj[..., 0, :]`` is the
+                robot's state at the decision.
+            robot_pos: Optional [..., D] measured start replacing ``traj[..., 0, :]``.
+
+        Returns:
+            [..., k, A] actions within ``[action_low, action_high]``.
+        """
+        scale = torch.tensor([s if s > 0 else 1.0 for s in self.action_scale])
+        return _inverse_delta(
+            traj,
+            scale,
+            torch.tensor(self.action_absolute),
+            torch.tensor(self.action_low),
+            torch.tensor(self.action_high),
+            robot_pos,
+        )
+
+
+def _metaworld_spec(name: str) -> TaskSpec:
+    return TaskSpec(
+        name=name,
+        family="metaworld",
+        env_id=f"ndp/{name}",
+        dmp_dofs=4,
+        dof_names=("hand_x", "hand_y", "hand_z", "gripper"),
+        dof_units=("m", "m", "m", "cmd"),
+        y0_source=(
+            "hand body position (m) and its linear velocity (m/s) from MuJoCo; gripper: the last "
+            "gripper command sent (-1 after reset) and its rate (1/s)"
+        ),
+        action_dim=4,
+        action_low=(-1.0,) * 4,
+        action_high=(1.0,) * 4,
+        action_scale=(METAWORLD_POS_SCALE,) * 3 + (0.0,),
+        action_absolute=(False, False, False, True),
+        horizon=150,
+        control_dt=0.0125,
+        sim_dt=0.0025,
+        obs_dim=39,
+        metaworld_name=name,
+        aliases=(name.removesuffix("-v3"), f"metaworld-{name}"),
+    )
+
+
+def _jaco_spec(task: str) -> TaskSpec:
+    return TaskSpec(
+        name=task,
+        family="jaco",
+        env_id=f"ndp/Jaco{task.capitalize()}-v0",
+        dmp_dofs=7,
+        dof_names=(*(j.split("/")[-1] for j in jaco.ARM_JOINTS), "fingers"),
+        dof_units=("rad",) * 7,
+        y0_source=(
+            "arm joint angles (rad) and velocities (rad/s) from MuJoCo qpos/qvel; fingers: the "
+            "mean of the three finger joint angles and velocities (the fingers are tied)"
+        ),
+        action_dim=7,
+        action_low=(-1.0,) * 7,
+        action_high=(1.0,) * 7,
+        action_scale=(jaco.ARM_DELTA,) * 6 + (jaco.FINGER_DELTA,),
+        action_absolute=(False,) * 7,
+        horizon=150,
+        control_dt=jaco.CONTROL_DT,
+        sim_dt=jaco.SIM_DT,
+        obs_dim=35,
+        aliases=(f"jaco-{task}", f"Jaco{task.capitalize()}-v0", f"jaco_{task}"),
+    )
+
+
+def _build_table() -> dict[str, TaskSpec]:
+    table = {n: _metaworld_spec(n) for n in metaworld_env_names()}
+    for task in ("throw", "pick"):
+        table[task] = _jaco_spec(task)
+    return table
+
+
+TASKS: dict[str, TaskSpec] = _build_table()
+"""name -> TaskSpec for the 50 Meta-World v3 tasks and ``"throw"`` / ``"pick"``."""
+
+_ALIASES: dict[str, str] = {a: s.name for s in TASKS.values() for a in (*s.aliases, s.env_id)}
+
+
+def get_task_spec(name: str) -> TaskSpec:
+    """Look up a task by name or alias.
+
+    Args:
+        name: e.g. ``"push-v3"``, ``"throw"``, ``"jaco-pick"``.
+
+    Returns:
+        The task's :class:`TaskSpec`.
+
+    Raises:
+        ValueError: unknown name; the message lists the closest known names.
+    """
+    if not isinstance(name, str):
+        raise ValueError(f"name: expected a task name string, got {type(name).__name__}")
+    if name in TASKS:
+        return TASKS[name]
+    if name in _ALIASES:
+        return TASKS[_ALIASES[name]]
+    close = difflib.get_close_matches(name, list(TASKS) + list(_ALIASES), n=5, cutoff=0.5)
+    hint = ", ".join(close) if close else "see ndp.envs.TASKS"
+    raise ValueError(f"name: unknown task {name!r}; close names: {hint}")

@@ -277,7 +277,12 @@ def dmp_rollout_fast(
 
 
 def _fast(
-    cfg: DMPConfig, goal: torch.Tensor, weights: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+    cfg: DMPConfig,
+    goal: torch.Tensor,
+    weights: torch.Tensor,
+    y0: torch.Tensor,
+    dy0: torch.Tensor,
+    check: bool = False,
 ) -> DMPTrajectory:
     m = _linear_map(cfg, None, goal.device, goal.dtype)
     b, d = goal.shape
@@ -288,8 +293,12 @@ def _fast(
     else:
         v = weights * (goal - y0).unsqueeze(-1)  # [B, D, N]
         u = torch.cat((v, goal.unsqueeze(-1), y0.unsqueeze(-1), dy0.unsqueeze(-1)), dim=-1)
+    if check and not bool(torch.isfinite(u.sum())):
+        # One reduction over the packed inputs; name the culprit only when something is wrong.
+        check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0)
+        raise FloatingPointError("inputs: expected finite values, their sum overflows")
     out = (u.reshape(b * d, -1) @ m).view(b, d, 3, cfg.n_out).permute(2, 0, 3, 1)
-    return DMPTrajectory(out[0], out[1], out[2])
+    return DMPTrajectory(*out.unbind(0))
 
 
 def dmp_rollout(
@@ -326,7 +335,7 @@ def dmp_rollout(
     if not cfg.learn_az and a_z is not None:
         raise ValueError("a_z: per-sample a_z given but cfg.learn_az is False")
     goal, weights, y0, dy0, a_z = validate_inputs(cfg, goal, weights, y0, dy0, a_z)
-    if check:
+    if check and (cfg.learn_az or method == "loop"):
         check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0, a_z=a_z)
     if cfg.learn_az:
         if method == "fast":
@@ -335,4 +344,4 @@ def dmp_rollout(
         return _reference(cfg, goal, weights, y0, dy0, a_z.clamp(lo, hi))
     if method == "loop":
         return _reference(cfg, goal, weights, y0, dy0, None)
-    return _fast(cfg, goal, weights, y0, dy0)
+    return _fast(cfg, goal, weights, y0, dy0, check)

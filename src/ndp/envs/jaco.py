@@ -38,7 +38,7 @@ FRAME_SKIP = 10
 """Simulator steps per env step."""
 CONTROL_DT = SIM_DT * FRAME_SKIP
 """Seconds per env step (one sub-step of a chunked decision)."""
-ARM_DELTA = 0.05
+ARM_DELTA = 0.1
 """Arm joint-target change (rad) for an action of 1."""
 FINGER_DELTA = 0.1
 """Finger joint-target change (rad) for an action of 1 (all three fingers, tied)."""
@@ -64,6 +64,10 @@ HOLD_RADIUS = 0.08
 """Held: the cube's centre is within this distance (m) of the hand's grip site ..."""
 HOLD_FINGER = 0.5
 """... and the mean finger angle (rad) is above this (fingers at least partly closed)."""
+
+OBS_BOUND = np.array([10.0] * 9 + [100.0] * 9 + [5.0] * 3 + [1.0] * 4 + [100.0] * 3 + [5.0] * 6)
+"""Observation bounds [34]: angles (rad; targets are clipped to +-6.3), joint velocities
+(rad/s), cube position (m), quaternion, cube velocity (m/s), grip site and target (m)."""
 
 # Home pose for Pick (hand pointing down, grip site about 0.3 m above the cube's nominal spot) and
 # carry pose for Throw (cube in the closed hand); found with jaco_ik and stored as constants.
@@ -181,10 +185,10 @@ def jaco_ik(
 class JacoEnv(gym.Env, EzPickle):
     """Jaco arm with a 0.08 m, 0.2 kg cube; ``task`` selects Throw or Pick.
 
-    Observation (float64, 35): arm joint angles [6], finger angles [3], arm joint velocities [6],
-    finger velocities [3], cube position [3], cube quaternion [4], cube linear velocity [3],
-    grip-site position [3], target position [3] (basket centre for Throw; the lift target above
-    the cube's start for Pick), in metres, radians and seconds.
+    Observation (float64, 34; clipped to ``OBS_BOUND``): arm joint angles [6], finger angles [3],
+    arm joint velocities [6], finger velocities [3], cube position [3], cube quaternion [4],
+    cube linear velocity [3], grip-site position [3], target position [3] (basket centre for
+    Throw; the lift target above the cube's start for Pick), in metres, radians and seconds.
 
     Throw: the cube starts held in the closed hand; the basket's centre is ``THROW_DISTANCE``
     (+- 0.05 m, seeded) beyond the cube along +y. Reward = minus the cube's horizontal distance
@@ -246,7 +250,7 @@ class JacoEnv(gym.Env, EzPickle):
         self._ctrl_lo = m.actuator_ctrlrange[:, 0].copy()
         self._ctrl_hi = m.actuator_ctrlrange[:, 1].copy()
         self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(35,), dtype=np.float64)
+        self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, dtype=np.float64)
         self._target = np.zeros(9)
         self._goal = np.zeros(3)
         self._cube_rest_z = CUBE_HALF
@@ -258,6 +262,11 @@ class JacoEnv(gym.Env, EzPickle):
     def seed_next_reset(self, seed: int | None) -> None:
         """Use ``seed`` on the next reset that is not given one (``make_env(seed=...)``)."""
         self._pending_seed = seed
+
+    @property
+    def joint_targets(self) -> np.ndarray:
+        """Current position targets [9] (rad): 6 arm joints, then the 3 (tied) fingers."""
+        return self._target.copy()
 
     # ------------------------------------------------------------------ state access
     def robot_state(self) -> tuple[np.ndarray, np.ndarray]:
@@ -320,7 +329,7 @@ class JacoEnv(gym.Env, EzPickle):
     def _obs(self) -> np.ndarray:
         q, v = self.data.qpos, self.data.qvel
         c, cv = self._cube_q, self._cube_v
-        return np.concatenate(
+        obs = np.concatenate(
             [
                 q[self._arm_q],
                 q[self._fin_q],
@@ -332,7 +341,8 @@ class JacoEnv(gym.Env, EzPickle):
                 self.data.site_xpos[self._grip],
                 self._goal,
             ]
-        ).astype(np.float64)
+        )
+        return np.clip(obs, -OBS_BOUND, OBS_BOUND)
 
     # ------------------------------------------------------------------ gym API
     def reset(
@@ -399,7 +409,7 @@ class JacoEnv(gym.Env, EzPickle):
                 tied finger-target delta / ``FINGER_DELTA``.
 
         Returns:
-            ``(obs [35], reward, terminated (always False), truncated, info)``; info has
+            ``(obs [34], reward, terminated (always False), truncated, info)``; info has
             ``success``, ``robot_pos`` [7], ``robot_vel`` [7], ``sim_unstable``.
 
         Raises:

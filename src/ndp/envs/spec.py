@@ -10,7 +10,7 @@ Inverse controllers (pure torch, batched, differentiable up to the clip):
   fourth coordinate IS the absolute gripper command, so its ``y0`` is the last command sent
   (-1 = open after reset).
 - Jaco (D = 7, A = 7): ``a[t] = clip((p[t+1] - p[t]) / scale, -1, 1)`` with ``scale`` =
-  0.05 rad for the 6 arm joints and 0.1 rad for the tied finger coordinate (the env adds
+  0.1 rad for the 6 arm joints and 0.1 rad for the tied finger coordinate (the env adds
   ``a * scale`` to its joint-position targets).
 
 If ``robot_pos`` [..., D] is given it replaces ``p[..., 0, :]`` (the measured start).
@@ -176,7 +176,7 @@ def _jaco_spec(task: str) -> TaskSpec:
         horizon=150,
         control_dt=jaco.CONTROL_DT,
         sim_dt=jaco.SIM_DT,
-        obs_dim=35,
+        obs_dim=34,
         aliases=(f"jaco-{task}", f"Jaco{task.capitalize()}-v0", f"jaco_{task}"),
     )
 

@@ -1,0 +1,6 @@
+"""Shared setup for the env tests: headless rendering backend."""
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")

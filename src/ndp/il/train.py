@@ -1,0 +1,499 @@
+"""Training and evaluation of the image-to-trajectory models.
+
+One run directory holds everything of a run::
+
+    <run_dir>/config.json          resolved TrainConfig (written at start)
+    <run_dir>/checkpoint.pt        latest good checkpoint (written atomically every epoch)
+    <run_dir>/metrics.csv          one row per epoch, stable column names (see METRIC_NAMES)
+    <run_dir>/tb/                  TensorBoard event files (same names)
+    <run_dir>/eval.json            evaluation summary (``ndp il eval``)
+    <run_dir>/predictions.png      test images with predicted and demonstrated trajectories
+
+Protocol defaults follow the paper: Adam 1e-3, batch 100, 71 epochs, the first 12,000 synthetic
+samples shuffled with ``split_seed`` into 10,000 train / 2,000 test.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import os
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from ndp.il.data import (
+    DigitData,
+    load_npz,
+    load_pendigits,
+    load_synthetic,
+    paper_split,
+    writer_split,
+)
+from ndp.il.metrics import dtw_distance, per_sample_mse, save_prediction_grid, summarize
+from ndp.il.models import CNNDMPModel, ModelConfig, TrajectoryModel, build_model
+from ndp.il.synthetic import SyntheticConfig
+
+METRIC_NAMES = (
+    "train/loss",
+    "train/mse_px2",
+    "test/mse_px2",
+    "test/mse_px2_std",
+    "time/epoch_s",
+    "time/samples_per_s",
+)
+"""Per-epoch metric names, identical in metrics.csv and TensorBoard."""
+
+DEFAULT_PENDIGITS = Path(__file__).resolve().parents[4] / "shared" / "data" / "pendigits"
+
+
+class NonFiniteLossError(ValueError):
+    """Raised when the training loss becomes NaN or Inf; the last good checkpoint is kept."""
+
+
+@dataclass
+class DataConfig:
+    """Which data set and which split."""
+
+    source: str = "synthetic"
+    """'synthetic', 'pendigits' or a path to a user's .npz file."""
+    data_dir: str = "data"
+    """Cache folder of the synthetic set."""
+    n_samples: int = 20000
+    """Synthetic set size (the split uses its first n_train + n_test samples)."""
+    data_seed: int = 0
+    """Seed of the synthetic generator."""
+    pendigits_path: str = ""
+    """UNIPEN file of Pendigits ('' = ../shared/data/pendigits/pendigits-train)."""
+    split: str = "auto"
+    """'paper' (shuffle the first n_train + n_test), 'writer' (writer-disjoint), or 'auto'."""
+    n_train: int = 10000
+    """Training samples of the paper split."""
+    n_test: int = 2000
+    """Test samples of the paper split."""
+    test_fraction: float = 0.2
+    """Fraction of writers (writer split) or samples (npz without n_train) held out."""
+    split_seed: int = 0
+    """Seed of the train / test shuffle."""
+    resample: bool = False
+    """Resample .npz trajectories of another length to 301 points instead of refusing."""
+
+
+@dataclass
+class TrainConfig:
+    """Everything that defines a training run (saved as config.json in the run directory)."""
+
+    run_dir: str = "runs/il"
+    """Output folder of the run."""
+    data: DataConfig = field(default_factory=DataConfig)
+    """Data set and split."""
+    model: ModelConfig = field(default_factory=ModelConfig)
+    """Model settings."""
+    epochs: int = 71
+    """Passes over the training split."""
+    batch_size: int = 100
+    """Samples per Adam step."""
+    lr: float = 1e-3
+    """Adam learning rate."""
+    seed: int = 0
+    """Seed of initialisation and batch order."""
+    threads: int = 0
+    """torch CPU threads (0: leave torch's default)."""
+    device: str = "cpu"
+    """torch device."""
+    progress: bool = True
+    """Show a tqdm progress bar."""
+    eval_every: int = 1
+    """Evaluate the test MSE every this many epochs (0: only at the end)."""
+    max_train_batches: int = 0
+    """Stop each epoch after this many batches (0: all; for smoke tests)."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.data, dict):
+            self.data = DataConfig(**self.data)
+        if isinstance(self.model, dict):
+            self.model = ModelConfig(**self.model)
+        if self.epochs < 0 or self.batch_size <= 0 or not self.lr > 0:
+            raise ValueError(
+                f"need epochs >= 0, batch_size > 0, lr > 0: {self.epochs}, "
+                f"{self.batch_size}, {self.lr}"
+            )
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-serialisable form."""
+        d = dataclasses.asdict(self)
+        d["model"] = self.model.as_dict()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
+        """Inverse of :meth:`as_dict`."""
+        d = dict(d)
+        d["data"] = DataConfig(**d.get("data", {}))
+        d["model"] = ModelConfig(**d.get("model", {}))
+        return cls(**d)
+
+
+# --------------------------------------------------------------------------------------------
+# Data
+# --------------------------------------------------------------------------------------------
+
+
+def load_data(cfg: DataConfig, n_points: int = 301, progress: bool = False) -> DigitData:
+    """Load the data set named by ``cfg.source``."""
+    if cfg.source == "synthetic":
+        syn = SyntheticConfig(n_samples=cfg.n_samples, seed=cfg.data_seed)
+        data = load_synthetic(syn, cfg.data_dir, progress=progress)
+    elif cfg.source == "pendigits":
+        path = Path(cfg.pendigits_path) if cfg.pendigits_path else None
+        if path is None:
+            path = DEFAULT_PENDIGITS / "pendigits-train"
+        data = load_pendigits(path, n_points=n_points)
+    else:
+        data = load_npz(Path(cfg.source), n_points=n_points, resample=cfg.resample)
+    if data.n_points != n_points:
+        raise ValueError(f"data has {data.n_points} points per trajectory, model needs {n_points}")
+    return data
+
+
+def make_split(data: DigitData, cfg: DataConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Train / test indices for ``data`` under ``cfg.split`` (see :class:`DataConfig`)."""
+    split = cfg.split
+    if split == "auto":
+        split = "writer" if np.all(data.writers >= 0) and cfg.source == "pendigits" else "paper"
+    if split == "writer":
+        return writer_split(data.writers, cfg.test_fraction, cfg.split_seed)
+    if split != "paper":
+        raise ValueError(f"split must be 'paper', 'writer' or 'auto', got {cfg.split!r}")
+    n_train, n_test = cfg.n_train, cfg.n_test
+    if cfg.source not in ("synthetic",) and n_train + n_test > len(data):
+        n_test = max(1, round(cfg.test_fraction * len(data)))
+        n_train = len(data) - n_test
+    return paper_split(len(data), n_train, n_test, cfg.split_seed)
+
+
+# --------------------------------------------------------------------------------------------
+# Files
+# --------------------------------------------------------------------------------------------
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write text atomically (temporary file in the same folder, then os.replace)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def atomic_torch_save(obj: Any, path: Path) -> None:
+    """torch.save atomically (temporary file in the same folder, then os.replace)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            torch.save(obj, f)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def load_checkpoint(path: Path) -> dict[str, Any]:
+    """Read a checkpoint with a clear error for missing or corrupt files."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "checkpoint.pt"
+    if not path.exists():
+        raise FileNotFoundError(f"checkpoint not found: {path}")
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as exc:  # torch raises several types for corrupt files
+        raise ValueError(f"cannot read checkpoint {path}: {type(exc).__name__}: {exc}") from exc
+    if not isinstance(ckpt, dict) or "model" not in ckpt or "config" not in ckpt:
+        raise ValueError(f"{path} is not an ndp il checkpoint")
+    return ckpt
+
+
+class _CSVLog:
+    """Append-only CSV with a fixed header."""
+
+    def __init__(self, path: Path, columns: tuple[str, ...]) -> None:
+        self.path = path
+        self.columns = ("epoch", *columns)
+        if not path.exists():
+            with path.open("w", newline="") as f:
+                csv.writer(f).writerow(self.columns)
+
+    def write(self, epoch: int, row: dict[str, float]) -> None:
+        with self.path.open("a", newline="") as f:
+            csv.writer(f).writerow([epoch] + [row.get(c, "") for c in self.columns[1:]])
+
+
+# --------------------------------------------------------------------------------------------
+# Prediction
+# --------------------------------------------------------------------------------------------
+
+
+@torch.no_grad()
+def predict(
+    model: TrajectoryModel,
+    images: torch.Tensor,
+    y0: torch.Tensor,
+    batch_size: int = 500,
+) -> torch.Tensor:
+    """Predicted trajectories [n, T, 2] for images [n, H, W] and start points y0 [n, 2]."""
+    model.eval()
+    out = [
+        model.predict(images[s : s + batch_size], y0[s : s + batch_size])
+        for s in range(0, images.shape[0], batch_size)
+    ]
+    return torch.cat(out, dim=0)
+
+
+def _set_threads(n: int) -> None:
+    if n > 0:
+        torch.set_num_threads(n)
+
+
+# --------------------------------------------------------------------------------------------
+# Training
+# --------------------------------------------------------------------------------------------
+
+
+def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
+    """Train a model; returns a summary (final metrics, timings, paths).
+
+    Args:
+        cfg: run settings. With ``resume`` the run directory's config.json is used instead
+            except for ``epochs`` (so a run can be extended) and ``progress``.
+        resume: continue from ``<run_dir>/checkpoint.pt``.
+
+    Raises:
+        NonFiniteLossError: the loss became NaN / Inf (the last good checkpoint stays).
+        FileNotFoundError, ValueError: bad data paths or files.
+    """
+    run_dir = Path(cfg.run_dir)
+    ckpt_path = run_dir / "checkpoint.pt"
+    ckpt = None
+    if resume:
+        ckpt = load_checkpoint(ckpt_path)
+        saved = TrainConfig.from_dict(ckpt["config"])
+        saved.epochs, saved.progress, saved.run_dir = cfg.epochs, cfg.progress, cfg.run_dir
+        saved.threads = cfg.threads
+        cfg = saved
+    _set_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    device = torch.device(cfg.device)
+
+    data = load_data(cfg.data, cfg.model.n_points, progress=cfg.progress)
+    tr_idx, te_idx = make_split(data, cfg.data)
+    x_all = torch.from_numpy(data.images)
+    y_all = torch.from_numpy(data.trajs)
+    x_tr, y_tr = x_all[tr_idx].to(device), y_all[tr_idx].to(device)
+    x_te, y_te = x_all[te_idx].to(device), y_all[te_idx].to(device)
+    if cfg.model.frame != data.frame[1]:
+        cfg.model.frame = float(data.frame[1])
+
+    model = build_model(cfg.model).to(device)
+    targets = None
+    if isinstance(model, CNNDMPModel):
+        targets = model.fit_targets(y_tr.cpu()).to(device)
+        if ckpt is None:
+            model.set_target_stats(targets)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    start_epoch = 0
+    history: list[dict[str, float]] = []
+    gen = torch.Generator().manual_seed(cfg.seed)
+    if ckpt is not None:
+        model.load_state_dict(ckpt["model"])
+        opt.load_state_dict(ckpt["optimizer"])
+        start_epoch = int(ckpt["epoch"])
+        history = list(ckpt.get("history", []))
+        gen.set_state(ckpt["generator"])
+        torch.set_rng_state(ckpt["torch_rng"])
+
+    run_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(run_dir / "config.json", json.dumps(cfg.as_dict(), indent=2) + "\n")
+    csv_log = _CSVLog(run_dir / "metrics.csv", METRIC_NAMES)
+    from torch.utils.tensorboard import SummaryWriter
+
+    writer = SummaryWriter(log_dir=str(run_dir / "tb"))
+    n_tr = x_tr.shape[0]
+    steps_per_epoch = math.ceil(n_tr / cfg.batch_size)
+    if cfg.max_train_batches > 0:
+        steps_per_epoch = min(steps_per_epoch, cfg.max_train_batches)
+    bar = None
+    if cfg.progress:
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=(cfg.epochs - start_epoch) * steps_per_epoch,
+            desc=f"il {cfg.model.kind}",
+            unit="batch",
+            dynamic_ncols=True,
+        )
+    t_run = time.perf_counter()
+    row: dict[str, float] = {}
+    try:
+        for epoch in range(start_epoch, cfg.epochs):
+            model.train()
+            t0 = time.perf_counter()
+            perm = torch.randperm(n_tr, generator=gen).to(device)
+            loss_sum = mse_sum = 0.0
+            seen = 0
+            for step in range(steps_per_epoch):
+                idx = perm[step * cfg.batch_size : (step + 1) * cfg.batch_size]
+                xb, yb = x_tr[idx], y_tr[idx]
+                loss, pred = model.loss(xb, yb, None if targets is None else targets[idx])
+                if not torch.isfinite(loss):
+                    last = f"epoch {start_epoch_done(ckpt_path)}" if ckpt_path.exists() else "none"
+                    raise NonFiniteLossError(
+                        f"training loss became {loss.item()} at epoch {epoch + 1}, batch "
+                        f"{step + 1}; training stopped. Last good checkpoint: {ckpt_path} "
+                        f"({last}). Try a lower --lr."
+                    )
+                opt.zero_grad(set_to_none=True)
+                loss.backward()
+                opt.step()
+                b = idx.shape[0]
+                loss_sum += loss.item() * b
+                mse_sum += float(((pred.detach() - yb) ** 2).mean()) * b
+                seen += b
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix(epoch=epoch + 1, loss=f"{loss.item():.3g}")
+            dt = time.perf_counter() - t0
+            row = {
+                "train/loss": loss_sum / seen,
+                "train/mse_px2": mse_sum / seen,
+                "time/epoch_s": dt,
+                "time/samples_per_s": seen / dt,
+            }
+            last_epoch = epoch + 1 == cfg.epochs
+            if (cfg.eval_every > 0 and (epoch + 1) % cfg.eval_every == 0) or last_epoch:
+                err = per_sample_mse(predict(model, x_te, y_te[:, 0]).cpu(), y_te.cpu())
+                row["test/mse_px2"] = float(err.mean())
+                row["test/mse_px2_std"] = float(err.std())
+            for k, v in row.items():
+                writer.add_scalar(k, v, epoch + 1)
+            writer.flush()
+            csv_log.write(epoch + 1, row)
+            history.append({"epoch": epoch + 1, **row})
+            atomic_torch_save(
+                {
+                    "model": model.state_dict(),
+                    "optimizer": opt.state_dict(),
+                    "epoch": epoch + 1,
+                    "config": cfg.as_dict(),
+                    "history": history,
+                    "generator": gen.get_state(),
+                    "torch_rng": torch.get_rng_state(),
+                },
+                ckpt_path,
+            )
+    finally:
+        if bar is not None:
+            bar.close()
+        writer.close()
+    return {
+        "run_dir": str(run_dir),
+        "checkpoint": str(ckpt_path),
+        "epochs": cfg.epochs,
+        "train_wall_s": time.perf_counter() - t_run,
+        "final": row,
+        "n_train": int(n_tr),
+        "n_test": int(x_te.shape[0]),
+    }
+
+
+def start_epoch_done(ckpt_path: Path) -> int:
+    """Epoch stored in an existing checkpoint (0 if unreadable)."""
+    try:
+        return int(load_checkpoint(ckpt_path)["epoch"])
+    except (FileNotFoundError, ValueError, KeyError):
+        return 0
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluation
+# --------------------------------------------------------------------------------------------
+
+
+def load_model(ckpt: dict[str, Any]) -> tuple[TrajectoryModel, TrainConfig]:
+    """Rebuild the model and its TrainConfig from a checkpoint dict."""
+    cfg = TrainConfig.from_dict(ckpt["config"])
+    model = build_model(cfg.model)
+    model.load_state_dict(ckpt["model"])
+    model.eval()
+    return model, cfg
+
+
+def evaluate(
+    run_dir: Path | str,
+    data_cfg: DataConfig | None = None,
+    out_png: Path | str | None = None,
+    n_grid: int = 24,
+    dtw: bool = True,
+    threads: int = 0,
+    include_train: bool = False,
+) -> dict[str, Any]:
+    """Evaluate a run's checkpoint on its test split (or on another data set).
+
+    Args:
+        run_dir: run folder (or a checkpoint file).
+        data_cfg: data / split to evaluate on; default: the run's own.
+        out_png: where to draw the prediction grid (default ``<run_dir>/predictions.png``).
+        n_grid: test samples in the picture.
+        dtw: also compute the DTW distance (about 10 ms per sample).
+        threads: torch CPU threads (0: default).
+        include_train: also report the error over the training split.
+
+    Returns:
+        Summary dict (written to ``<run_dir>/eval.json``): ``test_mse_px2`` and ``test_dtw_px``
+        as mean / std / median / max, the epoch, sizes and paths.
+    """
+    _set_threads(threads)
+    path = Path(run_dir)
+    ckpt = load_checkpoint(path)
+    run_path = path if path.is_dir() else path.parent
+    model, cfg = load_model(ckpt)
+    dcfg = data_cfg or cfg.data
+    data = load_data(dcfg, cfg.model.n_points)
+    tr_idx, te_idx = make_split(data, dcfg)
+    x = torch.from_numpy(data.images)
+    y = torch.from_numpy(data.trajs)
+    t0 = time.perf_counter()
+    pred = predict(model, x[te_idx], y[te_idx][:, 0]).numpy()
+    infer_s = time.perf_counter() - t0
+    demo = data.trajs[te_idx]
+    mse = per_sample_mse(pred, demo)
+    out: dict[str, Any] = {
+        "model": cfg.model.kind,
+        "data": dcfg.source,
+        "epoch": int(ckpt["epoch"]),
+        "n_test": len(te_idx),
+        "test_mse_px2": summarize(mse),
+        "inference_s": infer_s,
+    }
+    if dtw:
+        out["test_dtw_px"] = summarize(dtw_distance(pred, demo))
+    if include_train:
+        pred_tr = predict(model, x[tr_idx], y[tr_idx][:, 0]).numpy()
+        out["n_train"] = len(tr_idx)
+        out["train_mse_px2"] = summarize(per_sample_mse(pred_tr, data.trajs[tr_idx]))
+    png = Path(out_png) if out_png else run_path / "predictions.png"
+    k = min(n_grid, len(te_idx))
+    titles = [f"{int(data.labels[i])}: {e:.2f}" for i, e in zip(te_idx[:k], mse[:k], strict=True)]
+    save_prediction_grid(png, data.images[te_idx[:k]], demo[:k], pred[:k], titles=titles)
+    out["png"] = str(png)
+    atomic_write_text(run_path / "eval.json", json.dumps(out, indent=2) + "\n")
+    return out

@@ -1,0 +1,135 @@
+"""Meta-World through the chunked wrapper: experts, the stale-world rule and its side effects."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from metaworld.policies import ENV_POLICY_MAP
+
+from ndp.envs import ChunkedEnv, make_env
+from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, metaworld_env_names
+
+# Tasks whose expert is run in the default suite (the full 50 run under -m slow).
+EXPERT_TASKS = ["reach-v3", "push-v3", "faucet-open-v3", "drawer-close-v3", "button-press-v3"]
+# Reward functions probed for side effects in the default suite (bin-picking has a lazily
+# initialised attribute; door-open and hammer read joint state straight from MjData).
+SIDE_EFFECT_TASKS = ["push-v3", "bin-picking-v3", "door-open-v3", "hammer-v3", "soccer-v3"]
+# metaworld experts are feedback controllers; run open loop on the decision's observation for
+# k = 5 sub-steps, these three miss (the door / handle moves under the stale observation).
+# They succeed with k = 1. Measured: see docs/envs.md.
+K5_EXPERT_MISSES = {"door-close-v3", "door-open-v3", "handle-pull-v3"}
+
+
+def run_expert(name: str, k: int, seed: int = 0, horizon: int = 500) -> bool:
+    """Run metaworld's scripted expert through ChunkedEnv; return success-any.
+
+    The expert sees the observation once per decision (the world is stale); inside the decision
+    its own hand position is advanced by the commanded displacement before it plans the next
+    sub-action, so the k sub-actions form one open-loop chunk.
+    """
+    policy = ENV_POLICY_MAP[name]()
+    env = ChunkedEnv(make_env(name, horizon=horizon), k=k)
+    obs, _ = env.reset(seed=seed)
+    while True:
+        o = obs.copy()
+        chunk = []
+        for _ in range(k):
+            a = np.clip(policy.get_action(o), -1.0, 1.0)
+            chunk.append(a)
+            o = o.copy()
+            o[:3] += a[:3] * METAWORLD_POS_SCALE
+        obs, _, term, trunc, info = env.step(np.stack(chunk))
+        if term or trunc:
+            env.close()
+            return bool(info["success_any"])
+
+
+@pytest.mark.filterwarnings("ignore:Constant")
+@pytest.mark.parametrize("name", EXPERT_TASKS)
+def test_expert_succeeds_through_wrapper_k5(name):
+    assert run_expert(name, k=5)
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore:Constant")
+@pytest.mark.parametrize("name", metaworld_env_names())
+def test_expert_all_tasks(name):
+    assert run_expert(name, k=1)
+    if name not in K5_EXPERT_MISSES:
+        assert run_expert(name, k=5)
+
+
+def test_stale_rule_does_not_change_the_dynamics_and_uses_the_stale_world():
+    on = ChunkedEnv(make_env("push-v3"), k=5, stale_world=True)
+    off = ChunkedEnv(make_env("push-v3"), k=5, stale_world=False)
+    policy = ENV_POLICY_MAP["push-v3"]()
+    obs_on, _ = on.reset(seed=4)
+    obs_off, _ = off.reset(seed=4)
+    differed = False
+    for _ in range(30):
+        chunk = np.stack([np.clip(policy.get_action(obs_on), -1, 1)] * 5)
+        obs_on, _, _, _, i_on = on.step(chunk)
+        obs_off, _, _, _, i_off = off.step(chunk)
+        np.testing.assert_array_equal(obs_on, obs_off)
+        np.testing.assert_array_equal(i_on["sub_rewards_live"], i_off["sub_rewards"])
+        np.testing.assert_array_equal(i_on["robot_pos"], i_off["robot_pos"])
+        assert i_on["sub_rewards"][0] == i_off["sub_rewards"][0]
+        differed |= not np.allclose(i_on["sub_rewards"][1:], i_off["sub_rewards"][1:])
+    assert differed  # the puck moved within some decision, and the stale reward saw that
+
+
+def _state(env) -> dict:
+    """Everything a reward function could change: MjData arrays and the env's attributes."""
+    d = env.data
+    out = {f: getattr(d, f).copy() for f in ("qpos", "qvel", "act", "ctrl", "mocap_pos",
+                                             "mocap_quat", "qacc_warmstart", "xpos", "site_xpos")}
+    for key, val in vars(env.mw).items():
+        if isinstance(val, (bool, int, float, str, type(None))):
+            out["mw." + key] = val
+        elif isinstance(val, np.ndarray):
+            out["mw." + key] = val.copy()
+    return out
+
+
+def _assert_same(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for key in a:
+        if isinstance(a[key], np.ndarray):
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+        else:
+            assert a[key] == b[key], key
+
+
+def check_reward_has_no_side_effects(name: str) -> None:
+    """stale_reward leaves the env untouched, and a twin env that never called it agrees."""
+    env, twin = make_env(name), make_env(name)
+    env.reset(seed=2)
+    twin.reset(seed=2)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, size=(12, 4))
+    snapshot = None
+    for t, a in enumerate(actions):
+        o1, r1, *_ = env.step(a)
+        o2, r2, *_ = twin.step(a)
+        np.testing.assert_array_equal(o1, o2)
+        assert r1 == r2
+        if t == 1:
+            snapshot = env.world_snapshot()
+            # Same world as now: the recomputed reward is the live one.
+            assert env.stale_reward(snapshot, a) == pytest.approx(r1, abs=1e-6)
+        if t >= 2:
+            before = _state(env)
+            env.stale_reward(snapshot, a)
+            env.stale_reward(snapshot, a)
+            _assert_same(before, _state(env))
+
+
+@pytest.mark.parametrize("name", SIDE_EFFECT_TASKS)
+def test_reward_function_has_no_side_effects(name):
+    check_reward_has_no_side_effects(name)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", metaworld_env_names())
+def test_reward_function_has_no_side_effects_all_tasks(name):
+    check_reward_has_no_side_effects(name)

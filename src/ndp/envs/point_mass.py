@@ -1,0 +1,294 @@
+"""A toy task for fast tests of the RL stack: a point mass reaching a random goal (pure numpy).
+
+The robot is a point in the plane (or in space), ``p`` in ``[-1, 1]^D``, position-controlled like
+Meta-World's mocap hand: an action ``a`` in ``[-1, 1]^D`` moves the point by ``ACTION_SCALE * a``
+per env step (clipped to the box). The goal is drawn uniformly in ``[-0.8, 0.8]^D`` at reset, at
+least ``MIN_GOAL_DIST`` away from the start.
+
+Clocks: one env step lasts ``CONTROL_DT`` seconds; there is no finer simulator step.
+
+Conventions shared with the package's other environments (``ndp.envs``):
+
+- ``robot_state() -> (pos [D], vel [D])`` in physical units (m, m/s): the DoF a DMP drives.
+- ``world_snapshot()`` and ``stale_reward(snapshot, action)`` for the stale-world rule (the only
+  world state is the goal, which never moves, so the stale reward equals the live one).
+- info of ``reset`` and ``step``: ``success`` (bool), ``robot_pos`` [D], ``robot_vel`` [D].
+
+Reward: minus the distance to the goal (m). Success: distance below ``SUCCESS_RADIUS``.
+Episodes are truncated at ``horizon`` steps; with ``terminate_on_success=True`` they terminate on
+success (used by tests of the termination / truncation distinction).
+
+:func:`point_mass_spec` returns the task's spec (the package's ``TaskSpec`` when it exists, else a
+duck-typed dataclass with the same fields) and :func:`point_mass_inverse_controller` maps DMP
+trajectory points to bounded actions.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+import torch
+from gymnasium import spaces
+
+ACTION_SCALE = 0.05
+"""Displacement (m) per env step for an action of 1."""
+CONTROL_DT = 0.05
+"""Seconds per env step."""
+SUCCESS_RADIUS = 0.05
+"""Success when the point is within this distance (m) of the goal."""
+MIN_GOAL_DIST = 0.3
+"""The goal is drawn at least this far (m) from the start."""
+DEFAULT_HORIZON = 40
+"""Env steps per episode."""
+
+
+def point_mass_inverse_controller(
+    traj: torch.Tensor, robot_pos: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Map DMP trajectory points to bounded point-mass actions.
+
+    ``a_j = clip((y_{j+1} - y_j) / ACTION_SCALE, -1, 1)``: the displacement between consecutive
+    points, in action units.
+
+    Args:
+        traj: trajectory points [..., k + 1, D] (m).
+        robot_pos: unused (the action is a displacement); accepted for the common signature.
+
+    Returns:
+        Actions [..., k, D] in [-1, 1].
+    """
+    del robot_pos
+    return ((traj[..., 1:, :] - traj[..., :-1, :]) / ACTION_SCALE).clamp(-1.0, 1.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class PointMassSpec:
+    """Fallback spec with the fields of ``ndp.envs.TaskSpec`` (used if that cannot be built)."""
+
+    name: str
+    """Task name."""
+    family: str
+    """Task family ('toy')."""
+    env_id: str
+    """Gymnasium-style id (informational; not registered here)."""
+    dmp_dofs: int
+    """D: coordinates the DMP drives (the point's position)."""
+    dof_names: tuple[str, ...]
+    """Name of each DMP coordinate."""
+    dof_units: tuple[str, ...]
+    """Unit of each DMP coordinate."""
+    y0_source: str
+    """Where the DMP start state comes from, in words."""
+    action_dim: int
+    """A: env action size."""
+    action_low: tuple[float, ...]
+    """Lower action bounds."""
+    action_high: tuple[float, ...]
+    """Upper action bounds."""
+    action_scale: tuple[float, ...]
+    """Displacement (m) per env step for an action of 1, per DoF."""
+    action_absolute: tuple[bool, ...]
+    """True where the action is the trajectory value itself (never here)."""
+    horizon: int
+    """Env steps per episode."""
+    control_dt: float
+    """Seconds per env step."""
+    sim_dt: float
+    """Simulator step (s); equal to control_dt (no sub-stepping)."""
+    obs_dim: int
+    """Observation size."""
+    metaworld_name: str | None = None
+    """Always None."""
+    aliases: tuple[str, ...] = ()
+    """Other accepted names."""
+
+    def inverse_controller(
+        self, traj: torch.Tensor, robot_pos: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """See :func:`point_mass_inverse_controller`."""
+        if robot_pos is not None:
+            traj = torch.cat([robot_pos.unsqueeze(-2).to(traj), traj[..., 1:, :]], dim=-2)
+        return point_mass_inverse_controller(traj)
+
+
+def point_mass_spec(dim: int = 2, horizon: int = DEFAULT_HORIZON) -> Any:
+    """The toy task's spec.
+
+    Args:
+        dim: 2 or 3 (space dimension = DMP DoF = action size).
+        horizon: env steps per episode.
+
+    Returns:
+        An ``ndp.envs.TaskSpec`` when it can be built from these fields, else a
+        :class:`PointMassSpec` with the same fields and inverse controller.
+    """
+    if dim not in (2, 3):
+        raise ValueError(f"dim: expected 2 or 3, got {dim!r}")
+    name = "point-mass" if dim == 2 else "point-mass-3d"
+    fields: dict[str, Any] = {
+        "name": name,
+        "family": "toy",
+        "env_id": f"ndp/PointMass{dim}D-v0",
+        "dmp_dofs": dim,
+        "dof_names": ("x", "y", "z")[:dim],
+        "dof_units": ("m",) * dim,
+        "y0_source": "the point's position (m) and velocity (m/s)",
+        "action_dim": dim,
+        "action_low": (-1.0,) * dim,
+        "action_high": (1.0,) * dim,
+        "action_scale": (ACTION_SCALE,) * dim,
+        "action_absolute": (False,) * dim,
+        "horizon": int(horizon),
+        "control_dt": CONTROL_DT,
+        "sim_dt": CONTROL_DT,
+        "obs_dim": 3 * dim,
+        "metaworld_name": None,
+        "aliases": (name.replace("-", "_"),),
+    }
+    try:  # the package's TaskSpec (its inverse controller is the same delta rule)
+        from ndp.envs.spec import TaskSpec
+
+        names = {f.name for f in dataclasses.fields(TaskSpec)}
+        return TaskSpec(**{k: v for k, v in fields.items() if k in names})
+    except (ImportError, TypeError, ValueError):
+        return PointMassSpec(**fields)
+
+
+class PointMassEnv(gym.Env):
+    """Point mass reaching a random goal; see the module docstring.
+
+    Observation [3 D]: position, velocity (m/s) and goal. Action [D] in [-1, 1].
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": ["rgb_array"],
+        "render_fps": round(1.0 / CONTROL_DT),
+    }
+
+    def __init__(
+        self,
+        dim: int = 2,
+        horizon: int = DEFAULT_HORIZON,
+        terminate_on_success: bool = False,
+        render_mode: str | None = None,
+    ) -> None:
+        """Create the env.
+
+        Args:
+            dim: 2 or 3.
+            horizon: env steps per episode (truncation).
+            terminate_on_success: end the episode (terminated) when the goal is reached.
+            render_mode: ``None`` or ``"rgb_array"`` (a 96 x 96 top view).
+        """
+        if dim not in (2, 3):
+            raise ValueError(f"dim: expected 2 or 3, got {dim!r}")
+        if int(horizon) < 1:
+            raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
+        self.dim = int(dim)
+        self.horizon = int(horizon)
+        self.terminate_on_success = bool(terminate_on_success)
+        self.render_mode = render_mode
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(self.dim,), dtype=np.float32)
+        self.observation_space = spaces.Box(
+            -np.inf, np.inf, shape=(3 * self.dim,), dtype=np.float64
+        )
+        self._pos = np.zeros(self.dim)
+        self._vel = np.zeros(self.dim)
+        self._goal = np.zeros(self.dim)
+        self._steps = 0
+        self._next_seed: int | None = None
+
+    def seed_next_reset(self, seed: int | None) -> None:
+        """Use ``seed`` for the next ``reset()`` that is not given one (as the other envs)."""
+        self._next_seed = seed
+
+    # ------------------------------------------------------------------ state access
+    def robot_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(pos [D], vel [D])`` of the point (m, m/s), copies."""
+        return self._pos.copy(), self._vel.copy()
+
+    def world_snapshot(self) -> np.ndarray:
+        """The world state (the goal) [D], a copy."""
+        return self._goal.copy()
+
+    def stale_reward(self, snapshot: np.ndarray, action: np.ndarray | None = None) -> float:
+        """Reward with the live point and the goal from ``snapshot`` (pure)."""
+        del action
+        return -float(np.linalg.norm(snapshot - self._pos))
+
+    def _obs(self) -> np.ndarray:
+        return np.concatenate([self._pos, self._vel, self._goal])
+
+    def _dist(self) -> float:
+        return float(np.linalg.norm(self._goal - self._pos))
+
+    def _info(self) -> dict[str, Any]:
+        pos, vel = self.robot_state()
+        return {"success": self._dist() < SUCCESS_RADIUS, "robot_pos": pos, "robot_vel": vel}
+
+    # ------------------------------------------------------------------ gym API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Draw a start in ``[-0.5, 0.5]^D`` and a goal; returns ``(obs [3D], info)``."""
+        if seed is None and self._next_seed is not None:
+            seed, self._next_seed = self._next_seed, None
+        super().reset(seed=seed)
+        rng = self.np_random
+        self._pos = rng.uniform(-0.5, 0.5, self.dim)
+        self._vel = np.zeros(self.dim)
+        while True:
+            self._goal = rng.uniform(-0.8, 0.8, self.dim)
+            if self._dist() >= MIN_GOAL_DIST:
+                break
+        self._steps = 0
+        return self._obs(), self._info()
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Move by ``ACTION_SCALE * clip(action)``; returns the gymnasium 5-tuple."""
+        a = np.clip(np.asarray(action, dtype=np.float64).reshape(self.dim), -1.0, 1.0)
+        a = np.nan_to_num(a)
+        new = np.clip(self._pos + ACTION_SCALE * a, -1.0, 1.0)
+        self._vel = (new - self._pos) / CONTROL_DT
+        self._pos = new
+        self._steps += 1
+        info = self._info()
+        terminated = bool(self.terminate_on_success and info["success"])
+        truncated = self._steps >= self.horizon
+        return self._obs(), -self._dist(), terminated, truncated, info
+
+    def render(self) -> np.ndarray | None:
+        """A 96 x 96 RGB top view (goal green, point red), or ``None`` without render_mode."""
+        if self.render_mode != "rgb_array":
+            return None
+        size = 96
+        img = np.full((size, size, 3), 255, dtype=np.uint8)
+
+        def _px(p: np.ndarray) -> tuple[int, int]:
+            xy = np.clip((p[:2] + 1.0) / 2.0 * (size - 1), 0, size - 1)
+            return round(float(xy[1])), round(float(xy[0]))
+
+        for p, colour in ((self._goal, (0, 160, 0)), (self._pos, (220, 0, 0))):
+            r, c = _px(p)
+            img[max(r - 2, 0) : r + 3, max(c - 2, 0) : c + 3] = colour
+        return img
+
+
+def make_point_mass_env(
+    *, seed: int | None = None, horizon: int | None = None, render_mode: str | None = None,
+    dim: int = 2, **kw: Any,
+) -> PointMassEnv:
+    """Factory with the signature of ``ndp.envs.make_env`` (without the name)."""
+    env = PointMassEnv(
+        dim=dim, horizon=DEFAULT_HORIZON if horizon is None else horizon,
+        render_mode=render_mode, **kw,
+    )
+    if seed is not None:
+        env.seed_next_reset(int(seed))
+        env.action_space.seed(int(seed))
+    return env

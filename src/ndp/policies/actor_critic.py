@@ -1,0 +1,62 @@
+"""One actor-critic for PPO, PPO-multi and NDP: MLP actor + action head, MLP critic with k heads."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+from torch import nn
+
+from ndp.nets.mlp import MLP
+from ndp.policies.config import PolicyConfig
+from ndp.policies.distributions import PolicyDistribution
+from ndp.policies.heads import ActionHead, build_head
+
+
+class ActorCritic(nn.Module):
+    """Actor ``obs -> raw head parameters`` followed by an action head; critic ``obs -> k values``.
+
+    The critic's k outputs are k value heads on a shared trunk: head j estimates the value of
+    the state after j sub-steps of the decision (sub-step j's value in GAE).
+
+    Args:
+        obs_dim: observation size O.
+        head: the action head (defines k, A and the number of raw parameters P).
+        hidden: hidden widths of both MLPs.
+        activation: hidden non-linearity.
+
+    Shapes:
+        obs [B, O]; y0, dy0 [B, D] (physical robot state, NDP only); values [B, k].
+    """
+
+    def __init__(
+        self,
+        obs_dim: int,
+        head: ActionHead,
+        hidden: tuple[int, ...] = (100, 100),
+        activation: str = "tanh",
+    ) -> None:
+        super().__init__()
+        self.obs_dim = int(obs_dim)
+        self.head = head
+        self.k = head.k
+        self.actor = MLP(obs_dim, hidden, head.n_params, activation, out_gain=0.01)
+        self.critic = MLP(obs_dim, hidden, head.k, activation, out_gain=1.0)
+
+    def distribution(
+        self,
+        obs: torch.Tensor,
+        y0: torch.Tensor | None = None,
+        dy0: torch.Tensor | None = None,
+    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
+        """Exploration distribution over the decision's k sub-actions, plus head diagnostics."""
+        return self.head.distribution(self.actor(obs), y0, dy0)
+
+    def value(self, obs: torch.Tensor) -> torch.Tensor:
+        """k value estimates [B, k] (one per sub-step of the decision)."""
+        return self.critic(obs)
+
+
+def build_actor_critic(obs_dim: int, spec: Any, cfg: PolicyConfig) -> ActorCritic:
+    """Build the actor-critic for a task spec and a resolved policy config."""
+    return ActorCritic(obs_dim, build_head(cfg, spec), tuple(cfg.hidden), cfg.activation)

@@ -1,0 +1,81 @@
+"""Typed configuration of the actor-critic and its action head."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+HEADS = ("step", "multi", "ndp")
+"""Action heads: one raw action per step, k raw actions per decision, DMP parameters."""
+
+
+@dataclass(frozen=True)
+class PolicyConfig:
+    """Actor-critic settings; ``None`` NDP fields are filled from the per-task preset table.
+
+    The NDP goal bound is per DoF: ``goal_scale`` times the largest displacement the actions can
+    make in one decision (``k * action_scale`` for delta-controlled DoF, the action range
+    ``high - low`` for DoF whose action is the trajectory value itself).
+
+    The three clocks: one env step (sub-step) lasts ``spec.control_dt`` seconds; one policy
+    decision runs ``k`` sub-steps; the DMP of a decision spans its whole duration
+    ``k * control_dt`` seconds with ``dmp_steps`` Euler steps (``dmp_steps / k`` per sub-step)
+    over DMP time ``tau = 1``.
+    """
+
+    head: str = "ndp"
+    """Action head: 'step' (PPO), 'multi' (PPO-multi) or 'ndp'."""
+    k: int = 5
+    """Sub-steps (env steps) per policy decision; always 1 for the 'step' head."""
+    hidden: tuple[int, ...] = (100, 100)
+    """Hidden widths of the actor and critic MLPs."""
+    activation: str = "tanh"
+    """Hidden non-linearity of both MLPs."""
+    init_log_std: float = 0.0
+    """Initial value of the learned, state-independent log std (0: std 1)."""
+    n_basis: int | None = None
+    """NDP: radial basis functions per DMP DoF (N); None: per-task preset."""
+    a_z: float | None = None
+    """NDP: DMP spring constant alpha_z; None: per-task preset."""
+    dmp_steps: int | None = None
+    """NDP: Euler integration steps per decision (a multiple of k); None: per-task preset."""
+    goal_scale: float | None = None
+    """NDP: goal bound g = y0 + s * tanh(raw), s = goal_scale * (k * action_scale) per DoF."""
+    weight_scale: float | None = None
+    """NDP: weight bound, w = weight_scale * tanh(raw); None: a_z^2 / 4 (the spring stiffness)."""
+    rbf: str = "gaussian"
+    """NDP: radial basis kind of the forcing term."""
+    param_noise: bool = False
+    """NDP: explore with a Gaussian over the DMP parameters (one log-prob per decision)."""
+
+    def __post_init__(self) -> None:
+        if self.head not in HEADS:
+            raise ValueError(f"head: expected one of {', '.join(HEADS)}, got {self.head!r}")
+        if isinstance(self.k, bool) or not isinstance(self.k, int) or self.k < 1:
+            raise ValueError(f"k: expected an integer >= 1, got {self.k!r}")
+        if self.head == "step" and self.k != 1:
+            raise ValueError(f"k: the 'step' head runs one action per decision, got k={self.k}")
+        if not self.hidden or any(int(h) < 1 for h in self.hidden):
+            raise ValueError(f"hidden: expected positive widths, got {self.hidden!r}")
+        if self.n_basis is not None and (isinstance(self.n_basis, bool) or self.n_basis < 1):
+            raise ValueError(f"n_basis: expected an integer >= 1, got {self.n_basis!r}")
+        if self.a_z is not None and not self.a_z > 0:
+            raise ValueError(f"a_z: expected a number > 0, got {self.a_z!r}")
+        if self.dmp_steps is not None:
+            if self.dmp_steps < 1 or self.dmp_steps % self.k:
+                raise ValueError(
+                    f"dmp_steps: expected a positive multiple of k={self.k}, got {self.dmp_steps!r}"
+                )
+        for name in ("goal_scale", "weight_scale"):
+            v = getattr(self, name)
+            if v is not None and not v > 0:
+                raise ValueError(f"{name}: expected a number > 0, got {v!r}")
+        if self.param_noise and self.head != "ndp":
+            raise ValueError("param_noise: parameter-space exploration needs the 'ndp' head")
+
+    @property
+    def resolved(self) -> bool:
+        """Whether every field the head needs is set (no ``None`` left for NDP)."""
+        if self.head != "ndp":
+            return True
+        return None not in (self.n_basis, self.a_z, self.dmp_steps, self.goal_scale,
+                            self.weight_scale)

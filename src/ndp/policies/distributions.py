@@ -1,0 +1,145 @@
+"""Exploration distributions of the actor: Gaussian around each sub-action, or over DMP params.
+
+Both expose the same small interface (:class:`PolicyDistribution`) so that the trainer never
+branches on the method:
+
+- ``sample()`` / ``mode()`` -> ``z``, what the rollout buffer stores (the sub-actions themselves
+  [B, k, A], or the DMP parameters [B, P] for parameter-space exploration);
+- ``log_prob(z)`` -> [B, L] with L = k (one log-prob per sub-action) or L = 1 (one per decision);
+- ``entropy()`` -> [B, L];
+- ``actions(z)`` -> the k sub-actions [B, k, A] the env should run (the trainer clips them to the
+  task's bounds before they reach the simulator).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Protocol
+
+import torch
+
+_HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+def diag_gaussian_log_prob(
+    x: torch.Tensor, mean: torch.Tensor, log_std: torch.Tensor
+) -> torch.Tensor:
+    """Log-density of a diagonal Gaussian, summed over the last dimension.
+
+    Args:
+        x: samples [..., A].
+        mean: means [..., A].
+        log_std: log standard deviations broadcastable to [..., A].
+
+    Returns:
+        [...]: ``sum_a -0.5 ((x - mean) / std)^2 - log std - 0.5 log(2 pi)``.
+    """
+    z = (x - mean) * torch.exp(-log_std)
+    return (-0.5 * z.pow(2) - log_std - _HALF_LOG_2PI).sum(-1)
+
+
+def diag_gaussian_entropy(log_std: torch.Tensor, shape: torch.Size) -> torch.Tensor:
+    """Entropy of a diagonal Gaussian with ``log_std`` [A], broadcast to ``shape`` = [..., A].
+
+    Returns:
+        [...]: ``sum_a log std + 0.5 log(2 pi e)``.
+    """
+    ent = (log_std + 0.5 + _HALF_LOG_2PI).expand(shape)
+    return ent.sum(-1)
+
+
+class PolicyDistribution(Protocol):
+    """What the trainer needs from an exploration distribution (see the module docstring)."""
+
+    per_decision: bool
+    """True when there is one log-prob per decision (L = 1), False for one per sub-action."""
+
+    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor: ...
+    def mode(self) -> torch.Tensor: ...
+    def log_prob(self, z: torch.Tensor) -> torch.Tensor: ...
+    def entropy(self) -> torch.Tensor: ...
+    def actions(self, z: torch.Tensor) -> torch.Tensor: ...
+
+
+class SubActionGaussian:
+    """Independent diagonal Gaussians around each of the k sub-actions of a decision.
+
+    Args:
+        mean: [B, k, A].
+        log_std: [A], learned and state-independent (shared by the k sub-actions).
+    """
+
+    per_decision = False
+
+    def __init__(self, mean: torch.Tensor, log_std: torch.Tensor) -> None:
+        self.mean = mean
+        self.log_std = log_std
+
+    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Draw sub-actions [B, k, A] (no gradient)."""
+        noise = torch.randn(self.mean.shape, generator=generator, dtype=self.mean.dtype)
+        return (self.mean + noise * self.log_std.exp()).detach()
+
+    def mode(self) -> torch.Tensor:
+        """The means [B, k, A]."""
+        return self.mean.detach()
+
+    def log_prob(self, z: torch.Tensor) -> torch.Tensor:
+        """Per-sub-action log-probs [B, k] of ``z`` [B, k, A]."""
+        return diag_gaussian_log_prob(z, self.mean, self.log_std)
+
+    def entropy(self) -> torch.Tensor:
+        """Per-sub-action entropies [B, k]."""
+        return diag_gaussian_entropy(self.log_std, self.mean.shape)
+
+    def actions(self, z: torch.Tensor) -> torch.Tensor:
+        """The sub-actions are the samples themselves: [B, k, A]."""
+        return z
+
+
+class ParamGaussian:
+    """A diagonal Gaussian over the raw (pre-squashing) DMP parameters of a decision.
+
+    One log-prob per decision; the k sub-actions are a deterministic function of the sample
+    (bound, integrate the DMP, inverse controller).
+
+    Args:
+        mean: raw parameter means [B, P].
+        log_std: [P], learned and state-independent.
+        decode: raw parameters [B, P] -> sub-actions [B, k, A].
+    """
+
+    per_decision = True
+
+    def __init__(
+        self,
+        mean: torch.Tensor,
+        log_std: torch.Tensor,
+        decode: Callable[[torch.Tensor], torch.Tensor],
+    ) -> None:
+        self.mean = mean
+        self.log_std = log_std
+        self._decode = decode
+
+    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Draw raw parameters [B, P] (no gradient)."""
+        noise = torch.randn(self.mean.shape, generator=generator, dtype=self.mean.dtype)
+        return (self.mean + noise * self.log_std.exp()).detach()
+
+    def mode(self) -> torch.Tensor:
+        """The mean parameters [B, P]."""
+        return self.mean.detach()
+
+    def log_prob(self, z: torch.Tensor) -> torch.Tensor:
+        """Log-prob of the decision [B, 1] for parameters ``z`` [B, P]."""
+        return diag_gaussian_log_prob(z, self.mean, self.log_std).unsqueeze(-1)
+
+    def entropy(self) -> torch.Tensor:
+        """Entropy of the decision [B, 1]."""
+        return diag_gaussian_entropy(self.log_std, self.mean.shape).unsqueeze(-1)
+
+    def actions(self, z: torch.Tensor) -> torch.Tensor:
+        """Sub-actions [B, k, A] for raw parameters ``z`` [B, P]."""
+        with torch.no_grad():
+            return self._decode(z)

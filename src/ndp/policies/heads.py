@@ -1,0 +1,220 @@
+"""Action heads: the ONE place where PPO, PPO-multi and NDP differ.
+
+A head turns the actor's last-layer output ``raw`` [B, P] (and, for NDP, the robot's physical
+state) into an exploration distribution over the k sub-actions of a decision [B, k, A]:
+
+- :class:`StepHead` (PPO): P = A, k = 1, the raw output is the action mean.
+- :class:`MultiHead` (PPO-multi): P = k * A, the raw output is k action means.
+- :class:`NDPHead`: P = D (1 + N) DMP parameters per decision. Goal and weights are bounded,
+
+      g = y0 + goal_scale * tanh(raw_g),        w = weight_scale * tanh(raw_w),
+
+  the DMP is integrated from the robot's physical state (y0, dy0) over one decision, the
+  trajectory [B, k + 1, D] is cut at the k sub-step boundaries and the task's inverse controller
+  maps it to the k sub-action means [B, k, A].
+
+Clocks (named once): an env step (sub-step) lasts ``control_dt`` s; a decision runs k sub-steps,
+i.e. ``decision_dt = k * control_dt`` s; the DMP rollout spans DMP time tau = 1 with
+``dmp_steps`` Euler steps, reported every ``dmp_steps / k`` steps (one point per sub-step). A
+physical velocity v (units/s) is therefore ``v * decision_dt / tau`` in DMP time units.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from ndp.dmp import DMPConfig, DMPLayer
+from ndp.policies.distributions import ParamGaussian, PolicyDistribution, SubActionGaussian
+
+
+class ActionHead(nn.Module):
+    """Base class. Subclasses set ``k``, ``action_dim``, ``n_params`` and ``needs_robot_state``."""
+
+    k: int
+    action_dim: int
+    n_params: int
+    needs_robot_state: bool = False
+
+    def distribution(
+        self,
+        raw: torch.Tensor,
+        y0: torch.Tensor | None = None,
+        dy0: torch.Tensor | None = None,
+    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
+        """Map the actor output [B, P] to a distribution over [B, k, A] plus diagnostics."""
+        raise NotImplementedError
+
+
+class StepHead(ActionHead):
+    """PPO: one raw action per decision (k = 1), Gaussian with learned log std [A]."""
+
+    def __init__(self, action_dim: int, init_log_std: float = 0.0) -> None:
+        super().__init__()
+        self.k = 1
+        self.action_dim = int(action_dim)
+        self.n_params = self.action_dim
+        self.log_std = nn.Parameter(torch.full((self.action_dim,), float(init_log_std)))
+
+    def distribution(self, raw, y0=None, dy0=None):
+        return SubActionGaussian(raw.view(raw.shape[0], 1, self.action_dim), self.log_std), {}
+
+
+class MultiHead(ActionHead):
+    """PPO-multi: k raw actions per decision, each a Gaussian with the shared log std [A]."""
+
+    def __init__(self, k: int, action_dim: int, init_log_std: float = 0.0) -> None:
+        super().__init__()
+        self.k = int(k)
+        self.action_dim = int(action_dim)
+        self.n_params = self.k * self.action_dim
+        self.log_std = nn.Parameter(torch.full((self.action_dim,), float(init_log_std)))
+
+    def distribution(self, raw, y0=None, dy0=None):
+        mean = raw.view(raw.shape[0], self.k, self.action_dim)
+        return SubActionGaussian(mean, self.log_std), {}
+
+
+class NDPHead(ActionHead):
+    """NDP: DMP parameters -> DMP layer from the robot state -> inverse controller -> k actions.
+
+    Args:
+        k: sub-steps per decision.
+        dmp_dofs: D, DoF driven by the DMP.
+        action_dim: A, env action size.
+        dmp: integrator settings; ``dmp.steps // dmp.subsample`` must equal k.
+        goal_scale: goal bound per DoF [D] or scalar (physical units).
+        weight_scale: forcing-weight bound.
+        inverse_controller: trajectory [B, k + 1, D] (physical) -> actions [B, k, A].
+        decision_dt: seconds per decision (k * control_dt), to convert dy0 to DMP time.
+        param_noise: explore in parameter space (one log-prob per decision).
+        init_log_std: initial log std (of the sub-actions, or of the raw parameters).
+    """
+
+    needs_robot_state = True
+
+    def __init__(
+        self,
+        k: int,
+        dmp_dofs: int,
+        action_dim: int,
+        dmp: DMPConfig,
+        goal_scale: float | torch.Tensor,
+        weight_scale: float,
+        inverse_controller: Callable[..., torch.Tensor],
+        decision_dt: float,
+        param_noise: bool = False,
+        init_log_std: float = 0.0,
+    ) -> None:
+        super().__init__()
+        if dmp.steps // dmp.subsample != k or dmp.steps % dmp.subsample:
+            raise ValueError(
+                f"dmp: steps/subsample must give k={k} points, got steps={dmp.steps}, "
+                f"subsample={dmp.subsample}"
+            )
+        if dmp.learn_az:
+            raise ValueError("dmp: a learned a_z is not supported by the RL head")
+        self.k = int(k)
+        self.dmp_dofs = int(dmp_dofs)
+        self.action_dim = int(action_dim)
+        self.n_basis = dmp.n_basis
+        self.n_params = self.dmp_dofs * (1 + self.n_basis)
+        self.dmp = DMPLayer(dmp)
+        gs = torch.as_tensor(goal_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
+        self.register_buffer("goal_scale", gs)
+        self.weight_scale = float(weight_scale)
+        self.inverse_controller = inverse_controller
+        self.decision_dt = float(decision_dt)
+        self.param_noise = bool(param_noise)
+        n_std = self.n_params if self.param_noise else self.action_dim
+        self.log_std = nn.Parameter(torch.full((n_std,), float(init_log_std)))
+
+    def decode(
+        self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Raw parameters [B, P] and robot state (physical, [B, D]) -> (actions [B, k, A],
+        goal [B, D], weights [B, D, N])."""
+        b, d = raw.shape[0], self.dmp_dofs
+        goal = y0 + self.goal_scale * torch.tanh(raw[:, :d])
+        weights = self.weight_scale * torch.tanh(raw[:, d:].reshape(b, d, self.n_basis))
+        dy0_dmp = dy0 * (self.decision_dt / self.dmp.config.tau)
+        traj = self.dmp(goal, weights, y0, dy0_dmp).pos  # [B, k + 1, D]
+        actions = self.inverse_controller(traj, robot_pos=y0)  # [B, k, A]
+        return actions, goal, weights
+
+    def distribution(self, raw, y0=None, dy0=None):
+        if y0 is None or dy0 is None:
+            raise ValueError("NDPHead: the robot state y0, dy0 [B, D] is required")
+        mean_actions, goal, weights = self.decode(raw, y0, dy0)
+        aux = {
+            "goal_norm": (goal - y0).norm(dim=-1),
+            "weight_norm": weights.flatten(1).norm(dim=-1),
+        }
+        if self.param_noise:
+
+            def _decode(z: torch.Tensor) -> torch.Tensor:
+                return self.decode(z, y0, dy0)[0]
+
+            return ParamGaussian(raw, self.log_std, _decode), aux
+        return SubActionGaussian(mean_actions, self.log_std), aux
+
+    def extra_repr(self) -> str:
+        return (
+            f"k={self.k}, D={self.dmp_dofs}, A={self.action_dim}, N={self.n_basis}, "
+            f"weight_scale={self.weight_scale}, decision_dt={self.decision_dt}, "
+            f"param_noise={self.param_noise}"
+        )
+
+
+def build_head(cfg: Any, spec: Any) -> ActionHead:
+    """Build the head named by a resolved :class:`~ndp.policies.config.PolicyConfig`.
+
+    Args:
+        cfg: resolved policy config (no ``None`` NDP fields).
+        spec: task spec with ``action_dim``, ``dmp_dofs``, ``control_dt`` and
+            ``inverse_controller``.
+    """
+    if cfg.head == "step":
+        return StepHead(spec.action_dim, cfg.init_log_std)
+    if cfg.head == "multi":
+        return MultiHead(cfg.k, spec.action_dim, cfg.init_log_std)
+    if not cfg.resolved:
+        raise ValueError("policy config: NDP fields must be resolved (see ndp.rl.presets)")
+    d = spec.dmp_dofs
+    scale = _per_dof(spec.action_scale, d)
+    absolute = _per_dof(getattr(spec, "action_absolute", False), d).astype(bool)
+    span = _per_dof(spec.action_high, d) - _per_dof(spec.action_low, d)
+    reach = np.where(absolute, span, cfg.k * scale)  # largest move in one decision, per DoF
+    dmp = DMPConfig(
+        n_basis=int(cfg.n_basis),
+        a_z=float(cfg.a_z),
+        steps=int(cfg.dmp_steps),
+        subsample=int(cfg.dmp_steps) // cfg.k,
+        rbf=cfg.rbf,
+    )
+    return NDPHead(
+        k=cfg.k,
+        dmp_dofs=spec.dmp_dofs,
+        action_dim=spec.action_dim,
+        dmp=dmp,
+        goal_scale=torch.as_tensor(cfg.goal_scale * reach, dtype=torch.float32),
+        weight_scale=cfg.weight_scale,
+        inverse_controller=spec.inverse_controller,
+        decision_dt=cfg.k * float(spec.control_dt),
+        param_noise=cfg.param_noise,
+        init_log_std=cfg.init_log_std,
+    )
+
+
+def _per_dof(value: Any, d: int) -> np.ndarray:
+    """A scalar or a length-D sequence as a float array [D]."""
+    arr = np.asarray(value, dtype=np.float64).reshape(-1)
+    if arr.size == 1:
+        return np.full(d, float(arr[0]))
+    if arr.size != d:
+        raise ValueError(f"spec: expected {d} values per DMP DoF, got {arr.size}")
+    return arr

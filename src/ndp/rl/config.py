@@ -1,0 +1,330 @@
+"""Typed configuration of an RL run, its resolution against a task, and its argparse CLI.
+
+A run is one :class:`TrainConfig` holding a :class:`PPOConfig` and a
+:class:`~ndp.policies.PolicyConfig`. Every field has a one-line docstring, which becomes its
+``--help`` text (:func:`add_dataclass_arguments`). :func:`resolve_config` fills what depends on the
+task (the action head of the method, the NDP preset, k = 1 for PPO) and validates everything
+before any environment is built; the resolved config is what runs and what is saved as
+``config.json`` in the run directory.
+
+Defaults are the supplement's PPO hyperparameters (ndp-method.md section 3): hidden [100, 100]
+tanh, Adam 3e-4 (eps 1e-5), gamma 0.99, GAE lambda 0.95, entropy 0, value coefficient 0.5, max
+grad norm 0.5, 10 epochs, 32 mini-batches, clip 0.1, 2048 env steps per update, observation and
+return normalisation, k = 5, 35 DMP integration steps per decision.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import dataclasses
+import functools
+import inspect
+import itertools
+import json
+import math
+import textwrap
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ndp.policies.config import PolicyConfig
+from ndp.rl.presets import ndp_preset
+
+ALGOS: dict[str, str] = {"ppo": "step", "ppo-multi": "multi", "ndp": "ndp"}
+"""Method name -> action head. The methods differ only in the head."""
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """PPO with GAE; defaults from the paper's supplement."""
+
+    lr: float = 3e-4
+    """Adam learning rate."""
+    adam_eps: float = 1e-5
+    """Adam epsilon."""
+    gamma: float = 0.99
+    """Discount per env step (sub-step)."""
+    gae_lambda: float = 0.95
+    """GAE lambda per env step (sub-step)."""
+    ent_coef: float = 0.0
+    """Entropy bonus coefficient."""
+    vf_coef: float = 0.5
+    """Value loss coefficient."""
+    max_grad_norm: float = 0.5
+    """Global gradient-norm clip."""
+    epochs: int = 10
+    """Passes over each rollout."""
+    minibatches: int = 32
+    """Mini-batches per epoch (over decisions; each decision carries its k sub-steps)."""
+    clip: float = 0.1
+    """PPO ratio clip epsilon."""
+    clip_value_loss: bool = True
+    """Clip the value update around the rollout's values (as the release's PPO code)."""
+    steps_per_update: int = 2048
+    """Env steps (sub-steps) collected per update, over all envs (rounded up to k * num_envs)."""
+    norm_obs: bool = True
+    """Normalise observations with running mean / std."""
+    norm_return: bool = True
+    """Scale rewards by the running std of the discounted return."""
+    norm_adv: bool = True
+    """Normalise advantages over the rollout."""
+    clip_obs: float = 10.0
+    """Clip normalised observations to +- this."""
+    clip_reward: float = 10.0
+    """Clip normalised rewards to +- this."""
+    anneal_lr: bool = False
+    """Decay the learning rate linearly to 0 over the run."""
+
+    def __post_init__(self) -> None:
+        for name in ("lr", "adam_eps", "vf_coef", "max_grad_norm", "clip", "clip_obs",
+                     "clip_reward"):
+            _check_positive(name, getattr(self, name))
+        for name in ("gamma", "gae_lambda"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
+                raise ValueError(f"{name}: expected a number in [0, 1], got {v!r}")
+        if not (isinstance(self.ent_coef, (int, float)) and self.ent_coef >= 0):
+            raise ValueError(f"ent_coef: expected a number >= 0, got {self.ent_coef!r}")
+        for name in ("epochs", "minibatches", "steps_per_update"):
+            _check_int(name, getattr(self, name), 1)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One training run: task, method, budget, envs, logging; plus PPO and policy settings."""
+
+    task: str = "reach-v3"
+    """Task name (see ndp.envs.TASKS) or 'point-mass' (the toy task)."""
+    algo: str = "ndp"
+    """Method: 'ndp', 'ppo' or 'ppo-multi'."""
+    steps: int = 500_000
+    """Total env steps (sub-steps) to train for."""
+    seed: int = 0
+    """Seed of torch, numpy and the environments."""
+    num_envs: int = 4
+    """Parallel environments."""
+    vector: str = "sync"
+    """Vector env: 'sync' (one process) or 'async' (one subprocess per env)."""
+    stale_world: bool = True
+    """Stale-world reward rule during the k sub-steps (NDP and PPO-multi; no effect for k = 1)."""
+    horizon: int | None = None
+    """Episode length in env steps; None: the task's default."""
+    run_dir: str | None = None
+    """Run directory; None: runs/<task>-<algo>-s<seed>."""
+    checkpoint_every: int = 10
+    """Updates between checkpoints (one is always written at the end)."""
+    tensorboard: bool = True
+    """Write TensorBoard event files besides the CSV."""
+    progress: bool = True
+    """Show a progress bar."""
+    torch_threads: int = 1
+    """torch intra-op threads of the trainer (1 where env workers run beside it)."""
+    ppo: PPOConfig = field(default_factory=PPOConfig)
+    """PPO hyperparameters."""
+    policy: PolicyConfig = field(default_factory=PolicyConfig)
+    """Actor-critic and action-head settings (head follows algo)."""
+
+    def __post_init__(self) -> None:
+        if self.algo not in ALGOS:
+            raise ValueError(f"algo: expected one of {', '.join(ALGOS)}, got {self.algo!r}")
+        if not isinstance(self.task, str) or not self.task:
+            raise ValueError(f"task: expected a task name, got {self.task!r}")
+        _check_int("steps", self.steps, 1)
+        _check_int("seed", self.seed, 0)
+        _check_int("num_envs", self.num_envs, 1)
+        _check_int("checkpoint_every", self.checkpoint_every, 1)
+        _check_int("torch_threads", self.torch_threads, 1)
+        if self.horizon is not None:
+            _check_int("horizon", self.horizon, 1)
+        if self.vector not in ("sync", "async"):
+            raise ValueError(f"vector: expected 'sync' or 'async', got {self.vector!r}")
+
+    # ----------------------------------------------------------------- derived values
+    @property
+    def k(self) -> int:
+        """Sub-steps per decision (1 for PPO)."""
+        return self.policy.k
+
+    @property
+    def decisions_per_env(self) -> int:
+        """Decisions each env makes per update: ceil(steps_per_update / (k * num_envs))."""
+        return math.ceil(self.ppo.steps_per_update / (self.k * self.num_envs))
+
+    @property
+    def env_steps_per_update(self) -> int:
+        """Env steps (sub-step slots) per update after rounding: decisions * k * num_envs."""
+        return self.decisions_per_env * self.k * self.num_envs
+
+    @property
+    def num_updates(self) -> int:
+        """Updates in the run: ceil(steps / env_steps_per_update)."""
+        return math.ceil(self.steps / self.env_steps_per_update)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (nested for ``ppo`` and ``policy``)."""
+        return dataclasses.asdict(self)
+
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> TrainConfig:
+        """Inverse of :meth:`to_dict` (unknown keys raise ValueError)."""
+        d = dict(d)
+        ppo = PPOConfig(**d.pop("ppo", {}))
+        pol = dict(d.pop("policy", {}))
+        if "hidden" in pol:
+            pol["hidden"] = tuple(pol["hidden"])
+        try:
+            return TrainConfig(ppo=ppo, policy=PolicyConfig(**pol), **d)
+        except TypeError as exc:
+            raise ValueError(f"config: {exc}") from None
+
+
+def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
+    """Fill the task-dependent fields and validate; nothing here builds an environment.
+
+    - ``policy.head`` follows ``algo``; ``policy.k`` is 1 for PPO.
+    - NDP: ``n_basis``, ``a_z``, ``goal_scale`` from the task's preset where None;
+      ``dmp_steps`` = preset steps per sub-step * k; ``weight_scale`` = a_z^2 / 4 where None.
+    - ``run_dir`` defaults to ``runs/<task>-<algo>-s<seed>``.
+
+    Args:
+        cfg: the requested config.
+        spec: the task spec (resolved from ``cfg.task`` when None; unknown task: ValueError).
+
+    Returns:
+        The resolved config (a new object).
+    """
+    if spec is None:
+        from ndp.rl.envs import resolve_task
+
+        spec = resolve_task(cfg.task).spec
+    pol = cfg.policy
+    head = ALGOS[cfg.algo]
+    k = 1 if head == "step" else pol.k
+    changes: dict[str, Any] = {"head": head, "k": k}
+    if head == "ndp":
+        pre = ndp_preset(spec.name)
+        n_basis = pol.n_basis if pol.n_basis is not None else pre.n_basis
+        a_z = float(pol.a_z if pol.a_z is not None else pre.a_z)
+        changes.update(
+            n_basis=n_basis,
+            a_z=a_z,
+            dmp_steps=pol.dmp_steps if pol.dmp_steps is not None else pre.steps_per_substep * k,
+            goal_scale=float(pol.goal_scale if pol.goal_scale is not None else pre.goal_scale),
+            weight_scale=float(pol.weight_scale if pol.weight_scale is not None
+                               else a_z * a_z / 4.0),
+        )
+    else:
+        changes.update(n_basis=None, a_z=None, dmp_steps=None, goal_scale=None,
+                       weight_scale=None, param_noise=False)
+    policy = dataclasses.replace(pol, **changes)
+    run_dir = cfg.run_dir or str(Path("runs") / f"{spec.name}-{cfg.algo}-s{cfg.seed}")
+    return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir)
+
+
+def save_config(cfg: TrainConfig, path: Path) -> None:
+    """Write the config as JSON (atomically)."""
+    from ndp.rl.checkpoint import atomic_write_text
+
+    atomic_write_text(path, json.dumps(cfg.to_dict(), indent=2, sort_keys=True) + "\n")
+
+
+def load_config(path: Path) -> TrainConfig:
+    """Read a config written by :func:`save_config`."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"config: no such file {path}")
+    return TrainConfig.from_dict(json.loads(path.read_text()))
+
+
+# ------------------------------------------------------------------------------------------
+# Dataclass -> argparse
+# ------------------------------------------------------------------------------------------
+@functools.cache
+def field_docs(cls: type) -> dict[str, str]:
+    """The one-line docstring written under each field of a dataclass (parsed from source)."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+    body = tree.body[0].body  # type: ignore[attr-defined]
+    docs: dict[str, str] = {}
+    for node, nxt in itertools.pairwise(body):
+        if (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)
+                and isinstance(nxt, ast.Expr) and isinstance(nxt.value, ast.Constant)
+                and isinstance(nxt.value.value, str)):
+            docs[node.target.id] = " ".join(nxt.value.value.split())
+    return docs
+
+
+def _base_type(tp: Any) -> tuple[Any, bool]:
+    """(inner type, optional) of ``X | None``."""
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        return args[0], True
+    return tp, False
+
+
+def add_dataclass_arguments(
+    parser: argparse.ArgumentParser, cls: type, skip: tuple[str, ...] = ()
+) -> None:
+    """Add one ``--field-name`` option per field of a (flat) dataclass.
+
+    Options default to ``argparse.SUPPRESS`` so that only given values override the dataclass
+    defaults. ``bool`` fields get ``--x / --no-x``; ``X | None`` fields accept ``none``;
+    ``tuple[int, ...]`` fields take several values.
+    """
+    hints = typing.get_type_hints(cls)
+    docs = field_docs(cls)
+    group = parser.add_argument_group(cls.__name__)
+    for f in dataclasses.fields(cls):
+        if f.name in skip or dataclasses.is_dataclass(hints[f.name]):
+            continue
+        tp, optional = _base_type(hints[f.name])
+        default = f.default if f.default is not dataclasses.MISSING else None
+        help_ = f"{docs.get(f.name, '')} (default: {default})".replace("%", "%%")
+        flag = "--" + f.name.replace("_", "-")
+        kw: dict[str, Any] = {"dest": f.name, "default": argparse.SUPPRESS, "help": help_}
+        if tp is bool:
+            group.add_argument(flag, action=argparse.BooleanOptionalAction, **kw)
+        elif typing.get_origin(tp) is tuple:
+            group.add_argument(flag, nargs="+", type=typing.get_args(tp)[0], **kw)
+        else:
+            group.add_argument(flag, type=_optional(tp) if optional else tp, **kw)
+
+
+def _optional(tp: type) -> Any:
+    def parse(text: str) -> Any:
+        return None if text.lower() in ("none", "null") else tp(text)
+
+    parse.__name__ = tp.__name__
+    return parse
+
+
+def config_from_args(args: argparse.Namespace, base: TrainConfig | None = None) -> TrainConfig:
+    """Build a :class:`TrainConfig` from parsed options (only given options override ``base``)."""
+    base = base or TrainConfig()
+    given = vars(args)
+
+    def pick(cls: type, obj: Any) -> Any:
+        names = {f.name for f in dataclasses.fields(cls)}
+        upd = {n: given[n] for n in names if n in given}
+        if "hidden" in upd:
+            upd["hidden"] = tuple(upd["hidden"])
+        return dataclasses.replace(obj, **upd) if upd else obj
+
+    ppo = pick(PPOConfig, base.ppo)
+    policy = pick(PolicyConfig, base.policy)
+    top = {f.name for f in dataclasses.fields(TrainConfig)} - {"ppo", "policy"}
+    upd = {n: given[n] for n in top if n in given}
+    return dataclasses.replace(base, ppo=ppo, policy=policy, **upd)
+
+
+def _check_int(name: str, value: object, low: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+
+
+def _check_positive(name: str, value: object) -> None:
+    if (isinstance(value, bool) or not isinstance(value, (int, float))
+            or not math.isfinite(value) or value <= 0):
+        raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")

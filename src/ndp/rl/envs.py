@@ -1,0 +1,140 @@
+"""Tasks and seeded vector environments for the trainer.
+
+:func:`resolve_task` turns a name into a :class:`TaskHandle` (spec + per-step env factory): any
+name of ``ndp.envs.TASKS``, or the toy tasks of :mod:`ndp.envs.point_mass` until they are wired
+into that table. :func:`make_vector_env` builds ``num_envs`` :class:`ndp.envs.ChunkedEnv` copies
+(k sub-steps per decision) in a gymnasium ``SyncVectorEnv`` or ``AsyncVectorEnv`` with same-step
+autoreset: when an episode ends, the returned observation and info are the reset ones and the
+finished step's info is under ``info["final_info"]`` (its observation under ``final_obs``).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv
+
+from ndp.envs.chunked import ChunkedEnv
+
+
+@dataclass(frozen=True)
+class TaskHandle:
+    """A resolved task."""
+
+    spec: Any
+    """The task spec (``ndp.envs.TaskSpec`` fields)."""
+    make: Callable[..., gym.Env]
+    """``make(seed=None, horizon=None, render_mode=None) -> per-step gymnasium.Env``."""
+
+
+def _toy_tasks() -> dict[str, TaskHandle]:
+    from ndp.envs.point_mass import make_point_mass_env, point_mass_spec
+
+    out = {}
+    for dim in (2, 3):
+        spec = point_mass_spec(dim)
+        out[spec.name] = TaskHandle(spec, functools.partial(make_point_mass_env, dim=dim))
+    return out
+
+
+def resolve_task(name: str) -> TaskHandle:
+    """Resolve a task name (``ndp.envs`` table first, then the toy tasks).
+
+    Raises:
+        ValueError: unknown name (the message lists close names).
+    """
+    from ndp.envs import get_task_spec, make_env
+
+    try:
+        spec = get_task_spec(name)
+    except ValueError:
+        toys = _toy_tasks()
+        if name in toys:
+            return toys[name]
+        raise
+    return TaskHandle(spec, functools.partial(make_env, spec.name))
+
+
+def _make_chunked(
+    make: Callable[..., gym.Env], k: int, stale_world: bool, horizon: int | None,
+    render_mode: str | None = None,
+) -> ChunkedEnv:
+    """Env-worker entry: one chunked env (torch kept to one thread in worker processes)."""
+    import torch
+
+    torch.set_num_threads(1)
+    return ChunkedEnv(make(horizon=horizon, render_mode=render_mode), k, stale_world=stale_world)
+
+
+def make_vector_env(
+    task: TaskHandle,
+    k: int,
+    num_envs: int,
+    stale_world: bool = True,
+    horizon: int | None = None,
+    vector: str = "sync",
+) -> gym.vector.VectorEnv:
+    """``num_envs`` chunked copies of a task in a gymnasium vector env (same-step autoreset).
+
+    Seed it with ``reset(seed=[...])``. Actions are [num_envs, k, A].
+    """
+    fns = [
+        functools.partial(_make_chunked, task.make, k, stale_world, horizon)
+        for _ in range(num_envs)
+    ]
+    if vector == "async":
+        return AsyncVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
+    return SyncVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
+
+
+def env_seeds(seed: int, num_envs: int, epoch: int = 0) -> list[int]:
+    """Distinct per-env reset seeds for a run seed (``epoch`` > 0 after a resume)."""
+    base = np.random.SeedSequence([seed, epoch]).generate_state(num_envs)
+    return [int(s) for s in base]
+
+
+def step_info(infos: dict[str, Any], done: np.ndarray, key: str, default: Any = 0.0) -> np.ndarray:
+    """The finished step's value of ``key`` per env (``final_info`` where the episode ended).
+
+    Args:
+        infos: info dict of a same-step-autoreset vector env.
+        done: [E] bool, episodes that ended at this step.
+        key: an info key of :class:`ndp.envs.ChunkedEnv`.step.
+        default: fill for envs that lack the key.
+
+    Returns:
+        Array [E, ...] of the step's values.
+    """
+    vals = np.asarray(infos[key]) if key in infos else None
+    if done.any():
+        fin = infos.get("final_info", {})
+        fvals = np.asarray(fin[key]) if key in fin else None
+        if fvals is not None:
+            vals = fvals.copy() if vals is None else vals.copy()
+            vals[done] = fvals[done]
+    if vals is None:
+        return np.full(len(done), default)
+    return vals
+
+
+class FrameRecorder(gym.Wrapper):
+    """Append ``env.render()`` to ``frames`` after every reset and env step (for mp4s)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self.frames: list[np.ndarray] = []
+
+    def reset(self, **kw: Any) -> tuple[Any, dict[str, Any]]:
+        out = self.env.reset(**kw)
+        self.frames.append(np.asarray(self.env.render()))
+        return out
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        out = self.env.step(action)
+        self.frames.append(np.asarray(self.env.render()))
+        return out

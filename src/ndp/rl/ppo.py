@@ -1,0 +1,84 @@
+"""PPO loss pieces over chunked decisions (pure functions; shapes stated).
+
+Per-sub-action log-probs are [M, k]; with parameter-space exploration there is one log-prob per
+decision [M, 1], broadcast over the decision's k sub-steps (the surrogate of a decision is then
+its ratio times the sum of its sub-step advantages). Every mean is over executed sub-steps.
+"""
+
+from __future__ import annotations
+
+import torch
+
+
+def masked_mean(x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Mean of ``x`` over entries where ``mask`` is 1 (``x`` broadcastable to ``mask``)."""
+    x = x.expand_as(mask)
+    return (x * mask).sum() / mask.sum().clamp_min(1.0)
+
+
+def policy_loss(
+    new_logp: torch.Tensor,
+    old_logp: torch.Tensor,
+    adv: torch.Tensor,
+    mask: torch.Tensor,
+    clip: float,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Clipped surrogate loss.
+
+    Args:
+        new_logp: [M, L] log-probs under the current policy (L = k, or 1 per decision).
+        old_logp: [M, L] log-probs at collection time.
+        adv: [M, k] advantages.
+        mask: [M, k] executed sub-steps.
+        clip: epsilon.
+
+    Returns:
+        ``(loss, approx_kl, clipfrac)``: ``-mean(min(rho A, clip(rho, 1-eps, 1+eps) A))``, the
+        estimator ``mean((rho - 1) - log rho)`` and the fraction of clipped ratios.
+    """
+    logratio = (new_logp - old_logp).expand_as(adv)
+    ratio = logratio.exp()
+    surr = torch.minimum(ratio * adv, ratio.clamp(1.0 - clip, 1.0 + clip) * adv)
+    loss = -masked_mean(surr, mask)
+    with torch.no_grad():
+        approx_kl = masked_mean((ratio - 1.0) - logratio, mask)
+        clipfrac = masked_mean(((ratio - 1.0).abs() > clip).float(), mask)
+    return loss, approx_kl, clipfrac
+
+
+def value_loss(
+    values: torch.Tensor,
+    old_values: torch.Tensor,
+    returns: torch.Tensor,
+    mask: torch.Tensor,
+    clip: float | None,
+) -> torch.Tensor:
+    """``0.5 * mean((V - R)^2)`` over executed sub-steps, optionally clipped around the old V.
+
+    Args:
+        values: [M, k] current value heads.
+        old_values: [M, k] values at collection time.
+        returns: [M, k] GAE returns.
+        mask: [M, k].
+        clip: None, or epsilon: ``max((V - R)^2, (V_old + clip(V - V_old, -eps, eps) - R)^2)``.
+    """
+    err = (values - returns).pow(2)
+    if clip is not None:
+        v_clip = old_values + (values - old_values).clamp(-clip, clip)
+        err = torch.maximum(err, (v_clip - returns).pow(2))
+    return 0.5 * masked_mean(err, mask)
+
+
+def entropy_mean(entropy: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Mean entropy [M, L] over executed sub-steps (L = 1: per decision, counted once)."""
+    if entropy.shape[1] == 1:
+        return masked_mean(entropy, mask[:, :1])
+    return masked_mean(entropy, mask)
+
+
+def normalize_advantages(adv: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """``(A - mean) / (std + 1e-8)`` over executed sub-steps; 0 elsewhere."""
+    n = mask.sum().clamp_min(1.0)
+    mean = (adv * mask).sum() / n
+    var = ((adv - mean).pow(2) * mask).sum() / (n - 1.0).clamp_min(1.0)
+    return (adv - mean) / (var.sqrt() + 1e-8) * mask

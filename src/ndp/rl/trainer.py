@@ -1,0 +1,425 @@
+"""One on-policy trainer (PPO with GAE over sub-steps) for PPO, PPO-multi and NDP.
+
+Data flow of one update (shapes: E envs, T decisions per env, k sub-steps, A action size,
+D DMP DoF, O observation size)::
+
+    obs [E, O] --normalise--> actor-critic --> distribution over [E, k, A], values [E, k]
+    sample z --> sub-actions [E, k, A] --clip to the task's bounds--> ChunkedEnv x E
+    --> sub-step rewards [E, k], masks [E, k], ends [E], robot state y0, dy0 [E, D] (physical)
+    x T decisions --> GAE over the sub-step sequence --> PPO epochs over mini-batches of decisions
+
+Truncation (time limit, unstable simulator) is bootstrapped with the value of the final
+observation; termination is not. Every action reaching the simulator is clipped to the spec's
+bounds. A non-finite loss, gradient or parameter stops training with
+:class:`TrainingDivergedError`; the last good checkpoint is kept untouched.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import random
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from ndp.policies import build_actor_critic
+from ndp.rl.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
+from ndp.rl.config import TrainConfig, load_config, resolve_config, save_config
+from ndp.rl.envs import env_seeds, make_vector_env, resolve_task, step_info
+from ndp.rl.gae import gae_substeps
+from ndp.rl.logger import Logger
+from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
+from ndp.rl.ppo import entropy_mean, normalize_advantages, policy_loss, value_loss
+
+
+class TrainingDivergedError(FloatingPointError):
+    """A loss, gradient or parameter became NaN / Inf; training stopped."""
+
+
+class Trainer:
+    """PPO over chunked decisions; the method is only the actor-critic's action head.
+
+    Args:
+        cfg: run configuration (resolved here against the task before any env is built).
+        resume: continue from ``cfg.run_dir``'s checkpoint (same config required).
+    """
+
+    def __init__(self, cfg: TrainConfig, resume: bool = False) -> None:
+        task = resolve_task(cfg.task)
+        cfg = resolve_config(cfg, task.spec)
+        self.cfg = cfg
+        self.spec = task.spec
+        self.run_dir = Path(cfg.run_dir or ".")
+        self.ckpt_path = self.run_dir / CHECKPOINT_NAME
+        ckpt = None
+        if resume:
+            ckpt = load_checkpoint(self.ckpt_path)
+            saved = TrainConfig.from_dict(ckpt["config"])
+            if saved != cfg:
+                raise ValueError(f"resume: config differs from the checkpoint's in {self.run_dir}")
+        elif self.ckpt_path.exists():
+            raise ValueError(
+                f"run_dir: {self.run_dir} already holds a checkpoint; use --resume or another dir"
+            )
+        torch.set_num_threads(cfg.torch_threads)
+        random.seed(cfg.seed)
+        np.random.seed(cfg.seed)  # noqa: NPY002  (third-party code may use it)
+        torch.manual_seed(cfg.seed)
+
+        self.k = cfg.k
+        self.num_envs = cfg.num_envs
+        self.T = cfg.decisions_per_env
+        self.envs = make_vector_env(
+            task, self.k, cfg.num_envs, cfg.stale_world, cfg.horizon, cfg.vector
+        )
+        obs_dim = int(np.prod(self.envs.single_observation_space.shape))
+        self.obs_dim = obs_dim
+        self.model = build_actor_critic(obs_dim, self.spec, cfg.policy)
+        p = cfg.ppo
+        self.opt = torch.optim.Adam(
+            self.model.parameters(), lr=p.lr, eps=p.adam_eps, foreach=True
+        )
+        self.obs_norm = ObsNormalizer(obs_dim, p.clip_obs, p.norm_obs)
+        self.ret_norm = ReturnNormalizer(cfg.num_envs, p.gamma, p.clip_reward, p.norm_return)
+        self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
+        self.high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
+        self.update = 0
+        self.global_step = 0
+        self.last_ckpt_update: int | None = None
+        if ckpt is not None:
+            self._load_state(ckpt)
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        save_config(cfg, self.run_dir / "config.json")
+        # Episode bookkeeping.
+        self._ep_ret = np.zeros(cfg.num_envs)
+        self._ep_len = np.zeros(cfg.num_envs, dtype=np.int64)
+        obs, info = self.envs.reset(seed=env_seeds(cfg.seed, cfg.num_envs, epoch=self.update))
+        self._obs = np.asarray(obs, dtype=np.float64).reshape(cfg.num_envs, obs_dim)
+        self._y0, self._dy0 = _robot_state(info, cfg.num_envs)
+
+    # ----------------------------------------------------------------------- state
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue: model, optimiser, normalisers, RNGs, counters, config."""
+        return {
+            "model": self.model.state_dict(),
+            "optimizer": self.opt.state_dict(),
+            "obs_norm": self.obs_norm.state_dict(),
+            "ret_norm": self.ret_norm.state_dict(),
+            "rng": {
+                "torch": torch.get_rng_state(),
+                "numpy": np.random.get_state(),  # noqa: NPY002
+                "python": random.getstate(),
+            },
+            "update": self.update,
+            "global_step": self.global_step,
+            "config": self.cfg.to_dict(),
+            "obs_dim": self.obs_dim,
+        }
+
+    def _load_state(self, ckpt: dict[str, Any]) -> None:
+        self.model.load_state_dict(ckpt["model"])
+        self.opt.load_state_dict(ckpt["optimizer"])
+        self.obs_norm.load_state_dict(ckpt["obs_norm"])
+        self.ret_norm.load_state_dict(ckpt["ret_norm"])
+        torch.set_rng_state(ckpt["rng"]["torch"])
+        np.random.set_state(ckpt["rng"]["numpy"])  # noqa: NPY002
+        random.setstate(ckpt["rng"]["python"])
+        self.update = int(ckpt["update"])
+        self.global_step = int(ckpt["global_step"])
+        self.last_ckpt_update = self.update
+
+    def save(self) -> Path:
+        """Write the checkpoint atomically (only with finite parameters)."""
+        self._check_params("before saving a checkpoint")
+        save_checkpoint(self.ckpt_path, self.state_dict())
+        self.last_ckpt_update = self.update
+        return self.ckpt_path
+
+    def _diverged(self, what: str) -> TrainingDivergedError:
+        last = (f"{self.ckpt_path} (update {self.last_ckpt_update})"
+                if self.last_ckpt_update is not None else "none written yet")
+        return TrainingDivergedError(
+            f"training stopped at update {self.update + 1}: {what}. The last good checkpoint is "
+            f"kept: {last}. Try a smaller learning rate or check the task's reward / actions."
+        )
+
+    def _check_params(self, when: str) -> None:
+        for name, prm in self.model.named_parameters():
+            if not bool(torch.isfinite(prm).all()):
+                raise self._diverged(f"parameter {name} holds NaN/Inf {when}")
+
+    # ----------------------------------------------------------------------- rollout
+    def collect(self) -> dict[str, Any]:
+        """Run T decisions in every env; returns the rollout (tensors / arrays) and stats."""
+        E, T, k, D = self.num_envs, self.T, self.k, self._y0.shape[1]
+        gamma = self.cfg.ppo.gamma
+        obs_b = torch.zeros(T, E, self.obs_dim)
+        y0_b = torch.zeros(T, E, D)
+        dy0_b = torch.zeros(T, E, D)
+        z_b: torch.Tensor | None = None
+        logp_b: torch.Tensor | None = None
+        val_b = np.zeros((T, E, k))
+        rew_b = np.zeros((T, E, k))
+        mask_b = np.zeros((T, E, k))
+        end_b = np.zeros((T, E))
+        episodes: list[tuple[float, float, float, float]] = []
+        goal_norms: list[float] = []
+        weight_norms: list[float] = []
+        executed = 0
+        for t in range(T):
+            obs_n = torch.from_numpy(self.obs_norm(self._obs, update=True))
+            y0 = torch.as_tensor(self._y0, dtype=torch.float32)
+            dy0 = torch.as_tensor(self._dy0, dtype=torch.float32)
+            with torch.no_grad():
+                try:
+                    dist, aux = self.model.distribution(obs_n, y0, dy0)
+                except FloatingPointError as exc:
+                    msg = f"non-finite DMP input during the rollout ({exc})"
+                    raise self._diverged(msg) from None
+                z = dist.sample()
+                logp = dist.log_prob(z)
+                values = self.model.value(obs_n)
+                act = torch.maximum(torch.minimum(dist.actions(z), self.high), self.low)
+            if z_b is None:
+                z_b = torch.zeros((T, E, *z.shape[1:]))
+                logp_b = torch.zeros((T, E, logp.shape[1]))
+            obs_b[t], y0_b[t], dy0_b[t], z_b[t], logp_b[t] = obs_n, y0, dy0, z, logp
+            val_b[t] = values.numpy()
+            if "goal_norm" in aux:
+                goal_norms.append(float(aux["goal_norm"].mean()))
+                weight_norms.append(float(aux["weight_norm"].mean()))
+
+            next_obs, _, term, trunc, infos = self.envs.step(act.numpy())
+            term = np.asarray(term, dtype=bool)
+            trunc = np.asarray(trunc, dtype=bool)
+            done = term | trunc
+            sub_r = step_info(infos, done, "sub_rewards").reshape(E, k)
+            mask = step_info(infos, done, "sub_mask").reshape(E, k)
+            r_n = self.ret_norm(sub_r, mask, done)
+            boot = trunc & ~term
+            if boot.any():  # bootstrap truncated episodes from their final observation
+                fin = np.stack([np.asarray(o, dtype=np.float64)
+                                for o in infos["final_obs"][boot]])
+                fin = torch.from_numpy(self.obs_norm(fin.reshape(-1, self.obs_dim)))
+                with torch.no_grad():
+                    v_fin = self.model.value(fin)[:, 0].numpy()
+                last_j = mask[boot].sum(1).astype(int) - 1
+                r_n[np.flatnonzero(boot), last_j] += gamma * v_fin
+            rew_b[t], mask_b[t], end_b[t] = r_n, mask, done
+            executed += int(mask.sum())
+
+            self._ep_ret += (sub_r * mask).sum(1)
+            self._ep_len += mask.sum(1).astype(np.int64)
+            if done.any():
+                s_any = step_info(infos, done, "success_any")
+                s_fin = step_info(infos, done, "success")
+                for i in np.flatnonzero(done):
+                    episodes.append((float(s_any[i]), float(s_fin[i]), self._ep_ret[i],
+                                     float(self._ep_len[i])))
+                self._ep_ret[done] = 0.0
+                self._ep_len[done] = 0
+            self._obs = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
+            self._y0, self._dy0 = _robot_state(infos, E)
+
+        with torch.no_grad():
+            last_obs = torch.from_numpy(self.obs_norm(self._obs))
+            last_v = self.model.value(last_obs)[:, 0].numpy()
+        adv, ret = gae_substeps(rew_b, val_b, mask_b, end_b, last_v, gamma,
+                                self.cfg.ppo.gae_lambda)
+        assert z_b is not None and logp_b is not None
+        n = T * E
+        return {
+            "obs": obs_b.reshape(n, self.obs_dim),
+            "y0": y0_b.reshape(n, D),
+            "dy0": dy0_b.reshape(n, D),
+            "z": z_b.reshape(n, *z_b.shape[2:]),
+            "logp": logp_b.reshape(n, -1),
+            "values": torch.as_tensor(val_b.reshape(n, k), dtype=torch.float32),
+            "adv": torch.as_tensor(adv.reshape(n, k), dtype=torch.float32),
+            "returns": torch.as_tensor(ret.reshape(n, k), dtype=torch.float32),
+            "mask": torch.as_tensor(mask_b.reshape(n, k), dtype=torch.float32),
+            "episodes": episodes,
+            "executed": executed,
+            "goal_norm": float(np.mean(goal_norms)) if goal_norms else math.nan,
+            "weight_norm": float(np.mean(weight_norms)) if weight_norms else math.nan,
+        }
+
+    # ----------------------------------------------------------------------- update
+    def learn(self, batch: dict[str, Any]) -> dict[str, float]:
+        """PPO epochs over mini-batches of decisions; returns mean loss statistics."""
+        p = self.cfg.ppo
+        if p.anneal_lr:
+            frac = 1.0 - self.update / self.cfg.num_updates
+            for g in self.opt.param_groups:
+                g["lr"] = p.lr * frac
+        mask = batch["mask"]
+        adv = normalize_advantages(batch["adv"], mask) if p.norm_adv else batch["adv"]
+        n = mask.shape[0]
+        n_mb = min(p.minibatches, n)
+        stats: dict[str, list[torch.Tensor]] = {k: [] for k in
+                                         ("policy", "value", "entropy", "approx_kl", "clipfrac",
+                                          "grad_norm")}
+        vclip = p.clip if p.clip_value_loss else None
+        for _ in range(p.epochs):
+            for idx in torch.randperm(n).tensor_split(n_mb):
+                try:
+                    dist, _ = self.model.distribution(
+                        batch["obs"][idx], batch["y0"][idx], batch["dy0"][idx]
+                    )
+                except FloatingPointError as exc:
+                    raise self._diverged(f"non-finite DMP input in the update ({exc})") from None
+                new_logp = dist.log_prob(batch["z"][idx])
+                m = mask[idx]
+                pg, kl, cf = policy_loss(new_logp, batch["logp"][idx], adv[idx], m, p.clip)
+                v = self.model.value(batch["obs"][idx])
+                vl = value_loss(v, batch["values"][idx], batch["returns"][idx], m, vclip)
+                ent = entropy_mean(dist.entropy(), m)
+                loss = pg + p.vf_coef * vl - p.ent_coef * ent
+                if not bool(torch.isfinite(loss)):
+                    raise self._diverged(
+                        f"non-finite loss (policy {float(pg)}, value {float(vl)})"
+                    )
+                self.opt.zero_grad(set_to_none=True)
+                loss.backward()
+                gn = nn.utils.clip_grad_norm_(
+                    self.model.parameters(), p.max_grad_norm, foreach=True
+                )
+                if not bool(torch.isfinite(gn)):
+                    raise self._diverged("non-finite gradient norm")
+                self.opt.step()
+                for key, val in (("policy", pg), ("value", vl), ("entropy", ent),
+                                 ("approx_kl", kl), ("clipfrac", cf), ("grad_norm", gn)):
+                    stats[key].append(val.detach())
+        self._check_params("after the update")
+        out = {k: float(torch.stack(v).mean()) for k, v in stats.items()}
+        valid = mask > 0
+        y, yhat = batch["returns"][valid], batch["values"][valid]
+        var_y = float(y.var()) if y.numel() > 1 else 0.0
+        out["explained_variance"] = (
+            math.nan if var_y == 0 else 1.0 - float((y - yhat).var()) / var_y
+        )
+        return out
+
+    # ----------------------------------------------------------------------- loop
+    def train(self, max_updates: int | None = None) -> dict[str, float]:
+        """Train until ``cfg.steps`` (or ``max_updates`` more updates); returns the last metrics.
+
+        Raises:
+            TrainingDivergedError: NaN / Inf in a loss, gradient or parameter.
+        """
+        from tqdm import tqdm
+
+        cfg = self.cfg
+        resumed = self.last_ckpt_update is not None
+        logger = Logger(
+            self.run_dir, cfg.tensorboard,
+            resume_update=self.update if resumed else None,
+            resume_step=self.global_step if resumed else None,
+        )
+        bar = tqdm(total=cfg.steps, initial=min(self.global_step, cfg.steps), unit="step",
+                   disable=not cfg.progress, dynamic_ncols=True, desc=f"{cfg.algo} {cfg.task}")
+        metrics: dict[str, float] = {}
+        stop = cfg.num_updates if max_updates is None else min(
+            cfg.num_updates, self.update + max_updates)
+        try:
+            while self.update < stop:
+                t0 = time.perf_counter()
+                batch = self.collect()
+                t1 = time.perf_counter()
+                stats = self.learn(batch)
+                t2 = time.perf_counter()
+                self.update += 1
+                self.global_step += batch["executed"]
+                eps = batch["episodes"]
+                col = np.array(eps) if eps else np.full((1, 4), math.nan)
+                with torch.no_grad():
+                    std = float(self.model.head.log_std.exp().mean())
+                metrics = {
+                    "update": self.update,
+                    "global_step": self.global_step,
+                    "charts/episodes": len(eps),
+                    "charts/success_any": float(col[:, 0].mean()),
+                    "charts/success_final": float(col[:, 1].mean()),
+                    "charts/episode_return": float(col[:, 2].mean()),
+                    "charts/episode_length": float(col[:, 3].mean()),
+                    "charts/env_steps_per_s": batch["executed"] / max(t2 - t0, 1e-9),
+                    "charts/learning_rate": float(self.opt.param_groups[0]["lr"]),
+                    "losses/policy": stats["policy"],
+                    "losses/value": stats["value"],
+                    "losses/entropy": stats["entropy"],
+                    "losses/approx_kl": stats["approx_kl"],
+                    "losses/clipfrac": stats["clipfrac"],
+                    "losses/grad_norm": stats["grad_norm"],
+                    "losses/explained_variance": stats["explained_variance"],
+                    "policy/std": std,
+                    "dmp/goal_norm": batch["goal_norm"],
+                    "dmp/weight_norm": batch["weight_norm"],
+                    "time/rollout_s": t1 - t0,
+                    "time/update_s": t2 - t1,
+                }
+                logger.log(metrics)
+                bar.update(min(self.global_step, cfg.steps) - bar.n)
+                bar.set_postfix(success=f"{metrics['charts/success_any']:.2f}",
+                                ret=f"{metrics['charts/episode_return']:.1f}")
+                if self.update % cfg.checkpoint_every == 0 or self.update == cfg.num_updates:
+                    self.save()
+        finally:
+            bar.close()
+            logger.close()
+        return metrics
+
+    def close(self) -> None:
+        """Close the environments."""
+        self.envs.close()
+
+
+def _robot_state(info: dict[str, Any], n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The next decision's DMP start (physical y0, dy0) [E, D] from a vector env's info."""
+    if "dmp_y0" in info:
+        y0, dy0 = info["dmp_y0"], info["dmp_dy0"]
+    else:
+        y0, dy0 = info["robot_pos"], info["robot_vel"]
+        if np.ndim(y0) == 3:  # [E, k+1, D] step info: the state after the last sub-step
+            y0, dy0 = y0[:, -1], dy0[:, -1]
+    return (np.asarray(y0, dtype=np.float64).reshape(n, -1),
+            np.asarray(dy0, dtype=np.float64).reshape(n, -1))
+
+
+def train(cfg: TrainConfig, max_updates: int | None = None) -> dict[str, float]:
+    """Train a fresh run (see :class:`Trainer`); returns the last update's metrics."""
+    trainer = Trainer(cfg)
+    try:
+        return trainer.train(max_updates)
+    finally:
+        trainer.close()
+
+
+def resume(run_dir: str | Path, max_updates: int | None = None,
+           **overrides: Any) -> dict[str, float]:
+    """Continue a run from its directory's checkpoint (at most one interval is lost).
+
+    Args:
+        run_dir: a directory written by :func:`train`.
+        max_updates: stop after this many more updates.
+        **overrides: top-level fields that do not change the run (``progress``, ``tensorboard``).
+    """
+    run_dir = Path(run_dir)
+    cfg = load_config(run_dir / "config.json")
+    allowed = {"progress", "tensorboard"}
+    if set(overrides) - allowed:
+        raise ValueError(f"resume: only {sorted(allowed)} may change, got {sorted(overrides)}")
+    cfg = dataclasses.replace(cfg, run_dir=str(run_dir))
+    if not (run_dir / CHECKPOINT_NAME).is_file():
+        raise FileNotFoundError(f"resume: no checkpoint in {run_dir} (killed before the first)")
+    trainer = Trainer(cfg, resume=True)
+    if overrides:
+        trainer.cfg = dataclasses.replace(trainer.cfg, **overrides)
+    try:
+        return trainer.train(max_updates)
+    finally:
+        trainer.close()

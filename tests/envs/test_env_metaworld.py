@@ -65,6 +65,7 @@ def test_expert_all_tasks(name):
         assert run_expert(name, k=5)
 
 
+@pytest.mark.filterwarnings("ignore:Constant")
 def test_stale_rule_does_not_change_the_dynamics_and_uses_the_stale_world():
     on = ChunkedEnv(make_env("push-v3"), k=5, stale_world=True)
     off = ChunkedEnv(make_env("push-v3"), k=5, stale_world=False)

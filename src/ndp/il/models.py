@@ -186,9 +186,36 @@ class _DMPModel(TrajectoryModel):
         return torch.cat([og.unsqueeze(-1), ow], dim=-1).reshape(goal.shape[0], -1)
 
     def integrate(self, raw: torch.Tensor, y0: torch.Tensor) -> torch.Tensor:
-        """Raw outputs [B, 2 (N + 1)] and y0 [B, 2] -> positions [B, T, 2] (dy0 = 0)."""
-        goal, weights = self.params(raw, y0)
-        return self.dmp(goal, weights, y0).pos
+        """Raw outputs [B, 2 (N + 1)] and y0 [B, 2] -> positions [B, T, 2] (dy0 = 0).
+
+        With ``forcing_param == "amplitude"`` the rollout of (g, w = a / (g - y0)) is computed
+        without dividing by g - y0: the DMP is linear in (w (g - y0), g, y0), so
+
+            rollout(g, a / (g - y0), y0) = rollout(g, 0, y0)
+                                           + rollout(y0 + 1, a, y0) - rollout(y0 + 1, 0, y0),
+
+        three rollouts of the same :class:`ndp.dmp.DMPLayer` in one batched call. This is the
+        same trajectory, but its gradient stays finite when g - y0 crosses zero during training
+        (the division form cancels two terms of size a / (g - y0) there).
+        """
+        if self.cfg.forcing_param != "amplitude":
+            goal, weights = self.params(raw, y0)
+            return self.dmp(goal, weights, y0).pos
+        cfg = self.cfg
+        n = cfg.n_basis
+        raw = raw.view(-1, 2, n + 1)
+        half = cfg.frame / 2
+        goal = half + half * raw[..., 0]
+        amp = cfg.amp_scale * raw[..., 1:]
+        b = raw.shape[0]
+        unit = y0 + 1.0
+        zeros = torch.zeros_like(amp)
+        pos = self.dmp(
+            torch.cat([goal, unit, unit]),
+            torch.cat([zeros, amp, zeros]),
+            torch.cat([y0, y0, y0]),
+        ).pos
+        return pos[:b] + pos[b : 2 * b] - pos[2 * b :]
 
     def predict(self, images: torch.Tensor, y0: torch.Tensor) -> torch.Tensor:
         return self.integrate(self.features(images), y0)

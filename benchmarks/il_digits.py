@@ -1,0 +1,192 @@
+"""Digit-writing benchmark: NDP vs CNN vs CNN-DMP under the paper's protocol.
+
+For each data set (the synthetic S-MNIST equivalent with the paper's split: first 12,000 samples
+shuffled into 10,000 train / 2,000 test; then Pendigits with a writer-disjoint split) and each
+model, one worker process trains with Adam 1e-3, batch 100, for ``--epochs`` epochs (paper: 71)
+and evaluates on the full train and test splits. Each worker's result (errors, wall time, peak
+resident memory of the worker process) is written as JSON under ``--out`` as soon as it finishes;
+the table is generated from those files.
+
+Examples::
+
+    python benchmarks/il_digits.py --epochs 71                    # full protocol, both sets
+    python benchmarks/il_digits.py --epochs 5 --datasets synthetic
+    python benchmarks/il_digits.py --table-only --out runs/bench_il --markdown docs/il_table.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+MODELS = ("ndp", "cnn", "cnn-dmp")
+DATASETS = ("synthetic", "pendigits")
+
+
+def _worker(args: argparse.Namespace) -> int:
+    import torch
+
+    from ndp.il.models import ModelConfig
+    from ndp.il.train import DataConfig, TrainConfig, evaluate, train
+
+    torch.set_num_threads(args.threads)
+    data = DataConfig(
+        source=args.dataset,
+        data_dir=args.data_dir,
+        split="writer" if args.dataset == "pendigits" else "paper",
+        split_seed=args.seed,
+        pendigits_path=args.pendigits_path,
+    )
+    run_dir = Path(args.out) / f"{args.dataset}-{args.model}"
+    cfg = TrainConfig(
+        run_dir=str(run_dir),
+        data=data,
+        model=ModelConfig(kind=args.model),
+        epochs=args.epochs,
+        batch_size=100,
+        lr=1e-3,
+        seed=args.seed,
+        threads=args.threads,
+        progress=False,
+        eval_every=args.eval_every,
+    )
+    t0 = time.perf_counter()
+    summary = train(cfg, resume=args.resume and (run_dir / "checkpoint.pt").exists())
+    train_s = time.perf_counter() - t0
+    ev = evaluate(run_dir, dtw=True, threads=args.threads, include_train=True)
+    hist = json.loads(json.dumps(summary["final"]))
+    epoch_times = []
+    import csv
+
+    with (run_dir / "metrics.csv").open() as f:
+        for row in csv.DictReader(f):
+            epoch_times.append(float(row["time/epoch_s"]))
+    result = {
+        "dataset": args.dataset,
+        "model": args.model,
+        "epochs": args.epochs,
+        "seed": args.seed,
+        "n_train": ev["n_train"],
+        "n_test": ev["n_test"],
+        "train_mse_px2": ev["train_mse_px2"],
+        "test_mse_px2": ev["test_mse_px2"],
+        "test_dtw_px": ev["test_dtw_px"],
+        "wall_s_train": train_s,
+        "epoch_s_median": sorted(epoch_times)[len(epoch_times) // 2] if epoch_times else None,
+        "epoch_s_min": min(epoch_times) if epoch_times else None,
+        "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "threads": args.threads,
+        "final_epoch": hist,
+        "png": ev["png"],
+    }
+    out = Path(args.out) / f"result-{args.dataset}-{args.model}.json"
+    tmp = out.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(result, indent=2) + "\n")
+    os.replace(tmp, out)
+    return 0
+
+
+def _fmt(s: dict) -> str:
+    return f"{s['mean']:.2f} +- {s['std']:.2f}"
+
+
+def make_table(out: Path) -> str:
+    """Markdown tables from the ``result-*.json`` files in ``out``."""
+    lines = []
+    for ds in DATASETS:
+        rows = []
+        for m in MODELS:
+            p = out / f"result-{ds}-{m}.json"
+            if p.exists():
+                rows.append(json.loads(p.read_text()))
+        if not rows:
+            continue
+        r0 = rows[0]
+        split = "paper split" if ds == "synthetic" else "writer-disjoint split"
+        lines.append(
+            f"**{ds}** ({split}, {r0['n_train']} train / {r0['n_test']} test, "
+            f"{r0['epochs']} epochs, seed {r0['seed']}, {r0['threads']} torch threads)\n"
+        )
+        lines.append(
+            "| model | train MSE px^2 | test MSE px^2 | test DTW px | train wall s | "
+            "epoch s (median) | peak RSS MiB |"
+        )
+        lines.append("|---|---|---|---|---|---|---|")
+        for r in rows:
+            lines.append(
+                f"| {r['model']} | {_fmt(r['train_mse_px2'])} | {_fmt(r['test_mse_px2'])} | "
+                f"{_fmt(r['test_dtw_px'])} | {r['wall_s_train']:.0f} | "
+                f"{r['epoch_s_median']:.1f} | {r['peak_rss_mib']:.0f} |"
+            )
+        by = {r["model"]: r["test_mse_px2"]["mean"] for r in rows}
+        if "ndp" in by and len(by) == 3:
+            ratio = min(by["cnn"], by["cnn-dmp"]) / by["ndp"]
+            lines.append(f"\nBest baseline / NDP test MSE: {ratio:.1f}x\n")
+        else:
+            lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("--epochs", type=int, default=71, help="epochs per model (paper: 71)")
+    p.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=DATASETS)
+    p.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
+    p.add_argument("--seed", type=int, default=0, help="split, initialisation and order seed")
+    p.add_argument("--threads", type=int, default=2, help="torch threads per worker")
+    p.add_argument("--out", default="runs/bench_il", help="run and result folder")
+    p.add_argument("--data-dir", default="data", help="synthetic cache folder")
+    p.add_argument("--pendigits-path", default="", help="Pendigits UNIPEN file")
+    p.add_argument("--eval-every", type=int, default=0, help="test MSE every n epochs (0: end)")
+    p.add_argument("--resume", action="store_true", help="continue runs with checkpoints")
+    p.add_argument("--table-only", action="store_true", help="only print the table")
+    p.add_argument("--markdown", default=None, help="also write the table to this file")
+    p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    p.add_argument("--dataset", default="synthetic", help=argparse.SUPPRESS)
+    p.add_argument("--model", default="ndp", help=argparse.SUPPRESS)
+    args = p.parse_args(argv)
+    if args.worker:
+        return _worker(args)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if not args.table_only:
+        for ds in args.datasets:
+            for m in args.models:
+                cmd = [
+                    sys.executable, __file__, "--worker", "--dataset", ds, "--model", m,
+                    "--epochs", str(args.epochs), "--seed", str(args.seed),
+                    "--threads", str(args.threads), "--out", str(out),
+                    "--data-dir", args.data_dir, "--pendigits-path", args.pendigits_path,
+                    "--eval-every", str(args.eval_every),
+                ]  # fmt: skip
+                if args.resume:
+                    cmd.append("--resume")
+                print(f"[il_digits] {ds} / {m}: {args.epochs} epochs", flush=True)
+                rc = subprocess.call(cmd)
+                if rc != 0:
+                    print(f"[il_digits] {ds} / {m} failed with exit code {rc}", flush=True)
+                    return rc
+    commit = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
+    ).stdout.strip()
+    table = make_table(out)
+    header = (
+        f"<!-- generated by: python benchmarks/il_digits.py {' '.join(argv or sys.argv[1:])} -->\n"
+        f"Commit {commit or 'unknown'}, {platform.processor() or platform.machine()}, "
+        f"{os.cpu_count()} CPUs visible.\n\n"
+    )
+    print(header + table)
+    if args.markdown:
+        Path(args.markdown).write_text(header + table + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,196 @@
+"""Trainer and ``ndp il`` commands: files, logs, resume, bad input, NaN handling."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from ndp.cli import main
+from ndp.il.models import ModelConfig
+from ndp.il.train import (
+    METRIC_NAMES,
+    DataConfig,
+    NonFiniteLossError,
+    TrainConfig,
+    evaluate,
+    load_checkpoint,
+    train,
+)
+
+
+def _tiny(tmp_path: Path, run: str = "run", **kw) -> TrainConfig:
+    data = DataConfig(
+        data_dir=str(tmp_path / "data"), n_samples=60, n_train=40, n_test=20, split_seed=1
+    )
+    base = dict(
+        run_dir=str(tmp_path / run),
+        data=data,
+        model=ModelConfig(kind="ndp"),
+        epochs=2,
+        batch_size=20,
+        threads=1,
+        progress=False,
+    )
+    base.update(kw)
+    return TrainConfig(**base)
+
+
+def _tiny_args(tmp_path: Path, out: str) -> list[str]:
+    return [
+        "il", "train", "--data-dir", str(tmp_path / "data"), "--n-samples", "60",
+        "--n-train", "40", "--n-test", "20", "--batch-size", "20", "--epochs", "1",
+        "--threads", "1", "--out", str(tmp_path / out), "--no-progress",
+    ]  # fmt: skip
+
+
+@pytest.mark.parametrize("model", ["ndp", "cnn", "cnn-dmp"])
+def test_cli_train_writes_run_files(tmp_path: Path, model: str, capsys) -> None:
+    rc = main([*_tiny_args(tmp_path, model), "--model", model])
+    assert rc == 0
+    run = tmp_path / model
+    cfg = json.loads((run / "config.json").read_text())
+    assert cfg["model"]["kind"] == model and cfg["lr"] == 1e-3 and cfg["batch_size"] == 20
+    with (run / "metrics.csv").open() as f:
+        rows = list(csv.reader(f))
+    assert tuple(rows[0]) == ("epoch", *METRIC_NAMES)
+    assert len(rows) == 2 and float(rows[1][3]) > 0  # test/mse_px2
+    assert list((run / "tb").glob("events.out.tfevents.*"))
+    assert load_checkpoint(run)["epoch"] == 1
+    ev = json.loads((run / "eval.json").read_text())
+    assert ev["n_test"] == 20 and ev["test_mse_px2"]["mean"] > 0 and ev["test_dtw_px"]["mean"] > 0
+    assert (run / "predictions.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not list(run.glob("*.tmp"))
+    out = json.loads(capsys.readouterr().out)
+    assert out["eval"]["test_mse_px2"]["mean"] == pytest.approx(ev["test_mse_px2"]["mean"])
+
+
+def test_resume_equals_uninterrupted(tmp_path: Path) -> None:
+    straight = train(_tiny(tmp_path, "a", epochs=2))
+    train(_tiny(tmp_path, "b", epochs=1))
+    resumed = train(_tiny(tmp_path, "b", epochs=2), resume=True)
+    a = load_checkpoint(Path(straight["checkpoint"]))
+    b = load_checkpoint(Path(resumed["checkpoint"]))
+    assert b["epoch"] == 2
+    for k, v in a["model"].items():
+        assert torch.equal(v, b["model"][k]), k
+    with (tmp_path / "b" / "metrics.csv").open() as f:
+        assert [r["epoch"] for r in csv.DictReader(f)] == ["1", "2"]
+
+
+def test_nan_loss_stops_and_keeps_last_good_checkpoint(tmp_path: Path, monkeypatch) -> None:
+    cfg = _tiny(tmp_path, epochs=1)
+    train(cfg)
+    good = load_checkpoint(tmp_path / "run")
+    from ndp.il import models
+
+    def nan_loss(self, images, demos, targets=None):
+        pred = self.predict(images, demos[:, 0])
+        return (pred * float("nan")).mean(), pred
+
+    monkeypatch.setattr(models.NDPModel, "loss", nan_loss)
+    with pytest.raises(NonFiniteLossError, match=r"loss became nan.*Last good checkpoint.*epoch 1"):
+        train(_tiny(tmp_path, epochs=3), resume=True)
+    kept = load_checkpoint(tmp_path / "run")
+    assert kept["epoch"] == 1
+    for k, v in good["model"].items():
+        assert torch.equal(v, kept["model"][k])
+
+
+def test_cli_nan_loss_is_a_one_line_error(tmp_path: Path, monkeypatch, capsys) -> None:
+    from ndp.il import models
+
+    def nan_loss(self, images, demos, targets=None):
+        pred = self.predict(images, demos[:, 0])
+        return (pred * float("nan")).mean(), pred
+
+    monkeypatch.setattr(models.NDPModel, "loss", nan_loss)
+    rc = main(_tiny_args(tmp_path, "nan"))
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "loss became nan" in err and err.count("\n") == 1
+
+
+def test_eval_command_and_bad_runs(tmp_path: Path, capsys) -> None:
+    train(_tiny(tmp_path, epochs=1))
+    rc = main(["il", "eval", str(tmp_path / "run"), "--no-dtw", "--train-error",
+               "--png", str(tmp_path / "grid.png"), "--n-grid", "6"])  # fmt: skip
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n_test"] == 20 and out["n_train"] == 40 and "test_dtw_px" not in out
+    assert (tmp_path / "grid.png").exists()
+    assert main(["il", "eval", str(tmp_path / "missing")]) == 2
+    assert "checkpoint not found" in capsys.readouterr().err
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "checkpoint.pt").write_bytes(b"garbage")
+    assert main(["il", "eval", str(bad)]) == 2
+    assert "cannot read checkpoint" in capsys.readouterr().err
+
+
+def test_cli_bad_data_paths(tmp_path: Path, capsys) -> None:
+    args = _tiny_args(tmp_path, "x")
+    assert main([*args, "--data", str(tmp_path / "nope.npz")]) == 2
+    assert "not found" in capsys.readouterr().err
+    corrupt = tmp_path / "corrupt.npz"
+    corrupt.write_bytes(b"not an npz")
+    assert main([*args, "--data", str(corrupt)]) == 2
+    assert "cannot read" in capsys.readouterr().err
+    wrong = tmp_path / "wrong.npz"
+    np.savez(wrong, x=np.zeros((3, 40, 40)))
+    assert main([*args, "--data", str(wrong)]) == 2
+    assert "must contain arrays 'images'" in capsys.readouterr().err
+    assert main([*args, "--data", "pendigits", "--pendigits-path", str(tmp_path / "no")]) == 2
+    assert "Pendigits file not found" in capsys.readouterr().err
+
+
+def test_cli_user_npz_other_length(tmp_path: Path, capsys) -> None:
+    rng = np.random.default_rng(0)
+    n = 30
+    images = rng.random((n, 40, 40)).astype(np.float32)
+    t = np.linspace(0, 1, 101)[None, :, None]
+    trajs = 20 + 10 * np.concatenate([np.cos(6 * t), np.sin(6 * t)], axis=2) * rng.random((n, 1, 1))
+    p = tmp_path / "mine.npz"
+    np.savez(p, images=images, trajectories=trajs)
+    args = [*_tiny_args(tmp_path, "npz"), "--data", str(p), "--no-dtw"]
+    assert main(args) == 2
+    assert "101 points, expected 301" in capsys.readouterr().err
+    assert main([*args, "--resample"]) == 0
+    cfg = json.loads((tmp_path / "npz" / "config.json").read_text())
+    assert cfg["data"]["resample"] is True
+    ev = json.loads((tmp_path / "npz" / "eval.json").read_text())
+    assert ev["n_test"] == 6  # 20 % of 30 samples held out
+
+
+def test_pendigits_writer_split_run(tmp_path: Path, pendigits_path: Path) -> None:
+    # the first 400 real digits (several writers) keep the run short
+    text = pendigits_path.read_text()
+    cut = [i for i in range(len(text)) if text.startswith(".SEGMENT", i)][400]
+    subset = tmp_path / "pendigits-subset"
+    subset.write_text(text[:cut])
+    cfg = TrainConfig(
+        run_dir=str(tmp_path / "pen"),
+        data=DataConfig(source="pendigits", pendigits_path=str(subset)),
+        epochs=1,
+        batch_size=50,
+        threads=1,
+        progress=False,
+        max_train_batches=2,
+    )
+    summary = train(cfg)
+    assert summary["n_test"] > 0 and summary["n_train"] + summary["n_test"] == 400
+    ev = evaluate(tmp_path / "pen", dtw=False, n_grid=4)
+    assert ev["n_test"] == summary["n_test"]
+
+
+def test_train_config_json_roundtrip(tmp_path: Path) -> None:
+    cfg = _tiny(tmp_path)
+    cfg.model.head_hidden = (16,)
+    again = TrainConfig.from_dict(json.loads(json.dumps(cfg.as_dict())))
+    assert again.as_dict() == cfg.as_dict()
+    with pytest.raises(ValueError, match="batch_size"):
+        _tiny(tmp_path, batch_size=0)

@@ -2,8 +2,9 @@
 
 The robot is a point in the plane (or in space), ``p`` in ``[-1, 1]^D``, position-controlled like
 Meta-World's mocap hand: an action ``a`` in ``[-1, 1]^D`` moves the point by ``ACTION_SCALE * a``
-per env step (clipped to the box). The goal is drawn uniformly in ``[-0.8, 0.8]^D`` at reset, at
-least ``MIN_GOAL_DIST`` away from the start.
+per env step (clipped to the box). At reset the start is uniform in ``[-0.5, 0.5]^D`` and the goal
+is the start plus a uniform offset in ``[-0.5, 0.5]^D`` (clipped to ``[-0.9, 0.9]``), at least
+``MIN_GOAL_DIST`` away from the start.
 
 Clocks: one env step lasts ``CONTROL_DT`` seconds; there is no finer simulator step.
 
@@ -39,9 +40,11 @@ CONTROL_DT = 0.05
 """Seconds per env step."""
 SUCCESS_RADIUS = 0.05
 """Success when the point is within this distance (m) of the goal."""
-MIN_GOAL_DIST = 0.3
+MIN_GOAL_DIST = 0.2
 """The goal is drawn at least this far (m) from the start."""
-DEFAULT_HORIZON = 40
+MAX_GOAL_OFFSET = 0.5
+"""The goal is the start plus an offset drawn uniformly in ``[-0.5, 0.5]^D`` (then clipped)."""
+DEFAULT_HORIZON = 50
 """Env steps per episode."""
 
 
@@ -235,7 +238,7 @@ class PointMassEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Draw a start in ``[-0.5, 0.5]^D`` and a goal; returns ``(obs [3D], info)``."""
+        """Draw a start in ``[-0.5, 0.5]^D`` and a goal near it; returns ``(obs [3D], info)``."""
         if seed is None and self._next_seed is not None:
             seed, self._next_seed = self._next_seed, None
         super().reset(seed=seed)
@@ -243,7 +246,8 @@ class PointMassEnv(gym.Env):
         self._pos = rng.uniform(-0.5, 0.5, self.dim)
         self._vel = np.zeros(self.dim)
         while True:
-            self._goal = rng.uniform(-0.8, 0.8, self.dim)
+            offset = rng.uniform(-MAX_GOAL_OFFSET, MAX_GOAL_OFFSET, self.dim)
+            self._goal = np.clip(self._pos + offset, -0.9, 0.9)
             if self._dist() >= MIN_GOAL_DIST:
                 break
         self._steps = 0

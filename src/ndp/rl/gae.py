@@ -85,3 +85,31 @@ def gae_substeps(
         adv_seq[i] = acc
     adv = adv_seq.reshape(t_len, k, n_env).transpose(0, 2, 1) * m
     return adv, (adv + v) * m
+
+
+def bootstrap_truncated(
+    rewards: np.ndarray,
+    masks: np.ndarray,
+    boot: np.ndarray,
+    final_values: np.ndarray,
+    gamma: float,
+) -> np.ndarray:
+    """Add ``gamma * V(final obs)`` to the last executed sub-step of truncated episodes.
+
+    Args:
+        rewards: [E, k] one decision's (normalised) sub-step rewards.
+        masks: [E, k] executed sub-steps (a non-empty prefix where ``boot``).
+        boot: [E] bool, episodes truncated (time limit, unstable simulator) and NOT terminated.
+        final_values: [n_boot] value (head 0) of each such episode's final observation, in the
+            order of ``np.flatnonzero(boot)``.
+        gamma: discount per sub-step.
+
+    Returns:
+        A new [E, k] array.
+    """
+    out = np.array(rewards, dtype=np.float64, copy=True)
+    idx = np.flatnonzero(boot)
+    if idx.size:
+        last_j = np.asarray(masks)[idx].sum(1).astype(int) - 1
+        out[idx, last_j] += gamma * np.asarray(final_values, dtype=np.float64)
+    return out

@@ -34,8 +34,8 @@ NDP_PRESETS: dict[str, NDPPreset] = {
     "soccer-v3": NDPPreset(n_basis=6, a_z=15.0),
     "faucet-open-v3": NDPPreset(n_basis=6, a_z=5.0),
     "reach-v3": NDPPreset(n_basis=6, a_z=15.0),
-    "point-mass": NDPPreset(n_basis=6, a_z=15.0),
-    "point-mass-3d": NDPPreset(n_basis=6, a_z=15.0),
+    "point-mass": NDPPreset(n_basis=6, a_z=5.0),
+    "point-mass-3d": NDPPreset(n_basis=6, a_z=5.0),
 }
 """Task name (canonical, as in ``ndp.envs.TASKS``) -> preset."""
 

@@ -31,7 +31,7 @@ from ndp.policies import build_actor_critic
 from ndp.rl.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from ndp.rl.config import TrainConfig, load_config, resolve_config, save_config
 from ndp.rl.envs import env_seeds, make_vector_env, resolve_task, step_info
-from ndp.rl.gae import gae_substeps
+from ndp.rl.gae import bootstrap_truncated, gae_substeps
 from ndp.rl.logger import Logger
 from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
 from ndp.rl.ppo import entropy_mean, normalize_advantages, policy_loss, value_loss
@@ -208,8 +208,7 @@ class Trainer:
                 fin = torch.from_numpy(self.obs_norm(fin.reshape(-1, self.obs_dim)))
                 with torch.no_grad():
                     v_fin = self.model.value(fin)[:, 0].numpy()
-                last_j = mask[boot].sum(1).astype(int) - 1
-                r_n[np.flatnonzero(boot), last_j] += gamma * v_fin
+                r_n = bootstrap_truncated(r_n, mask, boot, v_fin, gamma)
             rew_b[t], mask_b[t], end_b[t] = r_n, mask, done
             executed += int(mask.sum())
 
@@ -282,7 +281,7 @@ class Trainer:
                 loss = pg + p.vf_coef * vl - p.ent_coef * ent
                 if not bool(torch.isfinite(loss)):
                     raise self._diverged(
-                        f"non-finite loss (policy {float(pg)}, value {float(vl)})"
+                        f"non-finite loss (policy {float(pg.detach())}, value {float(vl.detach())})"
                     )
                 self.opt.zero_grad(set_to_none=True)
                 loss.backward()

@@ -1,0 +1,91 @@
+"""``ndp rl train | eval | render``: thin entry points over :mod:`ndp.rl`.
+
+Examples::
+
+    ndp rl train --task push-v3 --algo ndp --steps 500000 --seed 0
+    ndp rl train --resume runs/push-v3-ndp-s0
+    ndp rl eval runs/push-v3-ndp-s0 --episodes 20
+    ndp rl render runs/push-v3-ndp-s0 --out push.mp4
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from ndp.policies.config import PolicyConfig
+from ndp.rl.config import PPOConfig, TrainConfig, add_dataclass_arguments, config_from_args
+
+
+def add_subparser(sub: Any) -> None:
+    """Register ``rl`` with sub-commands ``train``, ``eval`` and ``render``."""
+    rl = sub.add_parser("rl", help="reinforcement learning: PPO, PPO-multi and NDP")
+    rl_sub = rl.add_subparsers(dest="rl_command", metavar="SUBCOMMAND")
+    rl_sub.required = True
+
+    tr = rl_sub.add_parser(
+        "train", help="train a policy",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        description="Train PPO / PPO-multi / NDP. Unset NDP fields come from the per-task "
+                    "preset table (ndp.rl.presets). The resolved config is saved as "
+                    "RUN_DIR/config.json.",
+    )
+    tr.add_argument("--resume", metavar="RUN_DIR", default=None,
+                    help="continue a killed run from RUN_DIR's checkpoint (other options "
+                         "except --progress/--tensorboard are taken from RUN_DIR/config.json)")
+    add_dataclass_arguments(tr, TrainConfig)
+    add_dataclass_arguments(tr, PPOConfig)
+    add_dataclass_arguments(tr, PolicyConfig, skip=("head",))
+    tr.set_defaults(func=_cmd_train)
+
+    ev = rl_sub.add_parser("eval", help="success of a trained run over N episodes")
+    ev.add_argument("run_dir", metavar="RUN_DIR")
+    ev.add_argument("--episodes", type=int, default=10, help="episodes per mode (default 10)")
+    ev.add_argument("--seed", type=int, default=10_000, help="first episode seed")
+    ev.add_argument("--mode", choices=("both", "deterministic", "stochastic"), default="both",
+                    help="act with the mean, by sampling, or both (default both)")
+    ev.set_defaults(func=_cmd_eval)
+
+    rd = rl_sub.add_parser("render", help="render a trained run to mp4")
+    rd.add_argument("run_dir", metavar="RUN_DIR")
+    rd.add_argument("--out", default=None, help="mp4 path (default RUN_DIR/video.mp4)")
+    rd.add_argument("--episodes", type=int, default=1, help="episodes to record (default 1)")
+    rd.add_argument("--seed", type=int, default=10_000, help="first episode seed")
+    rd.add_argument("--stochastic", action="store_true", help="sample actions (default: mean)")
+    rd.set_defaults(func=_cmd_render)
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from ndp.rl.trainer import TrainingDivergedError, resume, train
+
+    try:
+        if args.resume:
+            over = {k: getattr(args, k) for k in ("progress", "tensorboard") if hasattr(args, k)}
+            metrics = resume(args.resume, **over)
+        else:
+            metrics = train(config_from_args(args))
+    except TrainingDivergedError as exc:
+        print(f"ndp: error: {exc}", file=sys.stderr)
+        return 3
+    keys = ("update", "global_step", "charts/success_any", "charts/episode_return")
+    print(json.dumps({k: metrics.get(k) for k in keys}))
+    return 0
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from ndp.rl.evaluate import evaluate
+
+    modes = {"both": (True, False), "deterministic": (True,), "stochastic": (False,)}[args.mode]
+    for det in modes:
+        print(json.dumps(evaluate(args.run_dir, args.episodes, det, args.seed)))
+    return 0
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    from ndp.rl.evaluate import render
+
+    print(json.dumps(render(args.run_dir, args.out, args.episodes, not args.stochastic,
+                            args.seed)))
+    return 0

@@ -1,0 +1,139 @@
+"""Action heads, distributions and the k-head critic."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from ndp.dmp import DMPConfig, dmp_rollout
+from ndp.envs import get_task_spec
+from ndp.envs.point_mass import ACTION_SCALE, CONTROL_DT, point_mass_spec
+from ndp.policies import (
+    ParamGaussian,
+    PolicyConfig,
+    SubActionGaussian,
+    build_actor_critic,
+    diag_gaussian_entropy,
+    diag_gaussian_log_prob,
+)
+
+
+def _cfg(head, **kw):
+    base = {"n_basis": 6, "a_z": 15.0, "dmp_steps": 35, "goal_scale": 1.0, "weight_scale": 50.0}
+    if head != "ndp":
+        base = {}
+    return PolicyConfig(head=head, k=1 if head == "step" else 5, **{**base, **kw})
+
+
+def test_gaussian_log_prob_and_entropy_match_torch():
+    mean = torch.randn(4, 3, 2)
+    log_std = torch.tensor([0.3, -0.7])
+    x = torch.randn(4, 3, 2)
+    ref = torch.distributions.Normal(mean, log_std.exp())
+    torch.testing.assert_close(diag_gaussian_log_prob(x, mean, log_std), ref.log_prob(x).sum(-1))
+    torch.testing.assert_close(diag_gaussian_entropy(log_std, mean.shape), ref.entropy().sum(-1))
+
+
+@pytest.mark.parametrize("head,k", [("step", 1), ("multi", 5), ("ndp", 5)])
+def test_heads_shapes_and_per_substep_logprobs(head, k):
+    spec = point_mass_spec()
+    ac = build_actor_critic(6, spec, _cfg(head))
+    obs = torch.randn(8, 6)
+    y0, dy0 = torch.rand(8, 2) - 0.5, torch.zeros(8, 2)
+    dist, _ = ac.distribution(obs, y0, dy0)
+    assert isinstance(dist, SubActionGaussian)
+    z = dist.sample()
+    assert z.shape == (8, k, 2)
+    assert dist.log_prob(z).shape == (8, k)
+    assert dist.entropy().shape == (8, k)
+    assert dist.actions(z).shape == (8, k, 2)
+    assert ac.value(obs).shape == (8, k)
+    # initial std 1
+    assert torch.allclose(ac.head.log_std.exp(), torch.ones(2))
+
+
+def test_ndp_head_zero_output_keeps_robot_still_and_goal_is_bounded():
+    spec = point_mass_spec()
+    ac = build_actor_critic(6, spec, _cfg("ndp"))
+    head = ac.head
+    y0 = torch.tensor([[0.2, -0.1]])
+    dy0 = torch.zeros(1, 2)
+    acts, goal, w = head.decode(torch.zeros(1, head.n_params), y0, dy0)
+    torch.testing.assert_close(goal, y0)
+    assert float(w.abs().max()) == 0.0
+    assert float(acts.abs().max()) < 1e-6
+    huge = torch.full((1, head.n_params), 1e6)
+    acts, goal, w = head.decode(huge, y0, dy0)
+    reach = 5 * ACTION_SCALE  # goal_scale 1 * k * action_scale
+    assert float((goal - y0).abs().max()) <= reach + 1e-6
+    assert float(w.abs().max()) <= 50.0 + 1e-4
+    assert float(acts.abs().max()) <= 1.0  # the inverse controller bounds the actions
+
+
+def test_ndp_head_integrates_from_physical_state_with_time_conversion():
+    spec = point_mass_spec()
+    cfg = _cfg("ndp", a_z=1.0)
+    head = build_actor_critic(6, spec, cfg).head
+    y0 = torch.tensor([[0.0, 0.0]])
+    v = torch.tensor([[0.4, -0.2]])  # m/s (physical)
+    acts, goal, w = head.decode(torch.zeros(1, head.n_params), y0, v)
+    # goal = y0, w = 0: the spring only brakes the initial velocity; the first sub-step moves
+    # about v * control_dt (a little less because of the spring with a_z = 1).
+    first_disp = acts[0, 0] * ACTION_SCALE
+    expected = v[0] * CONTROL_DT
+    assert torch.all((first_disp / expected) > 0.8) and torch.all((first_disp / expected) <= 1.0)
+    # Same thing computed directly with the DMP in DMP time units.
+    traj = dmp_rollout(goal, w, y0, v * 5 * CONTROL_DT,
+                       DMPConfig(n_basis=6, a_z=1.0, steps=35, subsample=7)).pos
+    torch.testing.assert_close(acts, spec.inverse_controller(traj))
+
+
+def test_ndp_head_gradients_reach_actor_through_dmp():
+    spec = point_mass_spec()
+    ac = build_actor_critic(6, spec, _cfg("ndp"))
+    obs = torch.randn(16, 6)
+    y0 = torch.rand(16, 2) - 0.5
+    dist, _ = ac.distribution(obs, y0, torch.zeros(16, 2))
+    target = torch.full((16, 5, 2), 0.3)
+    dist.log_prob(target).sum().backward()
+    assert float(ac.actor.net[0].weight.grad.abs().sum()) > 0
+
+
+def test_ndp_param_noise_one_logprob_per_decision():
+    spec = point_mass_spec()
+    ac = build_actor_critic(6, spec, _cfg("ndp", param_noise=True))
+    dist, _ = ac.distribution(torch.randn(4, 6), torch.zeros(4, 2), torch.zeros(4, 2))
+    assert isinstance(dist, ParamGaussian)
+    z = dist.sample()
+    assert z.shape == (4, ac.head.n_params) == (4, 2 * 7)
+    assert dist.log_prob(z).shape == (4, 1)
+    assert dist.entropy().shape == (4, 1)
+    a = dist.actions(z)
+    assert a.shape == (4, 5, 2) and float(a.abs().max()) <= 1.0
+
+
+def test_metaworld_ndp_head_gripper_goal_bound_uses_action_range():
+    spec = get_task_spec("push-v3")
+    ac = build_actor_critic(39, spec, _cfg("ndp"))
+    gs = ac.head.goal_scale
+    assert torch.allclose(gs[:3], torch.full((3,), 5 * 0.01))
+    assert math.isclose(float(gs[3]), 2.0)  # absolute gripper command spans [-1, 1]
+    acts, _, _ = ac.head.decode(torch.zeros(2, ac.head.n_params),
+                                torch.tensor([[0.0, 0.6, 0.2, -1.0]] * 2), torch.zeros(2, 4))
+    assert acts.shape == (2, 5, 4)
+    torch.testing.assert_close(acts[..., 3], torch.full((2, 5), -1.0))
+
+
+def test_policy_config_rejects_bad_values():
+    with pytest.raises(ValueError, match="head"):
+        PolicyConfig(head="dmp")
+    with pytest.raises(ValueError, match="k"):
+        PolicyConfig(k=0)
+    with pytest.raises(ValueError, match="n_basis"):
+        PolicyConfig(n_basis=0)
+    with pytest.raises(ValueError, match="dmp_steps"):
+        PolicyConfig(k=5, dmp_steps=36)
+    with pytest.raises(ValueError, match="param_noise"):
+        PolicyConfig(head="multi", param_noise=True)

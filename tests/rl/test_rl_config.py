@@ -1,0 +1,106 @@
+"""Config defaults (what actually runs), resolution, CLI parsing and bad input."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import pytest
+
+from ndp.policies import PolicyConfig
+from ndp.rl import envs as rl_envs
+from ndp.rl.config import (
+    PPOConfig,
+    TrainConfig,
+    add_dataclass_arguments,
+    config_from_args,
+    field_docs,
+    resolve_config,
+)
+from ndp.rl.presets import NDP_PRESETS
+from ndp.rl.trainer import Trainer
+
+
+def test_resolved_defaults_are_the_supplements():
+    cfg = resolve_config(TrainConfig(task="push-v3", algo="ndp"))
+    p, pol = cfg.ppo, cfg.policy
+    assert (p.lr, p.adam_eps, p.gamma, p.gae_lambda) == (3e-4, 1e-5, 0.99, 0.95)
+    assert (p.ent_coef, p.vf_coef, p.max_grad_norm) == (0.0, 0.5, 0.5)
+    assert (p.epochs, p.minibatches, p.clip, p.steps_per_update) == (10, 32, 0.1, 2048)
+    assert p.norm_obs and p.norm_return
+    assert pol.hidden == (100, 100) and pol.activation == "tanh"
+    assert pol.head == "ndp" and pol.k == 5 and pol.dmp_steps == 35
+    assert (pol.n_basis, pol.a_z) == (NDP_PRESETS["push-v3"].n_basis, 10.0)
+    assert cfg.env_steps_per_update >= 2048
+    assert cfg.env_steps_per_update - 2048 < cfg.k * cfg.num_envs
+
+
+@pytest.mark.parametrize("algo,head,k", [("ppo", "step", 1), ("ppo-multi", "multi", 5)])
+def test_resolution_per_method(algo, head, k):
+    cfg = resolve_config(TrainConfig(task="throw", algo=algo))
+    assert cfg.policy.head == head and cfg.policy.k == k
+    assert cfg.policy.n_basis is None and not cfg.policy.param_noise
+
+
+def test_trainer_runs_what_the_config_says(tmp_path):
+    tr = Trainer(TrainConfig(task="point-mass", algo="ndp", run_dir=str(tmp_path / "r"),
+                             progress=False, tensorboard=False))
+    try:
+        g = tr.opt.param_groups[0]
+        assert g["lr"] == 3e-4 and g["eps"] == 1e-5
+        dmp = tr.model.head.dmp.config
+        assert (dmp.steps, dmp.subsample, dmp.n_basis, dmp.a_z) == (35, 7, 6, 5.0)
+        assert tr.k == 5 and tr.T * tr.k * tr.num_envs >= 2048
+        assert [m.out_features for m in tr.model.actor.net if hasattr(m, "out_features")] == [
+            100, 100, 2 * 7]
+        assert tr.model.critic.net[-1].out_features == 5  # k value heads
+        saved = json.loads((tmp_path / "r" / "config.json").read_text())
+        assert saved["ppo"]["ent_coef"] == 0.0 and saved["policy"]["dmp_steps"] == 35
+    finally:
+        tr.close()
+
+
+def test_field_docs_and_cli_roundtrip():
+    docs = field_docs(PPOConfig)
+    assert docs["ent_coef"] == "Entropy bonus coefficient."
+    parser = argparse.ArgumentParser()
+    add_dataclass_arguments(parser, TrainConfig)
+    add_dataclass_arguments(parser, PPOConfig)
+    add_dataclass_arguments(parser, PolicyConfig, skip=("head",))
+    args = parser.parse_args(["--task", "soccer-v3", "--algo", "ppo-multi", "--k", "3",
+                              "--lr", "1e-3", "--hidden", "64", "64", "--no-norm-obs",
+                              "--horizon", "none", "--goal-scale", "2"])
+    cfg = config_from_args(args)
+    assert cfg.task == "soccer-v3" and cfg.algo == "ppo-multi" and cfg.policy.k == 3
+    assert cfg.ppo.lr == 1e-3 and not cfg.ppo.norm_obs and cfg.ppo.epochs == 10
+    assert cfg.policy.hidden == (64, 64) and cfg.horizon is None
+    assert cfg.policy.goal_scale == 2.0
+    assert TrainConfig.from_dict(cfg.to_dict()) == cfg
+
+
+def _no_env(*a, **k):
+    raise AssertionError("an environment was built")
+
+
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        ({"task": "pussh-v3"}, "push-v3"),
+        ({"algo": "sac"}, "algo"),
+        ({"steps": 0}, "steps"),
+        ({"num_envs": 0}, "num_envs"),
+        ({"policy": {"k": 0}}, "k"),
+        ({"policy": {"n_basis": 0}}, "n_basis"),
+        ({"ppo": {"clip": 0.0}}, "clip"),
+        ({"ppo": {"gamma": 1.5}}, "gamma"),
+    ],
+)
+def test_bad_input_fails_before_any_env(monkeypatch, tmp_path, kwargs, match):
+    monkeypatch.setattr(rl_envs, "make_vector_env", _no_env)
+    monkeypatch.setattr("ndp.rl.trainer.make_vector_env", _no_env)
+    with pytest.raises(ValueError, match=match):
+        if "policy" in kwargs:
+            kwargs = {"policy": PolicyConfig(**kwargs["policy"])}
+        if "ppo" in kwargs:
+            kwargs = {"ppo": PPOConfig(**kwargs["ppo"])}
+        Trainer(TrainConfig(run_dir=str(tmp_path), **kwargs))

@@ -1,0 +1,77 @@
+"""Checkpoints: atomic writes, SIGKILL a training subprocess and resume it."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+import torch
+
+from ndp.cli import main as ndp_main
+from ndp.rl import checkpoint as ck
+from ndp.rl.logger import read_csv
+
+
+def test_atomic_save_keeps_previous_file_on_crash(tmp_path, monkeypatch):
+    path = tmp_path / "c.pt"
+    ck.save_checkpoint(path, {"x": torch.ones(3)})
+
+    def boom(obj, f):
+        f.write(b"partial")
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(ck.torch, "save", boom)
+    with pytest.raises(RuntimeError):
+        ck.save_checkpoint(path, {"x": torch.zeros(3)})
+    monkeypatch.undo()
+    assert torch.equal(ck.load_checkpoint(path)["x"], torch.ones(3))
+    assert [p.name for p in tmp_path.iterdir()] == ["c.pt"]  # no temporary file left
+
+
+def test_sigkill_then_resume(tmp_path):
+    run = tmp_path / "run"
+    n_updates = 30
+    cmd = [sys.executable, "-m", "ndp.cli", "rl", "train", "--task", "point-mass", "--algo",
+           "ndp", "--steps", str(520 * n_updates), "--steps-per-update", "512",
+           "--minibatches", "4", "--checkpoint-every", "2", "--run-dir", str(run),
+           "--no-progress"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    csv_path = run / "progress.csv"
+    deadline = time.time() + 120
+    try:
+        while time.time() < deadline:
+            if proc.poll() is not None:
+                pytest.fail(f"training exited early: {proc.stderr.read().decode()[-2000:]}")
+            if csv_path.is_file() and len(read_csv(csv_path)) >= 5:
+                break
+            time.sleep(0.05)
+        else:
+            pytest.fail("training produced no progress in time")
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == -signal.SIGKILL
+    killed_rows = len(read_csv(csv_path))
+    assert killed_rows < n_updates
+    saved = ck.load_checkpoint(run / "checkpoint.pt")
+    assert saved["update"] % 2 == 0 and killed_rows - saved["update"] <= 2  # <= one interval lost
+
+    assert ndp_main(["rl", "train", "--resume", str(run), "--no-progress"]) == 0
+    rows = read_csv(csv_path)
+    assert [int(r["update"]) for r in rows] == list(range(1, n_updates + 1))
+    steps = [r["global_step"] for r in rows]
+    assert steps == sorted(steps) and len(set(steps)) == len(steps)
+    final = ck.load_checkpoint(run / "checkpoint.pt")
+    assert final["update"] == n_updates
+    assert final["global_step"] == int(steps[-1])
+
+
+def test_resume_errors(tmp_path):
+    assert ndp_main(["rl", "train", "--resume", str(tmp_path / "nothing")]) == 2

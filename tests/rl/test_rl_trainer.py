@@ -1,0 +1,147 @@
+"""Trainer on the toy task: learning, determinism, NaN stop, termination handling, CLI smoke."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+from gymnasium.utils.env_checker import check_env
+
+from ndp.cli import main as ndp_main
+from ndp.envs.point_mass import PointMassEnv
+from ndp.policies import PolicyConfig
+from ndp.rl.checkpoint import load_checkpoint
+from ndp.rl.config import PPOConfig, TrainConfig
+from ndp.rl.evaluate import evaluate
+from ndp.rl.logger import TIME_METRICS, read_csv
+from ndp.rl.trainer import Trainer, TrainingDivergedError, train
+
+FAST = PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3)
+
+
+def _cfg(tmp_path, name="run", **kw):
+    base = {"task": "point-mass", "algo": "ndp", "steps": 2048, "num_envs": 4,
+            "run_dir": str(tmp_path / name), "progress": False, "tensorboard": False,
+            "ppo": FAST}
+    return TrainConfig(**{**base, **kw})
+
+
+def test_point_mass_passes_gymnasium_check_env():
+    check_env(PointMassEnv(), skip_render_check=True)
+
+
+def test_ndp_learns_point_mass_within_seconds(tmp_path):
+    metrics = train(_cfg(tmp_path, steps=20_000))
+    rows = read_csv(tmp_path / "run" / "progress.csv")
+    assert len(rows) == math.ceil(20_000 / 520)
+    late = np.mean([r["charts/success_any"] for r in rows[-4:]])
+    early = np.mean([r["charts/success_any"] for r in rows[:2]])
+    assert late >= 0.8, f"success {late:.2f} (early {early:.2f})"
+    assert late > early + 0.3
+    assert metrics["dmp/goal_norm"] > 0
+    ev = evaluate(tmp_path / "run", episodes=10, deterministic=True)
+    assert ev["success_any"] >= 0.8
+
+
+def test_same_seed_identical_metrics_and_different_seed_differs(tmp_path):
+    cfg = _cfg(tmp_path, "a", steps=1560)
+    train(cfg)
+    train(_cfg(tmp_path, "b", steps=1560))
+    train(_cfg(tmp_path, "c", steps=1560, seed=1))
+
+    def strip(rows):
+        return [{k: v for k, v in r.items() if k not in TIME_METRICS} for r in rows]
+
+    a = strip(read_csv(tmp_path / "a" / "progress.csv"))
+    b = strip(read_csv(tmp_path / "b" / "progress.csv"))
+    c = strip(read_csv(tmp_path / "c" / "progress.csv"))
+    assert len(a) == 3
+    assert a == b  # bit-identical (NaN-free rows compare equal)
+    assert a != c
+    wa = load_checkpoint(tmp_path / "a" / "checkpoint.pt")["model"]
+    wb = load_checkpoint(tmp_path / "b" / "checkpoint.pt")["model"]
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+
+
+def test_nan_parameter_stops_training_and_keeps_last_good_checkpoint(tmp_path):
+    tr = Trainer(_cfg(tmp_path, checkpoint_every=1))
+    try:
+        tr.train(max_updates=1)
+        ckpt = tmp_path / "run" / "checkpoint.pt"
+        before = ckpt.read_bytes()
+        with torch.no_grad():
+            tr.model.actor.net[0].weight[0, 0] = float("nan")
+        with pytest.raises(TrainingDivergedError, match="last good checkpoint is kept"):
+            tr.train(max_updates=1)
+        assert ckpt.read_bytes() == before
+        state = load_checkpoint(ckpt)
+        assert state["update"] == 1
+        assert all(torch.isfinite(v).all() for v in state["model"].values())
+    finally:
+        tr.close()
+
+
+def test_nan_loss_stops_training(tmp_path, monkeypatch):
+    tr = Trainer(_cfg(tmp_path, algo="ppo-multi"))
+    try:
+        monkeypatch.setattr("ndp.rl.trainer.value_loss",
+                            lambda *a, **k: torch.tensor(float("nan")))
+        with pytest.raises(TrainingDivergedError, match="non-finite loss"):
+            tr.train(max_updates=1)
+        assert not (tmp_path / "run" / "checkpoint.pt").exists()
+    finally:
+        tr.close()
+
+
+def test_terminated_episodes_and_all_methods_run(tmp_path, monkeypatch):
+    # Episodes that end mid-decision (terminate on success) exercise masks and termination.
+    from ndp.rl import envs as rl_envs
+
+    orig = rl_envs._toy_tasks
+
+    def toy_terminating():
+        out = orig()
+        h = out["point-mass"]
+        return {"point-mass": rl_envs.TaskHandle(
+            h.spec, lambda **kw: h.make(terminate_on_success=True, **kw))}
+
+    monkeypatch.setattr(rl_envs, "_toy_tasks", toy_terminating)
+    for algo in ("ndp", "ppo", "ppo-multi"):
+        tr = Trainer(_cfg(tmp_path, algo, algo=algo, steps=1040))
+        try:
+            batch = tr.collect()
+            m = batch["mask"].numpy()
+            assert m.shape[1] == tr.k
+            # executed sub-steps are a prefix; advantages vanish where nothing ran
+            assert np.all(np.diff(m, axis=1) <= 0)
+            assert np.all(batch["adv"].numpy()[m == 0] == 0)
+            stats = tr.learn(batch)
+            assert all(math.isfinite(stats[k]) for k in ("policy", "value", "approx_kl"))
+        finally:
+            tr.close()
+
+
+def test_param_noise_trains(tmp_path):
+    m = train(_cfg(tmp_path, steps=1040, policy=PolicyConfig(param_noise=True)))
+    assert math.isfinite(m["losses/policy"]) and m["update"] == 2
+
+
+def test_cli_train_eval_render(tmp_path, capsys):
+    run = tmp_path / "cli"
+    rc = ndp_main(["rl", "train", "--task", "point-mass", "--algo", "ppo-multi", "--steps",
+                   "520", "--steps-per-update", "512", "--minibatches", "4", "--run-dir",
+                   str(run), "--no-progress", "--no-tensorboard"])
+    assert rc == 0
+    assert (run / "config.json").is_file() and (run / "checkpoint.pt").is_file()
+    assert ndp_main(["rl", "eval", str(run), "--episodes", "2"]) == 0
+    out = capsys.readouterr().out
+    assert '"deterministic": true' in out and '"deterministic": false' in out
+    assert ndp_main(["rl", "render", str(run), "--out", str(tmp_path / "v.mp4")]) == 0
+    assert (tmp_path / "v.mp4").stat().st_size > 0
+    assert ndp_main(["rl", "train", "--task", "nope-v3"]) == 2
+    assert ndp_main(["rl", "train", "--algo", "dqn"]) == 2
+    assert ndp_main(["rl", "eval", str(tmp_path / "missing")]) == 2
+    # a second fresh run into the same directory is refused (use --resume)
+    assert ndp_main(["rl", "train", "--task", "point-mass", "--run-dir", str(run)]) == 2

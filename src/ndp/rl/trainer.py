@@ -17,6 +17,7 @@ bounds. A non-finite loss, gradient or parameter stops training with
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import random
 import time
@@ -81,9 +82,8 @@ class Trainer:
         self.obs_dim = obs_dim
         self.model = build_actor_critic(obs_dim, self.spec, cfg.policy)
         p = cfg.ppo
-        self.opt = torch.optim.Adam(
-            self.model.parameters(), lr=p.lr, eps=p.adam_eps, foreach=True
-        )
+        self._params = list(self.model.parameters())
+        self.opt = torch.optim.Adam(self._params, lr=p.lr, eps=p.adam_eps, foreach=True)
         self.obs_norm = ObsNormalizer(obs_dim, p.clip_obs, p.norm_obs)
         self.ret_norm = ReturnNormalizer(cfg.num_envs, p.gamma, p.clip_reward, p.norm_return)
         self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
@@ -264,19 +264,25 @@ class Trainer:
                                          ("policy", "value", "entropy", "approx_kl", "clipfrac",
                                           "grad_norm")}
         vclip = p.clip if p.clip_value_loss else None
+        params = self._params
+        keys = ("obs", "y0", "dy0", "z", "logp", "values", "returns")
         for _ in range(p.epochs):
-            for idx in torch.randperm(n).tensor_split(n_mb):
+            perm = torch.randperm(n)
+            # one gather per epoch; mini-batches are then contiguous slices (views)
+            shuf = {key: batch[key][perm] for key in keys}
+            shuf["adv"], shuf["mask"] = adv[perm], mask[perm]
+            bounds = [int(b) for b in np.linspace(0, n, n_mb + 1)]
+            for lo, hi in itertools.pairwise(bounds):
+                mb = {key: val[lo:hi] for key, val in shuf.items()}
                 try:
-                    dist, _ = self.model.distribution(
-                        batch["obs"][idx], batch["y0"][idx], batch["dy0"][idx]
-                    )
+                    dist, _ = self.model.distribution(mb["obs"], mb["y0"], mb["dy0"])
                 except FloatingPointError as exc:
                     raise self._diverged(f"non-finite DMP input in the update ({exc})") from None
-                new_logp = dist.log_prob(batch["z"][idx])
-                m = mask[idx]
-                pg, kl, cf = policy_loss(new_logp, batch["logp"][idx], adv[idx], m, p.clip)
-                v = self.model.value(batch["obs"][idx])
-                vl = value_loss(v, batch["values"][idx], batch["returns"][idx], m, vclip)
+                new_logp = dist.log_prob(mb["z"])
+                m = mb["mask"]
+                pg, kl, cf = policy_loss(new_logp, mb["logp"], mb["adv"], m, p.clip)
+                v = self.model.value(mb["obs"])
+                vl = value_loss(v, mb["values"], mb["returns"], m, vclip)
                 ent = entropy_mean(dist.entropy(), m)
                 loss = pg + p.vf_coef * vl - p.ent_coef * ent
                 if not bool(torch.isfinite(loss)):
@@ -285,9 +291,7 @@ class Trainer:
                     )
                 self.opt.zero_grad(set_to_none=True)
                 loss.backward()
-                gn = nn.utils.clip_grad_norm_(
-                    self.model.parameters(), p.max_grad_norm, foreach=True
-                )
+                gn = nn.utils.clip_grad_norm_(params, p.max_grad_norm, foreach=True)
                 if not bool(torch.isfinite(gn)):
                     raise self._diverged("non-finite gradient norm")
                 self.opt.step()

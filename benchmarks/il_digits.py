@@ -11,7 +11,7 @@ Examples::
 
     python benchmarks/il_digits.py --epochs 71                    # full protocol, both sets
     python benchmarks/il_digits.py --epochs 5 --datasets synthetic
-    python benchmarks/il_digits.py --table-only --out runs/bench_il --markdown docs/il_table.md
+    python benchmarks/il_digits.py --table-only --out runs/bench_il --docs docs/imitation.md
 """
 
 from __future__ import annotations
@@ -78,7 +78,8 @@ def _worker(args: argparse.Namespace) -> int:
         "train_mse_px2": ev["train_mse_px2"],
         "test_mse_px2": ev["test_mse_px2"],
         "test_dtw_px": ev["test_dtw_px"],
-        "wall_s_train": train_s,
+        "wall_s_train": sum(epoch_times),
+        "wall_s_this_process": train_s,
         "epoch_s_median": sorted(epoch_times)[len(epoch_times) // 2] if epoch_times else None,
         "epoch_s_min": min(epoch_times) if epoch_times else None,
         "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
@@ -115,7 +116,7 @@ def make_table(out: Path) -> str:
             f"{r0['epochs']} epochs, seed {r0['seed']}, {r0['threads']} torch threads)\n"
         )
         lines.append(
-            "| model | train MSE px^2 | test MSE px^2 | test DTW px | train wall s | "
+            "| model | train MSE px^2 | test MSE px^2 | test DTW px | train wall s (sum) | "
             "epoch s (median) | peak RSS MiB |"
         )
         lines.append("|---|---|---|---|---|---|---|")
@@ -134,6 +135,21 @@ def make_table(out: Path) -> str:
     return "\n".join(lines)
 
 
+START, END = "<!-- il-table:start -->", "<!-- il-table:end -->"
+
+
+def _replace_block(path: Path, text: str) -> None:
+    """Replace the text between START and END in ``path`` (atomically)."""
+    doc = path.read_text()
+    if START not in doc or END not in doc:
+        raise SystemExit(f"{path} has no {START} ... {END} block")
+    head, rest = doc.split(START, 1)
+    _, tail = rest.split(END, 1)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(f"{head}{START}\n{text}\n{END}{tail}")
+    os.replace(tmp, path)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--epochs", type=int, default=71, help="epochs per model (paper: 71)")
@@ -141,6 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
     p.add_argument("--seed", type=int, default=0, help="split, initialisation and order seed")
     p.add_argument("--threads", type=int, default=2, help="torch threads per worker")
+    p.add_argument("--jobs", type=int, default=1, help="workers run at the same time")
     p.add_argument("--out", default="runs/bench_il", help="run and result folder")
     p.add_argument("--data-dir", default="data", help="synthetic cache folder")
     p.add_argument("--pendigits-path", default="", help="Pendigits UNIPEN file")
@@ -148,6 +165,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--resume", action="store_true", help="continue runs with checkpoints")
     p.add_argument("--table-only", action="store_true", help="only print the table")
     p.add_argument("--markdown", default=None, help="also write the table to this file")
+    p.add_argument(
+        "--docs",
+        default=None,
+        help="replace the text between the il-table markers of this Markdown file",
+    )
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--dataset", default="synthetic", help=argparse.SUPPRESS)
     p.add_argument("--model", default="ndp", help=argparse.SUPPRESS)
@@ -157,6 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if not args.table_only:
+        jobs: list[tuple[str, list[str]]] = []
         for ds in args.datasets:
             for m in args.models:
                 cmd = [
@@ -168,11 +191,27 @@ def main(argv: list[str] | None = None) -> int:
                 ]  # fmt: skip
                 if args.resume:
                     cmd.append("--resume")
-                print(f"[il_digits] {ds} / {m}: {args.epochs} epochs", flush=True)
-                rc = subprocess.call(cmd)
-                if rc != 0:
-                    print(f"[il_digits] {ds} / {m} failed with exit code {rc}", flush=True)
-                    return rc
+                jobs.append((f"{ds} / {m}", cmd))
+        if "synthetic" in args.datasets:  # generate the cache once before parallel workers
+            from ndp.il.data import load_synthetic
+            from ndp.il.synthetic import SyntheticConfig
+
+            load_synthetic(SyntheticConfig(n_samples=20000, seed=0), args.data_dir)
+        running: list[tuple[str, subprocess.Popen]] = []
+        failed = 0
+        while jobs or running:
+            while jobs and len(running) < args.jobs:
+                name, cmd = jobs.pop(0)
+                print(f"[il_digits] start {name}: {args.epochs} epochs", flush=True)
+                running.append((name, subprocess.Popen(cmd)))
+            time.sleep(1.0)
+            for name, proc in list(running):
+                if proc.poll() is not None:
+                    running.remove((name, proc))
+                    print(f"[il_digits] done {name}: exit code {proc.returncode}", flush=True)
+                    failed += proc.returncode != 0
+        if failed:
+            return 1
     commit = subprocess.run(
         ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
     ).stdout.strip()
@@ -185,6 +224,8 @@ def main(argv: list[str] | None = None) -> int:
     print(header + table)
     if args.markdown:
         Path(args.markdown).write_text(header + table + "\n")
+    if args.docs:
+        _replace_block(Path(args.docs), header + table)
     return 0
 
 

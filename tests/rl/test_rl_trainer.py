@@ -145,3 +145,12 @@ def test_cli_train_eval_render(tmp_path, capsys):
     assert ndp_main(["rl", "eval", str(tmp_path / "missing")]) == 2
     # a second fresh run into the same directory is refused (use --resume)
     assert ndp_main(["rl", "train", "--task", "point-mass", "--run-dir", str(run)]) == 2
+
+
+def test_async_vector_env_matches_sync(tmp_path):
+    train(_cfg(tmp_path, "sync", steps=1040, num_envs=2))
+    train(_cfg(tmp_path, "async", steps=1040, num_envs=2, vector="async"))
+    a = read_csv(tmp_path / "sync" / "progress.csv")
+    b = read_csv(tmp_path / "async" / "progress.csv")
+    key = "charts/episode_return"
+    assert [r[key] for r in a] == [r[key] for r in b]

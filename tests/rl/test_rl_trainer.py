@@ -32,6 +32,28 @@ def test_point_mass_passes_gymnasium_check_env():
     check_env(PointMassEnv(), skip_render_check=True)
 
 
+def test_point_mass_seeded_spec_and_bounded_inverse_controller():
+    from ndp.envs import TaskSpec
+    from ndp.envs.point_mass import make_point_mass_env, point_mass_spec
+
+    spec = point_mass_spec()
+    assert isinstance(spec, TaskSpec) and spec.dmp_dofs == spec.action_dim == 2
+    a, b = make_point_mass_env(seed=3), make_point_mass_env(seed=3)
+    oa, ia = a.reset()
+    ob, _ = b.reset()
+    np.testing.assert_array_equal(oa, ob)
+    np.testing.assert_array_equal(ia["robot_pos"], oa[:2])
+    for _ in range(5):
+        oa, ra, *_ = a.step(np.array([0.7, -2.0]))
+        ob, rb, *_ = b.step(np.array([0.7, -2.0]))
+    np.testing.assert_array_equal(oa, ob)
+    assert ra == rb
+    traj = torch.zeros(1, 6, 2)
+    traj[0, :, 0] = torch.linspace(0, 1, 6)  # 0.2 m per sub-step: far beyond one action
+    acts = spec.inverse_controller(traj)
+    assert acts.shape == (1, 5, 2) and float(acts.max()) == 1.0
+
+
 def test_ndp_learns_point_mass_within_seconds(tmp_path):
     metrics = train(_cfg(tmp_path, steps=20_000))
     rows = read_csv(tmp_path / "run" / "progress.csv")

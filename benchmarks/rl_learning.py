@@ -29,6 +29,7 @@ import math
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -72,13 +73,13 @@ def run_one(task: str, algo: str, seed: int, steps: int, runs_dir: Path, num_env
     return run
 
 
-def load_curve(run: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(global_step [U], success_any [U]) of a run (updates without finished episodes dropped)."""
+def load_curve(run: Path, key: str = "charts/success_any") -> tuple[np.ndarray, np.ndarray]:
+    """(global_step [U], metric [U]) of a run (updates without finished episodes dropped)."""
     from ndp.rl.logger import read_csv
 
     rows = read_csv(run / "progress.csv")
     x = np.array([r["global_step"] for r in rows])
-    y = np.array([r["charts/success_any"] for r in rows])
+    y = np.array([r[key] for r in rows])
     keep = ~np.isnan(y)
     return x[keep], y[keep]
 
@@ -109,7 +110,7 @@ def summarise(tasks, algos, seeds, steps, runs_dir: Path, out: Path, cmdline: st
     for ax, task in zip(axes[0], tasks, strict=True):
         result["tasks"][task] = {}
         for algo in algos:
-            curves, finals = [], []
+            curves, finals, rets, aucs = [], [], [], []
             for seed in seeds:
                 run = runs_dir / f"{task}-{algo}-s{seed}"
                 if not (run / "progress.csv").is_file():
@@ -121,15 +122,24 @@ def summarise(tasks, algos, seeds, steps, runs_dir: Path, out: Path, cmdline: st
                 curves.append(np.interp(grid, x, ys, left=np.nan))
                 tail = y[int(len(y) * 0.9):] if len(y) >= 10 else y[-1:]
                 finals.append(float(np.mean(tail)))
+                # sample efficiency: success averaged over the budget (area under the curve)
+                aucs.append(float(np.trapezoid(np.interp(grid, x, y, left=0.0), grid) / steps))
+                _, ret = load_curve(run, "charts/episode_return")
+                rets.append(float(np.mean(ret[int(len(ret) * 0.9):] if len(ret) >= 10
+                                          else ret[-1:])))
             if not curves:
                 continue
             c = np.array(curves)
-            mean, std = np.nanmean(c, 0), np.nanstd(c, 0)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # grid points before 1st update
+                mean, std = np.nanmean(c, 0), np.nanstd(c, 0)
             ax.plot(grid, mean, label=algo)
             ax.fill_between(grid, mean - std, mean + std, alpha=0.2)
             result["tasks"][task][algo] = {
                 "n_seeds": len(finals), "final_mean": float(np.mean(finals)),
                 "final_std": float(np.std(finals)), "finals": finals,
+                "return_mean": float(np.mean(rets)), "return_std": float(np.std(rets)),
+                "auc_mean": float(np.mean(aucs)), "auc_std": float(np.std(aucs)),
                 "curve_steps": grid.tolist(), "curve_mean": mean.tolist(),
                 "curve_std": std.tolist(),
             }
@@ -156,6 +166,23 @@ def summarise(tasks, algos, seeds, steps, runs_dir: Path, out: Path, cmdline: st
             r = result["tasks"][task].get(algo)
             cells.append("-" if r is None else
                          f"{r['final_mean']:.2f} +- {r['final_std']:.2f} (n={r['n_seeds']})")
+        lines.append(f"| {task} | " + " | ".join(cells) + " |")
+    lines += ["", "Sample efficiency: success averaged over the whole budget (area under the raw "
+              "success curve / budget), mean +- std over seeds:", "",
+              "| task | " + " | ".join(algos) + " |", "|---" * (len(algos) + 1) + "|"]
+    for task in tasks:
+        cells = []
+        for algo in algos:
+            r = result["tasks"][task].get(algo)
+            cells.append("-" if r is None else f"{r['auc_mean']:.2f} +- {r['auc_std']:.2f}")
+        lines.append(f"| {task} | " + " | ".join(cells) + " |")
+    lines += ["", "Episode return over the last 10% of updates (mean +- std over seeds):", "",
+              "| task | " + " | ".join(algos) + " |", "|---" * (len(algos) + 1) + "|"]
+    for task in tasks:
+        cells = []
+        for algo in algos:
+            r = result["tasks"][task].get(algo)
+            cells.append("-" if r is None else f"{r['return_mean']:.0f} +- {r['return_std']:.0f}")
         lines.append(f"| {task} | " + " | ".join(cells) + " |")
     lines += ["", f"![curves]({out.with_suffix('.png').name})", ""]
     out.with_suffix(".md").write_text("\n".join(lines))

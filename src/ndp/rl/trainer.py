@@ -185,6 +185,8 @@ class Trainer:
                 logp = dist.log_prob(z)
                 values = self.model.value(obs_n)
                 act = torch.maximum(torch.minimum(dist.actions(z), self.high), self.low)
+            if not bool(torch.isfinite(act).all()):
+                raise self._diverged("non-finite actions (check the observations)")
             if z_b is None:
                 z_b = torch.zeros((T, E, *z.shape[1:]))
                 logp_b = torch.zeros((T, E, logp.shape[1]))

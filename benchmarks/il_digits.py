@@ -96,6 +96,75 @@ def _worker(args: argparse.Namespace) -> int:
     return 0
 
 
+def data_checks(n: int, seed: int, pendigits_path: str) -> str:
+    """The spec's data checks on ``n`` generated digits, as a Markdown table."""
+    import numpy as np
+    import torch
+    from sklearn.datasets import load_digits
+    from sklearn.neighbors import KNeighborsClassifier
+    from sklearn.svm import SVC
+
+    from ndp.dmp import DMPConfig, DMPLayer, fit_dmp
+    from ndp.il.data import load_pendigits
+    from ndp.il.realism import optdigits_features, trajectory_features
+    from ndp.il.synthetic import SyntheticConfig, generate_synthetic
+    from ndp.il.train import DEFAULT_PENDIGITS
+
+    images, trajs, labels = generate_synthetic(SyntheticConfig(n_samples=n, seed=seed))
+    images = images.astype(np.float32) / 255.0
+    lo, hi = trajs.min(axis=1), trajs.max(axis=1)
+    off = np.abs(0.5 * (lo + hi) - 20.0).max(axis=1)
+    c = np.floor(trajs).astype(int)
+    on_ink = images[np.arange(n)[:, None], c[..., 1], c[..., 0]]
+    near = []
+    for i in range(n):
+        r, cc = np.nonzero(images[i] > 0.5)
+        p = np.stack([cc + 0.5, r + 0.5], axis=1)
+        near.append((np.linalg.norm(p[:, None] - trajs[i][None], axis=2).min(axis=1) < 1.5).mean())
+    x, y = load_digits(return_X_y=True)
+    img_pred = SVC(gamma=0.001).fit(x, y).predict(optdigits_features(images))
+    pen = load_pendigits(pendigits_path or DEFAULT_PENDIGITS / "pendigits-train")
+    knn = KNeighborsClassifier(5).fit(trajectory_features(pen.trajs), pen.labels)
+    tr_pred = knn.predict(trajectory_features(trajs))
+    rev_pred = knn.predict(trajectory_features(trajs[:, ::-1]))
+    cfg = DMPConfig(n_basis=30, a_z=25.0, steps=300)
+    demo = torch.tensor(trajs, dtype=torch.float64)
+    g, w = fit_dmp(demo, cfg)
+    fit_err = ((DMPLayer(cfg)(g, w, demo[:, 0]).pos - demo) ** 2).mean(dim=(1, 2)).numpy()
+    again = generate_synthetic(SyntheticConfig(n_samples=n, seed=seed))
+    same = all(
+        a.tobytes() == b.tobytes()
+        for a, b in zip(
+            again, generate_synthetic(SyntheticConfig(n_samples=n, seed=seed)), strict=True
+        )
+    )
+
+    def per_class(pred: np.ndarray) -> str:
+        return " ".join(f"{k}:{(pred[labels == k] == k).mean():.0%}" for k in range(10))
+
+    rows = [
+        ("samples, seed", f"{n}, {seed}"),
+        ("trajectory inside the frame", f"{bool(trajs.min() > 0 and trajs.max() < 40)}"),
+        ("box centre offset from (20, 20)",
+         f"median {np.median(off):.2f} px, {np.mean(off < 3):.0%} within 3 px, "
+         f"max {off.max():.2f}"),
+        ("value of the pixel under each trajectory point", f"min {on_ink.min():.2f}"),
+        ("ink pixels (> 0.5) within 1.5 px of the path",
+         f"mean {np.mean(near):.2%}, worst image {np.min(near):.2%}"),
+        ("SVM on real 8x8 digits (sklearn), accuracy",
+         f"{(img_pred == labels).mean():.1%} ({per_class(img_pred)})"),
+        ("5-NN on real Pendigits strokes, accuracy",
+         f"{(tr_pred == labels).mean():.1%} ({per_class(tr_pred)})"),
+        ("same, strokes reversed", f"{(rev_pred == labels).mean():.1%}"),
+        ("DMP N=30 least-squares fit MSE",
+         f"mean {fit_err.mean():.4f}, max {fit_err.max():.4f} px^2"),
+        ("same seed, same bytes", f"{same}"),
+    ]  # fmt: skip
+    out = ["| check | measured |", "|---|---|"]
+    out += [f"| {k} | {v} |" for k, v in rows]
+    return "\n".join(out)
+
+
 def _tag(model: str, forcing_param: str) -> str:
     """Run name: the model, with '-weights' for the paper's raw-weight DMP output."""
     return model if model == "cnn" or forcing_param == "amplitude" else f"{model}-weights"
@@ -143,18 +212,16 @@ def make_table(out: Path) -> str:
     return "\n".join(lines)
 
 
-START, END = "<!-- il-table:start -->", "<!-- il-table:end -->"
-
-
-def _replace_block(path: Path, text: str) -> None:
-    """Replace the text between START and END in ``path`` (atomically)."""
+def _replace_block(path: Path, text: str, block: str = "main") -> None:
+    """Replace the text between the ``il-table:<block>`` markers in ``path`` (atomically)."""
+    start, end = f"<!-- il-table:{block}:start -->", f"<!-- il-table:{block}:end -->"
     doc = path.read_text()
-    if START not in doc or END not in doc:
-        raise SystemExit(f"{path} has no {START} ... {END} block")
-    head, rest = doc.split(START, 1)
-    _, tail = rest.split(END, 1)
+    if start not in doc or end not in doc:
+        raise SystemExit(f"{path} has no {start} ... {end} block")
+    head, rest = doc.split(start, 1)
+    _, tail = rest.split(end, 1)
     tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(f"{head}{START}\n{text}\n{END}{tail}")
+    tmp.write_text(f"{head}{start}\n{text}\n{end}{tail}")
     os.replace(tmp, path)
 
 
@@ -164,7 +231,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--datasets", nargs="+", default=list(DATASETS), choices=DATASETS)
     p.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
     p.add_argument("--seed", type=int, default=0, help="split, initialisation and order seed")
-    p.add_argument("--threads", type=int, default=2, help="torch threads per worker")
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        help="torch threads per worker (2 threads beside another busy process thrash)",
+    )
     p.add_argument("--jobs", type=int, default=1, help="workers run at the same time")
     p.add_argument(
         "--forcing-param",
@@ -184,12 +256,29 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="replace the text between the il-table markers of this Markdown file",
     )
+    p.add_argument("--docs-block", default="main", help="marker name: il-table:<name>:start")
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--dataset", default="synthetic", help=argparse.SUPPRESS)
     p.add_argument("--model", default="ndp", help=argparse.SUPPRESS)
+    p.add_argument(
+        "--data-checks",
+        type=int,
+        default=0,
+        help="only run the spec's data checks on this many generated digits",
+    )
     args = p.parse_args(argv)
     if args.worker:
         return _worker(args)
+    if args.data_checks:
+        table = data_checks(args.data_checks, args.seed, args.pendigits_path)
+        header = (
+            f"<!-- generated by: python benchmarks/il_digits.py "
+            f"{' '.join(argv or sys.argv[1:])} -->\n"
+        )
+        print(header + table)
+        if args.docs:
+            _replace_block(Path(args.docs), header + table, args.docs_block)
+        return 0
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if not args.table_only:
@@ -239,7 +328,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.markdown:
         Path(args.markdown).write_text(header + table + "\n")
     if args.docs:
-        _replace_block(Path(args.docs), header + table)
+        _replace_block(Path(args.docs), header + table, args.docs_block)
     return 0
 
 

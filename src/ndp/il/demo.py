@@ -9,7 +9,7 @@ from ndp.il.models import ModelConfig
 from ndp.il.train import DataConfig, TrainConfig, evaluate, train
 
 
-def run_il_demo(out_dir: Path, quick: bool = True, threads: int = 2) -> dict[str, Any]:
+def run_il_demo(out_dir: Path, quick: bool = True, threads: int = 1) -> dict[str, Any]:
     """Train NDP briefly on a small synthetic digit set and draw its test predictions.
 
     ``quick`` (about a minute on 2 CPU cores): 5,000 generated digits, 4,500 train / 500 test,
@@ -20,7 +20,8 @@ def run_il_demo(out_dir: Path, quick: bool = True, threads: int = 2) -> dict[str
         out_dir: output folder; the run goes to ``out_dir/il_ndp`` and the synthetic cache to
             ``out_dir/il_data``.
         quick: the short setting above.
-        threads: torch CPU threads.
+        threads: torch CPU threads (1 by default: two threads on cores shared with other
+            work run many times slower).
 
     Returns:
         Dict with ``png`` (path of the picture), ``test_mse_px2`` (mean / std / median / max),

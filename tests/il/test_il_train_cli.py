@@ -194,3 +194,22 @@ def test_train_config_json_roundtrip(tmp_path: Path) -> None:
     assert again.as_dict() == cfg.as_dict()
     with pytest.raises(ValueError, match="batch_size"):
         _tiny(tmp_path, batch_size=0)
+
+
+def test_encoder_init_from_another_run(tmp_path: Path) -> None:
+    first = train(_tiny(tmp_path, "pre", epochs=1))
+    enc = {
+        k: v
+        for k, v in load_checkpoint(Path(first["checkpoint"]))["model"].items()
+        if k.startswith("encoder.")
+    }
+    cfg = _tiny(tmp_path, "cnn", epochs=1, model=ModelConfig(kind="cnn"), lr=1e-12)
+    cfg.encoder_init = str(tmp_path / "pre")
+    second = train(cfg)
+    got = load_checkpoint(Path(second["checkpoint"]))["model"]
+    for k, v in enc.items():  # lr 1e-12: the copied weights are still (almost) there
+        assert torch.allclose(got[k], v, atol=1e-6), k
+    cfg.encoder_init = str(tmp_path / "missing")
+    cfg.run_dir = str(tmp_path / "other")
+    with pytest.raises(FileNotFoundError):
+        train(cfg)

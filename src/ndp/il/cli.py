@@ -126,6 +126,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         progress=not args.no_progress,
         eval_every=args.eval_every,
         max_train_batches=args.max_train_batches,
+        encoder_init=args.encoder_init,
     )
     summary = train(cfg, resume=args.resume)
     if not args.no_eval:
@@ -214,6 +215,11 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
         type=int,
         default=0,
         help="cap batches per epoch (0: all; smoke tests)",
+    )
+    t.add_argument(
+        "--encoder-init",
+        default="",
+        help="pretraining: initialise the CNN encoder from this run's checkpoint",
     )
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
     t.add_argument("--no-eval", action="store_true", help="skip the final evaluation")

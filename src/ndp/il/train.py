@@ -114,6 +114,9 @@ class TrainConfig:
     """Evaluate the test MSE every this many epochs (0: only at the end)."""
     max_train_batches: int = 0
     """Stop each epoch after this many batches (0: all; for smoke tests)."""
+    encoder_init: str = ""
+    """Pretraining option: a run directory / checkpoint whose CNN encoder weights initialise
+    this model's encoder ('' = train from scratch)."""
 
     def __post_init__(self) -> None:
         if isinstance(self.data, dict):
@@ -309,6 +312,8 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
         targets = model.fit_targets(y_tr.cpu()).to(device)
         if ckpt is None:
             model.set_target_stats(targets)
+    if cfg.encoder_init and ckpt is None:
+        load_encoder(model, Path(cfg.encoder_init))
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     start_epoch = 0
     history: list[dict[str, float]] = []
@@ -413,6 +418,21 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
         "n_train": int(n_tr),
         "n_test": int(x_te.shape[0]),
     }
+
+
+def load_encoder(model: TrajectoryModel, path: Path) -> None:
+    """Copy the CNN encoder weights of another run's checkpoint into ``model``.
+
+    Raises:
+        FileNotFoundError: no checkpoint at ``path``.
+        ValueError: the checkpoint has no matching encoder weights.
+    """
+    state = load_checkpoint(path)["model"]
+    enc = {k[len("encoder.") :]: v for k, v in state.items() if k.startswith("encoder.")}
+    try:
+        model.encoder.load_state_dict(enc)
+    except RuntimeError as exc:
+        raise ValueError(f"encoder weights in {path} do not fit this model: {exc}") from exc
 
 
 def start_epoch_done(ckpt_path: Path) -> int:

@@ -106,11 +106,12 @@ def summarise(tasks, algos, seeds, steps, runs_dir: Path, out: Path, cmdline: st
     grid = np.linspace(0, steps, 51)
     result: dict = {"steps": steps, "seeds": list(seeds), "tasks": {}, "commit": _commit(),
                     "date": dt.date.today().isoformat(), "command": cmdline}
-    fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
-    for ax, task in zip(axes[0], tasks, strict=True):
+    fig, axes = plt.subplots(2, len(tasks), figsize=(4.2 * len(tasks), 6.4), squeeze=False)
+    for col, task in enumerate(tasks):
+        ax, ax_ret = axes[0][col], axes[1][col]
         result["tasks"][task] = {}
         for algo in algos:
-            curves, finals, rets, aucs = [], [], [], []
+            curves, rcurves, finals, rets, aucs = [], [], [], [], []
             for seed in seeds:
                 run = runs_dir / f"{task}-{algo}-s{seed}"
                 if not (run / "progress.csv").is_file():
@@ -118,35 +119,40 @@ def summarise(tasks, algos, seeds, steps, runs_dir: Path, out: Path, cmdline: st
                 x, y = load_curve(run)
                 if len(x) == 0:
                     continue
-                ys = smooth(y, max(1, len(y) // 20))
-                curves.append(np.interp(grid, x, ys, left=np.nan))
+                w = max(1, len(y) // 20)
+                curves.append(np.interp(grid, x, smooth(y, w), left=np.nan))
                 tail = y[int(len(y) * 0.9):] if len(y) >= 10 else y[-1:]
                 finals.append(float(np.mean(tail)))
                 # sample efficiency: success averaged over the budget (area under the curve)
                 aucs.append(float(np.trapezoid(np.interp(grid, x, y, left=0.0), grid) / steps))
-                _, ret = load_curve(run, "charts/episode_return")
+                xr, ret = load_curve(run, "charts/episode_return")
+                rcurves.append(np.interp(grid, xr, smooth(ret, w), left=np.nan))
                 rets.append(float(np.mean(ret[int(len(ret) * 0.9):] if len(ret) >= 10
                                           else ret[-1:])))
             if not curves:
                 continue
-            c = np.array(curves)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)  # grid points before 1st update
-                mean, std = np.nanmean(c, 0), np.nanstd(c, 0)
+                mean, std = np.nanmean(curves, 0), np.nanstd(curves, 0)
+                rmean, rstd = np.nanmean(rcurves, 0), np.nanstd(rcurves, 0)
             ax.plot(grid, mean, label=algo)
             ax.fill_between(grid, mean - std, mean + std, alpha=0.2)
+            ax_ret.plot(grid, rmean, label=algo)
+            ax_ret.fill_between(grid, rmean - rstd, rmean + rstd, alpha=0.2)
             result["tasks"][task][algo] = {
                 "n_seeds": len(finals), "final_mean": float(np.mean(finals)),
                 "final_std": float(np.std(finals)), "finals": finals,
                 "return_mean": float(np.mean(rets)), "return_std": float(np.std(rets)),
                 "auc_mean": float(np.mean(aucs)), "auc_std": float(np.std(aucs)),
                 "curve_steps": grid.tolist(), "curve_mean": mean.tolist(),
-                "curve_std": std.tolist(),
+                "curve_std": std.tolist(), "return_curve_mean": rmean.tolist(),
             }
         ax.set_title(task)
-        ax.set_xlabel("env steps")
         ax.set_ylim(-0.02, 1.02)
-        ax.grid(alpha=0.3)
+        ax_ret.set_xlabel("env steps")
+        for a in (ax, ax_ret):
+            a.grid(alpha=0.3)
+    axes[1][0].set_ylabel("episode return (training)")
     axes[0][0].set_ylabel("success (any step, training episodes)")
     axes[0][-1].legend(loc="upper left", fontsize=8)
     fig.tight_layout()

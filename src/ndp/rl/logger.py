@@ -17,6 +17,7 @@ METRICS: tuple[str, ...] = (
     "charts/success_any",
     "charts/success_final",
     "charts/episode_return",
+    "charts/episode_return_live",
     "charts/episode_length",
     "charts/env_steps_per_s",
     "charts/learning_rate",

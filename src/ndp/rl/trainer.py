@@ -97,6 +97,7 @@ class Trainer:
         save_config(cfg, self.run_dir / "config.json")
         # Episode bookkeeping.
         self._ep_ret = np.zeros(cfg.num_envs)
+        self._ep_ret_live = np.zeros(cfg.num_envs)
         self._ep_len = np.zeros(cfg.num_envs, dtype=np.int64)
         obs, info = self.envs.reset(seed=env_seeds(cfg.seed, cfg.num_envs, epoch=self.update))
         self._obs = np.asarray(obs, dtype=np.float64).reshape(cfg.num_envs, obs_dim)
@@ -167,7 +168,7 @@ class Trainer:
         rew_b = np.zeros((T, E, k))
         mask_b = np.zeros((T, E, k))
         end_b = np.zeros((T, E))
-        episodes: list[tuple[float, float, float, float]] = []
+        episodes: list[tuple[float, float, float, float, float]] = []
         goal_norms: list[float] = []
         weight_norms: list[float] = []
         executed = 0
@@ -202,6 +203,11 @@ class Trainer:
             done = term | trunc
             sub_r = step_info(infos, done, "sub_rewards").reshape(E, k)
             mask = step_info(infos, done, "sub_mask").reshape(E, k)
+            if "sub_rewards_live" in infos or "final_info" in infos:
+                live = step_info(infos, done, "sub_rewards_live", np.nan).reshape(E, -1)
+                live = sub_r if live.shape != sub_r.shape or np.isnan(live).any() else live
+            else:
+                live = sub_r
             r_n = self.ret_norm(sub_r, mask, done)
             boot = trunc & ~term
             if boot.any():  # bootstrap truncated episodes from their final observation
@@ -215,14 +221,16 @@ class Trainer:
             executed += int(mask.sum())
 
             self._ep_ret += (sub_r * mask).sum(1)
+            self._ep_ret_live += (live * mask).sum(1)
             self._ep_len += mask.sum(1).astype(np.int64)
             if done.any():
                 s_any = step_info(infos, done, "success_any")
                 s_fin = step_info(infos, done, "success")
                 for i in np.flatnonzero(done):
                     episodes.append((float(s_any[i]), float(s_fin[i]), self._ep_ret[i],
-                                     float(self._ep_len[i])))
+                                     float(self._ep_len[i]), self._ep_ret_live[i]))
                 self._ep_ret[done] = 0.0
+                self._ep_ret_live[done] = 0.0
                 self._ep_len[done] = 0
             self._obs = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
             self._y0, self._dy0 = _robot_state(infos, E)
@@ -341,7 +349,7 @@ class Trainer:
                 self.update += 1
                 self.global_step += batch["executed"]
                 eps = batch["episodes"]
-                col = np.array(eps) if eps else np.full((1, 4), math.nan)
+                col = np.array(eps) if eps else np.full((1, 5), math.nan)
                 with torch.no_grad():
                     std = float(self.model.head.log_std.exp().mean())
                 metrics = {
@@ -351,6 +359,7 @@ class Trainer:
                     "charts/success_any": float(col[:, 0].mean()),
                     "charts/success_final": float(col[:, 1].mean()),
                     "charts/episode_return": float(col[:, 2].mean()),
+                    "charts/episode_return_live": float(col[:, 4].mean()),
                     "charts/episode_length": float(col[:, 3].mean()),
                     "charts/env_steps_per_s": batch["executed"] / max(t2 - t0, 1e-9),
                     "charts/learning_rate": float(self.opt.param_groups[0]["lr"]),

@@ -84,6 +84,14 @@ def load_curve(run: Path, key: str = "charts/success_any") -> tuple[np.ndarray, 
     return x[keep], y[keep]
 
 
+def _return_key(run: Path) -> str:
+    """The live-world return column if the run logged it, else the trained return."""
+    with (run / "progress.csv").open() as f:
+        header = f.readline()
+    live = "charts/episode_return_live"
+    return live if live in header.split(",") else "charts/episode_return"
+
+
 def smooth(y: np.ndarray, window: int) -> np.ndarray:
     """Trailing moving average."""
     if len(y) == 0:
@@ -106,6 +114,7 @@ def summarise(tasks, algos, seeds, steps, runs_dir: Path, out: Path, cmdline: st
     grid = np.linspace(0, steps, 51)
     result: dict = {"steps": steps, "seeds": list(seeds), "tasks": {}, "commit": _commit(),
                     "date": dt.date.today().isoformat(), "command": cmdline}
+    used_keys: set[str] = set()
     fig, axes = plt.subplots(2, len(tasks), figsize=(4.2 * len(tasks), 6.4), squeeze=False)
     for col, task in enumerate(tasks):
         ax, ax_ret = axes[0][col], axes[1][col]
@@ -125,7 +134,8 @@ def summarise(tasks, algos, seeds, steps, runs_dir: Path, out: Path, cmdline: st
                 finals.append(float(np.mean(tail)))
                 # sample efficiency: success averaged over the budget (area under the curve)
                 aucs.append(float(np.trapezoid(np.interp(grid, x, y, left=0.0), grid) / steps))
-                xr, ret = load_curve(run, "charts/episode_return")
+                xr, ret = load_curve(run, _return_key(run))
+                used_keys.add(_return_key(run))
                 rcurves.append(np.interp(grid, xr, smooth(ret, w), left=np.nan))
                 rets.append(float(np.mean(ret[int(len(ret) * 0.9):] if len(ret) >= 10
                                           else ret[-1:])))
@@ -182,7 +192,14 @@ def summarise(tasks, algos, seeds, steps, runs_dir: Path, out: Path, cmdline: st
             r = result["tasks"][task].get(algo)
             cells.append("-" if r is None else f"{r['auc_mean']:.2f} +- {r['auc_std']:.2f}")
         lines.append(f"| {task} | " + " | ".join(cells) + " |")
-    lines += ["", "Episode return over the last 10% of updates (mean +- std over seeds):", "",
+    note = ("live-world reward (`charts/episode_return_live`)"
+            if used_keys == {"charts/episode_return_live"} else
+            "the reward each method trains with (`charts/episode_return`: stale-world rule for "
+            "NDP and PPO-multi, live for PPO; runs logged before the live column existed)"
+            if used_keys == {"charts/episode_return"} else
+            "live-world reward where logged, else the trained reward (mixed runs)")
+    lines += ["", f"Episode return over the last 10% of updates, {note} (mean +- std over "
+              "seeds):", "",
               "| task | " + " | ".join(algos) + " |", "|---" * (len(algos) + 1) + "|"]
     for task in tasks:
         cells = []

@@ -40,6 +40,7 @@ CONFIGS = [
     DMPConfig(n_basis=10, a_z=25.0, steps=50, tau=2.0, a_x=2.0, b_z=5.0),
     DMPConfig(n_basis=7, steps=30, dt=0.05),
     DMPConfig(n_basis=6, steps=35, only_g=True),
+    DMPConfig(n_basis=6, a_z=10.0, steps=35, subsample=7, scale_by_goal=False),
 ] + [DMPConfig(n_basis=8, steps=60, rbf=k) for k in RBF_KINDS if k != "gaussian"]
 
 

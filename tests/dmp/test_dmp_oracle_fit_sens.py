@@ -18,7 +18,7 @@ from ndp.dmp import (
 )
 
 
-def numpy_dmp(goal, w, y0, dy0, n, a_z, b_z, a_x, tau, dt, steps, kind, forcing):
+def numpy_dmp(goal, w, y0, dy0, n, a_z, b_z, a_x, tau, dt, steps, kind, forcing, scale=True):
     """One degree of freedom, written from the equations with scalars only (the oracle)."""
     centres = np.exp(-a_x * np.linspace(0.0, 1.0, n))
     widths = n**1.5 / centres / a_x
@@ -38,7 +38,9 @@ def numpy_dmp(goal, w, y0, dy0, n, a_z, b_z, a_x, tau, dt, steps, kind, forcing)
                     "linear": e,
                 }[kind]
             )
-        f = sum(p * wi for p, wi in zip(psi, w, strict=True)) / sum(psi) * x * (goal - y0)
+        f = sum(p * wi for p, wi in zip(psi, w, strict=True)) / sum(psi) * x
+        if scale:
+            f *= goal - y0
         if forcing == "released":
             dz = (a_z * (b_z * (goal - y) - z) + f) / tau
         else:
@@ -55,8 +57,9 @@ def numpy_dmp(goal, w, y0, dy0, n, a_z, b_z, a_x, tau, dt, steps, kind, forcing)
         DMPConfig(n_basis=6, a_z=10.0, steps=35, forcing="supplement"),
         DMPConfig(n_basis=5, a_z=5.0, steps=40, tau=0.7, a_x=1.5, rbf="inverse_multiquadric"),
         DMPConfig(n_basis=7, a_z=15.0, b_z=3.0, steps=50, dt=0.03, rbf="multiquadric"),
+        DMPConfig(n_basis=30, a_z=25.0, steps=300, scale_by_goal=False),
     ],
-    ids=["il", "rl-supplement", "imq", "mq-bz"],
+    ids=["il", "rl-supplement", "imq", "mq-bz", "unscaled"],
 )
 @pytest.mark.parametrize("method", ["loop", "fast"])
 def test_matches_independent_numpy_oracle(cfg, method):
@@ -82,6 +85,7 @@ def test_matches_independent_numpy_oracle(cfg, method):
                 cfg.steps,
                 cfg.rbf,
                 cfg.forcing,
+                cfg.scale_by_goal,
             )
             np.testing.assert_allclose(out[i, :, j], ref, rtol=1e-10, atol=1e-10)
 
@@ -89,10 +93,11 @@ def test_matches_independent_numpy_oracle(cfg, method):
 SENS_CFGS = [
     DMPConfig(n_basis=6, a_z=10.0, steps=35, subsample=7),
     DMPConfig(n_basis=8, a_z=25.0, steps=60, forcing="supplement", rbf="inverse_quadric"),
+    DMPConfig(n_basis=6, a_z=10.0, steps=35, scale_by_goal=False),
 ]
 
 
-@pytest.mark.parametrize("cfg", SENS_CFGS, ids=["released", "supplement"])
+@pytest.mark.parametrize("cfg", SENS_CFGS, ids=["released", "supplement", "unscaled"])
 def test_analytic_sensitivities_equal_autograd_and_finite_differences(cfg):
     gen = torch.Generator().manual_seed(5)
     b, d, n = 2, 2, cfg.n_basis
@@ -156,8 +161,9 @@ def _min_jerk_demo(n_out: int) -> torch.Tensor:
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
-def test_fit_then_rollout_reproduces_smooth_demonstrations(dtype):
-    cfg = DMPConfig(n_basis=30, a_z=25.0, steps=300)
+@pytest.mark.parametrize("scale_by_goal", [True, False])
+def test_fit_then_rollout_reproduces_smooth_demonstrations(dtype, scale_by_goal):
+    cfg = DMPConfig(n_basis=30, a_z=25.0, steps=300, scale_by_goal=scale_by_goal)
     demo = _min_jerk_demo(cfg.n_out).to(dtype)
     goal, w = fit_dmp(demo, cfg)
     assert goal.dtype == dtype and w.shape == (3, 2, 30)
@@ -261,3 +267,20 @@ def test_fit_bad_input():
         fit_dmp(torch.full((2, 11, 2), float("nan")), cfg)
     with pytest.raises(ValueError, match="cfg"):
         fit_dmp(torch.zeros(2, 11, 2), dataclasses.replace(cfg, only_g=True))
+
+
+def test_unscaled_forcing_equals_scaled_forcing_with_amplitude_weights():
+    """scale_by_goal=False with w' = w (g - y0) is the same DMP as the paper's form with w."""
+    scaled = DMPConfig(n_basis=6, a_z=10.0, steps=35, subsample=7)
+    unscaled = dataclasses.replace(scaled, scale_by_goal=False)
+    gen = torch.Generator().manual_seed(4)
+    goal, y0 = torch.randn(3, 2, generator=gen), torch.randn(3, 2, generator=gen)
+    w = torch.randn(3, 2, 6, generator=gen)
+    a = dmp_rollout(goal, w, y0, None, scaled).pos
+    b = dmp_rollout(goal, w * (goal - y0).unsqueeze(-1), y0, None, unscaled).pos
+    torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-5)
+    # and its gradients stay finite where g == y0 (no division anywhere)
+    goal_eq = y0.clone().requires_grad_(True)
+    amp = torch.randn(3, 2, 6, generator=gen, requires_grad=True)
+    dmp_rollout(goal_eq, amp, y0, None, unscaled).pos.square().sum().backward()
+    assert torch.isfinite(goal_eq.grad).all() and amp.grad.abs().sum() > 0

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
 
+from ndp.dmp import DMPLayer
 from ndp.il.models import CNNDMPModel, CNNModel, ModelConfig, NDPModel, build_model
 from ndp.il.synthetic import SyntheticConfig, generate_synthetic
 
@@ -60,8 +63,8 @@ def test_amplitude_parameterisation_roundtrip() -> None:
     back = model.raw_from_params(goal, w, y0)
     assert torch.allclose(back, raw, atol=1e-9)
     # the forcing amplitude w (g - y0) is what the head predicts, whatever g - y0 is
-    amp = w * (goal - y0).unsqueeze(-1)
-    assert torch.allclose(amp, 1000.0 * raw.view(3, 2, 31)[..., 1:], atol=1e-6)
+    assert not model.dmp.config.scale_by_goal
+    assert torch.allclose(w, 1000.0 * raw.view(3, 2, 31)[..., 1:], atol=1e-9)
 
 
 def test_weights_parameterisation() -> None:
@@ -112,13 +115,14 @@ def test_ndp_overfits_a_few_digits(batch) -> None:
     assert loss.item() < 0.5 * first, (first, loss.item())
 
 
-def test_superposition_rollout_equals_division_form() -> None:
+def test_amplitude_rollout_equals_the_papers_form_and_has_finite_gradients() -> None:
     torch.manual_seed(1)
     model = NDPModel(ModelConfig())
     raw = 0.1 * torch.randn(4, 62, dtype=torch.float64)
     y0 = 10 + 20 * torch.rand(4, 2, dtype=torch.float64)
-    goal, w = model.params(raw, y0)
-    direct = model.dmp(goal, w, y0).pos
+    goal, amp = model.params(raw, y0)
+    paper = DMPLayer(dataclasses.replace(model.dmp.config, scale_by_goal=True))
+    direct = paper(goal, amp / (goal - y0).unsqueeze(-1), y0).pos
     assert torch.allclose(model.integrate(raw, y0), direct, atol=1e-6)
     # gradient stays finite and moderate when g - y0 is exactly zero in one coordinate
     half = model.cfg.frame / 2

@@ -39,6 +39,9 @@ class DMPConfig:
     """Where f enters: 'released' (outside a_z, the default) or 'supplement' (inside a_z)."""
     only_g: bool = False
     """Ablation: forcing term switched off (a critically damped spring to the goal)."""
+    scale_by_goal: bool = True
+    """Multiply the forcing term by (g - y0) (the paper's form). False: f = sum phi_i w_i x, so
+    w is a forcing amplitude in position units and stays bounded when g is close to y0."""
     learn_az: bool = False
     """a_z is predicted per sample and passed to the integrator, clamped to ``az_range``."""
     az_range: tuple[float, float] = field(default=(0.5, 30.0))

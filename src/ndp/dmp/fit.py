@@ -6,9 +6,10 @@ Positions are affine in (v, g) with v = w * (g - y0) (see :func:`ndp.dmp.linear_
 
 Given a demonstration on the DMP's reported time grid, y0 = its first point and dy0 known, the
 fit solves the linear least-squares problem for (v, g) (or for v alone with a given goal) with a
-small ridge term, then recovers w = v / (g - y0). When g is close to y0 (a closed loop such as a
-"0") the forcing term's scale g - y0 is small and the weights grow accordingly: this is a property
-of the DMP formulation, not of the fit.
+small ridge term, then recovers w = v / (g - y0), or w = v when ``cfg.scale_by_goal`` is False.
+When g is close to y0 (a closed loop such as a "0") the forcing term's scale g - y0 is small and
+the weights grow accordingly: a property of the (g - y0) scaling, which ``scale_by_goal=False``
+removes.
 """
 
 from __future__ import annotations
@@ -81,6 +82,8 @@ def fit_dmp(
     sol = sol.reshape(b, d, -1)
     v = sol[..., :n]
     g = sol[..., n] if goal is None else g_fixed
+    if not cfg.scale_by_goal:
+        return g.to(demo), v.to(demo)
     scale = g - y0
     sign = torch.where(scale >= 0, 1.0, -1.0).to(scale)
     scale = torch.where(scale.abs() < min_scale, sign * min_scale, scale)

@@ -4,7 +4,7 @@ Both follow the released integration order (ndp-method.md section 2), per degree
 batched over samples. For every step t = 1..T:
 
     x_t  = x_{t-1} - a_x * x_{t-1} / tau * dt
-    f_t  = (sum_i psi_i(x_t) w_i / sum_j psi_j(x_t)) * x_t * (g - y0)
+    f_t  = (sum_i psi_i(x_t) w_i / sum_j psi_j(x_t)) * x_t * (g - y0)   [(g - y0): scale_by_goal]
     dz   = (a_z * (b_z * (g - y_{t-1}) - z_{t-1}) + f_t) / tau        (released form)
     dz   = a_z * (b_z * (g - y_{t-1}) - z_{t-1} + f_t) / tau          (supplement form)
     y_t  = y_{t-1} + z_{t-1} / tau * dt
@@ -181,7 +181,9 @@ def _reference(
         if cfg.only_g:
             f = torch.zeros_like(y0)
         else:
-            f = (weights @ psi) / psi.sum() * x * (goal - y0)  # [B, D]
+            f = (weights @ psi) / psi.sum() * x  # [B, D]
+            if cfg.scale_by_goal:
+                f = f * (goal - y0)
         if cfg.forcing == "released":
             dz = (az * (bz * (goal - y) - z) + f) / tau
         else:
@@ -202,7 +204,7 @@ def _reference(
 # Fast linear-map path
 # --------------------------------------------------------------------------------------------
 def linear_map_f64(cfg: DMPConfig, a_z: float | None = None) -> np.ndarray:
-    """The rollout as a linear map of u = (v_1..v_N, g, y0, dy0) with v = w * (g - y0).
+    """The rollout as a linear map of u = (v_1..v_N, g, y0, dy0), v = w * (g - y0) (or w).
 
     Built by running the Euler recursion on the N + 3 unit inputs at once (float64), so that
     position, velocity and acceleration at every reported step are ``u @ M``.
@@ -291,7 +293,7 @@ def _fast(
         u = torch.stack((goal, y0, dy0), dim=-1)  # [B, D, 3]
         m = m[n:]
     else:
-        v = weights * (goal - y0).unsqueeze(-1)  # [B, D, N]
+        v = weights * (goal - y0).unsqueeze(-1) if cfg.scale_by_goal else weights  # [B, D, N]
         u = torch.cat((v, goal.unsqueeze(-1), y0.unsqueeze(-1), dy0.unsqueeze(-1)), dim=-1)
     if check and not bool(torch.isfinite(u.sum())):
         # One reduction over the packed inputs; name the culprit only when something is wrong.

@@ -68,8 +68,12 @@ def dmp_sensitivities(
             df_dw = torch.zeros_like(weights)
             df_dg = torch.zeros_like(goal)
         else:
-            df_dw = phi * x * (goal - y0).unsqueeze(-1)  # [B, D, N]
-            df_dg = (weights @ phi) * x  # [B, D]
+            if cfg.scale_by_goal:
+                df_dw = phi * x * (goal - y0).unsqueeze(-1)  # [B, D, N]
+                df_dg = (weights @ phi) * x  # [B, D]
+            else:
+                df_dw = (phi * x).expand_as(weights)
+                df_dg = torch.zeros_like(goal)
         if cfg.forcing == "released":
             dwz = (az_w * (-bz_w * w_y - w_z) + df_dw) / tau
             dgz = (az * (bz * (1.0 - g_y) - g_z) + df_dg) / tau

@@ -14,10 +14,11 @@ All three share :class:`ndp.nets.MnistCNN` (28 x 28 input, 200 features) and a h
 Output parameterisation of the DMP models (``forcing_param``):
 
 - ``"amplitude"`` (default): the head predicts the forcing amplitude a = w * (g - y0) per basis
-  function and the layer receives w = a / (g - y0). The released forcing term is
-  f = sum phi_i w_i x (g - y0), so f = sum phi_i a_i x: the same DMP, but the prediction target
-  no longer blows up when g - y0 is near zero in a coordinate (closed digits such as 0 and 8,
-  vertical strokes such as 1), where least-squares weights reach 1e5 - 1e7 on this data.
+  function, integrated by a DMP layer with ``scale_by_goal=False`` (f = sum phi_i a_i x). The
+  released forcing term is f = sum phi_i w_i x (g - y0), so this is the same DMP, but the
+  prediction target and the gradients stay bounded when g - y0 is near zero in a coordinate
+  (closed digits such as 0 and 8, vertical strokes such as 1), where least-squares weights
+  reach 1e5 - 1e7 on this data.
 - ``"weights"``: the head predicts w directly (times ``weight_scale``), as in the paper.
 
 Coordinates: the goal is predicted as ``frame/2 + frame/2 * o_g`` (pixels); forcing amplitudes
@@ -65,8 +66,6 @@ class ModelConfig:
     """Scale of the raw weight outputs when forcing_param == 'weights'."""
     fit_ridge: float = 1e-3
     """Ridge of the least-squares DMP fit that makes CNN-DMP's parameter targets."""
-    min_scale: float = 1e-3
-    """|g - y0| floor (pixels, sign kept) when converting amplitudes to weights."""
 
     def __post_init__(self) -> None:
         if self.kind not in MODEL_KINDS:
@@ -85,20 +84,20 @@ class ModelConfig:
         return self.steps + 1
 
     def dmp_config(self) -> DMPConfig:
-        """The DMP integrator settings (tau = 1, dt = 1 / steps)."""
-        return DMPConfig(n_basis=self.n_basis, a_z=self.a_z, steps=self.steps)
+        """The DMP integrator settings (tau = 1, dt = 1 / steps); amplitude outputs use the
+        unscaled forcing term (``scale_by_goal=False``)."""
+        return DMPConfig(
+            n_basis=self.n_basis,
+            a_z=self.a_z,
+            steps=self.steps,
+            scale_by_goal=self.forcing_param != "amplitude",
+        )
 
     def as_dict(self) -> dict:
         """Plain-dict form (JSON-serialisable)."""
         d = asdict(self)
         d["head_hidden"] = list(self.head_hidden)
         return d
-
-
-def _safe_scale(d: torch.Tensor, floor: float) -> torch.Tensor:
-    """|d| floored at ``floor`` keeping the sign (0 maps to +floor)."""
-    sign = torch.where(d >= 0, torch.ones_like(d), -torch.ones_like(d))
-    return sign * d.abs().clamp_min(floor)
 
 
 class TrajectoryModel(nn.Module):
@@ -159,18 +158,19 @@ class _DMPModel(TrajectoryModel):
         self.dmp = DMPLayer(cfg.dmp_config(), check_finite=False)
 
     def params(self, raw: torch.Tensor, y0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Raw head outputs [B, 2 (N + 1)] -> goal [B, 2] and weights [B, 2, N] (pixels)."""
+        """Raw head outputs [B, 2 (N + 1)] -> goal [B, 2] and the layer's weights [B, 2, N].
+
+        The weights are in the parameterisation of ``self.dmp``: forcing amplitudes (pixels)
+        when ``forcing_param == "amplitude"``, the paper's w otherwise. ``y0`` is unused (kept
+        for a uniform signature).
+        """
         cfg = self.cfg
         n = cfg.n_basis
         raw = raw.view(-1, 2, n + 1)
         half = cfg.frame / 2
         goal = half + half * raw[..., 0]
-        if cfg.forcing_param == "amplitude":
-            amp = cfg.amp_scale * raw[..., 1:]
-            weights = amp / _safe_scale(goal - y0, cfg.min_scale).unsqueeze(-1)
-        else:
-            weights = cfg.weight_scale * raw[..., 1:]
-        return goal, weights
+        scale = cfg.amp_scale if cfg.forcing_param == "amplitude" else cfg.weight_scale
+        return goal, scale * raw[..., 1:]
 
     def raw_from_params(
         self, goal: torch.Tensor, weights: torch.Tensor, y0: torch.Tensor
@@ -179,43 +179,14 @@ class _DMPModel(TrajectoryModel):
         cfg = self.cfg
         half = cfg.frame / 2
         og = (goal - half) / half
-        if cfg.forcing_param == "amplitude":
-            ow = weights * _safe_scale(goal - y0, cfg.min_scale).unsqueeze(-1) / cfg.amp_scale
-        else:
-            ow = weights / cfg.weight_scale
+        scale = cfg.amp_scale if cfg.forcing_param == "amplitude" else cfg.weight_scale
+        ow = weights / scale
         return torch.cat([og.unsqueeze(-1), ow], dim=-1).reshape(goal.shape[0], -1)
 
     def integrate(self, raw: torch.Tensor, y0: torch.Tensor) -> torch.Tensor:
-        """Raw outputs [B, 2 (N + 1)] and y0 [B, 2] -> positions [B, T, 2] (dy0 = 0).
-
-        With ``forcing_param == "amplitude"`` the rollout of (g, w = a / (g - y0)) is computed
-        without dividing by g - y0: the DMP is linear in (w (g - y0), g, y0), so
-
-            rollout(g, a / (g - y0), y0) = rollout(g, 0, y0)
-                                           + rollout(y0 + 1, a, y0) - rollout(y0 + 1, 0, y0),
-
-        three rollouts of the same :class:`ndp.dmp.DMPLayer` in one batched call. This is the
-        same trajectory, but its gradient stays finite when g - y0 crosses zero during training
-        (the division form cancels two terms of size a / (g - y0) there).
-        """
-        if self.cfg.forcing_param != "amplitude":
-            goal, weights = self.params(raw, y0)
-            return self.dmp(goal, weights, y0).pos
-        cfg = self.cfg
-        n = cfg.n_basis
-        raw = raw.view(-1, 2, n + 1)
-        half = cfg.frame / 2
-        goal = half + half * raw[..., 0]
-        amp = cfg.amp_scale * raw[..., 1:]
-        b = raw.shape[0]
-        unit = y0 + 1.0
-        zeros = torch.zeros_like(amp)
-        pos = self.dmp(
-            torch.cat([goal, unit, unit]),
-            torch.cat([zeros, amp, zeros]),
-            torch.cat([y0, y0, y0]),
-        ).pos
-        return pos[:b] + pos[b : 2 * b] - pos[2 * b :]
+        """Raw outputs [B, 2 (N + 1)] and y0 [B, 2] -> positions [B, T, 2] (dy0 = 0)."""
+        goal, weights = self.params(raw, y0)
+        return self.dmp(goal, weights, y0).pos
 
     def predict(self, images: torch.Tensor, y0: torch.Tensor) -> torch.Tensor:
         return self.integrate(self.features(images), y0)

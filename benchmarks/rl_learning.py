@@ -167,7 +167,7 @@ def summarise(tasks, algos, seeds, steps, runs_dir: Path, out: Path, cmdline: st
     axes[0][-1].legend(loc="upper left", fontsize=8)
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out.with_suffix(".png"), dpi=80)
+    fig.savefig(out.with_suffix(".png"), dpi=60)
     out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
     lines = [
         f"# RL learning benchmark ({steps} env steps, seeds {list(seeds)})", "",

@@ -114,16 +114,27 @@ def test_ndp_param_noise_one_logprob_per_decision():
     assert a.shape == (4, 5, 2) and float(a.abs().max()) <= 1.0
 
 
-def test_metaworld_ndp_head_gripper_goal_bound_uses_action_range():
+def test_metaworld_ndp_head_gripper_goal_is_absolute_and_bounded():
     spec = get_task_spec("push-v3")
     ac = build_actor_critic(39, spec, _cfg("ndp"))
     gs = ac.head.goal_scale
     assert torch.allclose(gs[:3], torch.full((3,), 5 * 0.01))
-    assert math.isclose(float(gs[3]), 2.0)  # absolute gripper command spans [-1, 1]
-    acts, _, _ = ac.head.decode(torch.zeros(2, ac.head.n_params),
-                                torch.tensor([[0.0, 0.6, 0.2, -1.0]] * 2), torch.zeros(2, 4))
+    assert math.isclose(float(gs[3]), 1.0)  # half of the gripper command range [-1, 1]
+    y0 = torch.tensor([[0.0, 0.6, 0.2, -0.7], [0.0, 0.6, 0.2, 0.9]])
+    dy0 = torch.tensor([[0.0, 0.0, 0.0, 50.0], [0.0, 0.0, 0.0, -50.0]])  # noisy command rates
+    acts, goal, _ = ac.head.decode(torch.zeros(2, ac.head.n_params), y0, dy0)
     assert acts.shape == (2, 5, 4)
-    torch.testing.assert_close(acts[..., 3], torch.full((2, 5), -1.0))
+    # the gripper goal does not depend on the (unobserved) last sampled command, nor on its rate
+    torch.testing.assert_close(goal[:, 3], torch.zeros(2))
+    assert float(acts[..., 3].abs().max()) <= 1.0
+    huge = torch.full((2, ac.head.n_params), 50.0)
+    _, goal, _ = ac.head.decode(huge, y0, dy0)
+    torch.testing.assert_close(goal[:, 3], torch.ones(2))
+    # relative form (the release's): the goal follows y0 and spans the whole range from it
+    rel = build_actor_critic(39, spec, _cfg("ndp", absolute_goal=False)).head
+    _, goal, _ = rel.decode(torch.zeros(2, rel.n_params), y0, dy0)
+    torch.testing.assert_close(goal[:, 3], y0[:, 3])
+    assert math.isclose(float(rel.goal_scale[3]), 2.0)
 
 
 def test_policy_config_rejects_bad_values():

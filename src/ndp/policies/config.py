@@ -44,6 +44,9 @@ class PolicyConfig:
     """NDP: weight bound, w = weight_scale * tanh(raw); None: a_z^2 / 4 (the spring stiffness)."""
     rbf: str = "gaussian"
     """NDP: radial basis kind of the forcing term."""
+    absolute_goal: bool = True
+    """NDP: DoF whose action is the trajectory value (gripper) get a goal in the action range
+    independent of y0 and start at dy0 = 0; False: relative to y0 like every other DoF."""
     param_noise: bool = False
     """NDP: explore with a Gaussian over the DMP parameters (one log-prob per decision)."""
 

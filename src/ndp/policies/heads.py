@@ -9,6 +9,10 @@ state) into an exploration distribution over the k sub-actions of a decision [B,
 
       g = y0 + goal_scale * tanh(raw_g),        w = weight_scale * tanh(raw_w),
 
+  (for DoF whose action IS the trajectory value, e.g. Meta-World's gripper command, with
+  ``absolute_goal``: g = centre of the action range + goal_scale * tanh(raw_g) and dy0 = 0,
+  because their y0 is the last *sampled* command, which the actor does not observe),
+
   the DMP is integrated from the robot's physical state (y0, dy0) over one decision, the
   trajectory [B, k + 1, D] is cut at the k sub-step boundaries and the task's inverse controller
   maps it to the k sub-action means [B, k, A].
@@ -109,6 +113,7 @@ class NDPHead(ActionHead):
         decision_dt: float,
         param_noise: bool = False,
         init_log_std: float = 0.0,
+        goal_center: torch.Tensor | None = None,
     ) -> None:
         super().__init__()
         if dmp.steps // dmp.subsample != k or dmp.steps % dmp.subsample:
@@ -126,6 +131,11 @@ class NDPHead(ActionHead):
         self.dmp = DMPLayer(dmp)
         gs = torch.as_tensor(goal_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
         self.register_buffer("goal_scale", gs)
+        # DoF with a fixed goal centre (absolute commands) ignore y0 and dy0 for the goal.
+        centre = torch.full((self.dmp_dofs,), float("nan")) if goal_center is None else (
+            torch.as_tensor(goal_center, dtype=torch.float32).clone())
+        self.register_buffer("goal_center", centre)
+        self.register_buffer("absolute_goal", ~torch.isnan(centre))
         self.weight_scale = float(weight_scale)
         self.inverse_controller = inverse_controller
         self.decision_dt = float(decision_dt)
@@ -139,9 +149,12 @@ class NDPHead(ActionHead):
         """Raw parameters [B, P] and robot state (physical, [B, D]) -> (actions [B, k, A],
         goal [B, D], weights [B, D, N])."""
         b, d = raw.shape[0], self.dmp_dofs
-        goal = y0 + self.goal_scale * torch.tanh(raw[:, :d])
+        step = self.goal_scale * torch.tanh(raw[:, :d])
+        goal = torch.where(self.absolute_goal, self.goal_center.nan_to_num() + step, y0 + step)
         weights = self.weight_scale * torch.tanh(raw[:, d:].reshape(b, d, self.n_basis))
-        dy0_dmp = dy0 * (self.decision_dt / self.dmp.config.tau)
+        dy0_dmp = torch.where(
+            self.absolute_goal, 0.0, dy0 * (self.decision_dt / self.dmp.config.tau)
+        )
         traj = self.dmp(goal, weights, y0, dy0_dmp).pos  # [B, k + 1, D]
         actions = self.inverse_controller(traj, robot_pos=y0)  # [B, k, A]
         return actions, goal, weights
@@ -188,7 +201,14 @@ def build_head(cfg: Any, spec: Any) -> ActionHead:
     scale = _per_dof(spec.action_scale, d)
     absolute = _per_dof(getattr(spec, "action_absolute", False), d).astype(bool)
     span = _per_dof(spec.action_high, d) - _per_dof(spec.action_low, d)
-    reach = np.where(absolute, span, cfg.k * scale)  # largest move in one decision, per DoF
+    if cfg.absolute_goal:
+        # absolute commands: goal = centre of the action range + goal_scale * half range * tanh
+        reach = np.where(absolute, span / 2.0, cfg.k * scale)
+        centre = np.where(absolute, (_per_dof(spec.action_high, d) + _per_dof(spec.action_low, d))
+                          / 2.0, np.nan)
+    else:
+        reach = np.where(absolute, span, cfg.k * scale)  # largest move in one decision
+        centre = np.full(d, np.nan)
     dmp = DMPConfig(
         n_basis=int(cfg.n_basis),
         a_z=float(cfg.a_z),
@@ -207,6 +227,7 @@ def build_head(cfg: Any, spec: Any) -> ActionHead:
         decision_dt=cfg.k * float(spec.control_dt),
         param_noise=cfg.param_noise,
         init_log_std=cfg.init_log_std,
+        goal_center=torch.as_tensor(centre, dtype=torch.float32),
     )
 
 

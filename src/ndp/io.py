@@ -1,23 +1,31 @@
-"""Small file helpers shared by every sub-package (a leaf module): atomic writes."""
+"""File helpers shared by every sub-package (a leaf module): atomic writes.
+
+A reader never sees a half-written file, and a crash (even SIGKILL) mid-write leaves the previous
+version intact: data goes to a temporary file in the same folder, is flushed and fsynced, and is
+then renamed over the target with ``os.replace``.
+"""
 
 from __future__ import annotations
 
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, BinaryIO
+
+_UMASK = os.umask(0)
+os.umask(_UMASK)
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temporary file in the same folder, then rename).
-
-    A reader never sees a half-written file, and a crash leaves the previous version intact.
-    """
+def atomic_write(path: str | os.PathLike, write: Callable[[BinaryIO], Any]) -> None:
+    """Call ``write(f)`` on a temporary binary file, then atomically rename it to ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, 0o666 & ~_UMASK)  # mkstemp creates 0600; give the usual file mode
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            write(f)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -27,6 +35,25 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         raise
 
 
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Atomic binary write; see :func:`atomic_write`."""
+    atomic_write(path, lambda f: f.write(data))
+
+
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Atomic text write (UTF-8); see :func:`atomic_write_bytes`."""
+    """Atomic text write (UTF-8); see :func:`atomic_write`."""
     atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_torch_save(obj: Any, path: str | os.PathLike) -> None:
+    """``torch.save(obj)`` atomically; see :func:`atomic_write`."""
+    import torch
+
+    atomic_write(path, lambda f: torch.save(obj, f))
+
+
+def atomic_save_npz(path: str | os.PathLike, **arrays: Any) -> None:
+    """``numpy.savez_compressed`` atomically; see :func:`atomic_write`."""
+    import numpy as np
+
+    atomic_write(path, lambda f: np.savez_compressed(f, **arrays))

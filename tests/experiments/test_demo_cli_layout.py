@@ -84,3 +84,14 @@ def test_imports_point_one_way(pkg):
         if extra:
             bad[str(f.relative_to(SRC))] = sorted(extra)
     assert not bad, f"imports against the data flow: {bad}"
+
+
+def test_atomic_write_gives_usual_file_mode(tmp_path):
+    import os
+    import stat
+
+    target = tmp_path / "b.txt"
+    atomic_write_text(target, "x")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask

@@ -17,9 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import re
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,6 +34,7 @@ from ndp.il.synthetic import (
     generate_synthetic,
     render_points,
 )
+from ndp.io import atomic_save_npz
 
 
 @dataclass
@@ -99,21 +98,6 @@ class DigitData:
 # --------------------------------------------------------------------------------------------
 # Atomic file helpers
 # --------------------------------------------------------------------------------------------
-
-
-def atomic_save_npz(path: Path, **arrays: np.ndarray) -> None:
-    """Write a compressed ``.npz`` atomically (temporary file in the same folder, then rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez_compressed(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _read_npz(path: Path) -> dict[str, np.ndarray]:

@@ -19,8 +19,6 @@ import csv
 import dataclasses
 import json
 import math
-import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,6 +38,7 @@ from ndp.il.data import (
 from ndp.il.metrics import dtw_distance, per_sample_mse, save_prediction_grid, summarize
 from ndp.il.models import CNNDMPModel, ModelConfig, TrajectoryModel, build_model
 from ndp.il.synthetic import SyntheticConfig
+from ndp.io import atomic_torch_save, atomic_write_text
 
 METRIC_NAMES = (
     "train/loss",
@@ -185,29 +184,6 @@ def make_split(data: DigitData, cfg: DataConfig) -> tuple[np.ndarray, np.ndarray
 # --------------------------------------------------------------------------------------------
 # Files
 # --------------------------------------------------------------------------------------------
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write text atomically (temporary file in the same folder, then os.replace)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
-
-
-def atomic_torch_save(obj: Any, path: Path) -> None:
-    """torch.save atomically (temporary file in the same folder, then os.replace)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            torch.save(obj, f)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def load_checkpoint(path: Path) -> dict[str, Any]:

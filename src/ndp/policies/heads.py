@@ -97,6 +97,9 @@ class NDPHead(ActionHead):
         decision_dt: seconds per decision (k * control_dt), to convert dy0 to DMP time.
         param_noise: explore in parameter space (one log-prob per decision).
         init_log_std: initial log std (of the sub-actions, or of the raw parameters).
+        goal_center: [D] fixed goal centre per DoF (absolute-command DoF: goal = centre +
+            goal_scale * tanh(raw), dy0 = 0), NaN (or None for all) where the goal is relative
+            to y0.
     """
 
     needs_robot_state = True
@@ -134,8 +137,8 @@ class NDPHead(ActionHead):
         # DoF with a fixed goal centre (absolute commands) ignore y0 and dy0 for the goal.
         centre = torch.full((self.dmp_dofs,), float("nan")) if goal_center is None else (
             torch.as_tensor(goal_center, dtype=torch.float32).clone())
-        self.register_buffer("goal_center", centre)
-        self.register_buffer("absolute_goal", ~torch.isnan(centre))
+        self.register_buffer("absolute_goal", ~torch.isnan(centre))  # NaN centre: relative
+        self.register_buffer("goal_center", centre.nan_to_num())
         self.weight_scale = float(weight_scale)
         self.inverse_controller = inverse_controller
         self.decision_dt = float(decision_dt)
@@ -150,7 +153,7 @@ class NDPHead(ActionHead):
         goal [B, D], weights [B, D, N])."""
         b, d = raw.shape[0], self.dmp_dofs
         step = self.goal_scale * torch.tanh(raw[:, :d])
-        goal = torch.where(self.absolute_goal, self.goal_center.nan_to_num() + step, y0 + step)
+        goal = torch.where(self.absolute_goal, self.goal_center + step, y0 + step)
         weights = self.weight_scale * torch.tanh(raw[:, d:].reshape(b, d, self.n_basis))
         dy0_dmp = torch.where(
             self.absolute_goal, 0.0, dy0 * (self.decision_dt / self.dmp.config.tau)

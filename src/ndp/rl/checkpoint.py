@@ -1,43 +1,23 @@
-"""Atomic checkpoint and text writes (write to a temporary file, then ``os.replace``)."""
+"""Run checkpoints: atomic ``torch.save`` (via :mod:`ndp.io`) and a loader with clear errors."""
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import torch
 
+from ndp.io import atomic_torch_save
+
+__all__ = ["CHECKPOINT_NAME", "load_checkpoint", "save_checkpoint"]
+
 CHECKPOINT_NAME = "checkpoint.pt"
 """File name of the latest good checkpoint inside a run directory."""
 
 
-def _atomic(path: Path, write: Any) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically."""
-    _atomic(path, lambda f: f.write(text.encode()))
-
-
 def save_checkpoint(path: Path, state: dict[str, Any]) -> None:
     """``torch.save(state)`` to ``path`` atomically (a crash leaves the previous file intact)."""
-    _atomic(path, lambda f: torch.save(state, f))
+    atomic_torch_save(state, path)
 
 
 def load_checkpoint(path: Path) -> dict[str, Any]:

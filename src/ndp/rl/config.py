@@ -226,7 +226,7 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
 
 def save_config(cfg: TrainConfig, path: Path) -> None:
     """Write the config as JSON (atomically)."""
-    from ndp.rl.checkpoint import atomic_write_text
+    from ndp.io import atomic_write_text
 
     atomic_write_text(path, json.dumps(cfg.to_dict(), indent=2, sort_keys=True) + "\n")
 

@@ -14,7 +14,7 @@ from ndp.envs.metaworld_env import metaworld_env_names
 def test_table_covers_all_tasks():
     names = metaworld_env_names()
     assert len(names) == 50
-    assert set(TASKS) == {*names, "throw", "pick"}
+    assert set(TASKS) == {*names, "throw", "pick", "point-mass", "point-mass-3d"}
     for n in ("push-v3", "reach-v3", "soccer-v3", "faucet-open-v3"):
         s = TASKS[n]
         assert s.family == "metaworld" and s.dmp_dofs == 4 and s.action_dim == 4

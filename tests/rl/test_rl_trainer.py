@@ -119,17 +119,16 @@ def test_nan_loss_stops_training(tmp_path, monkeypatch):
 
 def test_terminated_episodes_and_all_methods_run(tmp_path, monkeypatch):
     # Episodes that end mid-decision (terminate on success) exercise masks and termination.
+    import ndp.rl.trainer as rl_trainer
     from ndp.rl import envs as rl_envs
 
-    orig = rl_envs._toy_tasks
+    orig = rl_envs.resolve_task
 
-    def toy_terminating():
-        out = orig()
-        h = out["point-mass"]
-        return {"point-mass": rl_envs.TaskHandle(
-            h.spec, lambda **kw: h.make(terminate_on_success=True, **kw))}
+    def toy_terminating(name):
+        h = orig(name)
+        return rl_envs.TaskHandle(h.spec, lambda **kw: h.make(terminate_on_success=True, **kw))
 
-    monkeypatch.setattr(rl_envs, "_toy_tasks", toy_terminating)
+    monkeypatch.setattr(rl_trainer, "resolve_task", toy_terminating)
     for algo in ("ndp", "ppo", "ppo-multi"):
         tr = Trainer(_cfg(tmp_path, algo, algo=algo, steps=1040))
         try:

@@ -8,6 +8,7 @@ import gymnasium as gym
 
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import MetaWorldEnv
+from ndp.envs.point_mass import PointMassEnv
 from ndp.envs.spec import TASKS, get_task_spec
 
 
@@ -49,6 +50,8 @@ def make_env(
         env: gym.Env = MetaWorldEnv(
             spec.metaworld_name or spec.name, horizon=horizon, render_mode=render_mode, **kw
         )
+    elif spec.family == "toy":
+        env = PointMassEnv(dim=spec.dmp_dofs, horizon=horizon, render_mode=render_mode, **kw)
     else:
         env = JacoEnv(spec.name, horizon=horizon, render_mode=render_mode, **kw)
     if seed is not None:

@@ -197,8 +197,12 @@ class PointMassEnv(gym.Env):
         self.terminate_on_success = bool(terminate_on_success)
         self.render_mode = render_mode
         self.action_space = spaces.Box(-1.0, 1.0, shape=(self.dim,), dtype=np.float32)
+        # position in the box [-1, 1], velocity at most ACTION_SCALE / CONTROL_DT, goal in
+        # [-0.9, 0.9]: every observation entry is bounded
+        vmax = ACTION_SCALE / CONTROL_DT
+        high = np.concatenate([np.ones(self.dim), np.full(self.dim, vmax), np.ones(self.dim)])
         self.observation_space = spaces.Box(
-            -np.inf, np.inf, shape=(3 * self.dim,), dtype=np.float64
+            -high, high, shape=(3 * self.dim,), dtype=np.float64
         )
         self._pos = np.zeros(self.dim)
         self._vel = np.zeros(self.dim)
@@ -255,8 +259,10 @@ class PointMassEnv(gym.Env):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Move by ``ACTION_SCALE * clip(action)``; returns the gymnasium 5-tuple."""
-        a = np.clip(np.asarray(action, dtype=np.float64).reshape(self.dim), -1.0, 1.0)
-        a = np.nan_to_num(a)
+        a = np.asarray(action, dtype=np.float64).reshape(self.dim)
+        if not np.isfinite(a).all():
+            raise ValueError(f"action: expected finite values, got {a.tolist()}")
+        a = np.clip(a, -1.0, 1.0)
         new = np.clip(self._pos + ACTION_SCALE * a, -1.0, 1.0)
         self._vel = (new - self._pos) / CONTROL_DT
         self._pos = new

@@ -185,11 +185,17 @@ def _build_table() -> dict[str, TaskSpec]:
     table = {n: _metaworld_spec(n) for n in metaworld_env_names()}
     for task in ("throw", "pick"):
         table[task] = _jaco_spec(task)
+    from ndp.envs.point_mass import point_mass_spec  # the toy tasks of the tests and demo
+
+    for dim in (2, 3):
+        spec = point_mass_spec(dim)
+        table[spec.name] = spec
     return table
 
 
 TASKS: dict[str, TaskSpec] = _build_table()
-"""name -> TaskSpec for the 50 Meta-World v3 tasks and ``"throw"`` / ``"pick"``."""
+"""name -> TaskSpec for the 50 Meta-World v3 tasks, ``"throw"`` / ``"pick"`` and the toy
+``"point-mass"`` / ``"point-mass-3d"``."""
 
 _ALIASES: dict[str, str] = {a: s.name for s in TASKS.values() for a in (*s.aliases, s.env_id)}
 

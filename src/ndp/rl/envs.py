@@ -1,11 +1,11 @@
 """Tasks and seeded vector environments for the trainer.
 
 :func:`resolve_task` turns a name into a :class:`TaskHandle` (spec + per-step env factory): any
-name of ``ndp.envs.TASKS``, or the toy tasks of :mod:`ndp.envs.point_mass` until they are wired
-into that table. :func:`make_vector_env` builds ``num_envs`` :class:`ndp.envs.ChunkedEnv` copies
-(k sub-steps per decision) in a gymnasium ``SyncVectorEnv`` or ``AsyncVectorEnv`` with same-step
-autoreset: when an episode ends, the returned observation and info are the reset ones and the
-finished step's info is under ``info["final_info"]`` (its observation under ``final_obs``).
+name or alias of ``ndp.envs.TASKS``, the toy tasks of :mod:`ndp.envs.point_mass` included.
+:func:`make_vector_env` builds ``num_envs`` :class:`ndp.envs.ChunkedEnv` copies (k sub-steps per
+decision) in a gymnasium ``SyncVectorEnv`` or ``AsyncVectorEnv`` with same-step autoreset: when
+an episode ends, the returned observation and info are the reset ones and the finished step's
+info is under ``info["final_info"]`` (its observation under ``final_obs``).
 """
 
 from __future__ import annotations
@@ -32,36 +32,23 @@ class TaskHandle:
     """``make(seed=None, horizon=None, render_mode=None) -> per-step gymnasium.Env``."""
 
 
-def _toy_tasks() -> dict[str, TaskHandle]:
-    from ndp.envs.point_mass import make_point_mass_env, point_mass_spec
-
-    out = {}
-    for dim in (2, 3):
-        spec = point_mass_spec(dim)
-        out[spec.name] = TaskHandle(spec, functools.partial(make_point_mass_env, dim=dim))
-    return out
-
-
 def resolve_task(name: str) -> TaskHandle:
-    """Resolve a task name (``ndp.envs`` table first, then the toy tasks).
+    """Resolve a task name or alias through ``ndp.envs.TASKS`` (the toy tasks included).
 
     Raises:
         ValueError: unknown name (the message lists close names).
     """
     from ndp.envs import get_task_spec, make_env
 
-    try:
-        spec = get_task_spec(name)
-    except ValueError:
-        toys = _toy_tasks()
-        if name in toys:
-            return toys[name]
-        raise
+    spec = get_task_spec(name)
     return TaskHandle(spec, functools.partial(make_env, spec.name))
 
 
 def _make_chunked(
-    make: Callable[..., gym.Env], k: int, stale_world: bool, horizon: int | None,
+    make: Callable[..., gym.Env],
+    k: int,
+    stale_world: bool,
+    horizon: int | None,
     render_mode: str | None = None,
 ) -> ChunkedEnv:
     """Env-worker entry: one chunked env (torch kept to one thread in worker processes)."""

@@ -19,20 +19,21 @@ Reward: minus the distance to the goal (m). Success: distance below ``SUCCESS_RA
 Episodes are truncated at ``horizon`` steps; with ``terminate_on_success=True`` they terminate on
 success (used by tests of the termination / truncation distinction).
 
-:func:`point_mass_spec` returns the task's spec (the package's ``TaskSpec`` when it exists, else a
-duck-typed dataclass with the same fields) and :func:`point_mass_inverse_controller` maps DMP
-trajectory points to bounded actions.
+:func:`point_mass_spec` returns the task's :class:`ndp.envs.spec.TaskSpec` (a row of
+``ndp.envs.TASKS``); its inverse controller maps DMP trajectory points to bounded displacement
+actions like every delta-controlled task.
 """
 
 from __future__ import annotations
 
-import dataclasses
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
-import torch
 from gymnasium import spaces
+
+if TYPE_CHECKING:
+    from ndp.envs.spec import TaskSpec
 
 ACTION_SCALE = 0.05
 """Displacement (m) per env step for an action of 1."""
@@ -48,76 +49,7 @@ DEFAULT_HORIZON = 50
 """Env steps per episode."""
 
 
-def point_mass_inverse_controller(
-    traj: torch.Tensor, robot_pos: torch.Tensor | None = None
-) -> torch.Tensor:
-    """Map DMP trajectory points to bounded point-mass actions.
-
-    ``a_j = clip((y_{j+1} - y_j) / ACTION_SCALE, -1, 1)``: the displacement between consecutive
-    points, in action units.
-
-    Args:
-        traj: trajectory points [..., k + 1, D] (m).
-        robot_pos: unused (the action is a displacement); accepted for the common signature.
-
-    Returns:
-        Actions [..., k, D] in [-1, 1].
-    """
-    del robot_pos
-    return ((traj[..., 1:, :] - traj[..., :-1, :]) / ACTION_SCALE).clamp(-1.0, 1.0)
-
-
-@dataclasses.dataclass(frozen=True)
-class PointMassSpec:
-    """Fallback spec with the fields of ``ndp.envs.TaskSpec`` (used if that cannot be built)."""
-
-    name: str
-    """Task name."""
-    family: str
-    """Task family ('toy')."""
-    env_id: str
-    """Gymnasium-style id (informational; not registered here)."""
-    dmp_dofs: int
-    """D: coordinates the DMP drives (the point's position)."""
-    dof_names: tuple[str, ...]
-    """Name of each DMP coordinate."""
-    dof_units: tuple[str, ...]
-    """Unit of each DMP coordinate."""
-    y0_source: str
-    """Where the DMP start state comes from, in words."""
-    action_dim: int
-    """A: env action size."""
-    action_low: tuple[float, ...]
-    """Lower action bounds."""
-    action_high: tuple[float, ...]
-    """Upper action bounds."""
-    action_scale: tuple[float, ...]
-    """Displacement (m) per env step for an action of 1, per DoF."""
-    action_absolute: tuple[bool, ...]
-    """True where the action is the trajectory value itself (never here)."""
-    horizon: int
-    """Env steps per episode."""
-    control_dt: float
-    """Seconds per env step."""
-    sim_dt: float
-    """Simulator step (s); equal to control_dt (no sub-stepping)."""
-    obs_dim: int
-    """Observation size."""
-    metaworld_name: str | None = None
-    """Always None."""
-    aliases: tuple[str, ...] = ()
-    """Other accepted names."""
-
-    def inverse_controller(
-        self, traj: torch.Tensor, robot_pos: torch.Tensor | None = None
-    ) -> torch.Tensor:
-        """See :func:`point_mass_inverse_controller`."""
-        if robot_pos is not None:
-            traj = torch.cat([robot_pos.unsqueeze(-2).to(traj), traj[..., 1:, :]], dim=-2)
-        return point_mass_inverse_controller(traj)
-
-
-def point_mass_spec(dim: int = 2, horizon: int = DEFAULT_HORIZON) -> Any:
+def point_mass_spec(dim: int = 2, horizon: int = DEFAULT_HORIZON) -> TaskSpec:
     """The toy task's spec.
 
     Args:
@@ -125,8 +57,7 @@ def point_mass_spec(dim: int = 2, horizon: int = DEFAULT_HORIZON) -> Any:
         horizon: env steps per episode.
 
     Returns:
-        An ``ndp.envs.TaskSpec`` when it can be built from these fields, else a
-        :class:`PointMassSpec` with the same fields and inverse controller.
+        The task's ``ndp.envs.TaskSpec``.
     """
     if dim not in (2, 3):
         raise ValueError(f"dim: expected 2 or 3, got {dim!r}")
@@ -151,13 +82,9 @@ def point_mass_spec(dim: int = 2, horizon: int = DEFAULT_HORIZON) -> Any:
         "metaworld_name": None,
         "aliases": (name.replace("-", "_"),),
     }
-    try:  # the package's TaskSpec (its inverse controller is the same delta rule)
-        from ndp.envs.spec import TaskSpec
+    from ndp.envs.spec import TaskSpec  # late: spec.py builds its table from this function
 
-        names = {f.name for f in dataclasses.fields(TaskSpec)}
-        return TaskSpec(**{k: v for k, v in fields.items() if k in names})
-    except (ImportError, TypeError, ValueError):
-        return PointMassSpec(**fields)
+    return TaskSpec(**fields)
 
 
 class PointMassEnv(gym.Env):
@@ -201,9 +128,7 @@ class PointMassEnv(gym.Env):
         # [-0.9, 0.9]: every observation entry is bounded
         vmax = ACTION_SCALE / CONTROL_DT
         high = np.concatenate([np.ones(self.dim), np.full(self.dim, vmax), np.ones(self.dim)])
-        self.observation_space = spaces.Box(
-            -high, high, shape=(3 * self.dim,), dtype=np.float64
-        )
+        self.observation_space = spaces.Box(-high, high, shape=(3 * self.dim,), dtype=np.float64)
         self._pos = np.zeros(self.dim)
         self._vel = np.zeros(self.dim)
         self._goal = np.zeros(self.dim)
@@ -290,13 +215,19 @@ class PointMassEnv(gym.Env):
 
 
 def make_point_mass_env(
-    *, seed: int | None = None, horizon: int | None = None, render_mode: str | None = None,
-    dim: int = 2, **kw: Any,
+    *,
+    seed: int | None = None,
+    horizon: int | None = None,
+    render_mode: str | None = None,
+    dim: int = 2,
+    **kw: Any,
 ) -> PointMassEnv:
     """Factory with the signature of ``ndp.envs.make_env`` (without the name)."""
     env = PointMassEnv(
-        dim=dim, horizon=DEFAULT_HORIZON if horizon is None else horizon,
-        render_mode=render_mode, **kw,
+        dim=dim,
+        horizon=DEFAULT_HORIZON if horizon is None else horizon,
+        render_mode=render_mode,
+        **kw,
     )
     if seed is not None:
         env.seed_next_reset(int(seed))

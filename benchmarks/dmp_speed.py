@@ -29,6 +29,7 @@ import torch
 import torch.utils.benchmark as tb
 
 from ndp.dmp import DMPConfig, DMPLayer, dmp_rollout, dmp_rollout_reference
+from ndp.experiments.provenance import git_commit
 from ndp.io import atomic_write_text
 
 SHAPES = {
@@ -154,6 +155,7 @@ def main(argv=None) -> int:
         else platform.processor() or platform.machine(),
         "dtype": args.dtype,
         "torch": torch.__version__,
+        "commit": git_commit(),
         "threads": torch.get_num_threads(),
         "targets": {"loop_over_fast_imitation": ">= 30", "fast_over_matmul": "<= 3"},
         "shapes": {},
@@ -177,7 +179,7 @@ def markdown_table(results: dict) -> str:
     """The speed table of docs/dmp.md, generated from one benchmark run."""
     lines = [
         f"Device: {results['device']} ({results['device_name']}), {results['dtype']}, "
-        f"torch {results['torch']}, {results['threads']} thread(s). "
+        f"torch {results['torch']}, {results['threads']} thread(s), commit {results['commit']}. "
         "Forward + backward, best median of interleaved rounds.",
         "",
         "| shape | B | D | N | steps / stride | fast (layer) ms | fast unchecked ms | loop ms "

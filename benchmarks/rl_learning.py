@@ -34,15 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ndp.experiments.provenance import git_commit
+
 ALGOS = ("ndp", "ppo", "ppo-multi")
-
-
-def _commit() -> str:
-    try:
-        return subprocess.check_output(["git", "rev-parse", "--short", "HEAD"], text=True,
-                                       stderr=subprocess.DEVNULL).strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def run_one(task: str, algo: str, seed: int, steps: int, runs_dir: Path, num_envs: int,
@@ -112,7 +106,7 @@ def summarise(tasks, algos, seeds, steps, runs_dir: Path, out: Path, cmdline: st
     import matplotlib.pyplot as plt
 
     grid = np.linspace(0, steps, 51)
-    result: dict = {"steps": steps, "seeds": list(seeds), "tasks": {}, "commit": _commit(),
+    result: dict = {"steps": steps, "seeds": list(seeds), "tasks": {}, "commit": git_commit(),
                     "date": dt.date.today().isoformat(), "command": cmdline}
     used_keys: set[str] = set()
     fig, axes = plt.subplots(2, len(tasks), figsize=(4.2 * len(tasks), 6.4), squeeze=False)

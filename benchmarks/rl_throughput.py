@@ -29,13 +29,14 @@ import argparse
 import datetime as dt
 import json
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from ndp.experiments.provenance import git_commit
 
 METHODS = ("raw", "ppo", "ppo-multi", "ndp", "sb3-ppo")
 
@@ -124,14 +125,6 @@ def measure(method: str, task: str, steps: int, num_envs: int, seed: int) -> tup
     return bench_ours(task, method, steps, num_envs, seed)
 
 
-def _commit() -> str:
-    try:
-        return subprocess.check_output(["git", "rev-parse", "--short", "HEAD"], text=True,
-                                       stderr=subprocess.DEVNULL).strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--task", default="reach-v3")
@@ -161,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     cmd = "python benchmarks/rl_throughput.py " + " ".join(
         argv if argv is not None else sys.argv[1:])
     out = {"task": args.task, "steps": args.steps, "num_envs": args.num_envs,
-           "repeats": args.repeats, "commit": _commit(), "date": dt.date.today().isoformat(),
+           "repeats": args.repeats, "commit": git_commit(), "date": dt.date.today().isoformat(),
            "command": cmd, "results": res, "samples": samples}
     print(json.dumps(out["results"], indent=1))
     if args.out is not None:

@@ -114,6 +114,15 @@ def validate_inputs(
     return goal, weights, y0, dy0, a_z
 
 
+def spring_constants(
+    cfg: DMPConfig, a_z: torch.Tensor | None
+) -> tuple[torch.Tensor | float, torch.Tensor | float]:
+    """(a_z, b_z) of a rollout: the config's, or a per-sample a_z [B, D] with b_z = a_z / 4."""
+    if a_z is None:
+        return cfg.a_z, cfg.bz
+    return a_z, a_z / 4.0
+
+
 def check_finite(**tensors: torch.Tensor | None) -> None:
     """Raise ``FloatingPointError`` naming the first tensor that holds NaN or Inf.
 
@@ -162,11 +171,7 @@ def _reference(
     a_z_t: torch.Tensor | None,
 ) -> DMPTrajectory:
     dtype, device = goal.dtype, goal.device
-    if a_z_t is None:
-        az: torch.Tensor | float = cfg.a_z
-        bz: torch.Tensor | float = cfg.bz
-    else:
-        az, bz = a_z_t, a_z_t / 4.0
+    az, bz = spring_constants(cfg, a_z_t)
     tau, dt, a_x = cfg.tau, cfg.step_dt, cfg.a_x
     c, h = basis_centres(cfg.n_basis, a_x, dtype)
     c, h = c.to(device), h.to(device)

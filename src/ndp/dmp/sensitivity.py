@@ -21,7 +21,7 @@ import torch
 
 from ndp.dmp.basis import basis_centres, normalised_rbf
 from ndp.dmp.config import DMPConfig
-from ndp.dmp.integrate import validate_inputs
+from ndp.dmp.integrate import spring_constants, validate_inputs
 
 
 def dmp_sensitivities(
@@ -44,11 +44,7 @@ def dmp_sensitivities(
     cfg = cfg or DMPConfig()
     goal, weights, y0, dy0, a_z_t = validate_inputs(cfg, goal, weights, y0, dy0, a_z)
     dtype, device = goal.dtype, goal.device
-    if a_z_t is None:
-        az: torch.Tensor | float = cfg.a_z
-        bz: torch.Tensor | float = cfg.bz
-    else:
-        az, bz = a_z_t, a_z_t / 4.0
+    az, bz = spring_constants(cfg, a_z_t)
     tau, dt, a_x = cfg.tau, cfg.step_dt, cfg.a_x
     c, h = basis_centres(cfg.n_basis, a_x, dtype)
     c, h = c.to(device), h.to(device)

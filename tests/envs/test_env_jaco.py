@@ -124,3 +124,18 @@ def test_render_upright_frames_and_mp4(tmp_path):
     frame = mw.render()
     assert frame.shape == (64, 64, 3) and frame.dtype == np.uint8
     mw.close()
+
+
+def test_jaco_command_state_is_the_joint_targets():
+    env = ChunkedEnv(make_env("throw"), k=5, stale_world=True)
+    _, info = env.reset(seed=0)
+    a = np.zeros((5, 7))
+    a[:, 0] = 1.0
+    _, _, _, _, info2 = env.step(a)
+    from ndp.envs import jaco
+
+    np.testing.assert_allclose(info2["cmd_y0"][0] - info["cmd_y0"][0], 5 * jaco.ARM_DELTA,
+                               atol=1e-9)
+    np.testing.assert_allclose(info2["cmd_dy0"][0], jaco.ARM_DELTA / jaco.CONTROL_DT, atol=1e-9)
+    assert info2["cmd_y0"][0] > info2["dmp_y0"][0]  # the joint lags its target
+    env.close()

@@ -132,3 +132,22 @@ def check_reward_has_no_side_effects(name: str) -> None:
 def test_reward_function_has_no_side_effects_all_tasks(name):
     # All 50 in the default suite (about 25 s): the stale-world rule relies on it.
     check_reward_has_no_side_effects(name)
+
+
+def test_command_state_is_the_mocap_target_that_leads_the_hand():
+    """The DMP's commanded coordinates: the mocap target moves exactly 0.01 m per unit action
+    and per step (until its bounds), while the measured hand lags it."""
+    env = ChunkedEnv(make_env("reach-v3", seed=0), k=5)
+    _, info = env.reset(seed=0)
+    np.testing.assert_allclose(info["cmd_dy0"], 0.0)
+    start = info["cmd_y0"].copy()
+    act = np.zeros((5, 4))
+    act[:, 1] = 0.5  # +y at half speed, inside the mocap bounds from the reset pose
+    act[:, 3] = -1.0
+    _, _, _, _, info = env.step(act)
+    np.testing.assert_allclose(info["cmd_y0"][1] - start[1], 5 * 0.5 * 0.01, atol=1e-9)
+    np.testing.assert_allclose(info["cmd_dy0"][1], 0.5 * 0.01 / 0.0125, atol=1e-9)
+    assert info["cmd_y0"][3] == -1.0
+    lead = info["cmd_y0"][1] - info["dmp_y0"][1]
+    assert lead > 0.005  # the hand trails its target
+    env.close()

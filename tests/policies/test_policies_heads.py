@@ -68,8 +68,28 @@ def test_ndp_head_zero_output_keeps_robot_still_and_goal_is_bounded():
     acts, goal, w = head.decode(huge, y0, dy0)
     reach = 5 * ACTION_SCALE  # goal_scale 1 * k * action_scale
     assert float((goal - y0).abs().max()) <= reach + 1e-6
-    assert float(w.abs().max()) <= 50.0 + 1e-4
-    assert float(acts.abs().max()) <= 1.0  # the inverse controller bounds the actions
+    assert float(w.abs().max()) <= 50.0 * reach + 1e-4  # 'amplitude' forcing: w <= s * reach
+    # the means are not clipped (only the executed sample is, by the trainer) ...
+    assert float(acts.abs().max()) > 1.0 and bool(torch.isfinite(acts).all())
+    # ... unless asked for (the first release's form)
+    clipped = build_actor_critic(6, spec, _cfg("ndp", mean_clip=True)).head
+    acts_c, _, _ = clipped.decode(huge, y0, dy0)
+    assert float(acts_c.abs().max()) <= 1.0
+
+
+def test_ndp_mean_clip_biases_the_executed_displacement():
+    """E[clip(mean + noise)] at a saturated mean: PPO-like unclipped means reach further."""
+    spec = point_mass_spec()
+    y0, dy0 = torch.zeros(1, 2), torch.zeros(1, 2)
+    raw = torch.full((1, 14), 3.0)
+    gen = torch.Generator().manual_seed(0)
+    executed = {}
+    for mean_clip in (True, False):
+        head = build_actor_critic(6, spec, _cfg("ndp", mean_clip=mean_clip, goal_scale=2.0)).head
+        dist, _ = head.distribution(raw, y0, dy0)
+        z = torch.stack([dist.sample(gen) for _ in range(2000)])
+        executed[mean_clip] = float(z.clamp(-1, 1).mean())
+    assert executed[False] > executed[True] + 0.1
 
 
 def test_ndp_head_integrates_from_physical_state_with_time_conversion():
@@ -111,7 +131,47 @@ def test_ndp_param_noise_one_logprob_per_decision():
     assert dist.log_prob(z).shape == (4, 1)
     assert dist.entropy().shape == (4, 1)
     a = dist.actions(z)
-    assert a.shape == (4, 5, 2) and float(a.abs().max()) <= 1.0
+    assert a.shape == (4, 5, 2) and bool(torch.isfinite(a).all())
+
+
+@pytest.mark.parametrize("forcing,min_ratio", [("amplitude", 1e-2), ("goal", 0.0)])
+def test_ndp_goal_and_weight_gradients_at_init(forcing, min_ratio):
+    """At initialisation both the goal and the forcing weights get a gradient; with the paper's
+    f proportional to (g - y0) the weights' share is tiny (g starts at y0)."""
+    spec = get_task_spec("push-v3")
+    torch.manual_seed(0)
+    ac = build_actor_critic(39, spec, _cfg("ndp", forcing=forcing))
+    raw = ac.actor(torch.randn(64, 39)).detach().requires_grad_(True)
+    y0 = torch.tensor([[0.0, 0.6, 0.2, -1.0]]).expand(64, 4)
+    acts, _, _ = ac.head.decode(raw, y0, torch.zeros(64, 4))
+    (acts[..., :3] * torch.linspace(-1, 1, 5).view(1, 5, 1)).sum().backward()
+    g_goal = float(raw.grad[:, :3].abs().mean())
+    g_w = float(raw.grad[:, 4:].reshape(64, 4, 6)[:, :3].abs().mean())
+    assert g_goal > 0 and g_w > 0
+    ratio = g_w / g_goal
+    if forcing == "amplitude":
+        assert ratio > min_ratio
+    else:
+        assert ratio < 1e-2  # the handicap the 'amplitude' form removes
+
+
+def test_ndp_gripper_direct_command_ignores_previous_noise():
+    """'direct': the gripper command of every sub-step is the decision's goal, whatever the last
+    sampled command (y0) was; 'dmp' (the first release) starts from it."""
+    spec = get_task_spec("push-v3")
+    torch.manual_seed(1)
+    raw = torch.randn(3, 4 * 7)
+    base = torch.tensor([[0.0, 0.6, 0.2, 0.0]]).repeat(3, 1)
+    noisy = base.clone()
+    noisy[:, 3] = torch.tensor([-1.0, 0.3, 1.0])
+    for mode, same in (("direct", True), ("dmp", False)):
+        head = build_actor_critic(39, spec, _cfg("ndp", absolute_mode=mode)).head
+        a1, g1, _ = head.decode(raw, base, torch.zeros(3, 4))
+        a2, _, _ = head.decode(raw, noisy, torch.zeros(3, 4))
+        assert torch.equal(a1[..., 3], a2[..., 3]) is same
+        torch.testing.assert_close(a1[..., :3], a2[..., :3])  # xyz unaffected
+        if mode == "direct":
+            torch.testing.assert_close(a1[..., 3], g1[:, 3:].expand(3, 5))
 
 
 def test_metaworld_ndp_head_gripper_goal_is_absolute_and_bounded():
@@ -126,7 +186,7 @@ def test_metaworld_ndp_head_gripper_goal_is_absolute_and_bounded():
     assert acts.shape == (2, 5, 4)
     # the gripper goal does not depend on the (unobserved) last sampled command, nor on its rate
     torch.testing.assert_close(goal[:, 3], torch.zeros(2))
-    assert float(acts[..., 3].abs().max()) <= 1.0
+    assert float(acts[..., 3].abs().max()) <= 1.0  # the command range, with or without a clip
     huge = torch.full((2, ac.head.n_params), 50.0)
     _, goal, _ = ac.head.decode(huge, y0, dy0)
     torch.testing.assert_close(goal[:, 3], torch.ones(2))
@@ -148,3 +208,11 @@ def test_policy_config_rejects_bad_values():
         PolicyConfig(k=5, dmp_steps=36)
     with pytest.raises(ValueError, match="param_noise"):
         PolicyConfig(head="multi", param_noise=True)
+    with pytest.raises(ValueError, match="forcing"):
+        PolicyConfig(forcing="raw")
+    with pytest.raises(ValueError, match="absolute_mode"):
+        PolicyConfig(absolute_mode="plan")
+    with pytest.raises(ValueError, match="dmp_state"):
+        PolicyConfig(dmp_state="mocap")
+    with pytest.raises(ValueError, match="hidden_gain"):
+        PolicyConfig(hidden_gain=0.0)

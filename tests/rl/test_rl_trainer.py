@@ -149,6 +149,59 @@ def test_param_noise_trains(tmp_path):
     assert math.isfinite(m["losses/policy"]) and m["update"] == 2
 
 
+def test_param_noise_uses_one_decision_level_advantage(tmp_path, monkeypatch):
+    """Parameter-space exploration: one clipped term per decision whose advantage is the
+    decision's own GAE advantage A[:, 0] (normalised over decisions), not a mean over k."""
+    import ndp.rl.trainer as trainer_mod
+    from ndp.rl.ppo import normalize_advantages
+
+    seen = []
+    real = trainer_mod.policy_loss
+
+    def spy(new_logp, old_logp, adv, mask, clip):
+        seen.append((new_logp.shape, adv.detach().clone(), mask.clone()))
+        return real(new_logp, old_logp, adv, mask, clip)
+
+    monkeypatch.setattr(trainer_mod, "policy_loss", spy)
+    ppo = PPOConfig(steps_per_update=512, minibatches=1, epochs=1, lr=1e-3)
+    tr = Trainer(_cfg(tmp_path, ppo=ppo, policy=PolicyConfig(param_noise=True)))
+    try:
+        batch = tr.collect()
+        torch.manual_seed(0)
+        tr.learn(batch)
+    finally:
+        tr.close()
+    (shape, adv, mask), = seen
+    assert shape[1] == 1 and adv.shape[1] == 1 and mask.shape[1] == 1
+    expected = normalize_advantages(batch["adv"][:, :1], batch["mask"][:, :1])
+    # one mini-batch, one epoch: the same decisions in permuted order
+    torch.testing.assert_close(torch.sort(adv.flatten()).values,
+                               torch.sort(expected.flatten()).values)
+
+
+def test_minibatch_advantage_normalisation(tmp_path, monkeypatch):
+    import ndp.rl.trainer as trainer_mod
+
+    seen = []
+    real = trainer_mod.policy_loss
+
+    def spy(new_logp, old_logp, adv, mask, clip):
+        seen.append((adv.detach(), mask))
+        return real(new_logp, old_logp, adv, mask, clip)
+
+    monkeypatch.setattr(trainer_mod, "policy_loss", spy)
+    ppo = PPOConfig(steps_per_update=512, minibatches=4, epochs=1, adv_norm_scope="minibatch")
+    tr = Trainer(_cfg(tmp_path, algo="ppo", ppo=ppo))
+    try:
+        tr.learn(tr.collect())
+    finally:
+        tr.close()
+    assert len(seen) == 4
+    for adv, mask in seen:  # each mini-batch on its own has mean 0 and std 1
+        a = adv[mask > 0]
+        assert abs(float(a.mean())) < 1e-5 and abs(float(a.std()) - 1.0) < 1e-3
+
+
 def test_cli_train_eval_render(tmp_path, capsys):
     run = tmp_path / "cli"
     rc = ndp_main(["rl", "train", "--task", "point-mass", "--algo", "ppo-multi", "--steps",

@@ -41,12 +41,14 @@ class ChunkedEnv(gym.Wrapper):
     - ``robot_pos`` / ``robot_vel`` float64 [k+1, D]: DMP-driven robot state at each sub-step
       boundary (row 0 = before the first sub-action); rows after an early stop repeat the last
       executed state.
-    - ``dmp_y0`` / ``dmp_dy0`` float64 [D]: robot state now (the next decision's DMP start).
+    - ``dmp_y0`` / ``dmp_dy0`` float64 [D]: measured robot state now (a DMP start).
+    - ``cmd_y0`` / ``cmd_dy0`` float64 [D]: commanded state now (``env.unwrapped.command_state()``
+      where the env has it: the target the actions move; else the measured state).
     - ``n_substeps`` int: sub-steps executed.
     - ``sim_unstable`` bool: the simulator went unstable (the episode was truncated).
 
-    ``reset`` info has ``robot_pos``, ``robot_vel``, ``dmp_y0``, ``dmp_dy0`` [D] and
-    ``success_any`` False.
+    ``reset`` info has ``robot_pos``, ``robot_vel``, ``dmp_y0``, ``dmp_dy0``, ``cmd_y0``,
+    ``cmd_dy0`` [D] and ``success_any`` False.
     """
 
     def __init__(self, env: gym.Env, k: int, stale_world: bool = True) -> None:
@@ -81,6 +83,8 @@ class ChunkedEnv(gym.Wrapper):
             np.tile(box.low, (self.k, 1)), np.tile(box.high, (self.k, 1)), dtype=box.dtype
         )
         self.dof = len(np.asarray(base.robot_state()[0]))
+        cmd = getattr(base, "command_state", None)
+        self._command_state = cmd if callable(cmd) else base.robot_state
         self._success_any = False
 
     def reset(
@@ -91,8 +95,9 @@ class ChunkedEnv(gym.Wrapper):
         self._success_any = False
         pos, vel = (np.asarray(x, dtype=np.float64) for x in self._base.robot_state())
         info = dict(info)
+        cpos, cvel = (np.asarray(x, dtype=np.float64) for x in self._command_state())
         info.update(robot_pos=pos.copy(), robot_vel=vel.copy(), dmp_y0=pos, dmp_dy0=vel,
-                    success_any=False)
+                    cmd_y0=cpos, cmd_dy0=cvel, success_any=False)
         return obs, info
 
     def step(self, actions: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
@@ -146,6 +151,7 @@ class ChunkedEnv(gym.Wrapper):
                 break
         rpos[n + 1 :] = rpos[n]
         rvel[n + 1 :] = rvel[n]
+        cpos, cvel = (np.asarray(x, dtype=np.float64) for x in self._command_state())
         success_decision = bool(sub_succ[:n].any())
         self._success_any = self._success_any or success_decision
         out = {
@@ -160,6 +166,8 @@ class ChunkedEnv(gym.Wrapper):
             "robot_vel": rvel,
             "dmp_y0": rpos[n].copy(),
             "dmp_dy0": rvel[n].copy(),
+            "cmd_y0": cpos,
+            "cmd_dy0": cvel,
             "n_substeps": n,
             "sim_unstable": unstable,
         }

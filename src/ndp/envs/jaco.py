@@ -252,6 +252,7 @@ class JacoEnv(gym.Env, EzPickle):
         self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
         self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, dtype=np.float64)
         self._target = np.zeros(9)
+        self._target_rate = np.zeros(7)
         self._goal = np.zeros(3)
         self._cube_rest_z = CUBE_HALF
         self._steps = 0
@@ -281,6 +282,17 @@ class JacoEnv(gym.Env, EzPickle):
         pos = np.concatenate([q[self._arm_q], [q[self._fin_q].mean()]])
         vel = np.concatenate([v[self._arm_v], [v[self._fin_v].mean()]])
         return pos, vel
+
+    def command_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Commanded state now: what the actions move (the joint position targets lead the joints).
+
+        Returns:
+            ``(pos [7], vel [7])``: six arm joint targets and the tied finger target (rad), and
+            their rate of change over the last env step (rad/s).
+        """
+        t = self._target
+        pos = np.concatenate([t[:6], [t[6:].mean()]])
+        return pos, self._target_rate.copy()
 
     def world_snapshot(self) -> np.ndarray:
         """Copy of the world (non-robot) state: cube position [3] and quaternion [4], and goal [3].
@@ -365,6 +377,7 @@ class JacoEnv(gym.Env, EzPickle):
         d.qpos[self._arm_q] = home
         d.qpos[self._fin_q] = FINGER_OPEN if cube is None else fingers
         self._target = np.concatenate([home, np.full(3, fingers)])
+        self._target_rate = np.zeros(7)
         d.ctrl[:] = self._target
         if cube is None:
             # Throw: hold the cube kinematically at the grip site while the fingers close on it.
@@ -424,7 +437,10 @@ class JacoEnv(gym.Env, EzPickle):
             raise RuntimeError("episode is over: call reset()")
         a = np.clip(a, -1.0, 1.0)
         delta = np.concatenate([a[:6] * ARM_DELTA, np.full(3, a[6] * FINGER_DELTA)])
+        prev = self._target
         self._target = np.clip(self._target + delta, self._ctrl_lo, self._ctrl_hi)
+        moved = self._target - prev
+        self._target_rate = np.concatenate([moved[:6], [moved[6:].mean()]]) / CONTROL_DT
         d = self.data
         d.ctrl[:] = self._target
         warn_before = _warning_count(d)

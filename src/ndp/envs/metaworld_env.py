@@ -119,6 +119,7 @@ class MetaWorldEnv(gym.Env, EzPickle):
         self._unstable = False
         self._pending_seed: int | None = None
         self._vel6 = np.zeros(6)
+        self._mocap_vel = np.zeros(3)
         self.control_dt = float(m.opt.timestep * env.frame_skip)
 
     def seed_next_reset(self, seed: int | None) -> None:
@@ -138,6 +139,18 @@ class MetaWorldEnv(gym.Env, EzPickle):
         )
         pos = np.append(self.data.xpos[self._hand], self._gripper)
         vel = np.append(self._vel6[3:], self._gripper_rate)
+        return pos, vel
+
+    def command_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Commanded state now: what the xyz actions move (the mocap target leads the hand by up
+        to 3 cm at full speed and the hand coasts after it stops).
+
+        Returns:
+            ``(pos [4], vel [4])``: mocap target xyz (m) and the last gripper command; the
+            target's velocity over the last env step (m/s) and the command's rate (1/s).
+        """
+        pos = np.append(self.data.mocap_pos[0], self._gripper)
+        vel = np.append(self._mocap_vel, self._gripper_rate)
         return pos, vel
 
     def world_snapshot(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -203,6 +216,7 @@ class MetaWorldEnv(gym.Env, EzPickle):
         obs, _ = self.mw.reset()
         self._gripper = -1.0  # metaworld's hand reset leaves the gripper open (command -1)
         self._gripper_rate = 0.0
+        self._mocap_vel = np.zeros(3)
         self._unstable = False
         self._obs = np.asarray(obs, dtype=np.float64)
         pos, vel = self.robot_state()
@@ -238,7 +252,9 @@ class MetaWorldEnv(gym.Env, EzPickle):
             raise RuntimeError("episode is over: call reset()")
         a = np.clip(a, -1.0, 1.0).astype(np.float32)
         warn_before = _warning_count(self.data)
+        mocap_before = self.data.mocap_pos[0].copy()
         obs, reward, _, truncated, mw_info = self.mw.step(a)
+        self._mocap_vel = (self.data.mocap_pos[0] - mocap_before) / self.control_dt
         self._gripper_rate = (float(a[3]) - self._gripper) / self.control_dt
         self._gripper = float(a[3])
         unstable = _warning_count(self.data) > warn_before or not (

@@ -144,6 +144,10 @@ class PointMassEnv(gym.Env):
         """``(pos [D], vel [D])`` of the point (m, m/s), copies."""
         return self._pos.copy(), self._vel.copy()
 
+    def command_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """The commanded state: the point follows its commands exactly (= :meth:`robot_state`)."""
+        return self.robot_state()
+
     def world_snapshot(self) -> np.ndarray:
         """The world state (the goal) [D], a copy."""
         return self._goal.copy()

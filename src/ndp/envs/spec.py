@@ -37,8 +37,9 @@ def _inverse_delta(
     low: torch.Tensor,
     high: torch.Tensor,
     robot_pos: torch.Tensor | None,
+    clip: bool = True,
 ) -> torch.Tensor:
-    """Shared inverse controller: deltas / scale, or absolute values, then clip.
+    """Shared inverse controller: deltas / scale, or absolute values, then (optionally) clip.
 
     Args:
         traj: Trajectory points [..., k+1, D] (physical units).
@@ -47,9 +48,13 @@ def _inverse_delta(
         low: [D] action lower bounds.
         high: [D] action upper bounds.
         robot_pos: Optional measured start [..., D] replacing ``traj[..., 0, :]``.
+        clip: Clip to ``[low, high]``. A policy's Gaussian *mean* should not be clipped (the
+            noise added afterwards would then be biased toward the centre and saturated
+            sub-steps would pass no gradient); only the executed sample is clipped, by the
+            trainer and by ``ChunkedEnv``.
 
     Returns:
-        Actions [..., k, D] within ``[low, high]``.
+        Actions [..., k, D], within ``[low, high]`` when ``clip``.
     """
     if traj.dim() < 2 or traj.shape[-2] < 2:
         raise ValueError(f"traj: expected shape [..., k+1, D] with k >= 1, got {tuple(traj.shape)}")
@@ -62,6 +67,8 @@ def _inverse_delta(
     low, high = low.to(dev, dt), high.to(dev, dt)
     delta = (traj[..., 1:, :] - traj[..., :-1, :]) / scale
     act = torch.where(absolute, traj[..., 1:, :], delta)
+    if not clip:
+        return act
     return torch.maximum(torch.minimum(act, high), low)
 
 
@@ -107,7 +114,7 @@ class TaskSpec:
     """Other names :func:`get_task_spec` accepts for this task."""
 
     def inverse_controller(
-        self, traj: torch.Tensor, robot_pos: torch.Tensor | None = None
+        self, traj: torch.Tensor, robot_pos: torch.Tensor | None = None, clip: bool = True
     ) -> torch.Tensor:
         """Map DMP trajectory points to bounded env actions (see the module docstring).
 
@@ -115,9 +122,10 @@ class TaskSpec:
             traj: [..., k+1, D] trajectory points in physical units; ``traj[..., 0, :]`` is the
                 robot's state at the decision.
             robot_pos: Optional [..., D] measured start replacing ``traj[..., 0, :]``.
+            clip: Clip to the action bounds (False for a policy's mean, see ``_inverse_delta``).
 
         Returns:
-            [..., k, A] actions within ``[action_low, action_high]``.
+            [..., k, A] actions, within ``[action_low, action_high]`` when ``clip``.
         """
         scale = torch.tensor([s if s > 0 else 1.0 for s in self.action_scale])
         return _inverse_delta(
@@ -127,6 +135,7 @@ class TaskSpec:
             torch.tensor(self.action_low),
             torch.tensor(self.action_high),
             robot_pos,
+            clip,
         )
 
 

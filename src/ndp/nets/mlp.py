@@ -61,6 +61,7 @@ class MLP(nn.Module):
         out_dim: output features.
         activation: hidden-layer non-linearity name (see :func:`activation_layer`).
         out_gain: orthogonal-init gain of the output layer (e.g. 0.01 for a policy mean head).
+        hidden_gain: orthogonal-init gain of the hidden layers; None: the activation's.
 
     Shapes:
         forward: ``x`` [B, in_dim] -> [B, out_dim] (any leading batch dims are allowed).
@@ -73,6 +74,7 @@ class MLP(nn.Module):
         out_dim: int,
         activation: str = "tanh",
         out_gain: float = 1.0,
+        hidden_gain: float | None = None,
     ) -> None:
         super().__init__()
         if in_dim <= 0 or out_dim <= 0 or any(h <= 0 for h in hidden):
@@ -84,7 +86,7 @@ class MLP(nn.Module):
         self.out_dim = int(out_dim)
         self.hidden = tuple(int(h) for h in hidden)
         self.activation = activation
-        gain = _gain(activation)
+        gain = _gain(activation) if hidden_gain is None else float(hidden_gain)
         layers: list[nn.Module] = []
         prev = self.in_dim
         for width in self.hidden:

@@ -24,6 +24,7 @@ class ActorCritic(nn.Module):
         head: the action head (defines k, A and the number of raw parameters P).
         hidden: hidden widths of both MLPs.
         activation: hidden non-linearity.
+        hidden_gain: orthogonal-init gain of the hidden layers (None: the activation's).
 
     Shapes:
         obs [B, O]; y0, dy0 [B, D] (physical robot state, NDP only); values [B, k].
@@ -35,13 +36,16 @@ class ActorCritic(nn.Module):
         head: ActionHead,
         hidden: tuple[int, ...] = (100, 100),
         activation: str = "tanh",
+        hidden_gain: float | None = None,
     ) -> None:
         super().__init__()
         self.obs_dim = int(obs_dim)
         self.head = head
         self.k = head.k
-        self.actor = MLP(obs_dim, hidden, head.n_params, activation, out_gain=0.01)
-        self.critic = MLP(obs_dim, hidden, head.k, activation, out_gain=1.0)
+        self.actor = MLP(obs_dim, hidden, head.n_params, activation, out_gain=0.01,
+                         hidden_gain=hidden_gain)
+        self.critic = MLP(obs_dim, hidden, head.k, activation, out_gain=1.0,
+                          hidden_gain=hidden_gain)
 
     def distribution(
         self,
@@ -59,4 +63,5 @@ class ActorCritic(nn.Module):
 
 def build_actor_critic(obs_dim: int, spec: Any, cfg: PolicyConfig) -> ActorCritic:
     """Build the actor-critic for a task spec and a resolved policy config."""
-    return ActorCritic(obs_dim, build_head(cfg, spec), tuple(cfg.hidden), cfg.activation)
+    return ActorCritic(obs_dim, build_head(cfg, spec), tuple(cfg.hidden), cfg.activation,
+                       cfg.hidden_gain)

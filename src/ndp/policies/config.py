@@ -6,6 +6,12 @@ from dataclasses import dataclass
 
 HEADS = ("step", "multi", "ndp")
 """Action heads: one raw action per step, k raw actions per decision, DMP parameters."""
+FORCING = ("amplitude", "goal")
+"""NDP forcing-weight forms: bounded amplitude per DoF, or the paper's f proportional to g - y0."""
+ABSOLUTE_MODES = ("direct", "dmp")
+"""NDP absolute-command DoF (gripper): the goal emitted as the command, or a DMP from y0."""
+DMP_STATES = ("commanded", "measured")
+"""Where the NDP DMP starts: the commanded target (mocap, joint targets) or the measured robot."""
 
 
 @dataclass(frozen=True)
@@ -31,7 +37,9 @@ class PolicyConfig:
     activation: str = "tanh"
     """Hidden non-linearity of both MLPs."""
     init_log_std: float = 0.0
-    """Initial value of the learned, state-independent log std (0: std 1)."""
+    """Initial value of the learned, state-independent log std (0: std 1), every method."""
+    hidden_gain: float | None = None
+    """Orthogonal-init gain of the hidden layers; None: the activation's (5/3 for tanh)."""
     n_basis: int | None = None
     """NDP: radial basis functions per DMP DoF (N); None: per-task preset."""
     a_z: float | None = None
@@ -39,9 +47,11 @@ class PolicyConfig:
     dmp_steps: int | None = None
     """NDP: Euler integration steps per decision (a multiple of k); None: per-task preset."""
     goal_scale: float | None = None
-    """NDP: goal bound g = y0 + s * tanh(raw), s = goal_scale * (k * action_scale) per DoF."""
+    """NDP: goal bound g = y0 + s * tanh(raw), s = goal_scale * (k * action_scale) per delta DoF
+    (absolute-command DoF always span their action range); None: per-task preset."""
     weight_scale: float | None = None
-    """NDP: weight bound, w = weight_scale * tanh(raw); None: a_z^2 / 4 (the spring stiffness)."""
+    """NDP: weight bound, w = weight_scale * tanh(raw) ('goal' forcing) or w = weight_scale *
+    reach * tanh(raw) per DoF ('amplitude'); None: a_z^2 / 4 (the spring stiffness)."""
     rbf: str = "gaussian"
     """NDP: radial basis kind of the forcing term."""
     absolute_goal: bool = True
@@ -49,6 +59,21 @@ class PolicyConfig:
     independent of y0 and start at dy0 = 0; False: relative to y0 like every other DoF."""
     param_noise: bool = False
     """NDP: explore with a Gaussian over the DMP parameters (one log-prob per decision)."""
+    mean_clip: bool = False
+    """NDP: clip the sub-action means to the action bounds before the noise (the first
+    release's handicap); False: only the executed sample is clipped, as for PPO."""
+    forcing: str = "amplitude"
+    """NDP: 'amplitude' (forcing term f = sum psi w x with |w| <= weight_scale * reach: a
+    gradient from the first update) or 'goal' (the paper's f proportional to (g - y0), whose
+    weights get almost no gradient while g is near y0)."""
+    absolute_mode: str = "direct"
+    """NDP, absolute-command DoF (Meta-World gripper): 'direct' emits the decision's goal as the
+    command of all k sub-steps (no dependence on the previous decision's noise); 'dmp' integrates
+    a DMP from the last sampled command (the first release's form)."""
+    dmp_state: str = "commanded"
+    """NDP: the DMP starts from the commanded state (Meta-World mocap target and its commanded
+    velocity; Jaco joint targets), which is what the actions move, or from the 'measured' robot
+    (hand / joints), which lags the command."""
 
     def __post_init__(self) -> None:
         if self.head not in HEADS:
@@ -72,6 +97,13 @@ class PolicyConfig:
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise ValueError(f"{name}: expected a number > 0, got {v!r}")
+        for name, allowed in (("forcing", FORCING), ("absolute_mode", ABSOLUTE_MODES),
+                              ("dmp_state", DMP_STATES)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name}: expected one of {', '.join(allowed)}, "
+                                 f"got {getattr(self, name)!r}")
+        if self.hidden_gain is not None and not self.hidden_gain > 0:
+            raise ValueError(f"hidden_gain: expected a number > 0, got {self.hidden_gain!r}")
         if self.param_noise and self.head != "ndp":
             raise ValueError("param_noise: parameter-space exploration needs the 'ndp' head")
 

@@ -7,15 +7,17 @@ state) into an exploration distribution over the k sub-actions of a decision [B,
 - :class:`MultiHead` (PPO-multi): P = k * A, the raw output is k action means.
 - :class:`NDPHead`: P = D (1 + N) DMP parameters per decision. Goal and weights are bounded,
 
-      g = y0 + goal_scale * tanh(raw_g),        w = weight_scale * tanh(raw_w),
+      g = y0 + goal_scale * tanh(raw_g)                     (delta DoF, e.g. the hand's xyz)
+      g = centre + half_range * tanh(raw_g)                 (absolute DoF, e.g. the gripper)
+      w = weight_scale * tanh(raw_w)                        (per DoF, see ``forcing``)
 
-  (for DoF whose action IS the trajectory value, e.g. Meta-World's gripper command, with
-  ``absolute_goal``: g = centre of the action range + goal_scale * tanh(raw_g) and dy0 = 0,
-  because their y0 is the last *sampled* command, which the actor does not observe),
-
-  the DMP is integrated from the robot's physical state (y0, dy0) over one decision, the
-  trajectory [B, k + 1, D] is cut at the k sub-step boundaries and the task's inverse controller
-  maps it to the k sub-action means [B, k, A].
+  the DMP is integrated from the robot state (y0, dy0; the commanded target by default, see
+  ``PolicyConfig.dmp_state``) over one decision, the trajectory [B, k + 1, D] is cut at the k
+  sub-step boundaries and the task's inverse controller maps it to the k sub-action means
+  [B, k, A]. The means are NOT clipped (``mean_clip`` restores the first release's clip): only
+  the executed sample is, as for PPO. Absolute-command DoF with ``absolute_mode='direct'`` take
+  the goal itself as the command of all k sub-steps (their y0 is the previous decision's
+  *sampled* command, which the actor does not observe).
 
 Clocks (named once): an env step (sub-step) lasts ``control_dt`` s; a decision runs k sub-steps,
 i.e. ``decision_dt = k * control_dt`` s; the DMP rollout spans DMP time tau = 1 with
@@ -92,7 +94,7 @@ class NDPHead(ActionHead):
         action_dim: A, env action size.
         dmp: integrator settings; ``dmp.steps // dmp.subsample`` must equal k.
         goal_scale: goal bound per DoF [D] or scalar (physical units).
-        weight_scale: forcing-weight bound.
+        weight_scale: forcing-weight bound per DoF [D] or scalar.
         inverse_controller: trajectory [B, k + 1, D] (physical) -> actions [B, k, A].
         decision_dt: seconds per decision (k * control_dt), to convert dy0 to DMP time.
         param_noise: explore in parameter space (one log-prob per decision).
@@ -100,6 +102,8 @@ class NDPHead(ActionHead):
         goal_center: [D] fixed goal centre per DoF (absolute-command DoF: goal = centre +
             goal_scale * tanh(raw), dy0 = 0), NaN (or None for all) where the goal is relative
             to y0.
+        mean_clip: clip the sub-action means to the action bounds (the first release's form).
+        direct: [D] bool, DoF whose command is the goal itself for all k sub-steps (no DMP).
     """
 
     needs_robot_state = True
@@ -117,6 +121,8 @@ class NDPHead(ActionHead):
         param_noise: bool = False,
         init_log_std: float = 0.0,
         goal_center: torch.Tensor | None = None,
+        mean_clip: bool = False,
+        direct: torch.Tensor | None = None,
     ) -> None:
         super().__init__()
         if dmp.steps // dmp.subsample != k or dmp.steps % dmp.subsample:
@@ -139,7 +145,13 @@ class NDPHead(ActionHead):
             torch.as_tensor(goal_center, dtype=torch.float32).clone())
         self.register_buffer("absolute_goal", ~torch.isnan(centre))  # NaN centre: relative
         self.register_buffer("goal_center", centre.nan_to_num())
-        self.weight_scale = float(weight_scale)
+        ws = torch.as_tensor(weight_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
+        self.register_buffer("weight_scale", ws)
+        direct_t = torch.zeros(self.dmp_dofs, dtype=torch.bool) if direct is None else (
+            torch.as_tensor(direct, dtype=torch.bool).clone())
+        self.register_buffer("direct", direct_t)
+        self._any_direct = bool(direct_t.any())
+        self.mean_clip = bool(mean_clip)
         self.inverse_controller = inverse_controller
         self.decision_dt = float(decision_dt)
         self.param_noise = bool(param_noise)
@@ -154,13 +166,17 @@ class NDPHead(ActionHead):
         b, d = raw.shape[0], self.dmp_dofs
         step = self.goal_scale * torch.tanh(raw[:, :d])
         goal = torch.where(self.absolute_goal, self.goal_center + step, y0 + step)
-        weights = self.weight_scale * torch.tanh(raw[:, d:].reshape(b, d, self.n_basis))
+        weights = self.weight_scale.unsqueeze(-1) * torch.tanh(
+            raw[:, d:].reshape(b, d, self.n_basis))
         dy0_dmp = torch.where(
             self.absolute_goal, 0.0, dy0 * (self.decision_dt / self.dmp.config.tau)
         )
         traj = self.dmp(goal, weights, y0, dy0_dmp).pos  # [B, k + 1, D]
-        actions = self.inverse_controller(traj, robot_pos=y0)  # [B, k, A]
+        if self._any_direct:  # the goal is the command of every sub-step
+            traj = torch.where(self.direct, goal.unsqueeze(1), traj)
+        actions = self.inverse_controller(traj, robot_pos=y0, clip=self.mean_clip)  # [B, k, A]
         return actions, goal, weights
+
 
     def distribution(self, raw, y0=None, dy0=None):
         if y0 is None or dy0 is None:
@@ -181,8 +197,8 @@ class NDPHead(ActionHead):
     def extra_repr(self) -> str:
         return (
             f"k={self.k}, D={self.dmp_dofs}, A={self.action_dim}, N={self.n_basis}, "
-            f"weight_scale={self.weight_scale}, decision_dt={self.decision_dt}, "
-            f"param_noise={self.param_noise}"
+            f"decision_dt={self.decision_dt}, param_noise={self.param_noise}, "
+            f"mean_clip={self.mean_clip}, direct={self.direct.tolist()}"
         )
 
 
@@ -203,34 +219,45 @@ def build_head(cfg: Any, spec: Any) -> ActionHead:
     d = spec.dmp_dofs
     scale = _per_dof(spec.action_scale, d)
     absolute = _per_dof(getattr(spec, "action_absolute", False), d).astype(bool)
-    span = _per_dof(spec.action_high, d) - _per_dof(spec.action_low, d)
+    high, low = _per_dof(spec.action_high, d), _per_dof(spec.action_low, d)
+    span = high - low
+    delta_reach = cfg.k * scale  # largest move of a delta DoF in one decision
     if cfg.absolute_goal:
-        # absolute commands: goal = centre of the action range + goal_scale * half range * tanh
-        reach = np.where(absolute, span / 2.0, cfg.k * scale)
-        centre = np.where(absolute, (_per_dof(spec.action_high, d) + _per_dof(spec.action_low, d))
-                          / 2.0, np.nan)
+        # absolute commands: goal = centre of the action range + half range * tanh (the goal
+        # bound of goal_scale applies to delta DoF only)
+        goal_bound = np.where(absolute, span / 2.0, cfg.goal_scale * delta_reach)
+        centre = np.where(absolute, (high + low) / 2.0, np.nan)
+        reach = np.where(absolute, span / 2.0, delta_reach)
     else:
-        reach = np.where(absolute, span, cfg.k * scale)  # largest move in one decision
+        reach = np.where(absolute, span, delta_reach)
+        goal_bound = cfg.goal_scale * reach
         centre = np.full(d, np.nan)
+    amplitude = cfg.forcing == "amplitude"
+    # 'amplitude': w is a forcing amplitude; a_z^2 / 4 * reach moves a DoF by about its reach.
+    weight_scale = cfg.weight_scale * reach if amplitude else np.full(d, cfg.weight_scale)
+    direct = absolute & (cfg.absolute_mode == "direct")
     dmp = DMPConfig(
         n_basis=int(cfg.n_basis),
         a_z=float(cfg.a_z),
         steps=int(cfg.dmp_steps),
         subsample=int(cfg.dmp_steps) // cfg.k,
         rbf=cfg.rbf,
+        scale_by_goal=not amplitude,
     )
     return NDPHead(
         k=cfg.k,
         dmp_dofs=spec.dmp_dofs,
         action_dim=spec.action_dim,
         dmp=dmp,
-        goal_scale=torch.as_tensor(cfg.goal_scale * reach, dtype=torch.float32),
-        weight_scale=cfg.weight_scale,
+        goal_scale=torch.as_tensor(goal_bound, dtype=torch.float32),
+        weight_scale=torch.as_tensor(weight_scale, dtype=torch.float32),
         inverse_controller=spec.inverse_controller,
         decision_dt=cfg.k * float(spec.control_dt),
         param_noise=cfg.param_noise,
         init_log_std=cfg.init_log_std,
         goal_center=torch.as_tensor(centre, dtype=torch.float32),
+        mean_clip=cfg.mean_clip,
+        direct=torch.as_tensor(direct),
     )
 
 

@@ -10,7 +10,9 @@ before any environment is built; the resolved config is what runs and what is sa
 Defaults are the supplement's PPO hyperparameters (ndp-method.md section 3): hidden [100, 100]
 tanh, Adam 3e-4 (eps 1e-5), gamma 0.99, GAE lambda 0.95, entropy 0, value coefficient 0.5, max
 grad norm 0.5, 10 epochs, 32 mini-batches, clip 0.1, 2048 env steps per update, observation and
-return normalisation, k = 5, 35 DMP integration steps per decision.
+return normalisation, k = 5, 35 DMP integration steps per decision. The value loss is not
+clipped by default (``clip_value_loss``: the release's PPO code base clips it; that is not in the
+supplement and it costs most of the gap to SB3's PPO, see docs/rl.md).
 """
 
 from __future__ import annotations
@@ -61,8 +63,9 @@ class PPOConfig:
     """Mini-batches per epoch (over decisions; each decision carries its k sub-steps)."""
     clip: float = 0.1
     """PPO ratio clip epsilon."""
-    clip_value_loss: bool = True
-    """Clip the value update around the rollout's values (as the release's PPO code)."""
+    clip_value_loss: bool = False
+    """Clip the value update around the rollout's values with ``clip`` (the release's PPO code
+    base does; the supplement does not list it and SB3 does not use it; it slows learning)."""
     steps_per_update: int = 2048
     """Env steps (sub-steps) collected per update, over all envs (rounded up to k * num_envs)."""
     norm_obs: bool = True
@@ -70,7 +73,9 @@ class PPOConfig:
     norm_return: bool = True
     """Scale rewards by the running std of the discounted return."""
     norm_adv: bool = True
-    """Normalise advantages over the rollout."""
+    """Normalise advantages (to mean 0, std 1 over executed sub-steps)."""
+    adv_norm_scope: str = "rollout"
+    """Where advantages are normalised: over the whole 'rollout' or per 'minibatch' (SB3)."""
     clip_obs: float = 10.0
     """Clip normalised observations to +- this."""
     clip_reward: float = 10.0
@@ -90,6 +95,9 @@ class PPOConfig:
             raise ValueError(f"ent_coef: expected a number >= 0, got {self.ent_coef!r}")
         for name in ("epochs", "minibatches", "steps_per_update"):
             _check_int(name, getattr(self, name), 1)
+        if self.adv_norm_scope not in ("rollout", "minibatch"):
+            raise ValueError(f"adv_norm_scope: expected 'rollout' or 'minibatch', got "
+                             f"{self.adv_norm_scope!r}")
 
 
 @dataclass(frozen=True)

@@ -66,14 +66,15 @@ def load_policy(run_dir: str | Path) -> LoadedPolicy:
 
 def _episode(pol: LoadedPolicy, env: Any, seed: int, deterministic: bool) -> dict[str, float]:
     obs, info = env.reset(seed=seed)
-    y0, dy0 = info["dmp_y0"], info["dmp_dy0"]
+    key = "cmd" if pol.cfg.policy.dmp_state == "commanded" else "dmp"
+    y0, dy0 = info[f"{key}_y0"], info[f"{key}_dy0"]
     ret, length = 0.0, 0
     while True:
         act = pol.act(obs[None], y0[None], dy0[None], deterministic)[0]
         obs, r, term, trunc, info = env.step(act)
         ret += float(r)
         length += int(info["n_substeps"])
-        y0, dy0 = info["dmp_y0"], info["dmp_dy0"]
+        y0, dy0 = info[f"{key}_y0"], info[f"{key}_dy0"]
         if term or trunc:
             return {"success_any": float(info["success_any"]),
                     "success_final": float(info["success"]),

@@ -1,8 +1,9 @@
 """PPO loss pieces over chunked decisions (pure functions; shapes stated).
 
-Per-sub-action log-probs are [M, k]; with parameter-space exploration there is one log-prob per
-decision [M, 1], broadcast over the decision's k sub-steps (the surrogate of a decision is then
-its ratio times the sum of its sub-step advantages). Every mean is over executed sub-steps.
+Per-sub-action log-probs are [M, k], each with its sub-step's advantage. With parameter-space
+exploration there is one log-prob per decision [M, 1]; the trainer then passes the decision's own
+GAE advantage ``A[:, :1]`` (it carries every reward of the decision, (gamma lambda)^l weighted)
+and ``mask[:, :1]``, so each decision is one clipped term. Every mean is over executed entries.
 """
 
 from __future__ import annotations
@@ -28,8 +29,8 @@ def policy_loss(
     Args:
         new_logp: [M, L] log-probs under the current policy (L = k, or 1 per decision).
         old_logp: [M, L] log-probs at collection time.
-        adv: [M, k] advantages.
-        mask: [M, k] executed sub-steps.
+        adv: [M, L] advantages (L = k, or 1 per decision).
+        mask: [M, L] executed sub-steps (or decisions).
         clip: epsilon.
 
     Returns:

@@ -101,7 +101,7 @@ class Trainer:
         self._ep_len = np.zeros(cfg.num_envs, dtype=np.int64)
         obs, info = self.envs.reset(seed=env_seeds(cfg.seed, cfg.num_envs, epoch=self.update))
         self._obs = np.asarray(obs, dtype=np.float64).reshape(cfg.num_envs, obs_dim)
-        self._y0, self._dy0 = _robot_state(info, cfg.num_envs)
+        self._y0, self._dy0 = _robot_state(info, cfg.num_envs, cfg.policy.dmp_state)
 
     # ----------------------------------------------------------------------- state
     def state_dict(self) -> dict[str, Any]:
@@ -233,7 +233,7 @@ class Trainer:
                 self._ep_ret_live[done] = 0.0
                 self._ep_len[done] = 0
             self._obs = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
-            self._y0, self._dy0 = _robot_state(infos, E)
+            self._y0, self._dy0 = _robot_state(infos, E, self.cfg.policy.dmp_state)
 
         with torch.no_grad():
             last_obs = torch.from_numpy(self.obs_norm(self._obs))
@@ -267,7 +267,15 @@ class Trainer:
             for g in self.opt.param_groups:
                 g["lr"] = p.lr * frac
         mask = batch["mask"]
-        adv = normalize_advantages(batch["adv"], mask) if p.norm_adv else batch["adv"]
+        adv = batch["adv"]
+        per_decision = bool(getattr(self.model.head, "param_noise", False))
+        if per_decision:
+            # one log-prob per decision: its advantage is the decision's own GAE advantage
+            # A[t, 0] (every reward of the decision, (gamma lambda)^l weighted), one term each
+            adv, mask = adv[:, :1], mask[:, :1]
+        per_mb_norm = p.norm_adv and p.adv_norm_scope == "minibatch"
+        if p.norm_adv and not per_mb_norm:
+            adv = normalize_advantages(adv, mask)
         n = mask.shape[0]
         n_mb = min(p.minibatches, n)
         stats: dict[str, list[torch.Tensor]] = {k: [] for k in
@@ -276,11 +284,12 @@ class Trainer:
         vclip = p.clip if p.clip_value_loss else None
         params = self._params
         keys = ("obs", "y0", "dy0", "z", "logp", "values", "returns")
+        vmask_all = batch["mask"]
         for _ in range(p.epochs):
             perm = torch.randperm(n)
             # one gather per epoch; mini-batches are then contiguous slices (views)
             shuf = {key: batch[key][perm] for key in keys}
-            shuf["adv"], shuf["mask"] = adv[perm], mask[perm]
+            shuf["adv"], shuf["mask"], shuf["vmask"] = adv[perm], mask[perm], vmask_all[perm]
             bounds = [int(b) for b in np.linspace(0, n, n_mb + 1)]
             for lo, hi in itertools.pairwise(bounds):
                 mb = {key: val[lo:hi] for key, val in shuf.items()}
@@ -289,11 +298,12 @@ class Trainer:
                 except FloatingPointError as exc:
                     raise self._diverged(f"non-finite DMP input in the update ({exc})") from None
                 new_logp = dist.log_prob(mb["z"])
-                m = mb["mask"]
-                pg, kl, cf = policy_loss(new_logp, mb["logp"], mb["adv"], m, p.clip)
+                m, vm = mb["mask"], mb["vmask"]
+                mb_adv = normalize_advantages(mb["adv"], m) if per_mb_norm else mb["adv"]
+                pg, kl, cf = policy_loss(new_logp, mb["logp"], mb_adv, m, p.clip)
                 v = self.model.value(mb["obs"])
-                vl = value_loss(v, mb["values"], mb["returns"], m, vclip)
-                ent = entropy_mean(dist.entropy(), m)
+                vl = value_loss(v, mb["values"], mb["returns"], vm, vclip)
+                ent = entropy_mean(dist.entropy(), vm)
                 loss = pg + p.vf_coef * vl - p.ent_coef * ent
                 if not bool(torch.isfinite(loss)):
                     raise self._diverged(
@@ -310,7 +320,7 @@ class Trainer:
                     stats[key].append(val.detach())
         self._check_params("after the update")
         out = {k: float(torch.stack(v).mean()) for k, v in stats.items()}
-        valid = mask > 0
+        valid = vmask_all > 0
         y, yhat = batch["returns"][valid], batch["values"][valid]
         var_y = float(y.var()) if y.numel() > 1 else 0.0
         out["explained_variance"] = (
@@ -392,9 +402,14 @@ class Trainer:
         self.envs.close()
 
 
-def _robot_state(info: dict[str, Any], n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The next decision's DMP start (physical y0, dy0) [E, D] from a vector env's info."""
-    if "dmp_y0" in info:
+def _robot_state(info: dict[str, Any], n: int,
+                 source: str = "measured") -> tuple[np.ndarray, np.ndarray]:
+    """The next decision's DMP start (physical y0, dy0) [E, D] from a vector env's info.
+
+    ``source``: 'measured' (the robot) or 'commanded' (the target the actions move)."""
+    if source == "commanded" and "cmd_y0" in info:
+        y0, dy0 = info["cmd_y0"], info["cmd_dy0"]
+    elif "dmp_y0" in info:
         y0, dy0 = info["dmp_y0"], info["dmp_dy0"]
     else:
         y0, dy0 = info["robot_pos"], info["robot_vel"]

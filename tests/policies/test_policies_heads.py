@@ -94,7 +94,7 @@ def test_ndp_mean_clip_biases_the_executed_displacement():
 
 def test_ndp_head_integrates_from_physical_state_with_time_conversion():
     spec = point_mass_spec()
-    cfg = _cfg("ndp", a_z=1.0)
+    cfg = _cfg("ndp", a_z=1.0, dmp_velocity="state")
     head = build_actor_critic(6, spec, cfg).head
     y0 = torch.tensor([[0.0, 0.0]])
     v = torch.tensor([[0.4, -0.2]])  # m/s (physical)
@@ -108,6 +108,10 @@ def test_ndp_head_integrates_from_physical_state_with_time_conversion():
     traj = dmp_rollout(goal, w, y0, v * 5 * CONTROL_DT,
                        DMPConfig(n_basis=6, a_z=1.0, steps=35, subsample=7)).pos
     torch.testing.assert_close(acts, spec.inverse_controller(traj))
+    # the default starts at rest: no motion at all from a zero output
+    rest = build_actor_critic(6, spec, _cfg("ndp", a_z=1.0)).head
+    acts0, _, _ = rest.decode(torch.zeros(1, rest.n_params), y0, v)
+    assert float(acts0.abs().max()) == 0.0
 
 
 def test_ndp_head_gradients_reach_actor_through_dmp():

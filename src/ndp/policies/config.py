@@ -10,6 +10,8 @@ FORCING = ("amplitude", "goal")
 """NDP forcing-weight forms: bounded amplitude per DoF, or the paper's f proportional to g - y0."""
 ABSOLUTE_MODES = ("direct", "dmp")
 """NDP absolute-command DoF (gripper): the goal emitted as the command, or a DMP from y0."""
+DMP_VELOCITIES = ("zero", "state")
+"""NDP DMP start velocity: at rest, or the state's velocity (commanded or measured)."""
 DMP_STATES = ("commanded", "measured")
 """Where the NDP DMP starts: the commanded target (mocap, joint targets) or the measured robot."""
 
@@ -74,6 +76,10 @@ class PolicyConfig:
     """NDP: the DMP starts from the commanded state (Meta-World mocap target and its commanded
     velocity; Jaco joint targets), which is what the actions move, or from the 'measured' robot
     (hand / joints), which lags the command."""
+    dmp_velocity: str = "zero"
+    """NDP: the DMP starts at rest ('zero') or with the state's velocity ('state': the commanded
+    velocity is the previous decision's last *sampled* sub-action, i.e. its exploration noise;
+    the measured one double-counts the momentum stored in the target's lead)."""
 
     def __post_init__(self) -> None:
         if self.head not in HEADS:
@@ -98,7 +104,7 @@ class PolicyConfig:
             if v is not None and not v > 0:
                 raise ValueError(f"{name}: expected a number > 0, got {v!r}")
         for name, allowed in (("forcing", FORCING), ("absolute_mode", ABSOLUTE_MODES),
-                              ("dmp_state", DMP_STATES)):
+                              ("dmp_state", DMP_STATES), ("dmp_velocity", DMP_VELOCITIES)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name}: expected one of {', '.join(allowed)}, "
                                  f"got {getattr(self, name)!r}")

@@ -104,6 +104,7 @@ class NDPHead(ActionHead):
             to y0.
         mean_clip: clip the sub-action means to the action bounds (the first release's form).
         direct: [D] bool, DoF whose command is the goal itself for all k sub-steps (no DMP).
+        start_at_rest: integrate every DoF from dy0 = 0 (the given dy0 is ignored).
     """
 
     needs_robot_state = True
@@ -123,6 +124,7 @@ class NDPHead(ActionHead):
         goal_center: torch.Tensor | None = None,
         mean_clip: bool = False,
         direct: torch.Tensor | None = None,
+        start_at_rest: bool = False,
     ) -> None:
         super().__init__()
         if dmp.steps // dmp.subsample != k or dmp.steps % dmp.subsample:
@@ -152,6 +154,7 @@ class NDPHead(ActionHead):
         self.register_buffer("direct", direct_t)
         self._any_direct = bool(direct_t.any())
         self.mean_clip = bool(mean_clip)
+        self.start_at_rest = bool(start_at_rest)
         self.inverse_controller = inverse_controller
         self.decision_dt = float(decision_dt)
         self.param_noise = bool(param_noise)
@@ -168,9 +171,12 @@ class NDPHead(ActionHead):
         goal = torch.where(self.absolute_goal, self.goal_center + step, y0 + step)
         weights = self.weight_scale.unsqueeze(-1) * torch.tanh(
             raw[:, d:].reshape(b, d, self.n_basis))
-        dy0_dmp = torch.where(
-            self.absolute_goal, 0.0, dy0 * (self.decision_dt / self.dmp.config.tau)
-        )
+        if self.start_at_rest:
+            dy0_dmp = torch.zeros_like(y0)
+        else:
+            dy0_dmp = torch.where(
+                self.absolute_goal, 0.0, dy0 * (self.decision_dt / self.dmp.config.tau)
+            )
         traj = self.dmp(goal, weights, y0, dy0_dmp).pos  # [B, k + 1, D]
         if self._any_direct:  # the goal is the command of every sub-step
             traj = torch.where(self.direct, goal.unsqueeze(1), traj)
@@ -198,7 +204,8 @@ class NDPHead(ActionHead):
         return (
             f"k={self.k}, D={self.dmp_dofs}, A={self.action_dim}, N={self.n_basis}, "
             f"decision_dt={self.decision_dt}, param_noise={self.param_noise}, "
-            f"mean_clip={self.mean_clip}, direct={self.direct.tolist()}"
+            f"mean_clip={self.mean_clip}, direct={self.direct.tolist()}, "
+            f"start_at_rest={self.start_at_rest}"
         )
 
 
@@ -258,6 +265,7 @@ def build_head(cfg: Any, spec: Any) -> ActionHead:
         goal_center=torch.as_tensor(centre, dtype=torch.float32),
         mean_clip=cfg.mean_clip,
         direct=torch.as_tensor(direct),
+        start_at_rest=cfg.dmp_velocity == "zero",
     )
 
 

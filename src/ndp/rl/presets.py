@@ -20,8 +20,10 @@ class NDPPreset:
     """Spring constant alpha_z (b_z = a_z / 4)."""
     steps_per_substep: int = 7
     """Euler integration steps per sub-step (35 per decision for k = 5)."""
-    goal_scale: float = 1.0
-    """Goal bound, in units of the largest displacement of one decision (see PolicyConfig)."""
+    goal_scale: float = 2.0
+    """Goal bound, in units of the largest displacement of one decision (see PolicyConfig): 2
+    puts the goal beyond the k-step reach, so the bell-shaped DMP velocity profile can command
+    full speed at every sub-step (1, the first release's bound, saturates the middle ones)."""
 
 
 DEFAULT = NDPPreset(n_basis=6, a_z=15.0)

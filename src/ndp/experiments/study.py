@@ -1,0 +1,257 @@
+"""Learning studies: named arms x tasks x seeds, resumable, run in parallel, summarised.
+
+An :class:`Arm` is one configuration: a method (``ndp``, ``ppo``, ``ppo-multi``, or ``sb3-ppo``,
+Stable-Baselines3's PPO, see :mod:`ndp.experiments.sb3_ppo`) plus extra ``ndp rl train`` options.
+Every (task, arm, seed) is one ordinary run in ``<runs_dir>/<task>-<label>-s<seed>``:
+
+- a finished run is reused, an interrupted ``ndp rl train`` run is resumed from its checkpoint
+  (an interrupted SB3 run is restarted), so a study can be killed and re-run at any time, and a
+  later session extends it;
+- ``arm.json`` in each run directory records the arm; a directory that holds another arm's run
+  is refused (no silent mixing);
+- ``jobs`` runs go at once (one torch thread each; at most one per core).
+
+:func:`summarise` reads every run's ``progress.csv`` (``charts/success_any`` per update: the
+training episodes' success at any step, stochastic policy) and computes per run the **success
+area** (the success curve averaged over the whole budget: the area under it divided by the
+budget, the sample-efficiency number) and the **final success** (mean of the last 10% of
+updates), then mean +- std over seeds.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import time
+import warnings
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+METHODS = ("ndp", "ppo", "ppo-multi", "sb3-ppo")
+"""Methods an arm can name."""
+
+
+@dataclass(frozen=True)
+class Arm:
+    """One configuration of a study."""
+
+    label: str
+    """Name in run directories and tables (letters, digits, '-', '_')."""
+    algo: str
+    """'ndp', 'ppo', 'ppo-multi' or 'sb3-ppo'."""
+    args: tuple[str, ...] = field(default=())
+    """Extra ``ndp rl train`` options (not for 'sb3-ppo')."""
+    note: str = ""
+    """What the arm changes, for the tables."""
+
+    def __post_init__(self) -> None:
+        if self.algo not in METHODS:
+            raise ValueError(f"algo: expected one of {', '.join(METHODS)}, got {self.algo!r}")
+        if not self.label or not all(c.isalnum() or c in "-_" for c in self.label):
+            raise ValueError(f"label: expected letters, digits, '-' or '_', got {self.label!r}")
+        if self.algo == "sb3-ppo" and self.args:
+            raise ValueError("args: the 'sb3-ppo' arm takes no ndp options")
+
+
+def run_dir(runs_dir: Path, task: str, arm: Arm, seed: int) -> Path:
+    """Directory of one run."""
+    return Path(runs_dir) / f"{task}-{arm.label}-s{seed}"
+
+
+def _check_arm(run: Path, arm: Arm, steps: int) -> None:
+    rec = run / "arm.json"
+    want = {**asdict(arm), "args": list(arm.args), "steps": steps}
+    if rec.is_file():
+        have = json.loads(rec.read_text())
+        if have != want:
+            raise ValueError(f"runs_dir: {run} holds another run ({have}); expected {want}. "
+                             "Use another --runs-dir or label.")
+    else:
+        from ndp.io import atomic_write_text
+
+        run.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(rec, json.dumps(want, indent=1) + "\n")
+
+
+def is_finished(run: Path) -> bool:
+    """Whether a run completed its budget."""
+    if (run / "done.json").is_file():
+        return True
+    ckpt = run / "checkpoint.pt"
+    if not ckpt.is_file() or not (run / "config.json").is_file():
+        return False
+    from ndp.rl.checkpoint import load_checkpoint
+    from ndp.rl.config import TrainConfig
+
+    state = load_checkpoint(ckpt)
+    return int(state["update"]) >= TrainConfig.from_dict(state["config"]).num_updates
+
+
+def train_command(task: str, arm: Arm, seed: int, steps: int, run: Path,
+                  num_envs: int = 4) -> list[str]:
+    """The command that trains (or resumes) one run."""
+    if arm.algo == "sb3-ppo":
+        return [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task, "--steps",
+                str(steps), "--seed", str(seed), "--num-envs", str(num_envs), "--run-dir",
+                str(run)]
+    if (run / "checkpoint.pt").is_file():
+        return [sys.executable, "-m", "ndp.cli", "rl", "train", "--resume", str(run),
+                "--no-progress"]
+    return [sys.executable, "-m", "ndp.cli", "rl", "train", "--task", task, "--algo", arm.algo,
+            "--seed", str(seed), "--steps", str(steps), "--num-envs", str(num_envs),
+            "--run-dir", str(run), "--no-progress", "--no-tensorboard", *arm.args]
+
+
+def run_one(task: str, arm: Arm, seed: int, steps: int, runs_dir: Path,
+            num_envs: int = 4) -> Path:
+    """Train, resume or reuse one run; returns its directory."""
+    run = run_dir(runs_dir, task, arm, seed)
+    _check_arm(run, arm, steps)
+    if is_finished(run):
+        return run
+    if arm.algo == "sb3-ppo" and (run / "progress.csv").is_file():
+        (run / "progress.csv").unlink()  # a killed SB3 run restarts from scratch
+    t0 = time.time()
+    log = run / "train.log"
+    with log.open("a") as fh:
+        subprocess.run(train_command(task, arm, seed, steps, run, num_envs), check=True,
+                       stdout=fh, stderr=subprocess.STDOUT)
+    print(f"[{task} {arm.label} s{seed}] {time.time() - t0:.0f}s", flush=True)
+    return run
+
+
+def run_grid(tasks: Sequence[str], arms: Sequence[Arm], seeds: Sequence[int], steps: int,
+             runs_dir: Path, jobs: int = 1, num_envs: int = 4) -> list[Path]:
+    """Every (task, arm, seed), seed-major (all arms of seed 0 first), ``jobs`` at a time."""
+    grid = [(t, a, s) for s in seeds for t in tasks for a in arms]
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        futs = [pool.submit(run_one, t, a, s, steps, runs_dir, num_envs) for t, a, s in grid]
+        return [f.result() for f in futs]
+
+
+def load_curve(run: Path, key: str = "charts/success_any") -> tuple[np.ndarray, np.ndarray]:
+    """(global_step [U], metric [U]) of a run; updates without finished episodes dropped."""
+    import csv
+
+    with (run / "progress.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    x = np.array([float(r["global_step"]) for r in rows])
+    y = np.array([float(r[key]) if r.get(key) not in (None, "") else math.nan for r in rows])
+    keep = ~np.isnan(y)
+    return x[keep], y[keep]
+
+
+def smooth(y: np.ndarray, window: int) -> np.ndarray:
+    """Trailing moving average over ``window`` points (fewer at the start)."""
+    c = np.cumsum(np.insert(np.asarray(y, dtype=np.float64), 0, 0.0))
+    i = np.arange(1, len(y) + 1)
+    lo = np.maximum(0, i - window)
+    return (c[i] - c[lo]) / (i - lo)
+
+
+def success_area(x: np.ndarray, y: np.ndarray, steps: int, points: int = 101) -> float:
+    """The success curve averaged over [0, steps] (0 before the first logged update)."""
+    grid = np.linspace(0, steps, points)
+    return float(np.trapezoid(np.interp(grid, x, y, left=0.0), grid) / steps)
+
+
+def final_success(y: np.ndarray) -> float:
+    """Mean of the last 10% of the updates (at least one)."""
+    return float(np.mean(y[int(len(y) * 0.9):])) if len(y) >= 10 else float(y[-1])
+
+
+def summarise(tasks: Sequence[str], arms: Sequence[Arm], seeds: Sequence[int], steps: int,
+              runs_dir: Path) -> dict[str, Any]:
+    """Per task and arm: area and final success per seed, mean +- std, mean curve.
+
+    Only finished runs count (a run still training is listed under ``running``).
+    """
+    grid = np.linspace(0, steps, 51)
+    out: dict[str, Any] = {"steps": steps, "seeds": list(seeds), "tasks": {}}
+    for task in tasks:
+        out["tasks"][task] = {}
+        for arm in arms:
+            areas, finals, curves, used, running = [], [], [], [], []
+            for seed in seeds:
+                run = run_dir(runs_dir, task, arm, seed)
+                if not (run / "progress.csv").is_file():
+                    continue
+                if not is_finished(run):
+                    running.append(seed)
+                    continue
+                x, y = load_curve(run)
+                if len(x) == 0:
+                    continue
+                areas.append(success_area(x, y, steps))
+                finals.append(final_success(y))
+                curves.append(np.interp(grid, x, smooth(y, max(1, len(y) // 20)), left=np.nan))
+                used.append(seed)
+            if not areas and not running:
+                continue
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                mean = np.nanmean(curves, 0) if curves else np.full(len(grid), np.nan)
+                std = np.nanstd(curves, 0) if curves else np.full(len(grid), np.nan)
+            out["tasks"][task][arm.label] = {
+                "algo": arm.algo, "args": list(arm.args), "note": arm.note, "seeds": used,
+                "running": running, "areas": areas, "finals": finals,
+                "area_mean": float(np.mean(areas)) if areas else math.nan,
+                "area_std": float(np.std(areas)) if areas else math.nan,
+                "final_mean": float(np.mean(finals)) if finals else math.nan,
+                "final_std": float(np.std(finals)) if finals else math.nan,
+                "curve_steps": grid.tolist(), "curve_mean": mean.tolist(),
+                "curve_std": std.tolist(),
+            }
+    return out
+
+
+def cell(r: dict[str, Any] | None, key: str) -> str:
+    """``mean +- std (n)`` of a summary entry's ``key`` ('area' or 'final')."""
+    if r is None or not r[f"{key}s"]:
+        return "-" if r is None or not r["running"] else "(running)"
+    return f"{r[f'{key}_mean']:.2f} +- {r[f'{key}_std']:.2f} (n={len(r[f'{key}s'])})"
+
+
+def markdown_table(summary: dict[str, Any], arms: Sequence[Arm], key: str) -> list[str]:
+    """Rows of a task x arm table of ``key`` ('area' or 'final')."""
+    labels = [a.label for a in arms]
+    lines = ["| task | " + " | ".join(labels) + " |", "|---" * (len(labels) + 1) + "|"]
+    for task, res in summary["tasks"].items():
+        lines.append(f"| {task} | " + " | ".join(cell(res.get(lb), key) for lb in labels) + " |")
+    return lines
+
+
+def plot(summary: dict[str, Any], arms: Sequence[Arm], path: Path) -> None:
+    """Success curves (mean +- std over seeds), one panel per task."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tasks = list(summary["tasks"])
+    fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
+    for ax, task in zip(axes[0], tasks, strict=True):
+        for arm in arms:
+            r = summary["tasks"][task].get(arm.label)
+            if r is None or not r["seeds"]:
+                continue
+            x, m, s = (np.array(r[k]) for k in ("curve_steps", "curve_mean", "curve_std"))
+            ax.plot(x, m, label=f"{arm.label} (n={len(r['seeds'])})")
+            ax.fill_between(x, m - s, m + s, alpha=0.15)
+        ax.set_title(task)
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_xlabel("env steps")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("success (any step, training)")
+    axes[0][-1].legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=60)
+    plt.close(fig)

@@ -248,3 +248,16 @@ def test_cuda_matches_cpu():
     gpu = dmp_rollout(goal.cuda(), w.cuda(), y0.cuda(), dy0.cuda(), cfg)
     assert gpu.pos.is_cuda
     torch.testing.assert_close(gpu.pos.cpu(), cpu.pos, rtol=1e-5, atol=1e-5)
+
+
+def test_positions_only_equal_the_full_rollout():
+    from ndp.dmp import DMPLayer, dmp_positions
+
+    cfg = DMPConfig(n_basis=6, a_z=10.0, steps=35, subsample=7)
+    g = torch.Generator().manual_seed(0)
+    goal, y0, dy0 = (torch.randn(8, 4, generator=g) for _ in range(3))
+    w = torch.randn(8, 4, 6, generator=g)
+    full = dmp_rollout(goal, w, y0, dy0, cfg)
+    torch.testing.assert_close(dmp_positions(goal, w, y0, dy0, cfg), full.pos)
+    torch.testing.assert_close(DMPLayer(cfg).positions(goal, w, y0, dy0), full.pos)
+    torch.testing.assert_close(full.pos[:, 0], y0)  # the RL head relies on it

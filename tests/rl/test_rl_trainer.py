@@ -24,7 +24,7 @@ FAST = PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3)
 def _cfg(tmp_path, name="run", **kw):
     base = {"task": "point-mass", "algo": "ndp", "steps": 2048, "num_envs": 4,
             "run_dir": str(tmp_path / name), "progress": False, "tensorboard": False,
-            "ppo": FAST}
+            "ppo": FAST, "vector": "sync"}
     return TrainConfig(**{**base, **kw})
 
 
@@ -183,13 +183,13 @@ def test_minibatch_advantage_normalisation(tmp_path, monkeypatch):
     import ndp.rl.trainer as trainer_mod
 
     seen = []
-    real = trainer_mod.policy_loss
+    real = trainer_mod.gaussian_policy_loss  # PPO's Gaussian takes the fused surrogate
 
-    def spy(new_logp, old_logp, adv, mask, clip):
+    def spy(mean, log_std, z, old_logp, adv, mask, clip):
         seen.append((adv.detach(), mask))
-        return real(new_logp, old_logp, adv, mask, clip)
+        return real(mean, log_std, z, old_logp, adv, mask, clip)
 
-    monkeypatch.setattr(trainer_mod, "policy_loss", spy)
+    monkeypatch.setattr(trainer_mod, "gaussian_policy_loss", spy)
     ppo = PPOConfig(steps_per_update=512, minibatches=4, epochs=1, adv_norm_scope="minibatch")
     tr = Trainer(_cfg(tmp_path, algo="ppo", ppo=ppo))
     try:
@@ -219,6 +219,29 @@ def test_cli_train_eval_render(tmp_path, capsys):
     assert ndp_main(["rl", "eval", str(tmp_path / "missing")]) == 2
     # a second fresh run into the same directory is refused (use --resume)
     assert ndp_main(["rl", "train", "--task", "point-mass", "--run-dir", str(run)]) == 2
+
+
+@pytest.mark.parametrize("task,algo", [("reach-v3", "ndp"), ("point-mass", "ppo")])
+def test_worker_vector_env_gives_the_sync_rollout(tmp_path, task, algo):
+    """Same seed, same initial policy: env workers (2 workers x 2 envs, shared memory) give
+    the same rollout as the one-process sync env, episode ends and autoresets included."""
+    ppo = PPOConfig(steps_per_update=600 if algo == "ndp" else 400, minibatches=4)
+    batches = []
+    for vector in ("sync", "workers"):
+        cfg = _cfg(tmp_path, vector, task=task, algo=algo, horizon=30, ppo=ppo, vector=vector,
+                   env_workers=2 if vector == "workers" else None)
+        tr = Trainer(cfg)
+        try:
+            if vector == "workers":
+                assert type(tr.envs).__name__ == "WorkerVectorEnv"
+                assert tr.envs.num_workers == 2
+            batches.append(tr.collect())
+        finally:
+            tr.close()
+    a, b = batches
+    assert len(a["episodes"]) > 0 and a["episodes"] == b["episodes"]
+    for key in ("obs", "y0", "dy0", "z", "logp", "adv", "returns", "mask"):
+        torch.testing.assert_close(a[key], b[key], rtol=0, atol=0, msg=key)
 
 
 def test_async_vector_env_matches_sync(tmp_path):

@@ -31,6 +31,7 @@ from ndp.dmp.fit import fit_dmp
 from ndp.dmp.integrate import (
     DMPTrajectory,
     check_finite,
+    dmp_positions,
     dmp_rollout,
     dmp_rollout_fast,
     dmp_rollout_reference,
@@ -49,6 +50,7 @@ __all__ = [
     "basis_centres",
     "canonical_phase",
     "check_finite",
+    "dmp_positions",
     "dmp_rollout",
     "dmp_rollout_fast",
     "dmp_rollout_reference",

@@ -21,7 +21,7 @@ applies it with one matrix product.
 from __future__ import annotations
 
 import functools
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -263,6 +263,8 @@ def _linear_map_f64(cfg: DMPConfig, a_z: float | None) -> np.ndarray:
 def _linear_map(
     cfg: DMPConfig, a_z: float | None, device: torch.device, dtype: torch.dtype
 ) -> torch.Tensor:
+    """The linear map as a tensor, cached per (config, device, dtype): read-only, never
+    written in place (callers slice it and multiply by it)."""
     return torch.as_tensor(_linear_map_f64(cfg, a_z).copy(), dtype=dtype, device=device)
 
 
@@ -290,7 +292,8 @@ def _fast(
     y0: torch.Tensor,
     dy0: torch.Tensor,
     check: bool = False,
-) -> DMPTrajectory:
+    pos_only: bool = False,
+) -> Any:
     m = _linear_map(cfg, None, goal.device, goal.dtype)
     b, d = goal.shape
     n = cfg.n_basis
@@ -304,6 +307,9 @@ def _fast(
         # One reduction over the packed inputs; name the culprit only when something is wrong.
         check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0)
         raise FloatingPointError("inputs: expected finite values, their sum overflows")
+    if pos_only:
+        pos = (u.reshape(b * d, -1) @ m[:, : cfg.n_out]).view(b, d, cfg.n_out)
+        return pos.transpose(1, 2)
     out = (u.reshape(b * d, -1) @ m).view(b, d, 3, cfg.n_out).permute(2, 0, 3, 1)
     return DMPTrajectory(*out.unbind(0))
 
@@ -352,3 +358,20 @@ def dmp_rollout(
     if method == "loop":
         return _reference(cfg, goal, weights, y0, dy0, None)
     return _fast(cfg, goal, weights, y0, dy0, check)
+
+
+def dmp_positions(
+    goal: torch.Tensor,
+    weights: torch.Tensor | None,
+    y0: torch.Tensor,
+    dy0: torch.Tensor | None = None,
+    cfg: DMPConfig | None = None,
+    check: bool = False,
+) -> torch.Tensor:
+    """Positions only, [B, steps // subsample + 1, D], of a fixed-a_z DMP (one third of the
+    linear map: for callers that need no velocities or accelerations, e.g. the RL head)."""
+    cfg = cfg or DMPConfig()
+    if cfg.learn_az:
+        raise ValueError("cfg: dmp_positions needs a fixed a_z (learn_az False)")
+    goal, weights, y0, dy0, _ = validate_inputs(cfg, goal, weights, y0, dy0)
+    return _fast(cfg, goal, weights, y0, dy0, check, pos_only=True)

@@ -19,6 +19,7 @@ If ``robot_pos`` [..., D] is given it replaces ``p[..., 0, :]`` (the measured st
 from __future__ import annotations
 
 import difflib
+import functools
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -127,16 +128,14 @@ class TaskSpec:
         Returns:
             [..., k, A] actions, within ``[action_low, action_high]`` when ``clip``.
         """
+        return _inverse_delta(traj, *self._controller_tensors, robot_pos, clip)
+
+    @functools.cached_property
+    def _controller_tensors(self) -> tuple[torch.Tensor, ...]:
+        """(scale, absolute, low, high) [D] as tensors, built once per spec."""
         scale = torch.tensor([s if s > 0 else 1.0 for s in self.action_scale])
-        return _inverse_delta(
-            traj,
-            scale,
-            torch.tensor(self.action_absolute),
-            torch.tensor(self.action_low),
-            torch.tensor(self.action_high),
-            robot_pos,
-            clip,
-        )
+        return (scale, torch.tensor(self.action_absolute), torch.tensor(self.action_low),
+                torch.tensor(self.action_high))
 
 
 def _metaworld_spec(name: str) -> TaskSpec:

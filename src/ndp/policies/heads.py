@@ -177,10 +177,10 @@ class NDPHead(ActionHead):
             dy0_dmp = torch.where(
                 self.absolute_goal, 0.0, dy0 * (self.decision_dt / self.dmp.config.tau)
             )
-        traj = self.dmp(goal, weights, y0, dy0_dmp).pos  # [B, k + 1, D]
+        traj = self.dmp.positions(goal, weights, y0, dy0_dmp)  # [B, k + 1, D], traj[:, 0] = y0
         if self._any_direct:  # the goal is the command of every sub-step
             traj = torch.where(self.direct, goal.unsqueeze(1), traj)
-        actions = self.inverse_controller(traj, robot_pos=y0, clip=self.mean_clip)  # [B, k, A]
+        actions = self.inverse_controller(traj, clip=self.mean_clip)  # [B, k, A]
         return actions, goal, weights
 
 

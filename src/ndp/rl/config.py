@@ -114,8 +114,12 @@ class TrainConfig:
     """Seed of torch, numpy and the environments."""
     num_envs: int = 4
     """Parallel environments."""
-    vector: str = "sync"
-    """Vector env: 'sync' (one process) or 'async' (one subprocess per env)."""
+    vector: str = "auto"
+    """Vector env: 'auto' (env workers when 2+ cores are free, else sync), 'sync' (one process;
+    debugging and determinism), 'workers' (env_workers subprocesses, several envs each, shared
+    memory) or 'async' (gymnasium's AsyncVectorEnv, one subprocess per env). Same numbers."""
+    env_workers: int | None = None
+    """Worker processes of the 'workers' / 'auto' vector env; None: one per core (<= num_envs)."""
     stale_world: bool = True
     """Stale-world reward rule during the k sub-steps (NDP and PPO-multi; no effect for k = 1)."""
     horizon: int | None = None
@@ -147,8 +151,14 @@ class TrainConfig:
         _check_int("torch_threads", self.torch_threads, 1)
         if self.horizon is not None:
             _check_int("horizon", self.horizon, 1)
-        if self.vector not in ("sync", "async"):
-            raise ValueError(f"vector: expected 'sync' or 'async', got {self.vector!r}")
+        if self.vector not in ("auto", "sync", "workers", "async"):
+            raise ValueError(f"vector: expected 'auto', 'sync', 'workers' or 'async', got "
+                             f"{self.vector!r}")
+        if self.env_workers is not None:
+            _check_int("env_workers", self.env_workers, 1)
+            if self.env_workers > self.num_envs:
+                raise ValueError(f"env_workers: expected at most num_envs={self.num_envs}, "
+                                 f"got {self.env_workers}")
 
     # ----------------------------------------------------------------- derived values
     @property

@@ -3,9 +3,16 @@
 :func:`resolve_task` turns a name into a :class:`TaskHandle` (spec + per-step env factory): any
 name or alias of ``ndp.envs.TASKS``, the toy tasks of :mod:`ndp.envs.point_mass` included.
 :func:`make_vector_env` builds ``num_envs`` :class:`ndp.envs.ChunkedEnv` copies (k sub-steps per
-decision) in a gymnasium ``SyncVectorEnv`` or ``AsyncVectorEnv`` with same-step autoreset: when
-an episode ends, the returned observation and info are the reset ones and the finished step's
-info is under ``info["final_info"]`` (its observation under ``final_obs``).
+decision) in a vector env with same-step autoreset: when an episode ends, the returned
+observation and info are the reset ones and the finished step's info is under
+``info["final_info"]`` (its observation under ``final_obs``). Kinds (``vector``):
+
+- ``"sync"``: gymnasium's ``SyncVectorEnv``, one process (debugging, determinism tests);
+- ``"workers"``: :class:`ndp.envs.vector.WorkerVectorEnv`, ``env_workers`` subprocesses with
+  several envs each and shared-memory arrays (same numbers as sync, both cores busy);
+- ``"async"``: gymnasium's ``AsyncVectorEnv``, one subprocess per env;
+- ``"auto"``: ``workers`` with one worker per core when this process may use two or more cores
+  and there are two or more envs, else ``sync``.
 """
 
 from __future__ import annotations
@@ -65,18 +72,42 @@ def make_vector_env(
     stale_world: bool = True,
     horizon: int | None = None,
     vector: str = "sync",
+    env_workers: int | None = None,
 ) -> gym.vector.VectorEnv:
-    """``num_envs`` chunked copies of a task in a gymnasium vector env (same-step autoreset).
+    """``num_envs`` chunked copies of a task in a vector env (same-step autoreset).
 
-    Seed it with ``reset(seed=[...])``. Actions are [num_envs, k, A].
+    Seed it with ``reset(seed=[...])``. Actions are [num_envs, k, A]. ``vector`` and
+    ``env_workers``: see the module docstring (``resolve_vector``).
     """
     fns = [
         functools.partial(_make_chunked, task.make, k, stale_world, horizon)
         for _ in range(num_envs)
     ]
-    if vector == "async":
+    kind, workers = resolve_vector(vector, num_envs, env_workers)
+    if kind == "workers":
+        from ndp.envs.vector import WorkerVectorEnv
+
+        spec = task.spec
+        return WorkerVectorEnv(fns, spec.obs_dim, k, spec.action_dim, spec.dmp_dofs, workers)
+    if kind == "async":
         return AsyncVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
     return SyncVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
+
+
+VECTOR_KINDS = ("auto", "sync", "workers", "async")
+"""Accepted values of ``vector``."""
+
+
+def resolve_vector(vector: str, num_envs: int, env_workers: int | None) -> tuple[str, int]:
+    """(kind, workers) that ``make_vector_env`` builds for ``vector`` ('auto' decided here)."""
+    from ndp.envs.vector import default_workers
+
+    if vector not in VECTOR_KINDS:
+        raise ValueError(f"vector: expected one of {', '.join(VECTOR_KINDS)}, got {vector!r}")
+    workers = default_workers(num_envs) if env_workers is None else int(env_workers)
+    if vector == "auto":
+        vector = "workers" if workers >= 2 else "sync"
+    return vector, workers
 
 
 def env_seeds(seed: int, num_envs: int, epoch: int = 0) -> list[int]:

@@ -8,6 +8,8 @@ and ``mask[:, :1]``, so each decision is one clipped term. Every mean is over ex
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 
@@ -83,3 +85,71 @@ def normalize_advantages(adv: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     mean = (adv * mask).sum() / n
     var = ((adv - mean).pow(2) * mask).sum() / (n - 1.0).clamp_min(1.0)
     return (adv - mean) / (var.sqrt() + 1e-8) * mask
+
+
+class _GaussianSurrogate(torch.autograd.Function):
+    """Fused clipped surrogate of a diagonal Gaussian (forward and hand-written backward).
+
+    Same value and gradient as ``policy_loss(diag_gaussian_log_prob(z, mean, log_std), ...)``
+    (tested against autograd in float64), in one autograd node instead of about twenty: the
+    update runs 320 of these per rollout, where the eager per-op overhead dominates.
+    """
+
+    @staticmethod
+    def forward(ctx, mean, log_std, z, old_logp, adv, mask, clip):  # type: ignore[override]
+        inv_std = torch.exp(-log_std)
+        u = (z - mean) * inv_std  # [M, k, A]
+        logp = (-0.5 * u * u - log_std).sum(-1) - u.shape[-1] * _HALF_LOG_2PI  # [M, k]
+        logratio = logp - old_logp
+        ratio = logratio.exp()
+        s1 = ratio * adv
+        s2 = ratio.clamp(1.0 - clip, 1.0 + clip) * adv
+        n = mask.sum().clamp_min(1.0)
+        loss = -(torch.minimum(s1, s2) * mask).sum() / n
+        # d loss / d logp: the unclipped branch is the minimum (ties: inside the clip range,
+        # where autograd's min + clamp also pass the whole gradient)
+        g_logp = -(mask / n) * adv * ratio * (s1 <= s2)
+        ctx.save_for_backward(u, inv_std, g_logp)
+        ctx.log_std_shape = log_std.shape
+        approx_kl = (((ratio - 1.0) - logratio) * mask).sum() / n
+        clipfrac = (((ratio - 1.0).abs() > clip).to(mask.dtype) * mask).sum() / n
+        ctx.mark_non_differentiable(approx_kl, clipfrac)
+        return loss, approx_kl, clipfrac
+
+    @staticmethod
+    def backward(ctx, g_loss, _g_kl, _g_cf):  # type: ignore[override]
+        u, inv_std, g_logp = ctx.saved_tensors
+        g = (g_logp * g_loss).unsqueeze(-1)  # [M, k, 1]
+        g_mean = g * u * inv_std  # d logp / d mean = u / std
+        g_ls = g * (u * u - 1.0)  # d logp / d log_std = u^2 - 1
+        g_log_std = g_ls.sum_to_size(ctx.log_std_shape)
+        return g_mean, g_log_std, None, None, None, None, None
+
+
+_HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+def gaussian_policy_loss(
+    mean: torch.Tensor,
+    log_std: torch.Tensor,
+    z: torch.Tensor,
+    old_logp: torch.Tensor,
+    adv: torch.Tensor,
+    mask: torch.Tensor,
+    clip: float,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """:func:`policy_loss` of per-sub-action diagonal Gaussians, fused (one autograd node).
+
+    Args:
+        mean: [M, k, A] sub-action means (differentiable).
+        log_std: [A] (or broadcastable to ``mean``) log standard deviations (differentiable).
+        z: [M, k, A] the rollout's samples.
+        old_logp: [M, k] their log-probs at collection time.
+        adv: [M, k] advantages.
+        mask: [M, k] executed sub-steps.
+        clip: epsilon.
+
+    Returns:
+        ``(loss, approx_kl, clipfrac)`` as :func:`policy_loss`.
+    """
+    return _GaussianSurrogate.apply(mean, log_std, z, old_logp, adv, mask, float(clip))

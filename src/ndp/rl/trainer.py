@@ -29,13 +29,20 @@ import torch
 from torch import nn
 
 from ndp.policies import build_actor_critic
+from ndp.policies.distributions import SubActionGaussian
 from ndp.rl.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from ndp.rl.config import TrainConfig, load_config, resolve_config, save_config
 from ndp.rl.envs import env_seeds, make_vector_env, resolve_task, step_info
 from ndp.rl.gae import bootstrap_truncated, gae_substeps
 from ndp.rl.logger import Logger
 from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
-from ndp.rl.ppo import entropy_mean, normalize_advantages, policy_loss, value_loss
+from ndp.rl.ppo import (
+    entropy_mean,
+    gaussian_policy_loss,
+    normalize_advantages,
+    policy_loss,
+    value_loss,
+)
 
 
 class TrainingDivergedError(FloatingPointError):
@@ -76,14 +83,16 @@ class Trainer:
         self.num_envs = cfg.num_envs
         self.T = cfg.decisions_per_env
         self.envs = make_vector_env(
-            task, self.k, cfg.num_envs, cfg.stale_world, cfg.horizon, cfg.vector
+            task, self.k, cfg.num_envs, cfg.stale_world, cfg.horizon, cfg.vector,
+            cfg.env_workers,
         )
         obs_dim = int(np.prod(self.envs.single_observation_space.shape))
         self.obs_dim = obs_dim
         self.model = build_actor_critic(obs_dim, self.spec, cfg.policy)
         p = cfg.ppo
         self._params = list(self.model.parameters())
-        self.opt = torch.optim.Adam(self._params, lr=p.lr, eps=p.adam_eps, foreach=True)
+        # fused: one kernel for the whole step (PyTorch >= 2.4 on CPU; 14% of an update here)
+        self.opt = torch.optim.Adam(self._params, lr=p.lr, eps=p.adam_eps, fused=True)
         self.obs_norm = ObsNormalizer(obs_dim, p.clip_obs, p.norm_obs)
         self.ret_norm = ReturnNormalizer(cfg.num_envs, p.gamma, p.clip_reward, p.norm_return)
         self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
@@ -297,23 +306,30 @@ class Trainer:
                     dist, _ = self.model.distribution(mb["obs"], mb["y0"], mb["dy0"])
                 except FloatingPointError as exc:
                     raise self._diverged(f"non-finite DMP input in the update ({exc})") from None
-                new_logp = dist.log_prob(mb["z"])
                 m, vm = mb["mask"], mb["vmask"]
                 mb_adv = normalize_advantages(mb["adv"], m) if per_mb_norm else mb["adv"]
-                pg, kl, cf = policy_loss(new_logp, mb["logp"], mb_adv, m, p.clip)
+                if isinstance(dist, SubActionGaussian):  # fused surrogate: one autograd node
+                    pg, kl, cf = gaussian_policy_loss(dist.mean, dist.log_std, mb["z"],
+                                                      mb["logp"], mb_adv, m, p.clip)
+                else:
+                    pg, kl, cf = policy_loss(dist.log_prob(mb["z"]), mb["logp"], mb_adv, m,
+                                             p.clip)
                 v = self.model.value(mb["obs"])
                 vl = value_loss(v, mb["values"], mb["returns"], vm, vclip)
-                ent = entropy_mean(dist.entropy(), vm)
-                loss = pg + p.vf_coef * vl - p.ent_coef * ent
-                if not bool(torch.isfinite(loss)):
-                    raise self._diverged(
-                        f"non-finite loss (policy {float(pg.detach())}, value {float(vl.detach())})"
-                    )
+                if p.ent_coef > 0:
+                    ent = entropy_mean(dist.entropy(), vm)
+                    loss = pg + p.vf_coef * vl - p.ent_coef * ent
+                else:
+                    with torch.no_grad():
+                        ent = entropy_mean(dist.entropy(), vm)
+                    loss = pg + p.vf_coef * vl
                 self.opt.zero_grad(set_to_none=True)
                 loss.backward()
                 gn = nn.utils.clip_grad_norm_(params, p.max_grad_norm, foreach=True)
-                if not bool(torch.isfinite(gn)):
-                    raise self._diverged("non-finite gradient norm")
+                if not bool(torch.isfinite(loss.detach() + gn)):  # one check for both
+                    raise self._diverged(
+                        f"non-finite loss or gradient (policy {float(pg.detach())}, value "
+                        f"{float(vl.detach())}, gradient norm {float(gn)})")
                 self.opt.step()
                 for key, val in (("policy", pg), ("value", vl), ("entropy", ent),
                                  ("approx_kl", kl), ("clipfrac", cf), ("grad_norm", gn)):

@@ -1,0 +1,367 @@
+"""A vector env of chunked envs in worker processes, several envs per worker, shared memory.
+
+:class:`WorkerVectorEnv` runs ``num_envs`` :class:`~ndp.envs.ChunkedEnv` copies in ``workers``
+subprocesses (env ``i`` lives in worker ``i * workers // num_envs``: contiguous slices). Actions,
+observations and every per-step info array of the chunked env live in shared memory; a step
+sends one short message per worker and waits for one reply, so the main process's cost per
+step does not grow with the observation size. Each worker steps its envs one after the other
+with one torch thread.
+
+It behaves like gymnasium's ``SyncVectorEnv`` with ``AutoresetMode.SAME_STEP`` over the same
+env factories (the trainer uses either): ``reset(seed=[...])`` seeds env i with ``seed[i]``;
+when an episode ends, the returned observation and the info are the reset's (keys the reset
+info lacks are 0 there), the finished step's whole info is under ``info["final_info"]`` and its
+observation under ``info["final_obs"]``.
+Given the same seeds and actions it returns the same arrays as the sync env (tested).
+
+A worker's exception is re-raised in the main process with the worker's traceback; a worker
+that dies (killed, segfault) raises :class:`WorkerError` naming it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import multiprocessing as mp
+import os
+import traceback
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+
+class WorkerError(RuntimeError):
+    """An env worker failed or died."""
+
+
+def info_schema(k: int, dof: int) -> dict[str, tuple[tuple[int, ...], type]]:
+    """Key -> (per-env shape, dtype) of :class:`~ndp.envs.ChunkedEnv`'s step info."""
+    f, b = np.float64, np.bool_
+    return {
+        "sub_rewards": ((k,), f), "sub_rewards_live": ((k,), f), "sub_mask": ((k,), f),
+        "sub_success": ((k,), f), "success": ((), b), "success_decision": ((), b),
+        "success_any": ((), b), "robot_pos": ((k + 1, dof), f), "robot_vel": ((k + 1, dof), f),
+        "dmp_y0": ((dof,), f), "dmp_dy0": ((dof,), f), "cmd_y0": ((dof,), f),
+        "cmd_dy0": ((dof,), f), "n_substeps": ((), np.int64), "sim_unstable": ((), b),
+    }
+
+
+class _Shared:
+    """Named numpy arrays [E, ...] in one shared block (created, or attached in a worker).
+
+    The block is a ``multiprocessing.RawArray`` handed to the workers at start: every numpy
+    view keeps it alive, so no view can outlive its memory (a ``SharedMemory`` unmapped on
+    close would leave dangling views).
+    """
+
+    def __init__(self, layout: dict[str, tuple[tuple[int, ...], Any]], raw: Any = None,
+                 ctx: Any = None):
+        self.layout = layout
+        offsets, size = {}, 0
+        for key, (shape, dtype) in layout.items():
+            size = -(-size // 8) * 8  # 8-byte alignment
+            offsets[key] = size
+            size += int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
+        if raw is None:
+            raw = (ctx or mp).RawArray("b", max(size, 8))
+        self.raw = raw
+        buf = memoryview(raw).cast("B")
+        self.arrays = {
+            key: np.frombuffer(buf, dtype=dtype, count=int(np.prod(shape, dtype=np.int64)),
+                               offset=offsets[key]).reshape(shape)
+            for key, (shape, dtype) in layout.items()}
+
+
+def _layout(num_envs: int, obs_dim: int, k: int, action_dim: int,
+            dof: int) -> dict[str, tuple[tuple[int, ...], Any]]:
+    lay: dict[str, tuple[tuple[int, ...], Any]] = {
+        "actions": ((num_envs, k, action_dim), np.float64),
+        "obs": ((num_envs, obs_dim), np.float64),
+        "final_obs": ((num_envs, obs_dim), np.float64),
+        "reward": ((num_envs,), np.float64),
+        "terminated": ((num_envs,), np.bool_),
+        "truncated": ((num_envs,), np.bool_),
+    }
+    for key, (shape, dtype) in info_schema(k, dof).items():
+        lay[f"info/{key}"] = ((num_envs, *shape), dtype)
+        lay[f"final/{key}"] = ((num_envs, *shape), dtype)
+    return lay
+
+
+class _Slice:
+    """Envs ``lo .. lo + len(envs) - 1`` stepped in this process, writing to the shared arrays."""
+
+    def __init__(self, envs: list[gym.Env], lo: int, arrays: dict[str, np.ndarray]) -> None:
+        self.envs, self.lo, self.a = envs, lo, arrays
+        self.info_keys = [key[5:] for key in arrays if key.startswith("info/")]
+
+    def _write_info(self, prefix: str, i: int, info: dict[str, Any]) -> None:
+        for key in self.info_keys:
+            if key in info:
+                self.a[f"{prefix}/{key}"][i] = info[key]
+
+    def _write_reset(self, i: int, obs: Any, info: dict[str, Any]) -> None:
+        for key in self.info_keys:
+            self.a[f"info/{key}"][i] = 0
+        self._write_info("info", i, info)
+        self.a["obs"][i] = obs
+
+    def step(self) -> None:
+        a = self.a
+        for j, env in enumerate(self.envs):
+            i = self.lo + j
+            obs, r, term, trunc, info = env.step(a["actions"][i])
+            a["reward"][i], a["terminated"][i], a["truncated"][i] = r, term, trunc
+            self._write_info("info", i, info)
+            if term or trunc:
+                a["final_obs"][i] = obs
+                self._write_info("final", i, info)
+                self._write_reset(i, *env.reset())
+            else:
+                a["obs"][i] = obs
+
+    def reset(self, seeds: Sequence[int | None]) -> None:
+        for j, env in enumerate(self.envs):
+            self._write_reset(self.lo + j, *env.reset(seed=seeds[j]))
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
+
+
+def _worker(index: int, lo: int, hi: int, fns: Sequence[Callable[[], gym.Env]],
+            raw: Any, layout: dict, conn: Any) -> None:
+    """Worker loop: own envs lo..hi-1, answer 'reset', 'step', 'spaces', 'close' over ``conn``."""
+    try:
+        import torch
+
+        torch.set_num_threads(1)
+        envs = [fn() for fn in fns]
+        part = _Slice(envs, lo, _Shared(layout, raw).arrays)
+        conn.send(("ready", None))
+        while True:
+            cmd, arg = conn.recv()
+            if cmd == "step":
+                part.step()
+                conn.send(("ok", None))
+            elif cmd == "reset":
+                part.reset(arg)
+                conn.send(("ok", None))
+            elif cmd == "spaces":
+                conn.send(("ok", (envs[0].observation_space, envs[0].action_space)))
+            elif cmd == "close":
+                part.close()
+                conn.send(("ok", None))
+                break
+            else:
+                raise ValueError(f"unknown command {cmd!r}")
+    except (KeyboardInterrupt, EOFError):
+        pass
+    except BaseException as exc:  # report to the main process
+        try:
+            conn.send(("error", f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"))
+        except (BrokenPipeError, OSError):
+            pass
+    finally:
+        conn.close()
+
+
+def default_workers(num_envs: int) -> int:
+    """One worker per core this process may use, at most one per env."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, num_envs))
+
+
+class WorkerVectorEnv(gym.vector.VectorEnv):
+    """``num_envs`` chunked envs in ``workers`` subprocesses (see the module docstring).
+
+    Args:
+        env_fns: one picklable factory per env, each returning a :class:`ChunkedEnv`.
+        obs_dim: observation size O.
+        k: sub-steps per decision.
+        action_dim: A.
+        dof: D, size of the robot state in the info.
+        workers: slices of envs stepped in parallel (None: one per core, at most ``num_envs``).
+        main_steps: the main process steps slice 0 itself (``workers - 1`` subprocesses);
+            False: ``workers`` subprocesses and the main process only waits.
+        context: multiprocessing start method ('spawn' is safe beside torch's threads).
+    """
+
+    def __init__(self, env_fns: Sequence[Callable[[], gym.Env]], obs_dim: int, k: int,
+                 action_dim: int, dof: int, workers: int | None = None,
+                 main_steps: bool = True, context: str = "spawn") -> None:
+        n = len(env_fns)
+        if n < 1:
+            raise ValueError("env_fns: expected at least one env factory")
+        w = default_workers(n) if workers is None else int(workers)
+        if not 1 <= w <= n:
+            raise ValueError(f"workers: expected 1..{n} (num_envs), got {workers!r}")
+        self.num_envs = n
+        self.num_workers = w
+        self._layout = _layout(n, obs_dim, k, action_dim, dof)
+        ctx = mp.get_context(context)
+        self._shared = _Shared(self._layout, ctx=ctx)
+        self._a = self._shared.arrays
+        self._closed = False
+        bounds = [i * n // w for i in range(w + 1)]
+        self._slices = list(itertools.pairwise(bounds))
+        self._local: _Slice | None = None
+        if main_steps:
+            lo, hi = self._slices[0]
+            self._local = _Slice([fn() for fn in env_fns[lo:hi]], lo, self._a)
+        self._remote = self._slices[1:] if main_steps else self._slices
+        self._conns, self._procs = [], []
+        for idx, (lo, hi) in enumerate(self._remote):
+            parent, child = ctx.Pipe()
+            proc = ctx.Process(target=_worker, name=f"ndp-env-worker-{idx}", daemon=True,
+                               args=(idx, lo, hi, list(env_fns[lo:hi]), self._shared.raw,
+                                     self._layout, child))
+            proc.start()
+            child.close()
+            self._conns.append(parent)
+            self._procs.append(proc)
+        try:
+            self._gather("ready")
+        except WorkerError as exc:
+            self.close()
+            raise WorkerError(
+                f"{exc} while starting. Workers start with the '{context}' method, which "
+                "re-imports the main script: guard a script's entry point with "
+                "`if __name__ == '__main__':`, or use vector='sync'.") from None
+        if self._local is not None:
+            env0 = self._local.envs[0]
+            obs_space, act_space = env0.observation_space, env0.action_space
+        else:
+            self._send_all("spaces", None)
+            obs_space, act_space = self._gather("spaces")[0]
+        self.single_observation_space = obs_space
+        self.single_action_space = act_space
+        self.observation_space = gym.vector.utils.batch_space(obs_space, n)
+        self.action_space = gym.vector.utils.batch_space(act_space, n)
+        self.metadata = {"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP}
+
+    # ------------------------------------------------------------------ plumbing
+    def _send_all(self, cmd: str, args: Any) -> None:
+        for idx, conn in enumerate(self._conns):
+            arg = args[idx] if isinstance(args, list) else args
+            try:
+                conn.send((cmd, arg))
+            except (BrokenPipeError, OSError) as exc:
+                raise self._dead(idx) from exc
+
+    def _dead(self, idx: int) -> WorkerError:
+        code = self._procs[idx].exitcode
+        return WorkerError(f"env worker {self._name(idx)} died (exit code {code}); the vector "
+                           "env is unusable, close it and start again")
+
+    def _name(self, idx: int) -> str:
+        """Worker name: its slice (slice 0 is the main process's when ``main_steps``)."""
+        return str(idx + (1 if self._local is not None else 0))
+
+    def _gather(self, what: str) -> list[Any]:
+        out, errors = [], []
+        for idx, conn in enumerate(self._conns):
+            try:
+                status, payload = conn.recv()
+            except (EOFError, OSError) as exc:
+                raise self._dead(idx) from exc
+            if status == "error":
+                errors.append(f"env worker {self._name(idx)} ({what}): {payload}")
+            out.append(payload)
+        if errors:
+            raise WorkerError("\n".join(errors))
+        return out
+
+    def _infos(self, done: np.ndarray | None) -> dict[str, Any]:
+        a = self._a
+        infos: dict[str, Any] = {key[5:]: arr.copy() for key, arr in a.items()
+                                 if key.startswith("info/")}
+        if done is not None and done.any():
+            infos["final_info"] = {key[6:]: arr.copy() for key, arr in a.items()
+                                   if key.startswith("final/")}
+            final_obs = np.empty(self.num_envs, dtype=object)
+            for i in np.flatnonzero(done):
+                final_obs[i] = a["final_obs"][i].copy()
+            infos["final_obs"] = final_obs
+        return infos
+
+    # ------------------------------------------------------------------ gym API
+    def reset(self, *, seed: int | Sequence[int] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset every env; ``seed``: one per env, or an int (env i gets seed + i)."""
+        if self._closed:
+            raise WorkerError("reset: the vector env is closed")
+        if isinstance(seed, int):
+            seeds: list[int | None] = [seed + i for i in range(self.num_envs)]
+        elif seed is None:
+            seeds = [None] * self.num_envs
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"seed: expected {self.num_envs} seeds, got {len(seeds)}")
+        self._send_all("reset", [seeds[lo:hi] for lo, hi in self._remote])
+        if self._local is not None:
+            lo, hi = self._slices[0]
+            self._local.reset(seeds[lo:hi])
+        self._gather("reset")
+        return self._a["obs"].copy(), self._infos(None)
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                 np.ndarray, dict[str, Any]]:
+        """Step every env with its [k, A] actions (``actions`` [E, k, A])."""
+        if self._closed:
+            raise WorkerError("step: the vector env is closed")
+        a = self._a
+        acts = np.asarray(actions, dtype=np.float64)
+        if acts.shape != a["actions"].shape:
+            raise ValueError(f"actions: expected shape {a['actions'].shape}, got {acts.shape}")
+        a["actions"][:] = acts
+        self._send_all("step", None)
+        if self._local is not None:  # slice 0 here while the workers step theirs
+            try:
+                self._local.step()
+            except BaseException:
+                try:  # leave the workers idle before raising this process's error
+                    self._gather("step")
+                except WorkerError:
+                    pass
+                raise
+        self._gather("step")
+        term, trunc = a["terminated"].copy(), a["truncated"].copy()
+        return (a["obs"].copy(), a["reward"].copy(), term, trunc, self._infos(term | trunc))
+
+    def close(self, **kwargs: Any) -> None:
+        """Stop the workers and free the shared memory (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        for conn in self._conns:
+            try:
+                conn.send(("close", None))
+            except (BrokenPipeError, OSError):
+                pass
+        for conn in self._conns:
+            try:
+                if conn.poll(5):
+                    conn.recv()
+            except (EOFError, OSError):
+                pass
+            conn.close()
+        for proc in self._procs:
+            proc.join(timeout=5)
+            if proc.is_alive():
+                proc.terminate()
+                proc.join(timeout=1)
+        if self._local is not None:
+            self._local.close()
+            self._local = None
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:
+            pass

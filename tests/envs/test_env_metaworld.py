@@ -151,3 +151,42 @@ def test_command_state_is_the_mocap_target_that_leads_the_hand():
     lead = info["cmd_y0"][1] - info["dmp_y0"][1]
     assert lead > 0.005  # the hand trails its target
     env.close()
+
+
+def _reward_forms(name: str, decisions: int = 30, k: int = 5) -> tuple[float, int]:
+    """(max |full - observation-only| stale reward, states where the world had moved) on a
+    noisy-expert episode (world snapshot after each decision's first sub-step)."""
+    from ndp.envs.metaworld_env import WORLD_OBS
+
+    env = make_env(name, horizon=150)
+    mw = env.unwrapped
+    policy = ENV_POLICY_MAP[name]()
+    rng = np.random.default_rng(0)
+    obs, _ = env.reset(seed=0)
+    diff, moved = 0.0, 0
+    for _ in range(decisions):
+        for j in range(k):
+            a = np.clip(policy.get_action(obs) + rng.normal(0.0, 0.3, 4), -1.0, 1.0)
+            obs, *_ = env.step(a)
+            if j == 0:
+                snap = mw.world_snapshot()
+                continue
+            full = mw.stale_reward(snap, a, from_obs=False)
+            diff = max(diff, abs(full - mw.stale_reward(snap, a, from_obs=True)))
+            moved += int(np.abs(obs[WORLD_OBS] - snap[2][WORLD_OBS]).max() > 1e-6)
+    env.close()
+    return diff, moved
+
+
+@pytest.mark.filterwarnings("ignore:Constant")
+@pytest.mark.parametrize("name", metaworld_env_names())
+def test_reward_from_obs_flag_is_measured(name):
+    """The task table's reward_from_obs flag: both stale-reward forms agree exactly on recorded
+    states where it is set (while the world moved), and differ where it is not."""
+    from ndp.envs import TASKS
+
+    diff, moved = _reward_forms(name)
+    if TASKS[name].reward_from_obs:
+        assert moved > 0 and diff == 0.0
+    else:
+        assert diff > 1e-6

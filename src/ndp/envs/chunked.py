@@ -83,6 +83,7 @@ class ChunkedEnv(gym.Wrapper):
             np.tile(box.low, (self.k, 1)), np.tile(box.high, (self.k, 1)), dtype=box.dtype
         )
         self.dof = len(np.asarray(base.robot_state()[0]))
+        self._last_state: tuple[np.ndarray, np.ndarray] | None = None
         cmd = getattr(base, "command_state", None)
         self._command_state = cmd if callable(cmd) else base.robot_state
         self._success_any = False
@@ -94,6 +95,7 @@ class ChunkedEnv(gym.Wrapper):
         obs, info = self.env.reset(seed=seed, options=options)
         self._success_any = False
         pos, vel = (np.asarray(x, dtype=np.float64) for x in self._base.robot_state())
+        self._last_state = (pos.copy(), vel.copy())
         info = dict(info)
         cpos, cvel = (np.asarray(x, dtype=np.float64) for x in self._command_state())
         info.update(robot_pos=pos.copy(), robot_vel=vel.copy(), dmp_y0=pos, dmp_dy0=vel,
@@ -125,7 +127,9 @@ class ChunkedEnv(gym.Wrapper):
         sub_succ = np.zeros(k)
         rpos = np.zeros((k + 1, dof))
         rvel = np.zeros((k + 1, dof))
-        rpos[0], rvel[0] = self._base.robot_state()
+        # the state the previous decision ended in (nothing moves between two calls)
+        rpos[0], rvel[0] = self._last_state if self._last_state is not None else (
+            self._base.robot_state())
         snapshot = None
         terminated = truncated = unstable = False
         obs: Any = None
@@ -151,6 +155,7 @@ class ChunkedEnv(gym.Wrapper):
                 break
         rpos[n + 1 :] = rpos[n]
         rvel[n + 1 :] = rvel[n]
+        self._last_state = (rpos[n].copy(), rvel[n].copy())
         cpos, cvel = (np.asarray(x, dtype=np.float64) for x in self._command_state())
         success_decision = bool(sub_succ[:n].any())
         self._success_any = self._success_any or success_decision

@@ -32,6 +32,22 @@ ROBOT_JOINTS = frozenset(
 """Sawyer joints; every other joint of a Meta-World model is world (objects, doors, ...)."""
 WORLD_OBS = np.r_[4:18, 22:36, 36:39]
 """Observation indices that describe the world (objects of both frames and the goal)."""
+REWARD_FROM_OBS: frozenset[str] = frozenset({
+    "basketball-v3", "bin-picking-v3", "box-close-v3", "button-press-topdown-v3",
+    "button-press-topdown-wall-v3", "button-press-v3", "button-press-wall-v3",
+    "coffee-button-v3", "coffee-pull-v3", "coffee-push-v3", "door-close-v3", "door-lock-v3",
+    "door-unlock-v3", "drawer-close-v3", "drawer-open-v3", "faucet-close-v3", "faucet-open-v3",
+    "hammer-v3", "hand-insert-v3", "handle-pull-side-v3", "handle-pull-v3", "lever-pull-v3",
+    "peg-unplug-side-v3", "pick-out-of-hole-v3", "pick-place-v3", "pick-place-wall-v3",
+    "plate-slide-back-side-v3", "plate-slide-back-v3", "plate-slide-side-v3", "plate-slide-v3",
+    "push-back-v3", "push-v3", "push-wall-v3", "reach-v3", "reach-wall-v3", "shelf-place-v3",
+    "soccer-v3", "stick-push-v3", "sweep-into-v3", "sweep-v3",
+})
+"""Meta-World tasks whose reward reads the world only through the observation: their stale-world
+reward needs no kinematics pass (``stale_reward``). Established by measurement, not by reading
+code: on recorded noisy-expert states the observation-only and the full form agree exactly for
+these 40 tasks and differ for the other 10 (tests/envs/test_env_metaworld.py checks both ways
+on every task; the 10 read object or joint positions from the simulator)."""
 
 
 def metaworld_env_names() -> list[str]:
@@ -167,7 +183,8 @@ class MetaWorldEnv(gym.Env, EzPickle):
         )
 
     def stale_reward(
-        self, snapshot: tuple[np.ndarray, np.ndarray, np.ndarray], action: np.ndarray
+        self, snapshot: tuple[np.ndarray, np.ndarray, np.ndarray], action: np.ndarray,
+        from_obs: bool | None = None,
     ) -> float:
         """Task reward for the live robot and the world of ``snapshot``.
 
@@ -177,15 +194,28 @@ class MetaWorldEnv(gym.Env, EzPickle):
         recomputed. ``compute_reward`` of the v3 tasks has no side effects on the env once the
         episode's first step has run (checked for all 50 tasks in tests/envs; see docs/envs.md).
 
+        Tasks whose reward reads the world only through the observation (``reward_from_obs`` of
+        the task table, :data:`REWARD_FROM_OBS`) skip the two kinematics passes: the reward of
+        the observation with the snapshot's world part is the same number (tested on recorded
+        states for every task in tests/envs).
+
         Args:
             snapshot: From :meth:`world_snapshot`.
             action: The sub-action [4] just executed (some rewards use the gripper command).
+            from_obs: Force the observation-only form (True) or the full one (False); None:
+                the task's flag.
 
         Returns:
             The stale-world reward.
         """
         assert self._obs is not None
         qw, vw, obs_w = snapshot
+        if from_obs is None:
+            from_obs = self.task in REWARD_FROM_OBS
+        if from_obs:
+            obs = self._obs.copy()
+            obs[WORLD_OBS] = obs_w[WORLD_OBS]
+            return float(self.mw.compute_reward(np.asarray(action, dtype=np.float64), obs)[0])
         m, d = self.model, self.data
         live_q = d.qpos[self._world_q].copy()
         live_v = d.qvel[self._world_v].copy()

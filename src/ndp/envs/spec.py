@@ -26,7 +26,7 @@ from typing import Literal
 import torch
 
 from ndp.envs import jaco
-from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, metaworld_env_names
+from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metaworld_env_names
 
 Family = Literal["metaworld", "jaco"]
 
@@ -111,6 +111,10 @@ class TaskSpec:
     """Observation size."""
     metaworld_name: str | None = None
     """The metaworld v3 name for Meta-World tasks, else None."""
+    reward_from_obs: bool = False
+    """The reward reads the world only through the observation, so the stale-world reward is
+    the reward of the observation with the snapshot's world part (no kinematics pass);
+    measured per task (``ndp.envs.metaworld_env.REWARD_FROM_OBS``)."""
     aliases: tuple[str, ...] = field(default=())
     """Other names :func:`get_task_spec` accepts for this task."""
 
@@ -160,6 +164,7 @@ def _metaworld_spec(name: str) -> TaskSpec:
         sim_dt=0.0025,
         obs_dim=39,
         metaworld_name=name,
+        reward_from_obs=name in REWARD_FROM_OBS,
         aliases=(name.removesuffix("-v3"), f"metaworld-{name}"),
     )
 

@@ -110,3 +110,42 @@ def test_fused_gaussian_loss_equals_autograd(clip):
     assert torch.autograd.gradcheck(
         lambda mu, ls: gaussian_policy_loss(mu, ls, z, old, adv, mask, clip)[0],
         (mean, log_std))
+
+
+def test_flat_adam_equals_clip_grad_norm_then_adam():
+    from torch import nn
+
+    from ndp.rl.optim import FlatAdam
+
+    def net():
+        torch.manual_seed(0)
+        return nn.Sequential(nn.Linear(5, 7), nn.Tanh(), nn.Linear(7, 3))
+
+    a, b = net(), net()
+    ref = torch.optim.Adam(a.parameters(), lr=1e-2, eps=1e-5)
+    flat = FlatAdam(b, lr=1e-2, eps=1e-5)
+    g = torch.Generator().manual_seed(1)
+    for i in range(6):
+        x = torch.randn(16, 5, generator=g) * (10.0 if i % 2 else 0.1)  # clipped and not
+        for m, opt in ((a, ref), (b, flat)):
+            loss = (m(x) ** 2).sum()
+            opt.zero_grad()
+            loss.backward()
+            if opt is ref:
+                n_ref = nn.utils.clip_grad_norm_(a.parameters(), 0.5)
+                ref.step()
+            else:
+                n_flat = flat.clip_grad_norm(0.5)
+                flat.step()
+        torch.testing.assert_close(n_flat, n_ref)
+        for pa, pb in zip(a.parameters(), b.parameters(), strict=True):
+            torch.testing.assert_close(pb, pa)
+    # the module is unchanged from outside: same state_dict keys, parameters are views
+    assert list(b.state_dict()) == list(a.state_dict())
+    # a per-parameter Adam state (older checkpoints) loads into the flat one
+    c = net()
+    fc = FlatAdam(c, lr=1e-2, eps=1e-5)
+    c.load_state_dict(a.state_dict())
+    fc.load_state_dict(ref.state_dict())
+    torch.testing.assert_close(fc.state_dict()["state"][0]["exp_avg"],
+                               flat.state_dict()["state"][0]["exp_avg"])

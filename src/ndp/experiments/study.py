@@ -95,8 +95,8 @@ def is_finished(run: Path) -> bool:
 
 
 def train_command(task: str, arm: Arm, seed: int, steps: int, run: Path,
-                  num_envs: int = 4) -> list[str]:
-    """The command that trains (or resumes) one run."""
+                  num_envs: int = 4, vector: str = "auto") -> list[str]:
+    """The command that trains (or resumes) one run (``vector``: its vector env kind)."""
     if arm.algo == "sb3-ppo":
         return [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task, "--steps",
                 str(steps), "--seed", str(seed), "--num-envs", str(num_envs), "--run-dir",
@@ -106,11 +106,12 @@ def train_command(task: str, arm: Arm, seed: int, steps: int, run: Path,
                 "--no-progress"]
     return [sys.executable, "-m", "ndp.cli", "rl", "train", "--task", task, "--algo", arm.algo,
             "--seed", str(seed), "--steps", str(steps), "--num-envs", str(num_envs),
-            "--run-dir", str(run), "--no-progress", "--no-tensorboard", *arm.args]
+            "--run-dir", str(run), "--no-progress", "--no-tensorboard", "--vector", vector,
+            *arm.args]
 
 
 def run_one(task: str, arm: Arm, seed: int, steps: int, runs_dir: Path,
-            num_envs: int = 4) -> Path:
+            num_envs: int = 4, vector: str = "auto") -> Path:
     """Train, resume or reuse one run; returns its directory."""
     run = run_dir(runs_dir, task, arm, seed)
     _check_arm(run, arm, steps)
@@ -121,18 +122,26 @@ def run_one(task: str, arm: Arm, seed: int, steps: int, runs_dir: Path,
     t0 = time.time()
     log = run / "train.log"
     with log.open("a") as fh:
-        subprocess.run(train_command(task, arm, seed, steps, run, num_envs), check=True,
-                       stdout=fh, stderr=subprocess.STDOUT)
+        subprocess.run(train_command(task, arm, seed, steps, run, num_envs, vector),
+                       check=True, stdout=fh, stderr=subprocess.STDOUT)
     print(f"[{task} {arm.label} s{seed}] {time.time() - t0:.0f}s", flush=True)
     return run
 
 
 def run_grid(tasks: Sequence[str], arms: Sequence[Arm], seeds: Sequence[int], steps: int,
              runs_dir: Path, jobs: int = 1, num_envs: int = 4) -> list[Path]:
-    """Every (task, arm, seed), seed-major (all arms of seed 0 first), ``jobs`` at a time."""
+    """Every (task, arm, seed), seed-major (all arms of seed 0 first), ``jobs`` at a time.
+
+    With one job a run uses the env workers (``--vector auto``); with several, each run is a
+    single process (``--vector sync``), which keeps the cores busy through the updates too.
+    """
+    from ndp.envs.vector import default_workers
+
+    vector = "auto" if jobs <= 1 or default_workers(64) >= 2 * jobs else "sync"
     grid = [(t, a, s) for s in seeds for t in tasks for a in arms]
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        futs = [pool.submit(run_one, t, a, s, steps, runs_dir, num_envs) for t, a, s in grid]
+        futs = [pool.submit(run_one, t, a, s, steps, runs_dir, num_envs, vector)
+                for t, a, s in grid]
         return [f.result() for f in futs]
 
 

@@ -60,6 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--arms", nargs="+", default=[a.label for a in ARMS],
                    choices=[a.label for a in ARMS])
     p.add_argument("--jobs", type=int, default=1, help="runs at once (at most one per core)")
+    p.add_argument("--vector", default=None, choices=("auto", "sync"),
+                   help="vector env of each run (default: auto for one job, sync for several)")
     p.add_argument("--runs-dir", type=Path, default=Path("runs/ndp_study"))
     p.add_argument("--out", type=Path, default=Path("docs/results/ndp_ablation"))
     p.add_argument("--plot-only", action="store_true")
@@ -70,7 +72,8 @@ def main(argv: list[str] | None = None) -> int:
     cmd = "python benchmarks/ndp_ablation.py " + " ".join(
         argv if argv is not None else sys.argv[1:])
     if not args.plot_only:
-        run_grid(args.tasks, arms, args.seeds, args.steps, args.runs_dir, args.jobs)
+        run_grid(args.tasks, arms, args.seeds, args.steps, args.runs_dir, args.jobs,
+                 vector=args.vector)
     summary = summarise(args.tasks, arms, args.seeds, args.steps, args.runs_dir)
     summary.update(command=cmd, commit=git_commit(), date=dt.date.today().isoformat(),
                    runs_dir=str(args.runs_dir))

@@ -36,6 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     p.add_argument("--steps", type=int, default=150_000)
     p.add_argument("--jobs", type=int, default=1, help="runs at once (at most one per core)")
+    p.add_argument("--vector", default=None, choices=("auto", "sync"),
+                   help="vector env of each run (default: auto for one job, sync for several)")
     p.add_argument("--runs-dir", type=Path, default=Path("runs/ppo_vs_sb3"))
     p.add_argument("--label", default="ppo", help="label of our PPO arm (with extra options)")
     p.add_argument("--out", type=Path, default=Path("docs/results/ppo_vs_sb3"))
@@ -46,7 +48,8 @@ def main(argv: list[str] | None = None) -> int:
             Arm("sb3-ppo", "sb3-ppo", (), "Stable-Baselines3 2.x PPO")]
     cmd = "python benchmarks/ppo_vs_sb3.py " + " ".join(argv if argv is not None else sys.argv[1:])
     if not args.plot_only:
-        run_grid(args.tasks, arms, args.seeds, args.steps, args.runs_dir, args.jobs)
+        run_grid(args.tasks, arms, args.seeds, args.steps, args.runs_dir, args.jobs,
+                 vector=args.vector)
     summary = summarise(args.tasks, arms, args.seeds, args.steps, args.runs_dir)
     summary.update(command=cmd, commit=git_commit(), date=dt.date.today().isoformat(),
                    runs_dir=str(args.runs_dir))

@@ -129,15 +129,18 @@ def run_one(task: str, arm: Arm, seed: int, steps: int, runs_dir: Path,
 
 
 def run_grid(tasks: Sequence[str], arms: Sequence[Arm], seeds: Sequence[int], steps: int,
-             runs_dir: Path, jobs: int = 1, num_envs: int = 4) -> list[Path]:
+             runs_dir: Path, jobs: int = 1, num_envs: int = 4,
+             vector: str | None = None) -> list[Path]:
     """Every (task, arm, seed), seed-major (all arms of seed 0 first), ``jobs`` at a time.
 
-    With one job a run uses the env workers (``--vector auto``); with several, each run is a
-    single process (``--vector sync``), which keeps the cores busy through the updates too.
+    ``vector`` (None: decided here): with one job a run uses the env workers (``auto``); with
+    several, each run is a single process (``sync``), which keeps the cores busy through the
+    updates too. Pass ``sync`` when other studies share the machine.
     """
     from ndp.envs.vector import default_workers
 
-    vector = "auto" if jobs <= 1 or default_workers(64) >= 2 * jobs else "sync"
+    if vector is None:
+        vector = "auto" if jobs <= 1 or default_workers(64) >= 2 * jobs else "sync"
     grid = [(t, a, s) for s in seeds for t in tasks for a in arms]
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
         futs = [pool.submit(run_one, t, a, s, steps, runs_dir, num_envs, vector)

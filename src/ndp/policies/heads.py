@@ -105,6 +105,11 @@ class NDPHead(ActionHead):
         mean_clip: clip the sub-action means to the action bounds (the first release's form).
         direct: [D] bool, DoF whose command is the goal itself for all k sub-steps (no DMP).
         start_at_rest: integrate every DoF from dy0 = 0 (the given dy0 is ignored).
+        linear_controller: ``(scale [D], absolute [D], low [D], high [D])`` when
+            ``inverse_controller`` is the standard linear one (action = delta / scale, or the
+            value itself; A = D): the DMP, the inverse controller and ``direct`` then fold into
+            one precomputed map per DoF (:meth:`decode` uses it; :meth:`decode_reference` is
+            the composed form, equal in value and gradient, tested).
     """
 
     needs_robot_state = True
@@ -125,6 +130,7 @@ class NDPHead(ActionHead):
         mean_clip: bool = False,
         direct: torch.Tensor | None = None,
         start_at_rest: bool = False,
+        linear_controller: tuple[torch.Tensor, ...] | None = None,
     ) -> None:
         super().__init__()
         if dmp.steps // dmp.subsample != k or dmp.steps % dmp.subsample:
@@ -160,12 +166,36 @@ class NDPHead(ActionHead):
         self.param_noise = bool(param_noise)
         n_std = self.n_params if self.param_noise else self.action_dim
         self.log_std = nn.Parameter(torch.full((n_std,), float(init_log_std)))
+        self._fused = linear_controller is not None and self.action_dim == self.dmp_dofs
+        if self._fused:
+            assert linear_controller is not None
+            scale, absolute, low, high = (torch.as_tensor(x) for x in linear_controller)
+            self.register_buffer("action_map", self._action_map(scale, absolute.bool()))
+            self.register_buffer("action_low", low.to(torch.float32).clone())
+            self.register_buffer("action_high", high.to(torch.float32).clone())
 
-    def decode(
+    def _action_map(self, scale: torch.Tensor, absolute: torch.Tensor) -> torch.Tensor:
+        """Per DoF, the map [D, N + 3, k] from (w, g, y0, dy0) to the k sub-action means."""
+        from ndp.dmp.integrate import _linear_map_f64
+
+        cfg = self.dmp.config
+        n, k = cfg.n_basis, self.k
+        pos = torch.as_tensor(_linear_map_f64(cfg, None)[:, : cfg.n_out].copy())  # [N+3, k+1]
+        maps = []
+        for d in range(self.dmp_dofs):
+            if bool(self.direct[d]):
+                m = torch.zeros(n + 3, k, dtype=torch.float64)
+                m[n] = 1.0  # the goal, at every sub-step
+            elif bool(absolute[d]):
+                m = pos[:, 1:]  # the trajectory value itself
+            else:
+                m = (pos[:, 1:] - pos[:, :-1]) / float(scale[d])  # consecutive differences
+            maps.append(m)
+        return torch.stack(maps).to(torch.float32)
+
+    def _goal_weights_dy0(
         self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Raw parameters [B, P] and robot state (physical, [B, D]) -> (actions [B, k, A],
-        goal [B, D], weights [B, D, N])."""
         b, d = raw.shape[0], self.dmp_dofs
         step = self.goal_scale * torch.tanh(raw[:, :d])
         goal = torch.where(self.absolute_goal, self.goal_center + step, y0 + step)
@@ -177,21 +207,48 @@ class NDPHead(ActionHead):
             dy0_dmp = torch.where(
                 self.absolute_goal, 0.0, dy0 * (self.decision_dt / self.dmp.config.tau)
             )
+        return goal, weights, dy0_dmp
+
+    def decode(
+        self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Raw parameters [B, P] and robot state (physical, [B, D]) -> (actions [B, k, A],
+        goal [B, D], weights [B, D, N])."""
+        if not self._fused:
+            return self.decode_reference(raw, y0, dy0)
+        goal, weights, dy0_dmp = self._goal_weights_dy0(raw, y0, dy0)
+        cfg = self.dmp.config
+        v = weights * (goal - y0).unsqueeze(-1) if cfg.scale_by_goal else weights
+        u = torch.cat((v, torch.stack((goal, y0, dy0_dmp), dim=-1)), dim=-1)  # [B, D, N + 3]
+        if self.dmp.check_finite and not bool(torch.isfinite(u.sum())):
+            from ndp.dmp.integrate import check_finite
+
+            check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0_dmp)
+            raise FloatingPointError("inputs: expected finite values, their sum overflows")
+        actions = torch.bmm(u.transpose(0, 1), self.action_map).permute(1, 2, 0)  # [B, k, D]
+        if self.mean_clip:
+            actions = torch.maximum(torch.minimum(actions, self.action_high), self.action_low)
+        return actions, goal, weights
+
+    def decode_reference(
+        self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """:meth:`decode` composed step by step: DMP layer, then the inverse controller."""
+        goal, weights, dy0_dmp = self._goal_weights_dy0(raw, y0, dy0)
         traj = self.dmp.positions(goal, weights, y0, dy0_dmp)  # [B, k + 1, D], traj[:, 0] = y0
         if self._any_direct:  # the goal is the command of every sub-step
             traj = torch.where(self.direct, goal.unsqueeze(1), traj)
         actions = self.inverse_controller(traj, clip=self.mean_clip)  # [B, k, A]
         return actions, goal, weights
 
-
     def distribution(self, raw, y0=None, dy0=None):
         if y0 is None or dy0 is None:
             raise ValueError("NDPHead: the robot state y0, dy0 [B, D] is required")
         mean_actions, goal, weights = self.decode(raw, y0, dy0)
-        aux = {
-            "goal_norm": (goal - y0).norm(dim=-1),
-            "weight_norm": weights.flatten(1).norm(dim=-1),
-        }
+        aux: dict[str, torch.Tensor] = {}
+        if not torch.is_grad_enabled():  # diagnostics of rollouts only (not in the update)
+            aux = {"goal_norm": (goal - y0).norm(dim=-1),
+                   "weight_norm": weights.flatten(1).norm(dim=-1)}
         if self.param_noise:
 
             def _decode(z: torch.Tensor) -> torch.Tensor:
@@ -266,7 +323,22 @@ def build_head(cfg: Any, spec: Any) -> ActionHead:
         mean_clip=cfg.mean_clip,
         direct=torch.as_tensor(direct),
         start_at_rest=cfg.dmp_velocity == "zero",
+        linear_controller=_linear_controller(spec),
     )
+
+
+def _linear_controller(spec: Any) -> tuple[torch.Tensor, ...] | None:
+    """(scale, absolute, low, high) [D] of a spec whose inverse controller is the standard
+    linear one (``ndp.envs.spec.TaskSpec``), else None (the composed path is used)."""
+    from ndp.envs.spec import TaskSpec
+
+    if type(spec).inverse_controller is not TaskSpec.inverse_controller:
+        return None
+    d = spec.dmp_dofs
+    scale = torch.as_tensor([s if s > 0 else 1.0 for s in _per_dof(spec.action_scale, d)])
+    return (scale, torch.as_tensor(_per_dof(spec.action_absolute, d).astype(bool)),
+            torch.as_tensor(_per_dof(spec.action_low, d)),
+            torch.as_tensor(_per_dof(spec.action_high, d)))
 
 
 def _per_dof(value: Any, d: int) -> np.ndarray:

@@ -241,6 +241,8 @@ def test_fused_decode_equals_the_composed_dmp_and_controller(task, opts):
     fast, g1, w1 = head.decode(raw, y0, dy0)
     ref, g2, w2 = head.decode_reference(raw, y0, dy0)
     torch.testing.assert_close(fast, ref, rtol=1e-5, atol=1e-5)
+    torch.testing.assert_close(g1, g2)
+    torch.testing.assert_close(w1, w2)
     weights = torch.randn_like(fast)
     (gf,) = torch.autograd.grad((fast * weights).sum(), raw)
     (gr,) = torch.autograd.grad((ref * weights).sum(), raw)

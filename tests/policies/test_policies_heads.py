@@ -247,3 +247,19 @@ def test_fused_decode_equals_the_composed_dmp_and_controller(task, opts):
     (gf,) = torch.autograd.grad((fast * weights).sum(), raw)
     (gr,) = torch.autograd.grad((ref * weights).sum(), raw)
     torch.testing.assert_close(gf, gr, rtol=1e-4, atol=1e-5)
+
+
+def test_ndp_checkpoints_hold_only_learned_state_and_old_ones_load():
+    """Derived buffers (bounds, maps) are not saved; state dicts of earlier versions, which
+    saved some of them, still load."""
+    spec = get_task_spec("push-v3")
+    ac = build_actor_critic(39, spec, _cfg("ndp"))
+    sd = ac.state_dict()
+    assert not any(k.startswith("head.") and k != "head.log_std" for k in sd)
+    legacy = dict(sd)
+    legacy["head.goal_scale"] = torch.ones(4)
+    legacy["head.absolute_goal"] = torch.zeros(4, dtype=torch.bool)
+    legacy["head.goal_center"] = torch.zeros(4)
+    fresh = build_actor_critic(39, spec, _cfg("ndp"))
+    fresh.load_state_dict(legacy)  # strict: no unexpected / missing keys
+    assert torch.equal(fresh.head.goal_scale, ac.head.goal_scale)  # recomputed, not loaded

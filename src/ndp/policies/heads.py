@@ -85,6 +85,12 @@ class MultiHead(ActionHead):
         return SubActionGaussian(mean, self.log_std), {}
 
 
+DERIVED_BUFFERS = ("goal_scale", "absolute_goal", "goal_center", "weight_scale", "direct",
+                   "action_map", "action_low", "action_high")
+"""NDPHead buffers computed from the config and the task: not saved, ignored when loading
+(checkpoints of earlier versions saved some of them)."""
+
+
 class NDPHead(ActionHead):
     """NDP: DMP parameters -> DMP layer from the robot state -> inverse controller -> k actions.
 
@@ -147,17 +153,18 @@ class NDPHead(ActionHead):
         self.n_params = self.dmp_dofs * (1 + self.n_basis)
         self.dmp = DMPLayer(dmp)
         gs = torch.as_tensor(goal_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
-        self.register_buffer("goal_scale", gs)
+        self.register_buffer("goal_scale", gs, persistent=False)
         # DoF with a fixed goal centre (absolute commands) ignore y0 and dy0 for the goal.
         centre = torch.full((self.dmp_dofs,), float("nan")) if goal_center is None else (
             torch.as_tensor(goal_center, dtype=torch.float32).clone())
-        self.register_buffer("absolute_goal", ~torch.isnan(centre))  # NaN centre: relative
-        self.register_buffer("goal_center", centre.nan_to_num())
+        # NaN centre: a goal relative to y0
+        self.register_buffer("absolute_goal", ~torch.isnan(centre), persistent=False)
+        self.register_buffer("goal_center", centre.nan_to_num(), persistent=False)
         ws = torch.as_tensor(weight_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
-        self.register_buffer("weight_scale", ws)
+        self.register_buffer("weight_scale", ws, persistent=False)
         direct_t = torch.zeros(self.dmp_dofs, dtype=torch.bool) if direct is None else (
             torch.as_tensor(direct, dtype=torch.bool).clone())
-        self.register_buffer("direct", direct_t)
+        self.register_buffer("direct", direct_t, persistent=False)
         self._any_direct = bool(direct_t.any())
         self.mean_clip = bool(mean_clip)
         self.start_at_rest = bool(start_at_rest)
@@ -170,9 +177,15 @@ class NDPHead(ActionHead):
         if self._fused:
             assert linear_controller is not None
             scale, absolute, low, high = (torch.as_tensor(x) for x in linear_controller)
-            self.register_buffer("action_map", self._action_map(scale, absolute.bool()))
-            self.register_buffer("action_low", low.to(torch.float32).clone())
-            self.register_buffer("action_high", high.to(torch.float32).clone())
+            self.register_buffer("action_map", self._action_map(scale, absolute.bool()),
+                                 persistent=False)
+            self.register_buffer("action_low", low.to(torch.float32).clone(), persistent=False)
+            self.register_buffer("action_high", high.to(torch.float32).clone(), persistent=False)
+
+    def _load_from_state_dict(self, state_dict, prefix, *args, **kwargs):  # type: ignore[override]
+        for name in DERIVED_BUFFERS:  # derived, not state: older checkpoints held some of them
+            state_dict.pop(prefix + name, None)
+        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
 
     def _action_map(self, scale: torch.Tensor, absolute: torch.Tensor) -> torch.Tensor:
         """Per DoF, the map [D, N + 3, k] from (w, g, y0, dy0) to the k sub-action means."""

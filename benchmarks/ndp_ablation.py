@@ -27,13 +27,9 @@ The issue's protocol (many CPU hours; resumable)::
 from __future__ import annotations
 
 import argparse
-import datetime as dt
-import json
 import sys
-from pathlib import Path
 
-from ndp.experiments.provenance import git_commit
-from ndp.experiments.study import Arm, markdown_table, plot, run_grid, summarise
+from ndp.experiments.study import Arm, add_study_arguments, run_study
 
 ARMS = [
     Arm("ndp", "ndp", (), "default NDP head"),
@@ -55,41 +51,17 @@ ARMS = [
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--tasks", nargs="+", default=["push-v3", "point-mass"])
-    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
-    p.add_argument("--steps", type=int, default=300_000)
     p.add_argument("--arms", nargs="+", default=[a.label for a in ARMS],
                    choices=[a.label for a in ARMS])
-    p.add_argument("--jobs", type=int, default=1, help="runs at once (at most one per core)")
-    p.add_argument("--vector", default=None, choices=("auto", "sync"),
-                   help="vector env of each run (default: auto for one job, sync for several)")
-    p.add_argument("--runs-dir", type=Path, default=Path("runs/ndp_study"))
-    p.add_argument("--out", type=Path, default=Path("docs/results/ndp_ablation"))
-    p.add_argument("--plot-only", action="store_true")
-    p.add_argument("extra", nargs="*", help="extra 'ndp rl train' options for every arm")
+    add_study_arguments(p, "runs/ndp_study", "docs/results/ndp_ablation", 300_000)
     args = p.parse_args(argv)
     arms = [Arm(a.label, a.algo, a.args + tuple(args.extra), a.note)
             for a in ARMS if a.label in args.arms]
     cmd = "python benchmarks/ndp_ablation.py " + " ".join(
         argv if argv is not None else sys.argv[1:])
-    if not args.plot_only:
-        run_grid(args.tasks, arms, args.seeds, args.steps, args.runs_dir, args.jobs,
-                 vector=args.vector)
-    summary = summarise(args.tasks, arms, args.seeds, args.steps, args.runs_dir)
-    summary.update(command=cmd, commit=git_commit(), date=dt.date.today().isoformat(),
-                   runs_dir=str(args.runs_dir))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.with_suffix(".json").write_text(json.dumps(summary, indent=1) + "\n")
-    plot(summary, arms, args.out.with_suffix(".png"))
-    lines = [f"# NDP head ablation ({args.steps} env steps, seeds {args.seeds})", "",
-             f"Command: `{cmd}`  ", f"Commit: {summary['commit']}, date: {summary['date']}; "
-             f"runs in `{args.runs_dir}`.", "", "| arm | change |", "|---|---|",
-             *[f"| {a.label} | {a.note} (`{' '.join(a.args) or 'defaults'}`) |" for a in arms],
-             "", "Success area (success averaged over the budget; mean +- std over seeds):", "",
-             *markdown_table(summary, arms, "area"), "",
-             "Final success (last 10% of updates):", "", *markdown_table(summary, arms, "final"),
-             "", f"![curves]({args.out.with_suffix('.png').name})", ""]
-    args.out.with_suffix(".md").write_text("\n".join(lines))
-    print("\n".join(lines))
+    intro = ["| arm | change |", "|---|---|",
+             *[f"| {a.label} | {a.note} (`{' '.join(a.args) or 'defaults'}`) |" for a in arms], ""]
+    run_study(args, args.tasks, arms, "NDP head ablation", intro, cmd)
     return 0
 
 

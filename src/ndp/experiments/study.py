@@ -267,3 +267,49 @@ def plot(summary: dict[str, Any], arms: Sequence[Arm], path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=60)
     plt.close(fig)
+
+
+def add_study_arguments(parser: Any, runs_dir: str, out: str, steps: int) -> None:
+    """The options every study command shares (seeds, budget, jobs, directories, extras)."""
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    parser.add_argument("--steps", type=int, default=steps, help="env-step budget per run")
+    parser.add_argument("--jobs", type=int, default=1, help="runs at once (at most one per core)")
+    parser.add_argument("--vector", default=None, choices=("auto", "sync"),
+                        help="vector env of each run (default: auto for one job, sync for more)")
+    parser.add_argument("--runs-dir", type=Path, default=Path(runs_dir))
+    parser.add_argument("--out", type=Path, default=Path(out),
+                        help="output stem: <out>.json, <out>.md, <out>.png")
+    parser.add_argument("--plot-only", action="store_true", help="only aggregate existing runs")
+    parser.add_argument("extra", nargs="*", help="extra 'ndp rl train' options, after --")
+
+
+def run_study(args: Any, tasks: Sequence[str], arms: Sequence[Arm], title: str,
+              intro: Sequence[str], command: str) -> dict[str, Any]:
+    """Run (unless ``args.plot_only``) and report a study: ``<out>.json`` (every number, with
+    the command, commit, date and runs directory), ``<out>.png`` and ``<out>.md`` (``intro``
+    lines, then success area and final success tables)."""
+    import datetime as dt
+
+    from ndp.experiments.provenance import git_commit
+
+    if not args.plot_only:
+        run_grid(tasks, arms, args.seeds, args.steps, args.runs_dir, args.jobs,
+                 vector=args.vector)
+    summary = summarise(tasks, arms, args.seeds, args.steps, args.runs_dir)
+    summary.update(command=command, commit=git_commit(), date=dt.date.today().isoformat(),
+                   runs_dir=str(args.runs_dir))
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".json").write_text(json.dumps(summary, indent=1) + "\n")
+    plot(summary, arms, out.with_suffix(".png"))
+    lines = [f"# {title} ({args.steps} env steps, seeds {list(args.seeds)})", "",
+             f"Command: `{command}`  ",
+             f"Commit: {summary['commit']}, date: {summary['date']}; runs in "
+             f"`{args.runs_dir}`.", "", *intro,
+             "Success area (success averaged over the budget; mean +- std over seeds):", "",
+             *markdown_table(summary, arms, "area"), "",
+             "Final success (last 10% of updates):", "", *markdown_table(summary, arms, "final"),
+             "", f"![curves]({out.with_suffix('.png').name})", ""]
+    out.with_suffix(".md").write_text("\n".join(lines))
+    print("\n".join(lines))
+    return summary

@@ -69,15 +69,20 @@ def main() -> None:
             "chunked_steps_per_s": round(chunked, 1),
             "overhead": round(raw / chunked - 1.0, 4),
         }
-    print(json.dumps({
-        "benchmark": "env_speed",
-        "k": args.k,
-        "stale_world": True,
-        "steps": args.steps,
-        "repeats": args.repeats,
-        "machine": platform.processor() or platform.machine(),
-        "results": results,
-    }, indent=2))
+    print(
+        json.dumps(
+            {
+                "benchmark": "env_speed",
+                "k": args.k,
+                "stale_world": True,
+                "steps": args.steps,
+                "repeats": args.repeats,
+                "machine": platform.processor() or platform.machine(),
+                "results": results,
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

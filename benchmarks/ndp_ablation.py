@@ -42,25 +42,49 @@ ARMS = [
     Arm("ndp-measured", "ndp", ("--dmp-state", "measured"), "DMP from the measured hand"),
     Arm("ndp-velstate", "ndp", ("--dmp-velocity", "state"), "DMP starts with the state velocity"),
     Arm("ndp-paramnoise", "ndp", ("--param-noise",), "parameter-space exploration"),
-    Arm("ndp-v0", "ndp", ("--mean-clip", "--forcing", "goal", "--goal-scale", "1",
-                          "--absolute-mode", "dmp", "--dmp-state", "measured",
-                          "--dmp-velocity", "state"), "every fix off (first release's head)"),
+    Arm(
+        "ndp-v0",
+        "ndp",
+        (
+            "--mean-clip",
+            "--forcing",
+            "goal",
+            "--goal-scale",
+            "1",
+            "--absolute-mode",
+            "dmp",
+            "--dmp-state",
+            "measured",
+            "--dmp-velocity",
+            "state",
+        ),
+        "every fix off (first release's head)",
+    ),
 ]
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--tasks", nargs="+", default=["push-v3", "point-mass"])
-    p.add_argument("--arms", nargs="+", default=[a.label for a in ARMS],
-                   choices=[a.label for a in ARMS])
+    p.add_argument(
+        "--arms", nargs="+", default=[a.label for a in ARMS], choices=[a.label for a in ARMS]
+    )
     add_study_arguments(p, "runs/ndp_study", "docs/results/ndp_ablation", 300_000)
     args = p.parse_args(argv)
-    arms = [Arm(a.label, a.algo, a.args + tuple(args.extra), a.note)
-            for a in ARMS if a.label in args.arms]
+    arms = [
+        Arm(a.label, a.algo, a.args + tuple(args.extra), a.note)
+        for a in ARMS
+        if a.label in args.arms
+    ]
     cmd = "python benchmarks/ndp_ablation.py " + " ".join(
-        argv if argv is not None else sys.argv[1:])
-    intro = ["| arm | change |", "|---|---|",
-             *[f"| {a.label} | {a.note} (`{' '.join(a.args) or 'defaults'}`) |" for a in arms], ""]
+        argv if argv is not None else sys.argv[1:]
+    )
+    intro = [
+        "| arm | change |",
+        "|---|---|",
+        *[f"| {a.label} | {a.note} (`{' '.join(a.args) or 'defaults'}`) |" for a in arms],
+        "",
+    ]
     run_study(args, args.tasks, arms, "NDP head ablation", intro, cmd)
     return 0
 

@@ -33,8 +33,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--label", default="ppo", help="label of our PPO arm (with extra options)")
     add_study_arguments(p, "runs/ppo_vs_sb3", "docs/results/ppo_vs_sb3", 150_000)
     args = p.parse_args(argv)
-    arms = [Arm(args.label, "ppo", tuple(args.extra), "this package's PPO (k = 1)"),
-            Arm("sb3-ppo", "sb3-ppo", (), "Stable-Baselines3 2.x PPO")]
+    arms = [
+        Arm(args.label, "ppo", tuple(args.extra), "this package's PPO (k = 1)"),
+        Arm("sb3-ppo", "sb3-ppo", (), "Stable-Baselines3 2.x PPO"),
+    ]
     cmd = "python benchmarks/ppo_vs_sb3.py " + " ".join(argv if argv is not None else sys.argv[1:])
     intro = [f"Our PPO options: `{' '.join(args.extra) or '(defaults)'}`.", ""]
     run_study(args, args.tasks, arms, "Our PPO vs SB3 PPO", intro, cmd)

@@ -23,23 +23,27 @@ import sys
 
 from ndp.experiments.study import Arm, add_study_arguments, run_study
 
-ARMS = (Arm("ndp", "ndp", (), "NDP (default head)"), Arm("ppo", "ppo", (), "PPO"),
-        Arm("ppo-multi", "ppo-multi", (), "PPO-multi"))
+ARMS = (
+    Arm("ndp", "ndp", (), "NDP (default head)"),
+    Arm("ppo", "ppo", (), "PPO"),
+    Arm("ppo-multi", "ppo-multi", (), "PPO-multi"),
+)
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--tasks", nargs="+",
-                   default=["push-v3", "soccer-v3", "faucet-open-v3", "throw", "pick",
-                            "reach-v3"])
-    p.add_argument("--algos", nargs="+", default=[a.label for a in ARMS],
-                   choices=[a.label for a in ARMS])
+    p.add_argument(
+        "--tasks",
+        nargs="+",
+        default=["push-v3", "soccer-v3", "faucet-open-v3", "throw", "pick", "reach-v3"],
+    )
+    p.add_argument(
+        "--algos", nargs="+", default=[a.label for a in ARMS], choices=[a.label for a in ARMS]
+    )
     add_study_arguments(p, "runs/rl_learning", "docs/results/rl_learning", 300_000)
     args = p.parse_args(argv)
-    arms = [Arm(a.label, a.algo, tuple(args.extra), a.note) for a in ARMS
-            if a.label in args.algos]
-    cmd = "python benchmarks/rl_learning.py " + " ".join(
-        argv if argv is not None else sys.argv[1:])
+    arms = [Arm(a.label, a.algo, tuple(args.extra), a.note) for a in ARMS if a.label in args.algos]
+    cmd = "python benchmarks/rl_learning.py " + " ".join(argv if argv is not None else sys.argv[1:])
     intro = [f"Options for every method: `{' '.join(args.extra) or '(defaults)'}`.", ""]
     run_study(args, args.tasks, arms, "RL learning comparison", intro, cmd)
     return 0

@@ -80,8 +80,10 @@ def bench_raw_parallel(task: str, steps: int, num_envs: int, seed: int, procs: i
     """Summed steps/s of ``procs`` processes stepping at the same time."""
     ctx = mp.get_context("spawn")
     barrier, out = ctx.Barrier(procs), ctx.Queue()
-    ps = [ctx.Process(target=_raw_worker, args=(task, steps, num_envs, seed + 100 * i,
-                                                barrier, out)) for i in range(procs)]
+    ps = [
+        ctx.Process(target=_raw_worker, args=(task, steps, num_envs, seed + 100 * i, barrier, out))
+        for i in range(procs)
+    ]
     for p in ps:
         p.start()
     rates = [out.get() for _ in ps]
@@ -90,25 +92,38 @@ def bench_raw_parallel(task: str, steps: int, num_envs: int, seed: int, procs: i
     return float(sum(rates))
 
 
-def bench_ours(task: str, algo: str, steps: int, num_envs: int, seed: int,
-               vector: str) -> dict[str, float]:
+def bench_ours(
+    task: str, algo: str, steps: int, num_envs: int, seed: int, vector: str
+) -> dict[str, float]:
     """Wall steps/s of a training run, and its mean rollout / update seconds per update."""
     from ndp.rl.config import TrainConfig
     from ndp.rl.logger import read_csv
     from ndp.rl.trainer import Trainer
 
     with tempfile.TemporaryDirectory() as tmp:
-        tr = Trainer(TrainConfig(task=task, algo=algo, steps=steps, seed=seed,
-                                 num_envs=num_envs, run_dir=str(Path(tmp) / "r"),
-                                 progress=False, tensorboard=False, vector=vector))
+        tr = Trainer(
+            TrainConfig(
+                task=task,
+                algo=algo,
+                steps=steps,
+                seed=seed,
+                num_envs=num_envs,
+                run_dir=str(Path(tmp) / "r"),
+                progress=False,
+                tensorboard=False,
+                vector=vector,
+            )
+        )
         try:
             w0 = time.perf_counter()
             tr.train()
             w = time.perf_counter() - w0
             rows = read_csv(Path(tmp) / "r" / "progress.csv")
-            return {"wall": tr.global_step / w,
-                    "rollout_s": float(np.mean([r["time/rollout_s"] for r in rows])),
-                    "update_s": float(np.mean([r["time/update_s"] for r in rows]))}
+            return {
+                "wall": tr.global_step / w,
+                "rollout_s": float(np.mean([r["time/rollout_s"] for r in rows])),
+                "update_s": float(np.mean([r["time/update_s"] for r in rows])),
+            }
         finally:
             tr.close()
 
@@ -127,11 +142,26 @@ def bench_sb3(task: str, steps: int, num_envs: int, seed: int, subproc: bool) ->
     venv = VecNormalize(base, gamma=0.99)
     n_steps = 2048 // num_envs
     model = PPO(
-        "MlpPolicy", venv, learning_rate=3e-4, n_steps=n_steps, batch_size=2048 // 32,
-        n_epochs=10, gamma=0.99, gae_lambda=0.95, clip_range=0.1, ent_coef=0.0, vf_coef=0.5,
-        max_grad_norm=0.5, seed=seed, device="cpu", verbose=0,
-        policy_kwargs={"net_arch": {"pi": [100, 100], "vf": [100, 100]},
-                       "activation_fn": torch.nn.Tanh, "optimizer_kwargs": {"eps": 1e-5}},
+        "MlpPolicy",
+        venv,
+        learning_rate=3e-4,
+        n_steps=n_steps,
+        batch_size=2048 // 32,
+        n_epochs=10,
+        gamma=0.99,
+        gae_lambda=0.95,
+        clip_range=0.1,
+        ent_coef=0.0,
+        vf_coef=0.5,
+        max_grad_norm=0.5,
+        seed=seed,
+        device="cpu",
+        verbose=0,
+        policy_kwargs={
+            "net_arch": {"pi": [100, 100], "vf": [100, 100]},
+            "activation_fn": torch.nn.Tanh,
+            "optimizer_kwargs": {"eps": 1e-5},
+        },
     )
     w0 = time.perf_counter()
     model.learn(total_timesteps=steps)
@@ -141,8 +171,9 @@ def bench_sb3(task: str, steps: int, num_envs: int, seed: int, subproc: bool) ->
     return done / w
 
 
-def measure(method: str, task: str, steps: int, num_envs: int, seed: int,
-            cores: int) -> dict[str, float]:
+def measure(
+    method: str, task: str, steps: int, num_envs: int, seed: int, cores: int
+) -> dict[str, float]:
     import torch
 
     torch.set_num_threads(1)
@@ -165,28 +196,41 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, default=10240, help="env steps per measurement")
     p.add_argument("--num-envs", type=int, default=4)
     p.add_argument("--repeats", type=int, default=3, help="interleaved rounds (median)")
-    p.add_argument("--methods", nargs="+", default=None,
-                   help="subset of: raw-1 raw-N ppo ppo-multi ndp <m>-sync sb3-dummy sb3-subproc")
+    p.add_argument(
+        "--methods",
+        nargs="+",
+        default=None,
+        help="subset of: raw-1 raw-N ppo ppo-multi ndp <m>-sync sb3-dummy sb3-subproc",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="write <out>.json and <out>.md")
     args = p.parse_args(argv)
     cores = default_workers(64)
-    methods = args.methods or ["raw-1", "raw-N", *OURS, *(f"{m}-sync" for m in OURS),
-                               "sb3-dummy", "sb3-subproc"]
+    methods = args.methods or [
+        "raw-1",
+        "raw-N",
+        *OURS,
+        *(f"{m}-sync" for m in OURS),
+        "sb3-dummy",
+        "sb3-subproc",
+    ]
     samples: dict[str, dict[str, list[dict[str, float]]]] = {
-        t: {m: [] for m in methods} for t in args.tasks}
+        t: {m: [] for m in methods} for t in args.tasks
+    }
     for r in range(args.repeats):
         for task in args.tasks:
             for m in methods:
                 res = measure(m, task, args.steps, args.num_envs, args.seed, cores)
                 samples[task][m].append(res)
                 extra = "".join(f"  {k} {v:.3f}" for k, v in res.items() if k != "wall")
-                print(f"round {r} {task:10s} {m:14s} {res['wall']:8.0f} steps/s{extra}",
-                      flush=True)
+                print(f"round {r} {task:10s} {m:14s} {res['wall']:8.0f} steps/s{extra}", flush=True)
     results: dict[str, dict[str, dict[str, float]]] = {}
     for task in args.tasks:
-        res = {m: {k: statistics.median(s[k] for s in v) for k in v[0]}
-               for m, v in samples[task].items() if v}
+        res = {
+            m: {k: statistics.median(s[k] for s in v) for k in v[0]}
+            for m, v in samples[task].items()
+            if v
+        }
         sb3 = [m for m in ("sb3-dummy", "sb3-subproc") if m in res]
         if sb3:
             res["sb3-best"] = dict(max((res[m] for m in sb3), key=lambda v: v["wall"]))
@@ -199,31 +243,56 @@ def main(argv: list[str] | None = None) -> int:
             res["raw-1"]["minutes_1M"] = 1e6 / res["raw-1"]["wall"] / 60
         results[task] = res
     cmd = "python benchmarks/rl_throughput.py " + " ".join(
-        argv if argv is not None else sys.argv[1:])
-    out = {"tasks": args.tasks, "steps": args.steps, "num_envs": args.num_envs,
-           "repeats": args.repeats, "cores": cores, "commit": git_commit(),
-           "date": dt.date.today().isoformat(), "command": cmd, "results": results,
-           "samples": samples}
+        argv if argv is not None else sys.argv[1:]
+    )
+    out = {
+        "tasks": args.tasks,
+        "steps": args.steps,
+        "num_envs": args.num_envs,
+        "repeats": args.repeats,
+        "cores": cores,
+        "commit": git_commit(),
+        "date": dt.date.today().isoformat(),
+        "command": cmd,
+        "results": results,
+        "samples": samples,
+    }
     print(json.dumps(results, indent=1))
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.with_suffix(".json").write_text(json.dumps(out, indent=1) + "\n")
-        lines = [f"# RL training throughput ({', '.join(args.tasks)})", "",
-                 f"Command: `{cmd}`  ", f"Commit: {out['commit']}, date: {out['date']}; "
-                 f"{cores} cores, {args.num_envs} envs, {args.steps} env steps per measurement, "
-                 f"median of {args.repeats} interleaved round(s).", ""]
+        lines = [
+            f"# RL training throughput ({', '.join(args.tasks)})",
+            "",
+            f"Command: `{cmd}`  ",
+            f"Commit: {out['commit']}, date: {out['date']}; "
+            f"{cores} cores, {args.num_envs} envs, {args.steps} env steps per measurement, "
+            f"median of {args.repeats} interleaved round(s).",
+            "",
+        ]
         for task, res in results.items():
-            lines += [f"## {task}", "", "| method | env steps/s | vs raw-N | vs raw-1 | "
-                      "vs SB3 best | rollout s / update | update s / update |",
-                      "|---|---|---|---|---|---|---|"]
+            lines += [
+                f"## {task}",
+                "",
+                "| method | env steps/s | vs raw-N | vs raw-1 | "
+                "vs SB3 best | rollout s / update | update s / update |",
+                "|---|---|---|---|---|---|---|",
+            ]
             for m, v in res.items():
+
                 def f(key: str, fmt: str = "{:.2f}", v: dict = v) -> str:
                     return fmt.format(v[key]) if key in v else "-"
-                lines.append(f"| {m} | {v['wall']:.0f} | {f('vs_raw-N')} | {f('vs_raw-1')} | "
-                             f"{f('vs_sb3-best')} | {f('rollout_s')} | {f('update_s')} |")
+
+                lines.append(
+                    f"| {m} | {v['wall']:.0f} | {f('vs_raw-N')} | {f('vs_raw-1')} | "
+                    f"{f('vs_sb3-best')} | {f('rollout_s')} | {f('update_s')} |"
+                )
             if "minutes_1M" in res.get("ndp", {}):
-                lines += ["", f"1M env steps: NDP training {res['ndp']['minutes_1M']:.1f} min, "
-                          f"one core only stepping the env {res['raw-1']['minutes_1M']:.1f} min."]
+                lines += [
+                    "",
+                    f"1M env steps: NDP training {res['ndp']['minutes_1M']:.1f} min, "
+                    f"one core only stepping the env {res['raw-1']['minutes_1M']:.1f} min.",
+                ]
             lines.append("")
         args.out.with_suffix(".md").write_text("\n".join(lines))
     return 0

@@ -134,8 +134,9 @@ def test_jaco_command_state_is_the_joint_targets():
     _, _, _, _, info2 = env.step(a)
     from ndp.envs import jaco
 
-    np.testing.assert_allclose(info2["cmd_y0"][0] - info["cmd_y0"][0], 5 * jaco.ARM_DELTA,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        info2["cmd_y0"][0] - info["cmd_y0"][0], 5 * jaco.ARM_DELTA, atol=1e-9
+    )
     np.testing.assert_allclose(info2["cmd_dy0"][0], jaco.ARM_DELTA / jaco.CONTROL_DT, atol=1e-9)
     assert info2["cmd_y0"][0] > info2["dmp_y0"][0]  # the joint lags its target
     env.close()

@@ -17,8 +17,15 @@ EXPERT_TASKS = ["reach-v3", "push-v3", "faucet-open-v3", "drawer-close-v3", "but
 # observation and the expert never re-plans inside the chunk).
 K1_EXPERT_MISSES = {"soccer-v3", "stick-pull-v3"}
 K5_EXPERT_MISSES = K1_EXPERT_MISSES | {
-    "door-close-v3", "door-open-v3", "handle-pull-v3", "plate-slide-v3", "plate-slide-back-v3",
-    "peg-insert-side-v3", "stick-push-v3", "push-back-v3", "sweep-v3",
+    "door-close-v3",
+    "door-open-v3",
+    "handle-pull-v3",
+    "plate-slide-v3",
+    "plate-slide-back-v3",
+    "peg-insert-side-v3",
+    "stick-push-v3",
+    "push-back-v3",
+    "sweep-v3",
 }
 
 
@@ -85,8 +92,20 @@ def test_stale_rule_does_not_change_the_dynamics_and_uses_the_stale_world():
 def _state(env) -> dict:
     """Everything a reward function could change: MjData arrays and the env's attributes."""
     d = env.data
-    out = {f: getattr(d, f).copy() for f in ("qpos", "qvel", "act", "ctrl", "mocap_pos",
-                                             "mocap_quat", "qacc_warmstart", "xpos", "site_xpos")}
+    out = {
+        f: getattr(d, f).copy()
+        for f in (
+            "qpos",
+            "qvel",
+            "act",
+            "ctrl",
+            "mocap_pos",
+            "mocap_quat",
+            "qacc_warmstart",
+            "xpos",
+            "site_xpos",
+        )
+    }
     for key, val in vars(env.mw).items():
         if isinstance(val, (bool, int, float, str, type(None))):
             out["mw." + key] = val

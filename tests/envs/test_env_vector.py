@@ -22,15 +22,23 @@ def _fns(task: str, n: int, k: int, horizon: int):
 
 def _venv(task="point-mass", n=3, k=2, horizon=7, workers=2, main_steps=True):
     spec = get_task_spec(task)
-    return WorkerVectorEnv(_fns(task, n, k, horizon), spec.obs_dim, k, spec.action_dim,
-                           spec.dmp_dofs, workers=workers, main_steps=main_steps)
+    return WorkerVectorEnv(
+        _fns(task, n, k, horizon),
+        spec.obs_dim,
+        k,
+        spec.action_dim,
+        spec.dmp_dofs,
+        workers=workers,
+        main_steps=main_steps,
+    )
 
 
 @pytest.mark.parametrize("workers,main_steps", [(2, True), (3, False)])
 def test_worker_env_matches_sync_env_step_by_step(workers, main_steps):
     n, k, horizon = 3, 2, 7  # episodes end every 4 decisions (mid-decision at the horizon)
-    sync = gym.vector.SyncVectorEnv(_fns("point-mass", n, k, horizon),
-                                    autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
+    sync = gym.vector.SyncVectorEnv(
+        _fns("point-mass", n, k, horizon), autoreset_mode=gym.vector.AutoresetMode.SAME_STEP
+    )
     work = _venv(n=n, k=k, horizon=horizon, workers=workers, main_steps=main_steps)
     try:
         assert work.num_workers == workers and len(work._procs) == workers - main_steps
@@ -48,13 +56,20 @@ def test_worker_env_matches_sync_env_step_by_step(workers, main_steps):
                 np.testing.assert_array_equal(x, y)
             done = s1[2] | s1[3]
             ends += int(done.sum())
-            for key in ("sub_rewards", "sub_mask", "success_any", "dmp_y0", "cmd_y0",
-                        "cmd_dy0", "n_substeps"):
-                np.testing.assert_array_equal(step_info(s1[4], done, key),
-                                              step_info(s2[4], done, key), err_msg=key)
+            for key in (
+                "sub_rewards",
+                "sub_mask",
+                "success_any",
+                "dmp_y0",
+                "cmd_y0",
+                "cmd_dy0",
+                "n_substeps",
+            ):
+                np.testing.assert_array_equal(
+                    step_info(s1[4], done, key), step_info(s2[4], done, key), err_msg=key
+                )
                 if key in s1[4]:  # (absent from sync's info when every env just reset)
-                    np.testing.assert_array_equal(np.asarray(s1[4][key]), s2[4][key],
-                                                  err_msg=key)
+                    np.testing.assert_array_equal(np.asarray(s1[4][key]), s2[4][key], err_msg=key)
             if done.any():
                 for i in np.flatnonzero(done):
                     np.testing.assert_array_equal(s1[4]["final_obs"][i], s2[4]["final_obs"][i])

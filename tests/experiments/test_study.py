@@ -78,11 +78,17 @@ def test_arm_validation_and_refusal_of_another_run(tmp_path):
 
 def test_sb3_episode_counter_is_per_env_and_per_episode():
     c = EpisodeCounter(3)
-    c.step(np.ones(3), np.array([False, False, False]),
-           [{"success": True}, {"success": False}, {"success": False}])
+    c.step(
+        np.ones(3),
+        np.array([False, False, False]),
+        [{"success": True}, {"success": False}, {"success": False}],
+    )
     # every env ends at the same step: three episodes, env 0 succeeded earlier in its episode
-    c.step(np.ones(3), np.array([True, True, True]),
-           [{"success": False}, {"success": False}, {"success": True}])
+    c.step(
+        np.ones(3),
+        np.array([True, True, True]),
+        [{"success": False}, {"success": False}, {"success": True}],
+    )
     n, succ, ret = c.pop()
     assert n == 3 and succ == pytest.approx(2 / 3) and ret == 2.0
     assert c.pop()[0] == 0

@@ -105,8 +105,9 @@ def test_ndp_head_integrates_from_physical_state_with_time_conversion():
     expected = v[0] * CONTROL_DT
     assert torch.all((first_disp / expected) > 0.8) and torch.all((first_disp / expected) <= 1.0)
     # Same thing computed directly with the DMP in DMP time units.
-    traj = dmp_rollout(goal, w, y0, v * 5 * CONTROL_DT,
-                       DMPConfig(n_basis=6, a_z=1.0, steps=35, subsample=7)).pos
+    traj = dmp_rollout(
+        goal, w, y0, v * 5 * CONTROL_DT, DMPConfig(n_basis=6, a_z=1.0, steps=35, subsample=7)
+    ).pos
     torch.testing.assert_close(acts, spec.inverse_controller(traj))
     # the default starts at rest: no motion at all from a zero output
     rest = build_actor_critic(6, spec, _cfg("ndp", a_z=1.0)).head
@@ -223,10 +224,17 @@ def test_policy_config_rejects_bad_values():
 
 
 @pytest.mark.parametrize("task", ["push-v3", "throw", "point-mass"])
-@pytest.mark.parametrize("opts", [
-    {}, {"mean_clip": True}, {"forcing": "goal"}, {"absolute_mode": "dmp"},
-    {"dmp_velocity": "state"}, {"absolute_goal": False, "absolute_mode": "dmp"},
-])
+@pytest.mark.parametrize(
+    "opts",
+    [
+        {},
+        {"mean_clip": True},
+        {"forcing": "goal"},
+        {"absolute_mode": "dmp"},
+        {"dmp_velocity": "state"},
+        {"absolute_goal": False, "absolute_mode": "dmp"},
+    ],
+)
 def test_fused_decode_equals_the_composed_dmp_and_controller(task, opts):
     """The folded map (DMP + inverse controller + direct command in one matmul per DoF) gives
     the composed path's actions and gradients."""

@@ -43,8 +43,15 @@ def test_resolution_per_method(algo, head, k):
 
 
 def test_trainer_runs_what_the_config_says(tmp_path):
-    tr = Trainer(TrainConfig(task="point-mass", algo="ndp", run_dir=str(tmp_path / "r"),
-                             progress=False, tensorboard=False))
+    tr = Trainer(
+        TrainConfig(
+            task="point-mass",
+            algo="ndp",
+            run_dir=str(tmp_path / "r"),
+            progress=False,
+            tensorboard=False,
+        )
+    )
     try:
         g = tr.opt.param_groups[0]
         assert g["lr"] == 3e-4 and g["eps"] == 1e-5
@@ -52,7 +59,10 @@ def test_trainer_runs_what_the_config_says(tmp_path):
         assert (dmp.steps, dmp.subsample, dmp.n_basis, dmp.a_z) == (35, 7, 6, 5.0)
         assert tr.k == 5 and tr.T * tr.k * tr.num_envs >= 2048
         assert [m.out_features for m in tr.model.actor.net if hasattr(m, "out_features")] == [
-            100, 100, 2 * 7]
+            100,
+            100,
+            2 * 7,
+        ]
         assert tr.model.critic.net[-1].out_features == 5  # k value heads
         saved = json.loads((tmp_path / "r" / "config.json").read_text())
         assert saved["ppo"]["ent_coef"] == 0.0 and saved["policy"]["dmp_steps"] == 35
@@ -67,9 +77,26 @@ def test_field_docs_and_cli_roundtrip():
     add_dataclass_arguments(parser, TrainConfig)
     add_dataclass_arguments(parser, PPOConfig)
     add_dataclass_arguments(parser, PolicyConfig, skip=("head",))
-    args = parser.parse_args(["--task", "soccer-v3", "--algo", "ppo-multi", "--k", "3",
-                              "--lr", "1e-3", "--hidden", "64", "64", "--no-norm-obs",
-                              "--horizon", "none", "--goal-scale", "2"])
+    args = parser.parse_args(
+        [
+            "--task",
+            "soccer-v3",
+            "--algo",
+            "ppo-multi",
+            "--k",
+            "3",
+            "--lr",
+            "1e-3",
+            "--hidden",
+            "64",
+            "64",
+            "--no-norm-obs",
+            "--horizon",
+            "none",
+            "--goal-scale",
+            "2",
+        ]
+    )
     cfg = config_from_args(args)
     assert cfg.task == "soccer-v3" and cfg.algo == "ppo-multi" and cfg.policy.k == 3
     assert cfg.ppo.lr == 1e-3 and not cfg.ppo.norm_obs and cfg.ppo.epochs == 10

@@ -83,7 +83,7 @@ def test_gae_matches_naive_reference_random(k):
     for t in range(t_len):
         for e in range(n_env):
             if ends[t, e]:
-                m[t, e, rng.integers(1, k + 1):] = 0.0
+                m[t, e, rng.integers(1, k + 1) :] = 0.0
     r *= m
     last = rng.normal(size=n_env)
     adv, _ = gae_substeps(r, v, m, ends, last, 0.97, 0.9)
@@ -104,8 +104,15 @@ def test_gae_k1_equals_standard_recursion():
         delta = r[t] + GAMMA * nv * nonterm - v[t]
         a = delta + GAMMA * LAM * nonterm * a
         adv[t] = a
-    got, _ = gae_substeps(r[:, None, None], v[:, None, None], np.ones((t_len, 1, 1)),
-                          done[:, None], np.array([last]), GAMMA, LAM)
+    got, _ = gae_substeps(
+        r[:, None, None],
+        v[:, None, None],
+        np.ones((t_len, 1, 1)),
+        done[:, None],
+        np.array([last]),
+        GAMMA,
+        LAM,
+    )
     np.testing.assert_allclose(got[:, 0, 0], adv, atol=1e-12)
 
 
@@ -123,5 +130,12 @@ def test_bootstrap_truncated_only_on_truncation():
 
 def test_gae_rejects_bad_shapes():
     with pytest.raises(ValueError, match="rewards"):
-        gae_substeps(np.zeros((2, 1, 3)), np.zeros((2, 1, 2)), np.zeros((2, 1, 3)),
-                     np.zeros((2, 1)), np.zeros(1), 0.9, 0.9)
+        gae_substeps(
+            np.zeros((2, 1, 3)),
+            np.zeros((2, 1, 2)),
+            np.zeros((2, 1, 3)),
+            np.zeros((2, 1)),
+            np.zeros(1),
+            0.9,
+            0.9,
+        )

@@ -42,8 +42,7 @@ def test_policy_loss_per_decision_logprob_broadcasts_over_substeps():
 
 def test_policy_loss_gradient_zero_when_clipped():
     new = torch.log(torch.tensor([[1.5]])).requires_grad_()
-    loss, _, _ = policy_loss(new, torch.zeros(1, 1), torch.tensor([[1.0]]), torch.ones(1, 1),
-                             0.1)
+    loss, _, _ = policy_loss(new, torch.zeros(1, 1), torch.tensor([[1.0]]), torch.ones(1, 1), 0.1)
     loss.backward()
     assert float(new.grad) == 0.0
 
@@ -60,8 +59,7 @@ def test_value_loss_unclipped_and_clipped():
     ret2 = torch.tensor([[4.0, 4.0]])
     # err: (1-4)^2=9 vs (0.5-4)^2=12.25 ; (3-4)^2=1 vs (0.5-4)^2=12.25
     assert math.isclose(float(value_loss(v, old, ret2, mask, 0.5)), 0.5 * (12.25 + 12.25) / 2)
-    assert math.isclose(float(value_loss(v, old, ret2, torch.tensor([[1.0, 0.0]]), None)),
-                        0.5 * 9)
+    assert math.isclose(float(value_loss(v, old, ret2, torch.tensor([[1.0, 0.0]]), None)), 0.5 * 9)
 
 
 def test_entropy_mean_per_decision_counts_decisions_once():
@@ -93,8 +91,11 @@ def test_fused_gaussian_loss_equals_autograd(clip):
     mean = torch.randn(m_, k, a, generator=g, dtype=torch.float64, requires_grad=True)
     log_std = (0.3 * torch.randn(a, generator=g, dtype=torch.float64)).requires_grad_(True)
     z = mean.detach() + torch.randn(m_, k, a, generator=g, dtype=torch.float64)
-    old = diag_gaussian_log_prob(z, mean.detach() + 0.3 * torch.randn(
-        m_, k, a, generator=g, dtype=torch.float64), log_std.detach())
+    old = diag_gaussian_log_prob(
+        z,
+        mean.detach() + 0.3 * torch.randn(m_, k, a, generator=g, dtype=torch.float64),
+        log_std.detach(),
+    )
     adv = torch.randn(m_, k, generator=g, dtype=torch.float64)
     mask = (torch.rand(m_, k, generator=g) > 0.2).double()
     ref = policy_loss(diag_gaussian_log_prob(z, mean, log_std), old, adv, mask, clip)
@@ -108,8 +109,8 @@ def test_fused_gaussian_loss_equals_autograd(clip):
     for r, f in zip(gr, gf, strict=True):
         torch.testing.assert_close(f, r)
     assert torch.autograd.gradcheck(
-        lambda mu, ls: gaussian_policy_loss(mu, ls, z, old, adv, mask, clip)[0],
-        (mean, log_std))
+        lambda mu, ls: gaussian_policy_loss(mu, ls, z, old, adv, mask, clip)[0], (mean, log_std)
+    )
 
 
 def test_flat_adam_equals_clip_grad_norm_then_adam():
@@ -147,5 +148,6 @@ def test_flat_adam_equals_clip_grad_norm_then_adam():
     fc = FlatAdam(c, lr=1e-2, eps=1e-5)
     c.load_state_dict(a.state_dict())
     fc.load_state_dict(ref.state_dict())
-    torch.testing.assert_close(fc.state_dict()["state"][0]["exp_avg"],
-                               flat.state_dict()["state"][0]["exp_avg"])
+    torch.testing.assert_close(
+        fc.state_dict()["state"][0]["exp_avg"], flat.state_dict()["state"][0]["exp_avg"]
+    )

@@ -35,10 +35,28 @@ def test_atomic_save_keeps_previous_file_on_crash(tmp_path, monkeypatch):
 def test_sigkill_then_resume(tmp_path):
     run = tmp_path / "run"
     n_updates = 30
-    cmd = [sys.executable, "-m", "ndp.cli", "rl", "train", "--task", "point-mass", "--algo",
-           "ndp", "--steps", str(520 * n_updates), "--steps-per-update", "512",
-           "--minibatches", "4", "--checkpoint-every", "2", "--run-dir", str(run),
-           "--no-progress"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "ndp.cli",
+        "rl",
+        "train",
+        "--task",
+        "point-mass",
+        "--algo",
+        "ndp",
+        "--steps",
+        str(520 * n_updates),
+        "--steps-per-update",
+        "512",
+        "--minibatches",
+        "4",
+        "--checkpoint-every",
+        "2",
+        "--run-dir",
+        str(run),
+        "--no-progress",
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     csv_path = run / "progress.csv"
     deadline = time.time() + 120

@@ -16,8 +16,14 @@ from ndp.rl.trainer import Trainer
 @pytest.mark.parametrize("algo", ["ndp", "ppo", "ppo-multi"])
 def test_smoke_real_tasks(tmp_path, task, algo):
     cfg = TrainConfig(
-        task=task, algo=algo, steps=100, num_envs=2, horizon=25, run_dir=str(tmp_path / "r"),
-        progress=False, tensorboard=False,
+        task=task,
+        algo=algo,
+        steps=100,
+        num_envs=2,
+        horizon=25,
+        run_dir=str(tmp_path / "r"),
+        progress=False,
+        tensorboard=False,
         ppo=PPOConfig(steps_per_update=100, minibatches=2, epochs=2),
     )
     tr = Trainer(cfg)

@@ -22,9 +22,17 @@ FAST = PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3)
 
 
 def _cfg(tmp_path, name="run", **kw):
-    base = {"task": "point-mass", "algo": "ndp", "steps": 2048, "num_envs": 4,
-            "run_dir": str(tmp_path / name), "progress": False, "tensorboard": False,
-            "ppo": FAST, "vector": "sync"}
+    base = {
+        "task": "point-mass",
+        "algo": "ndp",
+        "steps": 2048,
+        "num_envs": 4,
+        "run_dir": str(tmp_path / name),
+        "progress": False,
+        "tensorboard": False,
+        "ppo": FAST,
+        "vector": "sync",
+    }
     return TrainConfig(**{**base, **kw})
 
 
@@ -108,8 +116,7 @@ def test_nan_parameter_stops_training_and_keeps_last_good_checkpoint(tmp_path):
 def test_nan_loss_stops_training(tmp_path, monkeypatch):
     tr = Trainer(_cfg(tmp_path, algo="ppo-multi"))
     try:
-        monkeypatch.setattr("ndp.rl.trainer.value_loss",
-                            lambda *a, **k: torch.tensor(float("nan")))
+        monkeypatch.setattr("ndp.rl.trainer.value_loss", lambda *a, **k: torch.tensor(float("nan")))
         with pytest.raises(TrainingDivergedError, match="non-finite loss"):
             tr.train(max_updates=1)
         assert not (tmp_path / "run" / "checkpoint.pt").exists()
@@ -171,12 +178,13 @@ def test_param_noise_uses_one_decision_level_advantage(tmp_path, monkeypatch):
         tr.learn(batch)
     finally:
         tr.close()
-    (shape, adv, mask), = seen
+    ((shape, adv, mask),) = seen
     assert shape[1] == 1 and adv.shape[1] == 1 and mask.shape[1] == 1
     expected = normalize_advantages(batch["adv"][:, :1], batch["mask"][:, :1])
     # one mini-batch, one epoch: the same decisions in permuted order
-    torch.testing.assert_close(torch.sort(adv.flatten()).values,
-                               torch.sort(expected.flatten()).values)
+    torch.testing.assert_close(
+        torch.sort(adv.flatten()).values, torch.sort(expected.flatten()).values
+    )
 
 
 def test_minibatch_advantage_normalisation(tmp_path, monkeypatch):
@@ -204,9 +212,26 @@ def test_minibatch_advantage_normalisation(tmp_path, monkeypatch):
 
 def test_cli_train_eval_render(tmp_path, capsys):
     run = tmp_path / "cli"
-    rc = ndp_main(["rl", "train", "--task", "point-mass", "--algo", "ppo-multi", "--steps",
-                   "520", "--steps-per-update", "512", "--minibatches", "4", "--run-dir",
-                   str(run), "--no-progress", "--no-tensorboard"])
+    rc = ndp_main(
+        [
+            "rl",
+            "train",
+            "--task",
+            "point-mass",
+            "--algo",
+            "ppo-multi",
+            "--steps",
+            "520",
+            "--steps-per-update",
+            "512",
+            "--minibatches",
+            "4",
+            "--run-dir",
+            str(run),
+            "--no-progress",
+            "--no-tensorboard",
+        ]
+    )
     assert rc == 0
     assert (run / "config.json").is_file() and (run / "checkpoint.pt").is_file()
     assert ndp_main(["rl", "eval", str(run), "--episodes", "2"]) == 0
@@ -228,8 +253,16 @@ def test_worker_vector_env_gives_the_sync_rollout(tmp_path, task, algo):
     ppo = PPOConfig(steps_per_update=600 if algo == "ndp" else 400, minibatches=4)
     batches = []
     for vector in ("sync", "workers"):
-        cfg = _cfg(tmp_path, vector, task=task, algo=algo, horizon=30, ppo=ppo, vector=vector,
-                   env_workers=2 if vector == "workers" else None)
+        cfg = _cfg(
+            tmp_path,
+            vector,
+            task=task,
+            algo=algo,
+            horizon=30,
+            ppo=ppo,
+            vector=vector,
+            env_workers=2 if vector == "workers" else None,
+        )
         tr = Trainer(cfg)
         try:
             if vector == "workers":

@@ -98,8 +98,15 @@ class ChunkedEnv(gym.Wrapper):
         self._last_state = (pos.copy(), vel.copy())
         info = dict(info)
         cpos, cvel = (np.asarray(x, dtype=np.float64) for x in self._command_state())
-        info.update(robot_pos=pos.copy(), robot_vel=vel.copy(), dmp_y0=pos, dmp_dy0=vel,
-                    cmd_y0=cpos, cmd_dy0=cvel, success_any=False)
+        info.update(
+            robot_pos=pos.copy(),
+            robot_vel=vel.copy(),
+            dmp_y0=pos,
+            dmp_dy0=vel,
+            cmd_y0=cpos,
+            cmd_dy0=cvel,
+            success_any=False,
+        )
         return obs, info
 
     def step(self, actions: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
@@ -128,8 +135,9 @@ class ChunkedEnv(gym.Wrapper):
         rpos = np.zeros((k + 1, dof))
         rvel = np.zeros((k + 1, dof))
         # the state the previous decision ended in (nothing moves between two calls)
-        rpos[0], rvel[0] = self._last_state if self._last_state is not None else (
-            self._base.robot_state())
+        rpos[0], rvel[0] = (
+            self._last_state if self._last_state is not None else (self._base.robot_state())
+        )
         snapshot = None
         terminated = truncated = unstable = False
         obs: Any = None

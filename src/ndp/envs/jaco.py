@@ -393,8 +393,9 @@ class JacoEnv(gym.Env, EzPickle):
             for _ in range(100):  # let go of the kinematic hold and settle in the hand
                 mujoco.mj_step(m, d)
             cube_now = d.qpos[self._cube_q : self._cube_q + 3]
-            self._goal = np.array([cube_now[0] + jitter[0], cube_now[1] + THROW_DISTANCE
-                                   + jitter[1], 0.0])
+            self._goal = np.array(
+                [cube_now[0] + jitter[0], cube_now[1] + THROW_DISTANCE + jitter[1], 0.0]
+            )
             d.mocap_pos[self._basket_mocap] = self._goal
             self._cube_rest_z = CUBE_HALF
         else:
@@ -411,8 +412,12 @@ class JacoEnv(gym.Env, EzPickle):
         pos, vel = self.robot_state()
         reward, success = self._reward_success(self._cube_pos().copy())
         del reward
-        return self._obs(), {"success": success, "robot_pos": pos, "robot_vel": vel,
-                             "sim_unstable": False}
+        return self._obs(), {
+            "success": success,
+            "robot_pos": pos,
+            "robot_vel": vel,
+            "sim_unstable": False,
+        }
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One env step (``FRAME_SKIP`` simulator steps).
@@ -453,8 +458,12 @@ class JacoEnv(gym.Env, EzPickle):
         pos, vel = self.robot_state()
         if unstable:
             self._unstable = True
-            info = {"success": False, "robot_pos": np.nan_to_num(pos),
-                    "robot_vel": np.nan_to_num(vel), "sim_unstable": True}
+            info = {
+                "success": False,
+                "robot_pos": np.nan_to_num(pos),
+                "robot_vel": np.nan_to_num(vel),
+                "sim_unstable": True,
+            }
             return last_obs, 0.0, False, True, info
         reward, success = self._reward_success(self._cube_pos().copy())
         truncated = self._steps >= self.horizon
@@ -486,5 +495,3 @@ def _warning_count(data: mujoco.MjData) -> int:
         + w[int(mujoco.mjtWarning.mjWARN_BADQVEL)].number
         + w[int(mujoco.mjtWarning.mjWARN_BADQACC)].number
     )
-
-

@@ -26,23 +26,54 @@ from ndp.envs.jaco import _warning_count
 
 METAWORLD_POS_SCALE = 0.01
 """Metres the hand target (mocap) moves per env step for an xyz action of 1 (metaworld default)."""
-ROBOT_JOINTS = frozenset(
-    [f"right_j{i}" for i in range(7)] + ["r_close", "l_close"]
-)
+ROBOT_JOINTS = frozenset([f"right_j{i}" for i in range(7)] + ["r_close", "l_close"])
 """Sawyer joints; every other joint of a Meta-World model is world (objects, doors, ...)."""
 WORLD_OBS = np.r_[4:18, 22:36, 36:39]
 """Observation indices that describe the world (objects of both frames and the goal)."""
-REWARD_FROM_OBS: frozenset[str] = frozenset({
-    "basketball-v3", "bin-picking-v3", "box-close-v3", "button-press-topdown-v3",
-    "button-press-topdown-wall-v3", "button-press-v3", "button-press-wall-v3",
-    "coffee-button-v3", "coffee-pull-v3", "coffee-push-v3", "door-close-v3", "door-lock-v3",
-    "door-unlock-v3", "drawer-close-v3", "drawer-open-v3", "faucet-close-v3", "faucet-open-v3",
-    "hammer-v3", "hand-insert-v3", "handle-pull-side-v3", "handle-pull-v3", "lever-pull-v3",
-    "peg-unplug-side-v3", "pick-out-of-hole-v3", "pick-place-v3", "pick-place-wall-v3",
-    "plate-slide-back-side-v3", "plate-slide-back-v3", "plate-slide-side-v3", "plate-slide-v3",
-    "push-back-v3", "push-v3", "push-wall-v3", "reach-v3", "reach-wall-v3", "shelf-place-v3",
-    "soccer-v3", "stick-push-v3", "sweep-into-v3", "sweep-v3",
-})
+REWARD_FROM_OBS: frozenset[str] = frozenset(
+    {
+        "basketball-v3",
+        "bin-picking-v3",
+        "box-close-v3",
+        "button-press-topdown-v3",
+        "button-press-topdown-wall-v3",
+        "button-press-v3",
+        "button-press-wall-v3",
+        "coffee-button-v3",
+        "coffee-pull-v3",
+        "coffee-push-v3",
+        "door-close-v3",
+        "door-lock-v3",
+        "door-unlock-v3",
+        "drawer-close-v3",
+        "drawer-open-v3",
+        "faucet-close-v3",
+        "faucet-open-v3",
+        "hammer-v3",
+        "hand-insert-v3",
+        "handle-pull-side-v3",
+        "handle-pull-v3",
+        "lever-pull-v3",
+        "peg-unplug-side-v3",
+        "pick-out-of-hole-v3",
+        "pick-place-v3",
+        "pick-place-wall-v3",
+        "plate-slide-back-side-v3",
+        "plate-slide-back-v3",
+        "plate-slide-side-v3",
+        "plate-slide-v3",
+        "push-back-v3",
+        "push-v3",
+        "push-wall-v3",
+        "reach-v3",
+        "reach-wall-v3",
+        "shelf-place-v3",
+        "soccer-v3",
+        "stick-push-v3",
+        "sweep-into-v3",
+        "sweep-v3",
+    }
+)
 """Meta-World tasks whose reward reads the world only through the observation: their stale-world
 reward needs no kinematics pass (``stale_reward``). Established by measurement, not by reading
 code: on recorded noisy-expert states the observation-only and the full form agree exactly for
@@ -183,7 +214,9 @@ class MetaWorldEnv(gym.Env, EzPickle):
         )
 
     def stale_reward(
-        self, snapshot: tuple[np.ndarray, np.ndarray, np.ndarray], action: np.ndarray,
+        self,
+        snapshot: tuple[np.ndarray, np.ndarray, np.ndarray],
+        action: np.ndarray,
         from_obs: bool | None = None,
     ) -> float:
         """Task reward for the live robot and the world of ``snapshot``.
@@ -294,8 +327,12 @@ class MetaWorldEnv(gym.Env, EzPickle):
         info: dict[str, Any] = {k: float(v) for k, v in mw_info.items()}
         if unstable:
             self._unstable = True
-            info.update(success=False, robot_pos=np.nan_to_num(pos),
-                        robot_vel=np.nan_to_num(vel), sim_unstable=True)
+            info.update(
+                success=False,
+                robot_pos=np.nan_to_num(pos),
+                robot_vel=np.nan_to_num(vel),
+                sim_unstable=True,
+            )
             return self._obs.copy(), 0.0, False, True, info
         self._obs = np.asarray(obs, dtype=np.float64)
         info.update(

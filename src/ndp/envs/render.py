@@ -34,8 +34,9 @@ def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> 
     for f in frames:
         f = np.asarray(f)
         if f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3 or f.shape != shape:
-            raise ValueError(f"frames: expected [H, W, 3] uint8 frames of shape {shape}, "
-                             f"got {f.dtype} {f.shape}")
+            raise ValueError(
+                f"frames: expected [H, W, 3] uint8 frames of shape {shape}, got {f.dtype} {f.shape}"
+            )
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     # macro_block_size=1 keeps odd sizes as they are instead of resizing them.

@@ -138,8 +138,12 @@ class TaskSpec:
     def _controller_tensors(self) -> tuple[torch.Tensor, ...]:
         """(scale, absolute, low, high) [D] as tensors, built once per spec."""
         scale = torch.tensor([s if s > 0 else 1.0 for s in self.action_scale])
-        return (scale, torch.tensor(self.action_absolute), torch.tensor(self.action_low),
-                torch.tensor(self.action_high))
+        return (
+            scale,
+            torch.tensor(self.action_absolute),
+            torch.tensor(self.action_low),
+            torch.tensor(self.action_high),
+        )
 
 
 def _metaworld_spec(name: str) -> TaskSpec:

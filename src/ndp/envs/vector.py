@@ -39,11 +39,21 @@ def info_schema(k: int, dof: int) -> dict[str, tuple[tuple[int, ...], type]]:
     """Key -> (per-env shape, dtype) of :class:`~ndp.envs.ChunkedEnv`'s step info."""
     f, b = np.float64, np.bool_
     return {
-        "sub_rewards": ((k,), f), "sub_rewards_live": ((k,), f), "sub_mask": ((k,), f),
-        "sub_success": ((k,), f), "success": ((), b), "success_decision": ((), b),
-        "success_any": ((), b), "robot_pos": ((k + 1, dof), f), "robot_vel": ((k + 1, dof), f),
-        "dmp_y0": ((dof,), f), "dmp_dy0": ((dof,), f), "cmd_y0": ((dof,), f),
-        "cmd_dy0": ((dof,), f), "n_substeps": ((), np.int64), "sim_unstable": ((), b),
+        "sub_rewards": ((k,), f),
+        "sub_rewards_live": ((k,), f),
+        "sub_mask": ((k,), f),
+        "sub_success": ((k,), f),
+        "success": ((), b),
+        "success_decision": ((), b),
+        "success_any": ((), b),
+        "robot_pos": ((k + 1, dof), f),
+        "robot_vel": ((k + 1, dof), f),
+        "dmp_y0": ((dof,), f),
+        "dmp_dy0": ((dof,), f),
+        "cmd_y0": ((dof,), f),
+        "cmd_dy0": ((dof,), f),
+        "n_substeps": ((), np.int64),
+        "sim_unstable": ((), b),
     }
 
 
@@ -55,8 +65,9 @@ class _Shared:
     close would leave dangling views).
     """
 
-    def __init__(self, layout: dict[str, tuple[tuple[int, ...], Any]], raw: Any = None,
-                 ctx: Any = None):
+    def __init__(
+        self, layout: dict[str, tuple[tuple[int, ...], Any]], raw: Any = None, ctx: Any = None
+    ):
         self.layout = layout
         offsets, size = {}, 0
         for key, (shape, dtype) in layout.items():
@@ -68,13 +79,16 @@ class _Shared:
         self.raw = raw
         buf = memoryview(raw).cast("B")
         self.arrays = {
-            key: np.frombuffer(buf, dtype=dtype, count=int(np.prod(shape, dtype=np.int64)),
-                               offset=offsets[key]).reshape(shape)
-            for key, (shape, dtype) in layout.items()}
+            key: np.frombuffer(
+                buf, dtype=dtype, count=int(np.prod(shape, dtype=np.int64)), offset=offsets[key]
+            ).reshape(shape)
+            for key, (shape, dtype) in layout.items()
+        }
 
 
-def _layout(num_envs: int, obs_dim: int, k: int, action_dim: int,
-            dof: int) -> dict[str, tuple[tuple[int, ...], Any]]:
+def _layout(
+    num_envs: int, obs_dim: int, k: int, action_dim: int, dof: int
+) -> dict[str, tuple[tuple[int, ...], Any]]:
     lay: dict[str, tuple[tuple[int, ...], Any]] = {
         "actions": ((num_envs, k, action_dim), np.float64),
         "obs": ((num_envs, obs_dim), np.float64),
@@ -130,8 +144,15 @@ class _Slice:
             env.close()
 
 
-def _worker(index: int, lo: int, hi: int, fns: Sequence[Callable[[], gym.Env]],
-            raw: Any, layout: dict, conn: Any) -> None:
+def _worker(
+    index: int,
+    lo: int,
+    hi: int,
+    fns: Sequence[Callable[[], gym.Env]],
+    raw: Any,
+    layout: dict,
+    conn: Any,
+) -> None:
     """Worker loop: own envs lo..hi-1, answer 'reset', 'step', 'spaces', 'close' over ``conn``."""
     try:
         import torch
@@ -191,9 +212,17 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
         context: multiprocessing start method ('spawn' is safe beside torch's threads).
     """
 
-    def __init__(self, env_fns: Sequence[Callable[[], gym.Env]], obs_dim: int, k: int,
-                 action_dim: int, dof: int, workers: int | None = None,
-                 main_steps: bool = True, context: str = "spawn") -> None:
+    def __init__(
+        self,
+        env_fns: Sequence[Callable[[], gym.Env]],
+        obs_dim: int,
+        k: int,
+        action_dim: int,
+        dof: int,
+        workers: int | None = None,
+        main_steps: bool = True,
+        context: str = "spawn",
+    ) -> None:
         n = len(env_fns)
         if n < 1:
             raise ValueError("env_fns: expected at least one env factory")
@@ -217,9 +246,12 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
         self._conns, self._procs = [], []
         for idx, (lo, hi) in enumerate(self._remote):
             parent, child = ctx.Pipe()
-            proc = ctx.Process(target=_worker, name=f"ndp-env-worker-{idx}", daemon=True,
-                               args=(idx, lo, hi, list(env_fns[lo:hi]), self._shared.raw,
-                                     self._layout, child))
+            proc = ctx.Process(
+                target=_worker,
+                name=f"ndp-env-worker-{idx}",
+                daemon=True,
+                args=(idx, lo, hi, list(env_fns[lo:hi]), self._shared.raw, self._layout, child),
+            )
             proc.start()
             child.close()
             self._conns.append(parent)
@@ -231,7 +263,8 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
             raise WorkerError(
                 f"{exc} while starting. Workers start with the '{context}' method, which "
                 "re-imports the main script: guard a script's entry point with "
-                "`if __name__ == '__main__':`, or use vector='sync'.") from None
+                "`if __name__ == '__main__':`, or use vector='sync'."
+            ) from None
         if self._local is not None:
             env0 = self._local.envs[0]
             obs_space, act_space = env0.observation_space, env0.action_space
@@ -255,8 +288,10 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
 
     def _dead(self, idx: int) -> WorkerError:
         code = self._procs[idx].exitcode
-        return WorkerError(f"env worker {self._name(idx)} died (exit code {code}); the vector "
-                           "env is unusable, close it and start again")
+        return WorkerError(
+            f"env worker {self._name(idx)} died (exit code {code}); the vector "
+            "env is unusable, close it and start again"
+        )
 
     def _name(self, idx: int) -> str:
         """Worker name: its slice (slice 0 is the main process's when ``main_steps``)."""
@@ -278,11 +313,13 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
 
     def _infos(self, done: np.ndarray | None) -> dict[str, Any]:
         a = self._a
-        infos: dict[str, Any] = {key[5:]: arr.copy() for key, arr in a.items()
-                                 if key.startswith("info/")}
+        infos: dict[str, Any] = {
+            key[5:]: arr.copy() for key, arr in a.items() if key.startswith("info/")
+        }
         if done is not None and done.any():
-            infos["final_info"] = {key[6:]: arr.copy() for key, arr in a.items()
-                                   if key.startswith("final/")}
+            infos["final_info"] = {
+                key[6:]: arr.copy() for key, arr in a.items() if key.startswith("final/")
+            }
             final_obs = np.empty(self.num_envs, dtype=object)
             for i in np.flatnonzero(done):
                 final_obs[i] = a["final_obs"][i].copy()
@@ -290,8 +327,9 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
         return infos
 
     # ------------------------------------------------------------------ gym API
-    def reset(self, *, seed: int | Sequence[int] | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every env; ``seed``: one per env, or an int (env i gets seed + i)."""
         if self._closed:
             raise WorkerError("reset: the vector env is closed")
@@ -310,8 +348,9 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
         self._gather("reset")
         return self._a["obs"].copy(), self._infos(None)
 
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                 np.ndarray, dict[str, Any]]:
+    def step(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env with its [k, A] actions (``actions`` [E, k, A])."""
         if self._closed:
             raise WorkerError("step: the vector env is closed")

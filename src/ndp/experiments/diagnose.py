@@ -52,16 +52,23 @@ def _policy(task: str | None, algo: str, run: str | None, overrides: dict[str, A
         raise ValueError("task: give --task (fresh policy) or --run (trained)")
     spec = resolve_task(task).spec
     base = TrainConfig(task=task, algo=algo)
-    cfg = resolve_config(dataclasses.replace(
-        base, policy=dataclasses.replace(base.policy, **overrides)), spec)
+    cfg = resolve_config(
+        dataclasses.replace(base, policy=dataclasses.replace(base.policy, **overrides)), spec
+    )
     torch.manual_seed(cfg.seed)
     model = build_actor_critic(spec.obs_dim, spec, cfg.policy)
     # a fresh normaliser still learns the observation statistics during the diagnostic rollout
     return cfg, spec, model, ObsNormalizer(spec.obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
 
 
-def diagnose(task: str | None = None, algo: str = "ndp", run: str | None = None,
-             decisions: int = 300, seed: int = 0, **overrides: Any) -> dict[str, Any]:
+def diagnose(
+    task: str | None = None,
+    algo: str = "ndp",
+    run: str | None = None,
+    decisions: int = 300,
+    seed: int = 0,
+    **overrides: Any,
+) -> dict[str, Any]:
     """Run the diagnostic; returns a JSON-ready dict (see the module docstring)."""
     from ndp.envs.chunked import ChunkedEnv
     from ndp.rl.envs import resolve_task
@@ -69,8 +76,9 @@ def diagnose(task: str | None = None, algo: str = "ndp", run: str | None = None,
     cfg, spec, model, obs_norm = _policy(task, algo, run, overrides)
     torch.set_num_threads(1)
     k = cfg.k
-    env = ChunkedEnv(resolve_task(cfg.task).make(horizon=cfg.horizon), k,
-                     stale_world=cfg.stale_world)
+    env = ChunkedEnv(
+        resolve_task(cfg.task).make(horizon=cfg.horizon), k, stale_world=cfg.stale_world
+    )
     key = "cmd" if cfg.policy.dmp_state == "commanded" else "dmp"
     scale = np.array([s if s > 0 else 1.0 for s in spec.action_scale])[: spec.action_dim]
     delta = ~np.array(spec.action_absolute)[: spec.action_dim]
@@ -99,19 +107,33 @@ def diagnose(task: str | None = None, algo: str = "ndp", run: str | None = None,
         obs, _, term, trunc, info = env.step(act)
         # commanded-target motion per sub-step of this decision (measured in the env)
         cmd_now = info["cmd_y0"] if "cmd_y0" in info else info["dmp_y0"]
-        moved.append(np.abs(cmd_now[: len(delta)][delta] - np.asarray(before)[: len(delta)][delta])
-                     / k)
+        moved.append(
+            np.abs(cmd_now[: len(delta)][delta] - np.asarray(before)[: len(delta)][delta]) / k
+        )
         last_cmd = ex[-1, absolute] if absolute.size else None
         if term or trunc:
             obs, info = env.reset()
             last_cmd = info[f"{key}_y0"][absolute] if absolute.size else None
     env.close()
     out: dict[str, Any] = {
-        "task": cfg.task, "algo": cfg.algo, "run": run, "decisions": decisions, "k": k,
-        "policy": {f: getattr(cfg.policy, f) for f in (
-            "mean_clip", "forcing", "absolute_mode", "dmp_state", "dmp_velocity", "goal_scale",
-            "param_noise",
-            "init_log_std")},
+        "task": cfg.task,
+        "algo": cfg.algo,
+        "run": run,
+        "decisions": decisions,
+        "k": k,
+        "policy": {
+            f: getattr(cfg.policy, f)
+            for f in (
+                "mean_clip",
+                "forcing",
+                "absolute_mode",
+                "dmp_state",
+                "dmp_velocity",
+                "goal_scale",
+                "param_noise",
+                "init_log_std",
+            )
+        },
         "intended_disp": np.mean(intended, axis=(0, 2)).tolist(),
         "executed_disp": np.mean(executed, axis=(0, 2)).tolist(),
         "moved_disp_per_substep": float(np.mean(moved)),
@@ -122,8 +144,9 @@ def diagnose(task: str | None = None, algo: str = "ndp", run: str | None = None,
         p = np.array(prev_cmd)
         out["grip_mean_std"] = g.std(0).tolist()
         out["grip_noise_corr"] = [
-            float(np.corrcoef(g[:, j], p)[0, 1]) if g[:, j].std() > 1e-9 and p.std() > 1e-9
-            else 0.0 for j in range(k)]
+            float(np.corrcoef(g[:, j], p)[0, 1]) if g[:, j].std() > 1e-9 and p.std() > 1e-9 else 0.0
+            for j in range(k)
+        ]
     return out
 
 
@@ -134,8 +157,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--run", default=None, help="a trained run directory (else a fresh policy)")
     p.add_argument("--decisions", type=int, default=300)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE",
-                   help="PolicyConfig overrides of a fresh policy, e.g. mean_clip=true")
+    p.add_argument(
+        "--set",
+        nargs="*",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="PolicyConfig overrides of a fresh policy, e.g. mean_clip=true",
+    )
     args = p.parse_args(argv)
     overrides: dict[str, Any] = {}
     for item in args.set:

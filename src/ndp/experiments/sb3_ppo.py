@@ -31,8 +31,14 @@ from pathlib import Path
 
 import numpy as np
 
-FIELDS = ("update", "global_step", "charts/episodes", "charts/success_any",
-          "charts/episode_return", "time/wall_s")
+FIELDS = (
+    "update",
+    "global_step",
+    "charts/episodes",
+    "charts/success_any",
+    "charts/episode_return",
+    "time/wall_s",
+)
 
 
 class EpisodeCounter:
@@ -66,8 +72,9 @@ class EpisodeCounter:
         return len(eps), float(arr[:, 0].mean()), float(arr[:, 1].mean())
 
 
-def train_sb3(task: str, steps: int, seed: int, run_dir: Path, num_envs: int = 4,
-              horizon: int | None = None) -> Path:
+def train_sb3(
+    task: str, steps: int, seed: int, run_dir: Path, num_envs: int = 4, horizon: int | None = None
+) -> Path:
     """Train SB3 PPO; returns the run directory (see the module docstring)."""
     import torch
     from stable_baselines3 import PPO
@@ -88,12 +95,26 @@ def train_sb3(task: str, steps: int, seed: int, run_dir: Path, num_envs: int = 4
     venv = VecNormalize(venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
     n_steps = p.steps_per_update // num_envs
     model = PPO(
-        "MlpPolicy", venv, learning_rate=p.lr, n_steps=n_steps,
-        batch_size=n_steps * num_envs // p.minibatches, n_epochs=p.epochs, gamma=p.gamma,
-        gae_lambda=p.gae_lambda, clip_range=p.clip, ent_coef=p.ent_coef, vf_coef=p.vf_coef,
-        max_grad_norm=p.max_grad_norm, seed=seed, device="cpu", verbose=0,
-        policy_kwargs={"net_arch": {"pi": [100, 100], "vf": [100, 100]},
-                       "activation_fn": torch.nn.Tanh, "optimizer_kwargs": {"eps": p.adam_eps}},
+        "MlpPolicy",
+        venv,
+        learning_rate=p.lr,
+        n_steps=n_steps,
+        batch_size=n_steps * num_envs // p.minibatches,
+        n_epochs=p.epochs,
+        gamma=p.gamma,
+        gae_lambda=p.gae_lambda,
+        clip_range=p.clip,
+        ent_coef=p.ent_coef,
+        vf_coef=p.vf_coef,
+        max_grad_norm=p.max_grad_norm,
+        seed=seed,
+        device="cpu",
+        verbose=0,
+        policy_kwargs={
+            "net_arch": {"pi": [100, 100], "vf": [100, 100]},
+            "activation_fn": torch.nn.Tanh,
+            "optimizer_kwargs": {"eps": p.adam_eps},
+        },
     )
     counter = EpisodeCounter(num_envs)
     path = run_dir / "progress.csv"
@@ -115,10 +136,16 @@ def train_sb3(task: str, steps: int, seed: int, run_dir: Path, num_envs: int = 4
         def _on_rollout_end(self) -> None:
             self.update += 1
             n, succ, ret = counter.pop()
-            writer.writerow({"update": self.update, "global_step": self.num_timesteps,
-                             "charts/episodes": n, "charts/success_any": succ,
-                             "charts/episode_return": ret,
-                             "time/wall_s": time.perf_counter() - t0})
+            writer.writerow(
+                {
+                    "update": self.update,
+                    "global_step": self.num_timesteps,
+                    "charts/episodes": n,
+                    "charts/success_any": succ,
+                    "charts/episode_return": ret,
+                    "time/wall_s": time.perf_counter() - t0,
+                }
+            )
             fh.flush()
 
     try:
@@ -126,10 +153,20 @@ def train_sb3(task: str, steps: int, seed: int, run_dir: Path, num_envs: int = 4
     finally:
         fh.close()
         venv.close()
-    atomic_write_text(run_dir / "done.json", json.dumps(
-        {"task": task, "steps": steps, "seed": seed, "num_envs": num_envs,
-         "global_step": int(model.num_timesteps),
-         "wall_s": time.perf_counter() - t0}) + "\n")
+    atomic_write_text(
+        run_dir / "done.json",
+        json.dumps(
+            {
+                "task": task,
+                "steps": steps,
+                "seed": seed,
+                "num_envs": num_envs,
+                "global_step": int(model.num_timesteps),
+                "wall_s": time.perf_counter() - t0,
+            }
+        )
+        + "\n",
+    )
     return run_dir
 
 

@@ -71,8 +71,10 @@ def _check_arm(run: Path, arm: Arm, steps: int) -> None:
     if rec.is_file():
         have = json.loads(rec.read_text())
         if have != want:
-            raise ValueError(f"runs_dir: {run} holds another run ({have}); expected {want}. "
-                             "Use another --runs-dir or label.")
+            raise ValueError(
+                f"runs_dir: {run} holds another run ({have}); expected {want}. "
+                "Use another --runs-dir or label."
+            )
     else:
         from ndp.io import atomic_write_text
 
@@ -94,24 +96,72 @@ def is_finished(run: Path) -> bool:
     return int(state["update"]) >= TrainConfig.from_dict(state["config"]).num_updates
 
 
-def train_command(task: str, arm: Arm, seed: int, steps: int, run: Path,
-                  num_envs: int = 4, vector: str = "auto") -> list[str]:
+def train_command(
+    task: str, arm: Arm, seed: int, steps: int, run: Path, num_envs: int = 4, vector: str = "auto"
+) -> list[str]:
     """The command that trains (or resumes) one run (``vector``: its vector env kind)."""
     if arm.algo == "sb3-ppo":
-        return [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task, "--steps",
-                str(steps), "--seed", str(seed), "--num-envs", str(num_envs), "--run-dir",
-                str(run)]
+        return [
+            sys.executable,
+            "-m",
+            "ndp.experiments.sb3_ppo",
+            "--task",
+            task,
+            "--steps",
+            str(steps),
+            "--seed",
+            str(seed),
+            "--num-envs",
+            str(num_envs),
+            "--run-dir",
+            str(run),
+        ]
     if (run / "checkpoint.pt").is_file():
-        return [sys.executable, "-m", "ndp.cli", "rl", "train", "--resume", str(run),
-                "--no-progress"]
-    return [sys.executable, "-m", "ndp.cli", "rl", "train", "--task", task, "--algo", arm.algo,
-            "--seed", str(seed), "--steps", str(steps), "--num-envs", str(num_envs),
-            "--run-dir", str(run), "--no-progress", "--no-tensorboard", "--vector", vector,
-            *arm.args]
+        return [
+            sys.executable,
+            "-m",
+            "ndp.cli",
+            "rl",
+            "train",
+            "--resume",
+            str(run),
+            "--no-progress",
+        ]
+    return [
+        sys.executable,
+        "-m",
+        "ndp.cli",
+        "rl",
+        "train",
+        "--task",
+        task,
+        "--algo",
+        arm.algo,
+        "--seed",
+        str(seed),
+        "--steps",
+        str(steps),
+        "--num-envs",
+        str(num_envs),
+        "--run-dir",
+        str(run),
+        "--no-progress",
+        "--no-tensorboard",
+        "--vector",
+        vector,
+        *arm.args,
+    ]
 
 
-def run_one(task: str, arm: Arm, seed: int, steps: int, runs_dir: Path,
-            num_envs: int = 4, vector: str = "auto") -> Path:
+def run_one(
+    task: str,
+    arm: Arm,
+    seed: int,
+    steps: int,
+    runs_dir: Path,
+    num_envs: int = 4,
+    vector: str = "auto",
+) -> Path:
     """Train, resume or reuse one run; returns its directory."""
     run = run_dir(runs_dir, task, arm, seed)
     _check_arm(run, arm, steps)
@@ -122,15 +172,26 @@ def run_one(task: str, arm: Arm, seed: int, steps: int, runs_dir: Path,
     t0 = time.time()
     log = run / "train.log"
     with log.open("a") as fh:
-        subprocess.run(train_command(task, arm, seed, steps, run, num_envs, vector),
-                       check=True, stdout=fh, stderr=subprocess.STDOUT)
+        subprocess.run(
+            train_command(task, arm, seed, steps, run, num_envs, vector),
+            check=True,
+            stdout=fh,
+            stderr=subprocess.STDOUT,
+        )
     print(f"[{task} {arm.label} s{seed}] {time.time() - t0:.0f}s", flush=True)
     return run
 
 
-def run_grid(tasks: Sequence[str], arms: Sequence[Arm], seeds: Sequence[int], steps: int,
-             runs_dir: Path, jobs: int = 1, num_envs: int = 4,
-             vector: str | None = None) -> list[Path]:
+def run_grid(
+    tasks: Sequence[str],
+    arms: Sequence[Arm],
+    seeds: Sequence[int],
+    steps: int,
+    runs_dir: Path,
+    jobs: int = 1,
+    num_envs: int = 4,
+    vector: str | None = None,
+) -> list[Path]:
     """Every (task, arm, seed), seed-major (all arms of seed 0 first), ``jobs`` at a time.
 
     ``vector`` (None: decided here): with one job a run uses the env workers (``auto``); with
@@ -143,8 +204,9 @@ def run_grid(tasks: Sequence[str], arms: Sequence[Arm], seeds: Sequence[int], st
         vector = "auto" if jobs <= 1 or default_workers(64) >= 2 * jobs else "sync"
     grid = [(t, a, s) for s in seeds for t in tasks for a in arms]
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        futs = [pool.submit(run_one, t, a, s, steps, runs_dir, num_envs, vector)
-                for t, a, s in grid]
+        futs = [
+            pool.submit(run_one, t, a, s, steps, runs_dir, num_envs, vector) for t, a, s in grid
+        ]
         return [f.result() for f in futs]
 
 
@@ -176,11 +238,12 @@ def success_area(x: np.ndarray, y: np.ndarray, steps: int, points: int = 101) ->
 
 def final_success(y: np.ndarray) -> float:
     """Mean of the last 10% of the updates (at least one)."""
-    return float(np.mean(y[int(len(y) * 0.9):])) if len(y) >= 10 else float(y[-1])
+    return float(np.mean(y[int(len(y) * 0.9) :])) if len(y) >= 10 else float(y[-1])
 
 
-def summarise(tasks: Sequence[str], arms: Sequence[Arm], seeds: Sequence[int], steps: int,
-              runs_dir: Path) -> dict[str, Any]:
+def summarise(
+    tasks: Sequence[str], arms: Sequence[Arm], seeds: Sequence[int], steps: int, runs_dir: Path
+) -> dict[str, Any]:
     """Per task and arm: area and final success per seed, mean +- std, mean curve.
 
     Only finished runs count (a run still training is listed under ``running``).
@@ -212,13 +275,19 @@ def summarise(tasks: Sequence[str], arms: Sequence[Arm], seeds: Sequence[int], s
                 mean = np.nanmean(curves, 0) if curves else np.full(len(grid), np.nan)
                 std = np.nanstd(curves, 0) if curves else np.full(len(grid), np.nan)
             out["tasks"][task][arm.label] = {
-                "algo": arm.algo, "args": list(arm.args), "note": arm.note, "seeds": used,
-                "running": running, "areas": areas, "finals": finals,
+                "algo": arm.algo,
+                "args": list(arm.args),
+                "note": arm.note,
+                "seeds": used,
+                "running": running,
+                "areas": areas,
+                "finals": finals,
                 "area_mean": float(np.mean(areas)) if areas else math.nan,
                 "area_std": float(np.std(areas)) if areas else math.nan,
                 "final_mean": float(np.mean(finals)) if finals else math.nan,
                 "final_std": float(np.std(finals)) if finals else math.nan,
-                "curve_steps": grid.tolist(), "curve_mean": mean.tolist(),
+                "curve_steps": grid.tolist(),
+                "curve_mean": mean.tolist(),
                 "curve_std": std.tolist(),
             }
     return out
@@ -274,17 +343,28 @@ def add_study_arguments(parser: Any, runs_dir: str, out: str, steps: int) -> Non
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--steps", type=int, default=steps, help="env-step budget per run")
     parser.add_argument("--jobs", type=int, default=1, help="runs at once (at most one per core)")
-    parser.add_argument("--vector", default=None, choices=("auto", "sync"),
-                        help="vector env of each run (default: auto for one job, sync for more)")
+    parser.add_argument(
+        "--vector",
+        default=None,
+        choices=("auto", "sync"),
+        help="vector env of each run (default: auto for one job, sync for more)",
+    )
     parser.add_argument("--runs-dir", type=Path, default=Path(runs_dir))
-    parser.add_argument("--out", type=Path, default=Path(out),
-                        help="output stem: <out>.json, <out>.md, <out>.png")
+    parser.add_argument(
+        "--out", type=Path, default=Path(out), help="output stem: <out>.json, <out>.md, <out>.png"
+    )
     parser.add_argument("--plot-only", action="store_true", help="only aggregate existing runs")
     parser.add_argument("extra", nargs="*", help="extra 'ndp rl train' options, after --")
 
 
-def run_study(args: Any, tasks: Sequence[str], arms: Sequence[Arm], title: str,
-              intro: Sequence[str], command: str) -> dict[str, Any]:
+def run_study(
+    args: Any,
+    tasks: Sequence[str],
+    arms: Sequence[Arm],
+    title: str,
+    intro: Sequence[str],
+    command: str,
+) -> dict[str, Any]:
     """Run (unless ``args.plot_only``) and report a study: ``<out>.json`` (every number, with
     the command, commit, date and runs directory), ``<out>.png`` and ``<out>.md`` (``intro``
     lines, then success area and final success tables)."""
@@ -293,23 +373,36 @@ def run_study(args: Any, tasks: Sequence[str], arms: Sequence[Arm], title: str,
     from ndp.experiments.provenance import git_commit
 
     if not args.plot_only:
-        run_grid(tasks, arms, args.seeds, args.steps, args.runs_dir, args.jobs,
-                 vector=args.vector)
+        run_grid(tasks, arms, args.seeds, args.steps, args.runs_dir, args.jobs, vector=args.vector)
     summary = summarise(tasks, arms, args.seeds, args.steps, args.runs_dir)
-    summary.update(command=command, commit=git_commit(), date=dt.date.today().isoformat(),
-                   runs_dir=str(args.runs_dir))
+    summary.update(
+        command=command,
+        commit=git_commit(),
+        date=dt.date.today().isoformat(),
+        runs_dir=str(args.runs_dir),
+    )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(summary, indent=1) + "\n")
     plot(summary, arms, out.with_suffix(".png"))
-    lines = [f"# {title} ({args.steps} env steps, seeds {list(args.seeds)})", "",
-             f"Command: `{command}`  ",
-             f"Commit: {summary['commit']}, date: {summary['date']}; runs in "
-             f"`{args.runs_dir}`.", "", *intro,
-             "Success area (success averaged over the budget; mean +- std over seeds):", "",
-             *markdown_table(summary, arms, "area"), "",
-             "Final success (last 10% of updates):", "", *markdown_table(summary, arms, "final"),
-             "", f"![curves]({out.with_suffix('.png').name})", ""]
+    lines = [
+        f"# {title} ({args.steps} env steps, seeds {list(args.seeds)})",
+        "",
+        f"Command: `{command}`  ",
+        f"Commit: {summary['commit']}, date: {summary['date']}; runs in `{args.runs_dir}`.",
+        "",
+        *intro,
+        "Success area (success averaged over the budget; mean +- std over seeds):",
+        "",
+        *markdown_table(summary, arms, "area"),
+        "",
+        "Final success (last 10% of updates):",
+        "",
+        *markdown_table(summary, arms, "final"),
+        "",
+        f"![curves]({out.with_suffix('.png').name})",
+        "",
+    ]
     out.with_suffix(".md").write_text("\n".join(lines))
     print("\n".join(lines))
     return summary

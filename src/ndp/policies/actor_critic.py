@@ -42,10 +42,12 @@ class ActorCritic(nn.Module):
         self.obs_dim = int(obs_dim)
         self.head = head
         self.k = head.k
-        self.actor = MLP(obs_dim, hidden, head.n_params, activation, out_gain=0.01,
-                         hidden_gain=hidden_gain)
-        self.critic = MLP(obs_dim, hidden, head.k, activation, out_gain=1.0,
-                          hidden_gain=hidden_gain)
+        self.actor = MLP(
+            obs_dim, hidden, head.n_params, activation, out_gain=0.01, hidden_gain=hidden_gain
+        )
+        self.critic = MLP(
+            obs_dim, hidden, head.k, activation, out_gain=1.0, hidden_gain=hidden_gain
+        )
 
     def distribution(
         self,
@@ -63,5 +65,6 @@ class ActorCritic(nn.Module):
 
 def build_actor_critic(obs_dim: int, spec: Any, cfg: PolicyConfig) -> ActorCritic:
     """Build the actor-critic for a task spec and a resolved policy config."""
-    return ActorCritic(obs_dim, build_head(cfg, spec), tuple(cfg.hidden), cfg.activation,
-                       cfg.hidden_gain)
+    return ActorCritic(
+        obs_dim, build_head(cfg, spec), tuple(cfg.hidden), cfg.activation, cfg.hidden_gain
+    )

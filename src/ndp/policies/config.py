@@ -103,11 +103,16 @@ class PolicyConfig:
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise ValueError(f"{name}: expected a number > 0, got {v!r}")
-        for name, allowed in (("forcing", FORCING), ("absolute_mode", ABSOLUTE_MODES),
-                              ("dmp_state", DMP_STATES), ("dmp_velocity", DMP_VELOCITIES)):
+        for name, allowed in (
+            ("forcing", FORCING),
+            ("absolute_mode", ABSOLUTE_MODES),
+            ("dmp_state", DMP_STATES),
+            ("dmp_velocity", DMP_VELOCITIES),
+        ):
             if getattr(self, name) not in allowed:
-                raise ValueError(f"{name}: expected one of {', '.join(allowed)}, "
-                                 f"got {getattr(self, name)!r}")
+                raise ValueError(
+                    f"{name}: expected one of {', '.join(allowed)}, got {getattr(self, name)!r}"
+                )
         if self.hidden_gain is not None and not self.hidden_gain > 0:
             raise ValueError(f"hidden_gain: expected a number > 0, got {self.hidden_gain!r}")
         if self.param_noise and self.head != "ndp":
@@ -118,5 +123,10 @@ class PolicyConfig:
         """Whether every field the head needs is set (no ``None`` left for NDP)."""
         if self.head != "ndp":
             return True
-        return None not in (self.n_basis, self.a_z, self.dmp_steps, self.goal_scale,
-                            self.weight_scale)
+        return None not in (
+            self.n_basis,
+            self.a_z,
+            self.dmp_steps,
+            self.goal_scale,
+            self.weight_scale,
+        )

@@ -85,8 +85,16 @@ class MultiHead(ActionHead):
         return SubActionGaussian(mean, self.log_std), {}
 
 
-DERIVED_BUFFERS = ("goal_scale", "absolute_goal", "goal_center", "weight_scale", "direct",
-                   "action_map", "action_low", "action_high")
+DERIVED_BUFFERS = (
+    "goal_scale",
+    "absolute_goal",
+    "goal_center",
+    "weight_scale",
+    "direct",
+    "action_map",
+    "action_low",
+    "action_high",
+)
 """NDPHead buffers computed from the config and the task: not saved, ignored when loading
 (checkpoints of earlier versions saved some of them)."""
 
@@ -155,15 +163,21 @@ class NDPHead(ActionHead):
         gs = torch.as_tensor(goal_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
         self.register_buffer("goal_scale", gs, persistent=False)
         # DoF with a fixed goal centre (absolute commands) ignore y0 and dy0 for the goal.
-        centre = torch.full((self.dmp_dofs,), float("nan")) if goal_center is None else (
-            torch.as_tensor(goal_center, dtype=torch.float32).clone())
+        centre = (
+            torch.full((self.dmp_dofs,), float("nan"))
+            if goal_center is None
+            else (torch.as_tensor(goal_center, dtype=torch.float32).clone())
+        )
         # NaN centre: a goal relative to y0
         self.register_buffer("absolute_goal", ~torch.isnan(centre), persistent=False)
         self.register_buffer("goal_center", centre.nan_to_num(), persistent=False)
         ws = torch.as_tensor(weight_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
         self.register_buffer("weight_scale", ws, persistent=False)
-        direct_t = torch.zeros(self.dmp_dofs, dtype=torch.bool) if direct is None else (
-            torch.as_tensor(direct, dtype=torch.bool).clone())
+        direct_t = (
+            torch.zeros(self.dmp_dofs, dtype=torch.bool)
+            if direct is None
+            else (torch.as_tensor(direct, dtype=torch.bool).clone())
+        )
         self.register_buffer("direct", direct_t, persistent=False)
         self._any_direct = bool(direct_t.any())
         self.mean_clip = bool(mean_clip)
@@ -177,8 +191,9 @@ class NDPHead(ActionHead):
         if self._fused:
             assert linear_controller is not None
             scale, absolute, low, high = (torch.as_tensor(x) for x in linear_controller)
-            self.register_buffer("action_map", self._action_map(scale, absolute.bool()),
-                                 persistent=False)
+            self.register_buffer(
+                "action_map", self._action_map(scale, absolute.bool()), persistent=False
+            )
             self.register_buffer("action_low", low.to(torch.float32).clone(), persistent=False)
             self.register_buffer("action_high", high.to(torch.float32).clone(), persistent=False)
 
@@ -213,7 +228,8 @@ class NDPHead(ActionHead):
         step = self.goal_scale * torch.tanh(raw[:, :d])
         goal = torch.where(self.absolute_goal, self.goal_center + step, y0 + step)
         weights = self.weight_scale.unsqueeze(-1) * torch.tanh(
-            raw[:, d:].reshape(b, d, self.n_basis))
+            raw[:, d:].reshape(b, d, self.n_basis)
+        )
         if self.start_at_rest:
             dy0_dmp = torch.zeros_like(y0)
         else:
@@ -260,8 +276,10 @@ class NDPHead(ActionHead):
         mean_actions, goal, weights = self.decode(raw, y0, dy0)
         aux: dict[str, torch.Tensor] = {}
         if not torch.is_grad_enabled():  # diagnostics of rollouts only (not in the update)
-            aux = {"goal_norm": (goal - y0).norm(dim=-1),
-                   "weight_norm": weights.flatten(1).norm(dim=-1)}
+            aux = {
+                "goal_norm": (goal - y0).norm(dim=-1),
+                "weight_norm": weights.flatten(1).norm(dim=-1),
+            }
         if self.param_noise:
 
             def _decode(z: torch.Tensor) -> torch.Tensor:
@@ -349,9 +367,12 @@ def _linear_controller(spec: Any) -> tuple[torch.Tensor, ...] | None:
         return None
     d = spec.dmp_dofs
     scale = torch.as_tensor([s if s > 0 else 1.0 for s in _per_dof(spec.action_scale, d)])
-    return (scale, torch.as_tensor(_per_dof(spec.action_absolute, d).astype(bool)),
-            torch.as_tensor(_per_dof(spec.action_low, d)),
-            torch.as_tensor(_per_dof(spec.action_high, d)))
+    return (
+        scale,
+        torch.as_tensor(_per_dof(spec.action_absolute, d).astype(bool)),
+        torch.as_tensor(_per_dof(spec.action_low, d)),
+        torch.as_tensor(_per_dof(spec.action_high, d)),
+    )
 
 
 def _per_dof(value: Any, d: int) -> np.ndarray:

@@ -26,15 +26,20 @@ def add_subparser(sub: Any) -> None:
     rl_sub.required = True
 
     tr = rl_sub.add_parser(
-        "train", help="train a policy",
+        "train",
+        help="train a policy",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
         description="Train PPO / PPO-multi / NDP. Unset NDP fields come from the per-task "
-                    "preset table (ndp.rl.presets). The resolved config is saved as "
-                    "RUN_DIR/config.json.",
+        "preset table (ndp.rl.presets). The resolved config is saved as "
+        "RUN_DIR/config.json.",
     )
-    tr.add_argument("--resume", metavar="RUN_DIR", default=None,
-                    help="continue a killed run from RUN_DIR's checkpoint (other options "
-                         "except --progress/--tensorboard are taken from RUN_DIR/config.json)")
+    tr.add_argument(
+        "--resume",
+        metavar="RUN_DIR",
+        default=None,
+        help="continue a killed run from RUN_DIR's checkpoint (other options "
+        "except --progress/--tensorboard are taken from RUN_DIR/config.json)",
+    )
     add_dataclass_arguments(tr, TrainConfig)
     add_dataclass_arguments(tr, PPOConfig)
     add_dataclass_arguments(tr, PolicyConfig, skip=("head",))
@@ -44,8 +49,12 @@ def add_subparser(sub: Any) -> None:
     ev.add_argument("run_dir", metavar="RUN_DIR")
     ev.add_argument("--episodes", type=int, default=10, help="episodes per mode (default 10)")
     ev.add_argument("--seed", type=int, default=10_000, help="first episode seed")
-    ev.add_argument("--mode", choices=("both", "deterministic", "stochastic"), default="both",
-                    help="act with the mean, by sampling, or both (default both)")
+    ev.add_argument(
+        "--mode",
+        choices=("both", "deterministic", "stochastic"),
+        default="both",
+        help="act with the mean, by sampling, or both (default both)",
+    )
     ev.set_defaults(func=_cmd_eval)
 
     rd = rl_sub.add_parser("render", help="render a trained run to mp4")
@@ -86,6 +95,5 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 def _cmd_render(args: argparse.Namespace) -> int:
     from ndp.rl.evaluate import render
 
-    print(json.dumps(render(args.run_dir, args.out, args.episodes, not args.stochastic,
-                            args.seed)))
+    print(json.dumps(render(args.run_dir, args.out, args.episodes, not args.stochastic, args.seed)))
     return 0

@@ -84,8 +84,15 @@ class PPOConfig:
     """Decay the learning rate linearly to 0 over the run."""
 
     def __post_init__(self) -> None:
-        for name in ("lr", "adam_eps", "vf_coef", "max_grad_norm", "clip", "clip_obs",
-                     "clip_reward"):
+        for name in (
+            "lr",
+            "adam_eps",
+            "vf_coef",
+            "max_grad_norm",
+            "clip",
+            "clip_obs",
+            "clip_reward",
+        ):
             _check_positive(name, getattr(self, name))
         for name in ("gamma", "gae_lambda"):
             v = getattr(self, name)
@@ -96,8 +103,9 @@ class PPOConfig:
         for name in ("epochs", "minibatches", "steps_per_update"):
             _check_int(name, getattr(self, name), 1)
         if self.adv_norm_scope not in ("rollout", "minibatch"):
-            raise ValueError(f"adv_norm_scope: expected 'rollout' or 'minibatch', got "
-                             f"{self.adv_norm_scope!r}")
+            raise ValueError(
+                f"adv_norm_scope: expected 'rollout' or 'minibatch', got {self.adv_norm_scope!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -152,13 +160,16 @@ class TrainConfig:
         if self.horizon is not None:
             _check_int("horizon", self.horizon, 1)
         if self.vector not in ("auto", "sync", "workers", "async"):
-            raise ValueError(f"vector: expected 'auto', 'sync', 'workers' or 'async', got "
-                             f"{self.vector!r}")
+            raise ValueError(
+                f"vector: expected 'auto', 'sync', 'workers' or 'async', got {self.vector!r}"
+            )
         if self.env_workers is not None:
             _check_int("env_workers", self.env_workers, 1)
             if self.env_workers > self.num_envs:
-                raise ValueError(f"env_workers: expected at most num_envs={self.num_envs}, "
-                                 f"got {self.env_workers}")
+                raise ValueError(
+                    f"env_workers: expected at most num_envs={self.num_envs}, "
+                    f"got {self.env_workers}"
+                )
 
     # ----------------------------------------------------------------- derived values
     @property
@@ -231,12 +242,19 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
             a_z=a_z,
             dmp_steps=pol.dmp_steps if pol.dmp_steps is not None else pre.steps_per_substep * k,
             goal_scale=float(pol.goal_scale if pol.goal_scale is not None else pre.goal_scale),
-            weight_scale=float(pol.weight_scale if pol.weight_scale is not None
-                               else a_z * a_z / 4.0),
+            weight_scale=float(
+                pol.weight_scale if pol.weight_scale is not None else a_z * a_z / 4.0
+            ),
         )
     else:
-        changes.update(n_basis=None, a_z=None, dmp_steps=None, goal_scale=None,
-                       weight_scale=None, param_noise=False)
+        changes.update(
+            n_basis=None,
+            a_z=None,
+            dmp_steps=None,
+            goal_scale=None,
+            weight_scale=None,
+            param_noise=False,
+        )
     policy = dataclasses.replace(pol, **changes)
     run_dir = cfg.run_dir or str(Path("runs") / f"{spec.name}-{cfg.algo}-s{cfg.seed}")
     return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir)
@@ -267,9 +285,13 @@ def field_docs(cls: type) -> dict[str, str]:
     body = tree.body[0].body  # type: ignore[attr-defined]
     docs: dict[str, str] = {}
     for node, nxt in itertools.pairwise(body):
-        if (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)
-                and isinstance(nxt, ast.Expr) and isinstance(nxt.value, ast.Constant)
-                and isinstance(nxt.value.value, str)):
+        if (
+            isinstance(node, ast.AnnAssign)
+            and isinstance(node.target, ast.Name)
+            and isinstance(nxt, ast.Expr)
+            and isinstance(nxt.value, ast.Constant)
+            and isinstance(nxt.value.value, str)
+        ):
             docs[node.target.id] = " ".join(nxt.value.value.split())
     return docs
 
@@ -343,6 +365,10 @@ def _check_int(name: str, value: object, low: int) -> None:
 
 
 def _check_positive(name: str, value: object) -> None:
-    if (isinstance(value, bool) or not isinstance(value, (int, float))
-            or not math.isfinite(value) or value <= 0):
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not math.isfinite(value)
+        or value <= 0
+    ):
         raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")

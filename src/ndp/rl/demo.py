@@ -18,13 +18,25 @@ def demo_config(out_dir: Path, quick: bool = True) -> TrainConfig:
     """
     if quick:
         return TrainConfig(
-            task="point-mass", algo="ndp", steps=30_000, seed=0, num_envs=4,
-            run_dir=str(Path(out_dir) / "rl_demo_run"), progress=False,
+            task="point-mass",
+            algo="ndp",
+            steps=30_000,
+            seed=0,
+            num_envs=4,
+            run_dir=str(Path(out_dir) / "rl_demo_run"),
+            progress=False,
             ppo=PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3),
             policy=PolicyConfig(),
         )
-    return TrainConfig(task="reach-v3", algo="ndp", steps=150_000, seed=0, num_envs=4,
-                       run_dir=str(Path(out_dir) / "rl_demo_run"), progress=True)
+    return TrainConfig(
+        task="reach-v3",
+        algo="ndp",
+        steps=150_000,
+        seed=0,
+        num_envs=4,
+        run_dir=str(Path(out_dir) / "rl_demo_run"),
+        progress=True,
+    )
 
 
 def plot_curve(progress_csv: Path, out_png: Path, title: str) -> Path:
@@ -78,9 +90,15 @@ def run_rl_demo(out_dir: Path, quick: bool = True) -> dict[str, Any]:
     if run_dir.exists():
         shutil.rmtree(run_dir)
     metrics = train(cfg)
-    curve = plot_curve(run_dir / "progress.csv", out_dir / "rl_curve.png",
-                       f"NDP on {cfg.task} (seed {cfg.seed})")
+    curve = plot_curve(
+        run_dir / "progress.csv", out_dir / "rl_curve.png", f"NDP on {cfg.task} (seed {cfg.seed})"
+    )
     ev = evaluate(run_dir, episodes=10, deterministic=True)
     vid = render(run_dir, out_dir / "rl_video.mp4", episodes=2)
-    return {"run_dir": str(run_dir), "curve": str(curve), "video": vid["path"],
-            "train": metrics, "eval": ev}
+    return {
+        "run_dir": str(run_dir),
+        "curve": str(curve),
+        "video": vid["path"],
+        "train": metrics,
+        "eval": ev,
+    }

@@ -31,14 +31,17 @@ class LoadedPolicy:
     make_env: Any
     """Per-step env factory of the task."""
 
-    def act(self, obs: np.ndarray, y0: np.ndarray, dy0: np.ndarray,
-            deterministic: bool = True) -> np.ndarray:
+    def act(
+        self, obs: np.ndarray, y0: np.ndarray, dy0: np.ndarray, deterministic: bool = True
+    ) -> np.ndarray:
         """Sub-actions [E, k, A] (clipped to the task's bounds) for obs [E, O], y0 / dy0 [E, D]."""
         o = torch.from_numpy(self.obs_norm(np.asarray(obs).reshape(len(y0), -1)))
         with torch.no_grad():
             dist, _ = self.model.distribution(
-                o, torch.as_tensor(y0, dtype=torch.float32),
-                torch.as_tensor(dy0, dtype=torch.float32))
+                o,
+                torch.as_tensor(y0, dtype=torch.float32),
+                torch.as_tensor(dy0, dtype=torch.float32),
+            )
             z = dist.mode() if deterministic else dist.sample()
             act = dist.actions(z)
         low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
@@ -76,9 +79,12 @@ def _episode(pol: LoadedPolicy, env: Any, seed: int, deterministic: bool) -> dic
         length += int(info["n_substeps"])
         y0, dy0 = info[f"{key}_y0"], info[f"{key}_dy0"]
         if term or trunc:
-            return {"success_any": float(info["success_any"]),
-                    "success_final": float(info["success"]),
-                    "episode_return": ret, "episode_length": float(length)}
+            return {
+                "success_any": float(info["success_any"]),
+                "success_final": float(info["success"]),
+                "episode_return": ret,
+                "episode_length": float(length),
+            }
 
 
 def evaluate(
@@ -152,5 +158,8 @@ def render(
     path = Path(out) if out is not None else Path(run_dir) / "video.mp4"
     fps = max(1, min(60, round(1.0 / float(pol.spec.control_dt))))
     write_mp4(rec.frames, path, fps=fps)
-    return {"path": str(path), "frames": len(rec.frames),
-            "success_any": float(np.mean([r["success_any"] for r in rows]))}
+    return {
+        "path": str(path),
+        "frames": len(rec.frames),
+        "success_any": float(np.mean([r["success_any"] for r in rows])),
+    }

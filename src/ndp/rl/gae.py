@@ -62,8 +62,9 @@ def gae_substeps(
         )
     t_len, n_env, k = r.shape
     if end.shape != (t_len, n_env) or last.shape != (n_env,):
-        raise ValueError(f"ends: expected [T, E], last_values: expected [E]; got {end.shape}, "
-                         f"{last.shape}")
+        raise ValueError(
+            f"ends: expected [T, E], last_values: expected [E]; got {end.shape}, {last.shape}"
+        )
     # Next-sub-step values in sequence order.
     nxt = np.empty_like(v)
     nxt[:, :, :-1] = v[:, :, 1:]

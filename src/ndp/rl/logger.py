@@ -107,5 +107,6 @@ class Logger:
 def read_csv(path: Path) -> list[dict[str, float]]:
     """Read ``progress.csv`` as a list of dicts (empty cells become NaN)."""
     with Path(path).open(newline="") as f:
-        return [{k: float(v) if v != "" else math.nan for k, v in r.items()}
-                for r in csv.DictReader(f)]
+        return [
+            {k: float(v) if v != "" else math.nan for k, v in r.items()} for r in csv.DictReader(f)
+        ]

@@ -91,8 +91,9 @@ class ReturnNormalizer:
         enabled: when False, rewards pass through unchanged.
     """
 
-    def __init__(self, num_envs: int, gamma: float, clip: float = 10.0,
-                 enabled: bool = True) -> None:
+    def __init__(
+        self, num_envs: int, gamma: float, clip: float = 10.0, enabled: bool = True
+    ) -> None:
         self.rms = RunningMeanStd(())
         self.ret = np.zeros(num_envs, dtype=np.float64)
         self.gamma = float(gamma)

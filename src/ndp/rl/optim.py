@@ -37,12 +37,13 @@ class FlatAdam:
         off = 0
         for p in self.params:
             n = p.numel()
-            flat[off:off + n].copy_(p.detach().reshape(-1))
-            p.data = flat[off:off + n].view_as(p)
+            flat[off : off + n].copy_(p.detach().reshape(-1))
+            p.data = flat[off : off + n].view_as(p)
             off += n
         self.flat = nn.Parameter(flat)  # shares storage with every module parameter
-        self.opt = torch.optim.Adam([self.flat], lr=lr, eps=eps,
-                                    fused=first.device.type in ("cpu", "cuda"))
+        self.opt = torch.optim.Adam(
+            [self.flat], lr=lr, eps=eps, fused=first.device.type in ("cpu", "cuda")
+        )
 
     @property
     def param_groups(self) -> list[dict[str, Any]]:
@@ -82,9 +83,14 @@ class FlatAdam:
             if any(s is None for s in per):
                 state = {"state": {}, "param_groups": [{**groups[0], "params": [0]}]}
             else:
-                state = {"state": {0: {
-                    "step": per[0]["step"],
-                    "exp_avg": torch.cat([s["exp_avg"].reshape(-1) for s in per]),
-                    "exp_avg_sq": torch.cat([s["exp_avg_sq"].reshape(-1) for s in per]),
-                }}, "param_groups": [{**groups[0], "params": [0]}]}
+                state = {
+                    "state": {
+                        0: {
+                            "step": per[0]["step"],
+                            "exp_avg": torch.cat([s["exp_avg"].reshape(-1) for s in per]),
+                            "exp_avg_sq": torch.cat([s["exp_avg_sq"].reshape(-1) for s in per]),
+                        }
+                    },
+                    "param_groups": [{**groups[0], "params": [0]}],
+                }
         self.opt.load_state_dict(state)

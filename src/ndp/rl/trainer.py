@@ -83,7 +83,12 @@ class Trainer:
         self.num_envs = cfg.num_envs
         self.T = cfg.decisions_per_env
         self.envs = make_vector_env(
-            task, self.k, cfg.num_envs, cfg.stale_world, cfg.horizon, cfg.vector,
+            task,
+            self.k,
+            cfg.num_envs,
+            cfg.stale_world,
+            cfg.horizon,
+            cfg.vector,
             cfg.env_workers,
         )
         obs_dim = int(np.prod(self.envs.single_observation_space.shape))
@@ -150,8 +155,11 @@ class Trainer:
         return self.ckpt_path
 
     def _diverged(self, what: str) -> TrainingDivergedError:
-        last = (f"{self.ckpt_path} (update {self.last_ckpt_update})"
-                if self.last_ckpt_update is not None else "none written yet")
+        last = (
+            f"{self.ckpt_path} (update {self.last_ckpt_update})"
+            if self.last_ckpt_update is not None
+            else "none written yet"
+        )
         return TrainingDivergedError(
             f"training stopped at update {self.update + 1}: {what}. The last good checkpoint is "
             f"kept: {last}. Try a smaller learning rate or check the task's reward / actions."
@@ -219,8 +227,7 @@ class Trainer:
             r_n = self.ret_norm(sub_r, mask, done)
             boot = trunc & ~term
             if boot.any():  # bootstrap truncated episodes from their final observation
-                fin = np.stack([np.asarray(o, dtype=np.float64)
-                                for o in infos["final_obs"][boot]])
+                fin = np.stack([np.asarray(o, dtype=np.float64) for o in infos["final_obs"][boot]])
                 fin = torch.from_numpy(self.obs_norm(fin.reshape(-1, self.obs_dim)))
                 with torch.no_grad():
                     v_fin = self.model.value(fin)[:, 0].numpy()
@@ -235,8 +242,15 @@ class Trainer:
                 s_any = step_info(infos, done, "success_any")
                 s_fin = step_info(infos, done, "success")
                 for i in np.flatnonzero(done):
-                    episodes.append((float(s_any[i]), float(s_fin[i]), self._ep_ret[i],
-                                     float(self._ep_len[i]), self._ep_ret_live[i]))
+                    episodes.append(
+                        (
+                            float(s_any[i]),
+                            float(s_fin[i]),
+                            self._ep_ret[i],
+                            float(self._ep_len[i]),
+                            self._ep_ret_live[i],
+                        )
+                    )
                 self._ep_ret[done] = 0.0
                 self._ep_ret_live[done] = 0.0
                 self._ep_len[done] = 0
@@ -246,8 +260,7 @@ class Trainer:
         with torch.no_grad():
             last_obs = torch.from_numpy(self.obs_norm(self._obs))
             last_v = self.model.value(last_obs)[:, 0].numpy()
-        adv, ret = gae_substeps(rew_b, val_b, mask_b, end_b, last_v, gamma,
-                                self.cfg.ppo.gae_lambda)
+        adv, ret = gae_substeps(rew_b, val_b, mask_b, end_b, last_v, gamma, self.cfg.ppo.gae_lambda)
         assert z_b is not None and logp_b is not None
         n = T * E
         return {
@@ -286,9 +299,9 @@ class Trainer:
             adv = normalize_advantages(adv, mask)
         n = mask.shape[0]
         n_mb = min(p.minibatches, n)
-        stats: dict[str, list[torch.Tensor]] = {k: [] for k in
-                                         ("policy", "value", "entropy", "approx_kl", "clipfrac",
-                                          "grad_norm")}
+        stats: dict[str, list[torch.Tensor]] = {
+            k: [] for k in ("policy", "value", "entropy", "approx_kl", "clipfrac", "grad_norm")
+        }
         vclip = p.clip if p.clip_value_loss else None
         keys = ("obs", "y0", "dy0", "z", "logp", "values", "returns")
         vmask_all = batch["mask"]
@@ -307,11 +320,11 @@ class Trainer:
                 m, vm = mb["mask"], mb["vmask"]
                 mb_adv = normalize_advantages(mb["adv"], m) if per_mb_norm else mb["adv"]
                 if isinstance(dist, SubActionGaussian):  # fused surrogate: one autograd node
-                    pg, kl, cf = gaussian_policy_loss(dist.mean, dist.log_std, mb["z"],
-                                                      mb["logp"], mb_adv, m, p.clip)
+                    pg, kl, cf = gaussian_policy_loss(
+                        dist.mean, dist.log_std, mb["z"], mb["logp"], mb_adv, m, p.clip
+                    )
                 else:
-                    pg, kl, cf = policy_loss(dist.log_prob(mb["z"]), mb["logp"], mb_adv, m,
-                                             p.clip)
+                    pg, kl, cf = policy_loss(dist.log_prob(mb["z"]), mb["logp"], mb_adv, m, p.clip)
                 v = self.model.value(mb["obs"])
                 vl = value_loss(v, mb["values"], mb["returns"], vm, vclip)
                 if p.ent_coef > 0:
@@ -327,10 +340,17 @@ class Trainer:
                 if not bool(torch.isfinite(loss.detach() + gn)):  # one check for both
                     raise self._diverged(
                         f"non-finite loss or gradient (policy {float(pg.detach())}, value "
-                        f"{float(vl.detach())}, gradient norm {float(gn)})")
+                        f"{float(vl.detach())}, gradient norm {float(gn)})"
+                    )
                 self.opt.step()
-                for key, val in (("policy", pg), ("value", vl), ("entropy", ent),
-                                 ("approx_kl", kl), ("clipfrac", cf), ("grad_norm", gn)):
+                for key, val in (
+                    ("policy", pg),
+                    ("value", vl),
+                    ("entropy", ent),
+                    ("approx_kl", kl),
+                    ("clipfrac", cf),
+                    ("grad_norm", gn),
+                ):
                     stats[key].append(val.detach())
         self._check_params("after the update")
         out = {k: float(torch.stack(v).mean()) for k, v in stats.items()}
@@ -354,15 +374,25 @@ class Trainer:
         cfg = self.cfg
         resumed = self.last_ckpt_update is not None
         logger = Logger(
-            self.run_dir, cfg.tensorboard,
+            self.run_dir,
+            cfg.tensorboard,
             resume_update=self.update if resumed else None,
             resume_step=self.global_step if resumed else None,
         )
-        bar = tqdm(total=cfg.steps, initial=min(self.global_step, cfg.steps), unit="step",
-                   disable=not cfg.progress, dynamic_ncols=True, desc=f"{cfg.algo} {cfg.task}")
+        bar = tqdm(
+            total=cfg.steps,
+            initial=min(self.global_step, cfg.steps),
+            unit="step",
+            disable=not cfg.progress,
+            dynamic_ncols=True,
+            desc=f"{cfg.algo} {cfg.task}",
+        )
         metrics: dict[str, float] = {}
-        stop = cfg.num_updates if max_updates is None else min(
-            cfg.num_updates, self.update + max_updates)
+        stop = (
+            cfg.num_updates
+            if max_updates is None
+            else min(cfg.num_updates, self.update + max_updates)
+        )
         try:
             while self.update < stop:
                 t0 = time.perf_counter()
@@ -402,8 +432,10 @@ class Trainer:
                 }
                 logger.log(metrics)
                 bar.update(min(self.global_step, cfg.steps) - bar.n)
-                bar.set_postfix(success=f"{metrics['charts/success_any']:.2f}",
-                                ret=f"{metrics['charts/episode_return']:.1f}")
+                bar.set_postfix(
+                    success=f"{metrics['charts/success_any']:.2f}",
+                    ret=f"{metrics['charts/episode_return']:.1f}",
+                )
                 if self.update % cfg.checkpoint_every == 0 or self.update == cfg.num_updates:
                     self.save()
         finally:
@@ -416,8 +448,9 @@ class Trainer:
         self.envs.close()
 
 
-def _robot_state(info: dict[str, Any], n: int,
-                 source: str = "measured") -> tuple[np.ndarray, np.ndarray]:
+def _robot_state(
+    info: dict[str, Any], n: int, source: str = "measured"
+) -> tuple[np.ndarray, np.ndarray]:
     """The next decision's DMP start (physical y0, dy0) [E, D] from a vector env's info.
 
     ``source``: 'measured' (the robot) or 'commanded' (the target the actions move)."""
@@ -429,8 +462,10 @@ def _robot_state(info: dict[str, Any], n: int,
         y0, dy0 = info["robot_pos"], info["robot_vel"]
         if np.ndim(y0) == 3:  # [E, k+1, D] step info: the state after the last sub-step
             y0, dy0 = y0[:, -1], dy0[:, -1]
-    return (np.asarray(y0, dtype=np.float64).reshape(n, -1),
-            np.asarray(dy0, dtype=np.float64).reshape(n, -1))
+    return (
+        np.asarray(y0, dtype=np.float64).reshape(n, -1),
+        np.asarray(dy0, dtype=np.float64).reshape(n, -1),
+    )
 
 
 def train(cfg: TrainConfig, max_updates: int | None = None) -> dict[str, float]:
@@ -442,8 +477,9 @@ def train(cfg: TrainConfig, max_updates: int | None = None) -> dict[str, float]:
         trainer.close()
 
 
-def resume(run_dir: str | Path, max_updates: int | None = None,
-           **overrides: Any) -> dict[str, float]:
+def resume(
+    run_dir: str | Path, max_updates: int | None = None, **overrides: Any
+) -> dict[str, float]:
     """Continue a run from its directory's checkpoint (at most one interval is lost).
 
     Args:

@@ -21,7 +21,7 @@ applies it with one matrix product.
 from __future__ import annotations
 
 import functools
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -221,7 +221,8 @@ def linear_map_f64(cfg: DMPConfig, a_z: float | None = None) -> np.ndarray:
     Returns:
         M: [N + 3, 3 * n_out] float64, columns ordered (pos_0..pos_T, vel_0.., acc_0..).
     """
-    return _linear_map_f64(cfg, None if a_z is None else float(a_z)).copy()
+    m: np.ndarray = _linear_map_f64(cfg, None if a_z is None else float(a_z)).copy()
+    return m
 
 
 @functools.lru_cache(maxsize=64)
@@ -285,15 +286,15 @@ def dmp_rollout_fast(
     return _fast(cfg, goal, weights, y0, dy0)
 
 
-def _fast(
+def _fast_packed(
     cfg: DMPConfig,
     goal: torch.Tensor,
     weights: torch.Tensor,
     y0: torch.Tensor,
     dy0: torch.Tensor,
-    check: bool = False,
-    pos_only: bool = False,
-) -> Any:
+    check: bool,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """(u [B * D, N + 3] packed inputs, m [N + 3, 3 * n_out] map) of the linear-map path."""
     m = _linear_map(cfg, None, goal.device, goal.dtype)
     b, d = goal.shape
     n = cfg.n_basis
@@ -307,11 +308,35 @@ def _fast(
         # One reduction over the packed inputs; name the culprit only when something is wrong.
         check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0)
         raise FloatingPointError("inputs: expected finite values, their sum overflows")
-    if pos_only:
-        pos = (u.reshape(b * d, -1) @ m[:, : cfg.n_out]).view(b, d, cfg.n_out)
-        return pos.transpose(1, 2)
-    out = (u.reshape(b * d, -1) @ m).view(b, d, 3, cfg.n_out).permute(2, 0, 3, 1)
-    return DMPTrajectory(*out.unbind(0))
+    return u.reshape(b * d, -1), m
+
+
+def _fast(
+    cfg: DMPConfig,
+    goal: torch.Tensor,
+    weights: torch.Tensor,
+    y0: torch.Tensor,
+    dy0: torch.Tensor,
+    check: bool = False,
+) -> DMPTrajectory:
+    u, m = _fast_packed(cfg, goal, weights, y0, dy0, check)
+    b, d = goal.shape
+    out = (u @ m).view(b, d, 3, cfg.n_out).permute(2, 0, 3, 1)
+    pos, vel, acc = out.unbind(0)
+    return DMPTrajectory(pos, vel, acc)
+
+
+def _fast_positions(
+    cfg: DMPConfig,
+    goal: torch.Tensor,
+    weights: torch.Tensor,
+    y0: torch.Tensor,
+    dy0: torch.Tensor,
+    check: bool = False,
+) -> torch.Tensor:
+    u, m = _fast_packed(cfg, goal, weights, y0, dy0, check)
+    b, d = goal.shape
+    return (u @ m[:, : cfg.n_out]).view(b, d, cfg.n_out).transpose(1, 2)
 
 
 def dmp_rollout(
@@ -354,6 +379,7 @@ def dmp_rollout(
         if method == "fast":
             raise ValueError("method: 'fast' needs a fixed a_z; use 'loop' or 'auto' with learn_az")
         lo, hi = cfg.az_range
+        assert a_z is not None  # checked above
         return _reference(cfg, goal, weights, y0, dy0, a_z.clamp(lo, hi))
     if method == "loop":
         return _reference(cfg, goal, weights, y0, dy0, None)
@@ -374,4 +400,4 @@ def dmp_positions(
     if cfg.learn_az:
         raise ValueError("cfg: dmp_positions needs a fixed a_z (learn_az False)")
     goal, weights, y0, dy0, _ = validate_inputs(cfg, goal, weights, y0, dy0)
-    return _fast(cfg, goal, weights, y0, dy0, check, pos_only=True)
+    return _fast_positions(cfg, goal, weights, y0, dy0, check)

@@ -60,7 +60,7 @@ class FlatAdam:
         before clipping (as ``clip_grad_norm_``; NaN / Inf propagate into it)."""
         grads = [torch.zeros_like(p) if p.grad is None else p.grad for p in self.params]
         g = torch.cat([x.reshape(-1) for x in grads])
-        norm = torch.linalg.vector_norm(g)
+        norm: torch.Tensor = torch.linalg.vector_norm(g)
         g.mul_((max_norm / (norm + 1e-6)).clamp(max=1.0))
         self.flat.grad = g
         return norm

@@ -9,6 +9,7 @@ and ``mask[:, :1]``, so each decision is one clipped term. Every mean is over ex
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import torch
 
@@ -96,7 +97,16 @@ class _GaussianSurrogate(torch.autograd.Function):
     """
 
     @staticmethod
-    def forward(ctx, mean, log_std, z, old_logp, adv, mask, clip):  # type: ignore[override]
+    def forward(
+        ctx: Any,
+        mean: torch.Tensor,
+        log_std: torch.Tensor,
+        z: torch.Tensor,
+        old_logp: torch.Tensor,
+        adv: torch.Tensor,
+        mask: torch.Tensor,
+        clip: float,
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         inv_std = torch.exp(-log_std)
         u = (z - mean) * inv_std  # [M, k, A]
         logp = (-0.5 * u * u - log_std).sum(-1) - u.shape[-1] * _HALF_LOG_2PI  # [M, k]
@@ -117,7 +127,9 @@ class _GaussianSurrogate(torch.autograd.Function):
         return loss, approx_kl, clipfrac
 
     @staticmethod
-    def backward(ctx, g_loss, _g_kl, _g_cf):  # type: ignore[override]
+    def backward(
+        ctx: Any, g_loss: torch.Tensor, _g_kl: torch.Tensor, _g_cf: torch.Tensor
+    ) -> tuple[torch.Tensor | None, ...]:
         u, inv_std, g_logp = ctx.saved_tensors
         g = (g_logp * g_loss).unsqueeze(-1)  # [M, k, 1]
         g_mean = g * u * inv_std  # d logp / d mean = u / std
@@ -152,4 +164,7 @@ def gaussian_policy_loss(
     Returns:
         ``(loss, approx_kl, clipfrac)`` as :func:`policy_loss`.
     """
-    return _GaussianSurrogate.apply(mean, log_std, z, old_logp, adv, mask, float(clip))
+    apply = _GaussianSurrogate.apply  # untyped in torch's stubs
+    out = apply(mean, log_std, z, old_logp, adv, mask, float(clip))  # type: ignore[no-untyped-call]
+    loss, approx_kl, clipfrac = out
+    return loss, approx_kl, clipfrac

@@ -14,6 +14,66 @@ Packages, in the order the data flows:
 - :mod:`ndp.il`           digit-writing data, models, trainer, metrics
 - :mod:`ndp.experiments`  presets, sweeps, result tables and plots
 - :mod:`ndp.cli`          the ``ndp`` command
+
+Public API (imported lazily, so ``import ndp`` stays cheap):
+
+- ``ndp.DMPLayer``, ``ndp.DMPConfig``: the differentiable DMP layer for your own network;
+- ``ndp.make_env(task, k=5)``: a task's chunked env (k sub-steps per decision, stale-world rule);
+- ``ndp.load_policy(path)``: a trained policy (a run directory or an export) with
+  ``act(obs, info)``, ``reset()`` and ``make_env()``; ``ndp.export_policy(run, out)`` writes a
+  safetensors + JSON export that loads without unpickling.
 """
 
+from __future__ import annotations
+
+from typing import Any
+
 __version__ = "0.1.0"
+
+_LAZY = {
+    "DMPLayer": ("ndp.dmp", "DMPLayer"),
+    "DMPConfig": ("ndp.dmp", "DMPConfig"),
+    "Policy": ("ndp.rl.policy", "Policy"),
+    "load_policy": ("ndp.rl.policy", "load_policy"),
+    "export_policy": ("ndp.rl.policy", "export_policy"),
+}
+
+__all__ = ["DMPConfig", "DMPLayer", "Policy", "export_policy", "load_policy", "make_env"]
+
+
+def make_env(
+    task: str,
+    k: int = 5,
+    stale_world: bool = True,
+    horizon: int | None = None,
+    seed: int | None = None,
+    render_mode: str | None = None,
+) -> Any:
+    """The chunked env of a task: k sub-steps per decision (``k = 1``: plain per-step).
+
+    Args:
+        task: a name or alias of ``ndp.envs.TASKS`` (``"push-v3"``, ``"throw"``, ...).
+        k: sub-steps per decision (5 for NDP and PPO-multi in the paper, 1 for PPO).
+        stale_world: the stale-world reward rule at sub-steps 1..k-1.
+        horizon: episode length in env steps (None: the task's default).
+        seed: seed of the first reset (later resets continue its generator).
+        render_mode: None or ``"rgb_array"``.
+
+    Returns:
+        An :class:`ndp.envs.ChunkedEnv` (actions [k, A]; info with the robot and commanded
+        state a policy's ``act(obs, info)`` reads).
+    """
+    from ndp.envs import ChunkedEnv
+    from ndp.envs import make_env as make_step_env
+
+    base = make_step_env(task, horizon=horizon, seed=seed, render_mode=render_mode)
+    return ChunkedEnv(base, k, stale_world=stale_world)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        module, attr = _LAZY[name]
+        return getattr(importlib.import_module(module), attr)
+    raise AttributeError(f"module 'ndp' has no attribute {name!r}")

@@ -57,7 +57,7 @@ ALLOWED = {
     "rl": {"dmp", "nets", "envs", "policies"},
     "experiments": {"dmp", "nets", "envs", "policies", "rl", "il"},
 }
-LEAVES = {"io"}  # leaf helper modules anyone may import
+LEAVES = {"io", "provenance"}  # leaf helper modules anyone may import
 
 
 def _ndp_imports(path: Path) -> set[str]:

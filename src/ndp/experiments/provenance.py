@@ -1,18 +1,5 @@
-"""Provenance of generated results: which commit produced them."""
+"""Provenance of generated results (moved to :mod:`ndp.provenance`; kept for the benchmarks)."""
 
-from __future__ import annotations
+from ndp.provenance import git_commit
 
-import subprocess
-from pathlib import Path
-
-
-def git_commit(short: bool = True, cwd: str | Path | None = None) -> str:
-    """The current git commit (short hash by default), or ``"unknown"`` outside a checkout."""
-    cmd = ["git", "rev-parse", *(["--short"] if short else []), "HEAD"]
-    try:
-        out = subprocess.run(
-            cmd, capture_output=True, text=True, check=True, cwd=cwd or Path(__file__).parent
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return out or "unknown"
+__all__ = ["git_commit"]

@@ -1,0 +1,102 @@
+"""Public policy API: ndp.load_policy on runs and exports, act(obs, info), ndp.make_env."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import ndp
+from ndp.rl.config import PPOConfig, TrainConfig
+from ndp.rl.trainer import train
+
+FAST = PPOConfig(steps_per_update=512, minibatches=4)
+
+
+@pytest.fixture(scope="module")
+def push_run(tmp_path_factory):
+    run = tmp_path_factory.mktemp("runs") / "push"
+    train(
+        TrainConfig(
+            task="push-v3",
+            algo="ndp",
+            steps=520,
+            num_envs=2,
+            run_dir=str(run),
+            progress=False,
+            tensorboard=False,
+            vector="sync",
+            ppo=FAST,
+        )
+    )
+    return run
+
+
+def test_load_policy_acts_from_the_env_info(push_run):
+    policy = ndp.load_policy(push_run)
+    assert policy.state_keys == ("cmd_y0", "cmd_dy0")
+    env = policy.make_env()
+    obs, info = env.reset(seed=0)
+    policy.reset()
+    act = policy.act(obs, info)
+    assert act.shape == (5, 4) and np.all(np.abs(act) <= 1.0)
+    obs, _, _, _, info = env.step(act)
+    assert policy.act(obs, info).shape == (5, 4)
+    batch = policy.act(
+        np.stack([obs, obs]),
+        {k: np.stack([v, v]) for k, v in info.items() if k in policy.state_keys},
+    )
+    np.testing.assert_allclose(batch[0], batch[1])
+    with pytest.raises(ValueError, match="cmd_y0"):
+        policy.act(obs, {"success": False})
+    with pytest.raises(ValueError, match="obs"):
+        policy.act(obs[:10], info)
+    env.close()
+
+
+def test_export_loads_in_a_fresh_process_without_unpickling(push_run, tmp_path):
+    out = ndp.export_policy(push_run, tmp_path / "export")
+    meta = json.loads((out / "policy.json").read_text())
+    assert meta["format"] == "ndp-policy" and meta["task"] == "push-v3"
+    assert set(meta["versions"]) >= {"torch", "mujoco", "metaworld"}
+    with pytest.raises(FileExistsError):
+        ndp.export_policy(push_run, out)
+    # the export acts exactly as the run does
+    run_pol, exp_pol = ndp.load_policy(push_run), ndp.load_policy(out)
+    env = ndp.make_env("push-v3", k=5, seed=3)
+    obs, info = env.reset(seed=3)
+    np.testing.assert_array_equal(run_pol.act(obs, info), exp_pol.act(obs, info))
+    env.close()
+    code = (
+        "import sys, ndp\n"
+        "pol = ndp.load_policy(sys.argv[1])\n"
+        "env = pol.make_env()\n"
+        "obs, info = env.reset(seed=0)\n"
+        "done, n = False, 0\n"
+        "while not done:\n"
+        "    obs, r, term, trunc, info = env.step(pol.act(obs, info))\n"
+        "    done, n = term or trunc, n + 1\n"
+        "print(n, info['n_substeps'])\n"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", code, str(out)], capture_output=True, text=True, check=True
+    )
+    assert res.stdout.split()[0] == "30"  # 150 env steps / k = 5 decisions
+
+
+def test_make_env_and_bad_paths(tmp_path):
+    env = ndp.make_env("point-mass", k=3, seed=0)
+    _, info = env.reset(seed=0)
+    assert env.action_space.shape == (3, 2) and "cmd_y0" in info
+    env.close()
+    with pytest.raises(FileNotFoundError, match="neither"):
+        ndp.load_policy(tmp_path)
+    (tmp_path / "policy.json").write_text(json.dumps({"format": "other", "version": 9}))
+    with pytest.raises(ValueError, match="format"):
+        ndp.load_policy(tmp_path)
+    assert ndp.DMPLayer.__name__ == "DMPLayer"
+    with pytest.raises(AttributeError):
+        _ = ndp.nope

@@ -64,6 +64,10 @@ def test_export_loads_in_a_fresh_process_without_unpickling(push_run, tmp_path):
     assert set(meta["versions"]) >= {"torch", "mujoco", "metaworld"}
     with pytest.raises(FileExistsError):
         ndp.export_policy(push_run, out)
+    from ndp.cli import main as ndp_main
+
+    assert ndp_main(["rl", "export", str(push_run), str(tmp_path / "cli-export")]) == 0
+    assert (tmp_path / "cli-export" / "policy.safetensors").is_file()
     # the export acts exactly as the run does
     run_pol, exp_pol = ndp.load_policy(push_run), ndp.load_policy(out)
     env = ndp.make_env("push-v3", k=5, seed=3)

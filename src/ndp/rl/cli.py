@@ -20,7 +20,7 @@ from ndp.rl.config import PPOConfig, TrainConfig, add_dataclass_arguments, confi
 
 
 def add_subparser(sub: Any) -> None:
-    """Register ``rl`` with sub-commands ``train``, ``eval`` and ``render``."""
+    """Register ``rl`` with sub-commands ``train``, ``eval``, ``render`` and ``export``."""
     rl = sub.add_parser("rl", help="reinforcement learning: PPO, PPO-multi and NDP")
     rl_sub = rl.add_subparsers(dest="rl_command", metavar="SUBCOMMAND")
     rl_sub.required = True
@@ -57,6 +57,13 @@ def add_subparser(sub: Any) -> None:
     )
     ev.set_defaults(func=_cmd_eval)
 
+    ex = rl_sub.add_parser(
+        "export", help="export a trained run's policy (safetensors + JSON, no pickle)"
+    )
+    ex.add_argument("run_dir", metavar="RUN_DIR")
+    ex.add_argument("out", metavar="OUT_DIR", help="new directory for the export")
+    ex.set_defaults(func=_cmd_export)
+
     rd = rl_sub.add_parser("render", help="render a trained run to mp4")
     rd.add_argument("run_dir", metavar="RUN_DIR")
     rd.add_argument("--out", default=None, help="mp4 path (default RUN_DIR/video.mp4)")
@@ -89,6 +96,13 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     modes = {"both": (True, False), "deterministic": (True,), "stochastic": (False,)}[args.mode]
     for det in modes:
         print(json.dumps(evaluate(args.run_dir, args.episodes, det, args.seed)))
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from ndp.rl.policy import export_policy
+
+    print(json.dumps({"export": str(export_policy(args.run_dir, args.out))}))
     return 0
 
 

@@ -78,3 +78,39 @@ def test_inverse_controller_bad_shapes():
         TASKS["push-v3"].inverse_controller(torch.zeros(1, 4))
     with pytest.raises(ValueError, match="traj"):
         TASKS["push-v3"].inverse_controller(torch.zeros(3, 7))
+
+
+def test_controller_is_data_of_the_task_row():
+    """The controller is a field of the task (a registry of kinds), not a TaskSpec method; a
+    non-linear controller makes the NDP head use the composed DMP + controller path."""
+    import dataclasses
+
+    from ndp.envs.controllers import CONTROLLERS, DeltaController
+    from ndp.policies import PolicyConfig, build_actor_critic
+
+    spec = TASKS["push-v3"]
+    assert isinstance(spec.controller, DeltaController) and CONTROLLERS["delta"] is DeltaController
+    assert spec.controller.absolute == (False, False, False, True)
+    with pytest.raises(ValueError, match="equal length"):
+        DeltaController(scale=(1.0,), absolute=(False, True), low=(0.0,), high=(1.0,))
+    with pytest.raises(ValueError, match="scale"):
+        DeltaController(scale=(0.0,), absolute=(False,), low=(-1.0,), high=(1.0,))
+
+    @dataclasses.dataclass(frozen=True)
+    class Doubled:  # a non-linear stand-in for another actuation
+        kind = "doubled"
+
+        def __call__(self, traj, robot_pos=None, clip=True):
+            return 2.0 * spec.controller(traj, robot_pos, clip)
+
+    other = dataclasses.replace(spec, controller=Doubled())
+    cfg = PolicyConfig(n_basis=6, a_z=10.0, dmp_steps=35, goal_scale=2.0, weight_scale=25.0)
+    fused = build_actor_critic(39, spec, cfg).head
+    composed = build_actor_critic(39, other, cfg).head
+    assert fused._fused and not composed._fused
+    raw = torch.randn(3, fused.n_params, generator=torch.Generator().manual_seed(0))
+    y0 = torch.tensor([[0.0, 0.6, 0.2, -1.0]]).expand(3, 4)
+    a1 = fused.decode(raw, y0, torch.zeros(3, 4))[0]
+    a2 = composed.decode(raw, y0, torch.zeros(3, 4))[0]
+    # float32 positions of ~0.6 m differenced and divided by 0.01 m: ~1e-5 of rounding
+    torch.testing.assert_close(a2, 2.0 * a1, rtol=1e-4, atol=1e-4)

@@ -2,7 +2,8 @@
 
 No code anywhere should branch on task-name strings; it reads a :class:`TaskSpec` instead.
 
-Inverse controllers (pure torch, batched, differentiable up to the clip):
+Inverse controllers (``TaskSpec.controller``, data of the row: ``ndp.envs.controllers``; pure
+torch, batched, differentiable up to the optional clip), today all ``DeltaController``:
 
 - Meta-World (D = 4, A = 4): for sub-step ``t`` of a trajectory ``p`` [..., k+1, 4] in physical
   units, ``a[t, :3] = clip((p[t+1, :3] - p[t, :3]) / 0.01, -1, 1)`` (metaworld moves the hand
@@ -14,63 +15,22 @@ Inverse controllers (pure torch, batched, differentiable up to the clip):
   ``a * scale`` to its joint-position targets).
 
 If ``robot_pos`` [..., D] is given it replaces ``p[..., 0, :]`` (the measured start).
+A task with another actuation gets another controller in its row (``CONTROLLERS``).
 """
 
 from __future__ import annotations
 
 import difflib
-import functools
 from dataclasses import dataclass, field
 from typing import Literal
 
 import torch
 
 from ndp.envs import jaco
+from ndp.envs.controllers import DeltaController
 from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metaworld_env_names
 
-Family = Literal["metaworld", "jaco"]
-
-
-def _inverse_delta(
-    traj: torch.Tensor,
-    scale: torch.Tensor,
-    absolute: torch.Tensor,
-    low: torch.Tensor,
-    high: torch.Tensor,
-    robot_pos: torch.Tensor | None,
-    clip: bool = True,
-) -> torch.Tensor:
-    """Shared inverse controller: deltas / scale, or absolute values, then (optionally) clip.
-
-    Args:
-        traj: Trajectory points [..., k+1, D] (physical units).
-        scale: [D] physical change per unit action (for delta coordinates).
-        absolute: [D] bool; True where the action is the trajectory value itself.
-        low: [D] action lower bounds.
-        high: [D] action upper bounds.
-        robot_pos: Optional measured start [..., D] replacing ``traj[..., 0, :]``.
-        clip: Clip to ``[low, high]``. A policy's Gaussian *mean* should not be clipped (the
-            noise added afterwards would then be biased toward the centre and saturated
-            sub-steps would pass no gradient); only the executed sample is clipped, by the
-            trainer and by ``ChunkedEnv``.
-
-    Returns:
-        Actions [..., k, D], within ``[low, high]`` when ``clip``.
-    """
-    if traj.dim() < 2 or traj.shape[-2] < 2:
-        raise ValueError(f"traj: expected shape [..., k+1, D] with k >= 1, got {tuple(traj.shape)}")
-    if traj.shape[-1] != scale.shape[0]:
-        raise ValueError(f"traj: expected last dim {scale.shape[0]}, got {traj.shape[-1]}")
-    if robot_pos is not None:
-        traj = torch.cat([robot_pos.unsqueeze(-2).to(traj), traj[..., 1:, :]], dim=-2)
-    dev, dt = traj.device, traj.dtype
-    scale, absolute = scale.to(dev, dt), absolute.to(dev)
-    low, high = low.to(dev, dt), high.to(dev, dt)
-    delta = (traj[..., 1:, :] - traj[..., :-1, :]) / scale
-    act = torch.where(absolute, traj[..., 1:, :], delta)
-    if not clip:
-        return act
-    return torch.maximum(torch.minimum(act, high), low)
+Family = Literal["metaworld", "jaco", "toy"]
 
 
 @dataclass(frozen=True)
@@ -80,7 +40,8 @@ class TaskSpec:
     name: str
     """Canonical task name (a key of :data:`TASKS`)."""
     family: Family
-    """``"metaworld"`` (Sawyer, end-effector control) or ``"jaco"`` (joint-angle control)."""
+    """``"metaworld"`` (Sawyer, end-effector control), ``"jaco"`` (joint-angle control) or
+    ``"toy"`` (the point mass)."""
     env_id: str
     """Registered gymnasium id, usable with ``gymnasium.make``."""
     dmp_dofs: int
@@ -117,33 +78,36 @@ class TaskSpec:
     measured per task (``ndp.envs.metaworld_env.REWARD_FROM_OBS``)."""
     aliases: tuple[str, ...] = field(default=())
     """Other names :func:`get_task_spec` accepts for this task."""
+    controller: DeltaController | None = None
+    """The low-level controller, trajectory points -> actions (``ndp.envs.controllers``); None:
+    a :class:`DeltaController` built from the ``action_*`` fields."""
+
+    def __post_init__(self) -> None:
+        if self.controller is None:
+            ctrl = DeltaController(
+                scale=tuple(float(x) for x in self.action_scale),
+                absolute=tuple(bool(x) for x in self.action_absolute),
+                low=tuple(float(x) for x in self.action_low),
+                high=tuple(float(x) for x in self.action_high),
+            )
+            object.__setattr__(self, "controller", ctrl)
 
     def inverse_controller(
         self, traj: torch.Tensor, robot_pos: torch.Tensor | None = None, clip: bool = True
     ) -> torch.Tensor:
-        """Map DMP trajectory points to bounded env actions (see the module docstring).
+        """Map DMP trajectory points to env actions with the task's controller.
 
         Args:
             traj: [..., k+1, D] trajectory points in physical units; ``traj[..., 0, :]`` is the
                 robot's state at the decision.
             robot_pos: Optional [..., D] measured start replacing ``traj[..., 0, :]``.
-            clip: Clip to the action bounds (False for a policy's mean, see ``_inverse_delta``).
+            clip: Clip to the action bounds (False for a policy's mean).
 
         Returns:
             [..., k, A] actions, within ``[action_low, action_high]`` when ``clip``.
         """
-        return _inverse_delta(traj, *self._controller_tensors, robot_pos, clip)
-
-    @functools.cached_property
-    def _controller_tensors(self) -> tuple[torch.Tensor, ...]:
-        """(scale, absolute, low, high) [D] as tensors, built once per spec."""
-        scale = torch.tensor([s if s > 0 else 1.0 for s in self.action_scale])
-        return (
-            scale,
-            torch.tensor(self.action_absolute),
-            torch.tensor(self.action_low),
-            torch.tensor(self.action_high),
-        )
+        assert self.controller is not None  # set in __post_init__
+        return self.controller(traj, robot_pos, clip)
 
 
 def _metaworld_spec(name: str) -> TaskSpec:

@@ -52,8 +52,11 @@ class Arm:
     """What the arm changes, for the tables."""
 
     def __post_init__(self) -> None:
-        if self.algo not in METHODS:
-            raise ValueError(f"algo: expected one of {', '.join(METHODS)}, got {self.algo!r}")
+        from ndp.rl.methods import METHODS as RL_METHODS
+
+        if self.algo not in METHODS and self.algo not in RL_METHODS:
+            known = ", ".join([*RL_METHODS, "sb3-ppo"])
+            raise ValueError(f"algo: expected one of {known}, got {self.algo!r}")
         if not self.label or not all(c.isalnum() or c in "-_" for c in self.label):
             raise ValueError(f"label: expected letters, digits, '-' or '_', got {self.label!r}")
         if self.algo == "sb3-ppo" and self.args:

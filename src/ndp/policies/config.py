@@ -5,7 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 HEADS = ("step", "multi", "ndp")
-"""Action heads: one raw action per step, k raw actions per decision, DMP parameters."""
+"""Built-in action heads: one raw action per step, k raw actions per decision, DMP parameters
+(more register with ``ndp.policies.heads.register_head``)."""
 FORCING = ("amplitude", "goal")
 """NDP forcing-weight forms: bounded amplitude per DoF, or the paper's f proportional to g - y0."""
 ABSOLUTE_MODES = ("direct", "dmp")
@@ -82,12 +83,16 @@ class PolicyConfig:
     the measured one double-counts the momentum stored in the target's lead)."""
 
     def __post_init__(self) -> None:
-        if self.head not in HEADS:
-            raise ValueError(f"head: expected one of {', '.join(HEADS)}, got {self.head!r}")
+        from ndp.policies.heads import HEAD_BUILDERS, SINGLE_STEP_HEADS
+
+        if self.head not in HEAD_BUILDERS:
+            raise ValueError(f"head: expected one of {', '.join(HEAD_BUILDERS)}, got {self.head!r}")
         if isinstance(self.k, bool) or not isinstance(self.k, int) or self.k < 1:
             raise ValueError(f"k: expected an integer >= 1, got {self.k!r}")
-        if self.head == "step" and self.k != 1:
-            raise ValueError(f"k: the 'step' head runs one action per decision, got k={self.k}")
+        if self.head in SINGLE_STEP_HEADS and self.k != 1:
+            raise ValueError(
+                f"k: the {self.head!r} head runs one action per decision, got k={self.k}"
+            )
         if not self.hidden or any(int(h) < 1 for h in self.hidden):
             raise ValueError(f"hidden: expected positive widths, got {self.hidden!r}")
         if self.n_basis is not None and (isinstance(self.n_basis, bool) or self.n_basis < 1):

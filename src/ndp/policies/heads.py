@@ -297,18 +297,57 @@ class NDPHead(ActionHead):
         )
 
 
+HEAD_BUILDERS: dict[str, Callable[[Any, Any], ActionHead]] = {}
+"""Head name -> ``build(policy_cfg, spec) -> ActionHead`` (see :func:`register_head`)."""
+SINGLE_STEP_HEADS: set[str] = set()
+"""Heads that run one action per decision (k = 1)."""
+
+
+def register_head(
+    name: str, single_step: bool = False
+) -> Callable[[Callable[[Any, Any], ActionHead]], Callable[[Any, Any], ActionHead]]:
+    """Register an action head builder under ``name`` (a decorator).
+
+    Args:
+        name: the ``PolicyConfig.head`` value that selects it.
+        single_step: the head emits one action per decision (k is forced to 1).
+    """
+
+    def deco(fn: Callable[[Any, Any], ActionHead]) -> Callable[[Any, Any], ActionHead]:
+        if name in HEAD_BUILDERS:
+            raise ValueError(f"name: head {name!r} is already registered")
+        HEAD_BUILDERS[name] = fn
+        if single_step:
+            SINGLE_STEP_HEADS.add(name)
+        return fn
+
+    return deco
+
+
 def build_head(cfg: Any, spec: Any) -> ActionHead:
     """Build the head named by a resolved :class:`~ndp.policies.config.PolicyConfig`.
 
     Args:
-        cfg: resolved policy config (no ``None`` NDP fields).
-        spec: task spec with ``action_dim``, ``dmp_dofs``, ``control_dt`` and
-            ``inverse_controller``.
+        cfg: resolved policy config (no ``None`` NDP fields for the NDP head).
+        spec: task spec (``action_dim``, ``dmp_dofs``, ``control_dt``, ``controller``, ...).
     """
-    if cfg.head == "step":
-        return StepHead(spec.action_dim, cfg.init_log_std)
-    if cfg.head == "multi":
-        return MultiHead(cfg.k, spec.action_dim, cfg.init_log_std)
+    if cfg.head not in HEAD_BUILDERS:
+        raise ValueError(f"head: expected one of {', '.join(HEAD_BUILDERS)}, got {cfg.head!r}")
+    return HEAD_BUILDERS[cfg.head](cfg, spec)
+
+
+@register_head("step", single_step=True)
+def _build_step(cfg: Any, spec: Any) -> ActionHead:
+    return StepHead(spec.action_dim, cfg.init_log_std)
+
+
+@register_head("multi")
+def _build_multi(cfg: Any, spec: Any) -> ActionHead:
+    return MultiHead(cfg.k, spec.action_dim, cfg.init_log_std)
+
+
+@register_head("ndp")
+def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
     if not cfg.resolved:
         raise ValueError("policy config: NDP fields must be resolved (see ndp.rl.presets)")
     d = spec.dmp_dofs
@@ -359,20 +398,14 @@ def build_head(cfg: Any, spec: Any) -> ActionHead:
 
 
 def _linear_controller(spec: Any) -> tuple[torch.Tensor, ...] | None:
-    """(scale, absolute, low, high) [D] of a spec whose inverse controller is the standard
-    linear one (``ndp.envs.spec.TaskSpec``), else None (the composed path is used)."""
-    from ndp.envs.spec import TaskSpec
+    """(scale, absolute, low, high) [D] of a task whose controller is linear (a
+    ``DeltaController``), else None (the composed path is used)."""
+    from ndp.envs.controllers import DeltaController
 
-    if type(spec).inverse_controller is not TaskSpec.inverse_controller:
+    ctrl = getattr(spec, "controller", None)
+    if not isinstance(ctrl, DeltaController) or len(ctrl.scale) != spec.dmp_dofs:
         return None
-    d = spec.dmp_dofs
-    scale = torch.as_tensor([s if s > 0 else 1.0 for s in _per_dof(spec.action_scale, d)])
-    return (
-        scale,
-        torch.as_tensor(_per_dof(spec.action_absolute, d).astype(bool)),
-        torch.as_tensor(_per_dof(spec.action_low, d)),
-        torch.as_tensor(_per_dof(spec.action_high, d)),
-    )
+    return ctrl.linear_parts
 
 
 def _per_dof(value: Any, d: int) -> np.ndarray:

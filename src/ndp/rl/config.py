@@ -33,10 +33,10 @@ from pathlib import Path
 from typing import Any
 
 from ndp.policies.config import PolicyConfig
-from ndp.rl.presets import ndp_preset
 
 ALGOS: dict[str, str] = {"ppo": "step", "ppo-multi": "multi", "ndp": "ndp"}
-"""Method name -> action head. The methods differ only in the head."""
+"""The built-in methods' heads (the registry, with every registered method, is
+``ndp.rl.methods.METHODS``)."""
 
 
 @dataclass(frozen=True)
@@ -148,8 +148,10 @@ class TrainConfig:
     """Actor-critic and action-head settings (head follows algo)."""
 
     def __post_init__(self) -> None:
-        if self.algo not in ALGOS:
-            raise ValueError(f"algo: expected one of {', '.join(ALGOS)}, got {self.algo!r}")
+        from ndp.rl.methods import METHODS
+
+        if self.algo not in METHODS:
+            raise ValueError(f"algo: expected one of {', '.join(METHODS)}, got {self.algo!r}")
         if not isinstance(self.task, str) or not self.task:
             raise ValueError(f"task: expected a task name, got {self.task!r}")
         _check_int("steps", self.steps, 1)
@@ -229,32 +231,14 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
         from ndp.rl.envs import resolve_task
 
         spec = resolve_task(cfg.task).spec
+    from ndp.policies.heads import SINGLE_STEP_HEADS
+    from ndp.rl.methods import METHODS
+
+    method = METHODS[cfg.algo]
     pol = cfg.policy
-    head = ALGOS[cfg.algo]
-    k = 1 if head == "step" else pol.k
-    changes: dict[str, Any] = {"head": head, "k": k}
-    if head == "ndp":
-        pre = ndp_preset(spec.name)
-        n_basis = pol.n_basis if pol.n_basis is not None else pre.n_basis
-        a_z = float(pol.a_z if pol.a_z is not None else pre.a_z)
-        changes.update(
-            n_basis=n_basis,
-            a_z=a_z,
-            dmp_steps=pol.dmp_steps if pol.dmp_steps is not None else pre.steps_per_substep * k,
-            goal_scale=float(pol.goal_scale if pol.goal_scale is not None else pre.goal_scale),
-            weight_scale=float(
-                pol.weight_scale if pol.weight_scale is not None else a_z * a_z / 4.0
-            ),
-        )
-    else:
-        changes.update(
-            n_basis=None,
-            a_z=None,
-            dmp_steps=None,
-            goal_scale=None,
-            weight_scale=None,
-            param_noise=False,
-        )
+    k = 1 if method.head in SINGLE_STEP_HEADS else pol.k
+    with_k = dataclasses.replace(pol, head=method.head, k=k)
+    changes: dict[str, Any] = {"head": method.head, "k": k, **method.resolve(with_k, spec)}
     policy = dataclasses.replace(pol, **changes)
     run_dir = cfg.run_dir or str(Path("runs") / f"{spec.name}-{cfg.algo}-s{cfg.seed}")
     return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir)

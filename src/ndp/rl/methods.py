@@ -1,0 +1,87 @@
+"""Method registry: a method names its action head, how its policy settings are resolved
+against a task, and the extra metrics it logs, in one place.
+
+Adding an on-policy method = its head (``ndp.policies.heads.register_head``) and one
+:func:`register_method` line; ``ndp rl train --algo NAME`` then trains it with the shared
+trainer, envs, evaluation and rendering (``tests/rl/test_rl_methods.py`` does exactly that).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ndp.rl.presets import ndp_preset
+
+_NDP_FIELDS = ("n_basis", "a_z", "dmp_steps", "goal_scale", "weight_scale")
+
+
+def no_dmp(policy: Any, spec: Any) -> dict[str, Any]:
+    """Resolution of heads without a DMP: the NDP-only fields are cleared."""
+    return {**dict.fromkeys(_NDP_FIELDS), "param_noise": False}
+
+
+def resolve_ndp(policy: Any, spec: Any) -> dict[str, Any]:
+    """NDP: ``n_basis``, ``a_z``, ``goal_scale`` from the task's preset where None;
+    ``dmp_steps`` = preset steps per sub-step * k; ``weight_scale`` = a_z^2 / 4 where None."""
+    pre = ndp_preset(spec.name)
+    a_z = float(policy.a_z if policy.a_z is not None else pre.a_z)
+    return {
+        "n_basis": policy.n_basis if policy.n_basis is not None else pre.n_basis,
+        "a_z": a_z,
+        "dmp_steps": policy.dmp_steps
+        if policy.dmp_steps is not None
+        else pre.steps_per_substep * policy.k,
+        "goal_scale": float(policy.goal_scale if policy.goal_scale is not None else pre.goal_scale),
+        "weight_scale": float(
+            policy.weight_scale if policy.weight_scale is not None else a_z * a_z / 4.0
+        ),
+    }
+
+
+@dataclass(frozen=True)
+class Method:
+    """One training method of the shared on-policy trainer."""
+
+    name: str
+    """``--algo`` value."""
+    head: str
+    """Action head (a name registered with ``ndp.policies.heads.register_head``)."""
+    description: str
+    """One line for ``--help`` and docs."""
+    resolve: Callable[[Any, Any], dict[str, Any]] = no_dmp
+    """``(policy config with k set, task spec) -> PolicyConfig changes`` (task presets)."""
+    metrics: tuple[str, ...] = field(default=())
+    """Extra metric keys this method fills (docs/metrics.md)."""
+
+
+METHODS: dict[str, Method] = {}
+"""Method name -> :class:`Method`."""
+
+
+def register_method(method: Method) -> Method:
+    """Add a method (its head must be registered); returns it."""
+    from ndp.policies.heads import HEAD_BUILDERS
+
+    if method.name in METHODS:
+        raise ValueError(f"name: method {method.name!r} is already registered")
+    if method.head not in HEAD_BUILDERS:
+        raise ValueError(
+            f"head: {method.head!r} is not a registered head ({', '.join(HEAD_BUILDERS)})"
+        )
+    METHODS[method.name] = method
+    return method
+
+
+register_method(Method("ppo", "step", "PPO: one raw action per env step (k = 1)"))
+register_method(Method("ppo-multi", "multi", "PPO-multi: k raw actions per decision"))
+register_method(
+    Method(
+        "ndp",
+        "ndp",
+        "NDP: DMP parameters per decision, integrated into k actions",
+        resolve=resolve_ndp,
+        metrics=("dmp/goal_norm", "dmp/weight_norm"),
+    )
+)

@@ -7,6 +7,7 @@ import json
 
 import pytest
 
+from ndp.envs.presets import NDP_PRESETS
 from ndp.policies import PolicyConfig
 from ndp.rl import envs as rl_envs
 from ndp.rl.config import (
@@ -17,7 +18,6 @@ from ndp.rl.config import (
     field_docs,
     resolve_config,
 )
-from ndp.rl.presets import NDP_PRESETS
 from ndp.rl.trainer import Trainer
 
 
@@ -131,3 +131,29 @@ def test_bad_input_fails_before_any_env(monkeypatch, tmp_path, kwargs, match):
         if "ppo" in kwargs:
             kwargs = {"ppo": PPOConfig(**kwargs["ppo"])}
         Trainer(TrainConfig(run_dir=str(tmp_path), **kwargs))
+
+
+def test_docs_preset_table_matches_the_task_table():
+    """docs/rl.md's preset table is the task table's (TaskSpec.ndp), row by row."""
+    from pathlib import Path
+
+    from ndp.envs import TASKS
+    from ndp.envs.presets import DEFAULT
+
+    text = (Path(__file__).parents[2] / "docs" / "rl.md").read_text()
+    block = text[text.index("## Per-task NDP presets") :]
+    lines = block.splitlines()[1:30]
+    rows = [ln for ln in lines if ln.startswith("| ") and not ln.startswith("| task")]
+    rows = rows[: next(i for i, r in enumerate(rows) if r.startswith("| any other")) + 1]
+    seen = 0
+    for row in rows:
+        name, n, a_z, steps, gs = (c.strip() for c in row.strip("|").split("|"))
+        pre = DEFAULT if name == "any other task" else TASKS[name.split(" ")[0]].ndp
+        assert (int(n), float(a_z), 5 * pre.steps_per_substep, float(gs)) == (
+            pre.n_basis,
+            pre.a_z,
+            int(steps),
+            pre.goal_scale,
+        ), name
+        seen += 1
+    assert seen >= 8

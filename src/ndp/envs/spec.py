@@ -29,6 +29,8 @@ import torch
 from ndp.envs import jaco
 from ndp.envs.controllers import DeltaController
 from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metaworld_env_names
+from ndp.envs.presets import DEFAULT as DEFAULT_PRESET
+from ndp.envs.presets import NDP_PRESETS, NDPPreset
 
 Family = Literal["metaworld", "jaco", "toy"]
 
@@ -81,8 +83,13 @@ class TaskSpec:
     controller: DeltaController | None = None
     """The low-level controller, trajectory points -> actions (``ndp.envs.controllers``); None:
     a :class:`DeltaController` built from the ``action_*`` fields."""
+    ndp: NDPPreset | None = None
+    """The NDP head's per-task DMP settings (``ndp.envs.presets``); None: the task's row of
+    ``NDP_PRESETS`` (or its ``DEFAULT``)."""
 
     def __post_init__(self) -> None:
+        if self.ndp is None:
+            object.__setattr__(self, "ndp", NDP_PRESETS.get(self.name, DEFAULT_PRESET))
         if self.controller is None:
             ctrl = DeltaController(
                 scale=tuple(float(x) for x in self.action_scale),

@@ -349,7 +349,9 @@ def _build_multi(cfg: Any, spec: Any) -> ActionHead:
 @register_head("ndp")
 def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
     if not cfg.resolved:
-        raise ValueError("policy config: NDP fields must be resolved (see ndp.rl.presets)")
+        raise ValueError(
+            "policy config: NDP fields must be resolved (see ndp.rl.methods.resolve_ndp)"
+        )
     d = spec.dmp_dofs
     scale = _per_dof(spec.action_scale, d)
     absolute = _per_dof(getattr(spec, "action_absolute", False), d).astype(bool)

@@ -30,7 +30,7 @@ def add_subparser(sub: Any) -> None:
         help="train a policy",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
         description="Train PPO / PPO-multi / NDP. Unset NDP fields come from the per-task "
-        "preset table (ndp.rl.presets). The resolved config is saved as "
+        "preset of the task table (ndp.envs.presets). The resolved config is saved as "
         "RUN_DIR/config.json.",
     )
     tr.add_argument(

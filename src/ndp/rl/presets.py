@@ -1,47 +1,5 @@
-"""Per-task NDP presets in one table: N basis functions, a_z, integration steps, goal bound.
+"""Moved to :mod:`ndp.envs.presets` (the presets are fields of the task table now)."""
 
-The supplement tried N in {4, 5, 6, 7, 10}, a_z in {10, 15, 25} and 35 integration steps per NDP
-rollout with k = 5 (7 per sub-step). The authors' release chose: throw N 5, a_z 5; push N 6,
-a_z 10; soccer N 6, a_z 15; faucet N 6, a_z 5. Tasks not in the table use ``DEFAULT``.
-"""
+from ndp.envs.presets import DEFAULT, NDP_PRESETS, NDPPreset, ndp_preset
 
-from __future__ import annotations
-
-from dataclasses import dataclass
-
-
-@dataclass(frozen=True)
-class NDPPreset:
-    """DMP settings of one task."""
-
-    n_basis: int
-    """N radial basis functions per DMP DoF."""
-    a_z: float
-    """Spring constant alpha_z (b_z = a_z / 4)."""
-    steps_per_substep: int = 7
-    """Euler integration steps per sub-step (35 per decision for k = 5)."""
-    goal_scale: float = 2.0
-    """Goal bound, in units of the largest displacement of one decision (see PolicyConfig): 2
-    puts the goal beyond the k-step reach, so the bell-shaped DMP velocity profile can command
-    full speed at every sub-step (1, the first release's bound, saturates the middle ones)."""
-
-
-DEFAULT = NDPPreset(n_basis=6, a_z=15.0)
-"""Used for every task without its own row."""
-
-NDP_PRESETS: dict[str, NDPPreset] = {
-    "throw": NDPPreset(n_basis=5, a_z=5.0),
-    "pick": NDPPreset(n_basis=6, a_z=10.0),
-    "push-v3": NDPPreset(n_basis=6, a_z=10.0),
-    "soccer-v3": NDPPreset(n_basis=6, a_z=15.0),
-    "faucet-open-v3": NDPPreset(n_basis=6, a_z=5.0),
-    "reach-v3": NDPPreset(n_basis=6, a_z=15.0),
-    "point-mass": NDPPreset(n_basis=6, a_z=5.0),
-    "point-mass-3d": NDPPreset(n_basis=6, a_z=5.0),
-}
-"""Task name (canonical, as in ``ndp.envs.TASKS``) -> preset."""
-
-
-def ndp_preset(task: str) -> NDPPreset:
-    """The preset of a canonical task name (``DEFAULT`` when the table has no row for it)."""
-    return NDP_PRESETS.get(task, DEFAULT)
+__all__ = ["DEFAULT", "NDP_PRESETS", "NDPPreset", "ndp_preset"]

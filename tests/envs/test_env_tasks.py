@@ -53,7 +53,7 @@ def test_check_env_and_same_seed_same_episode(name):
 
 def test_registered_with_gymnasium_and_seed_in_factory():
     ids = register_envs()
-    assert len(ids) == len(TASKS) and "ndp/JacoThrow-v0" in ids and "ndp/push-v3" in ids
+    assert len(ids) == 2 * len(TASKS) and "ndp/JacoThrow-v0" in ids and "ndp/push-v3-k5" in ids
     env = gym.make("ndp/push-v3", seed=3)
     obs1, _ = env.reset()
     obs2, _ = make_env("push-v3").reset(seed=3)
@@ -145,3 +145,19 @@ def test_async_vector_env_from_factory_closures():
     _, rew, _, _, info = venv.step(np.zeros((2, 5, 4)))
     assert rew.shape == (2,) and info["robot_pos"].shape == (2, 6, 4)
     venv.close()
+
+
+def test_chunked_env_ids_and_unknown_family(monkeypatch):
+    import dataclasses
+
+    import ndp.envs.factory as factory
+    from ndp.envs import TASKS
+
+    env = gym.make("ndp/push-v3-k5")
+    _, info = env.reset(seed=0)
+    assert env.action_space.shape == (5, 4) and "cmd_y0" in info
+    env.close()
+    odd = dataclasses.replace(TASKS["point-mass"], family="rover")  # no env class for it
+    monkeypatch.setattr(factory, "get_task_spec", lambda name: odd)
+    with pytest.raises(ValueError, match="family: no env class for family 'rover'"):
+        factory.make_env("point-mass")

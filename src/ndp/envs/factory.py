@@ -1,7 +1,13 @@
-"""One factory for every task, and gymnasium registration (ids ``ndp/<name>``)."""
+"""One factory for every task, and gymnasium registration.
+
+Ids: ``ndp/<name>`` for the per-step env (``ndp/push-v3``, ``ndp/JacoThrow-v0``) and
+``ndp/<name>-k<k>`` for the chunked env with k sub-steps per decision (k in :data:`CHUNKED_KS`,
+e.g. ``gymnasium.make("ndp/push-v3-k5")``).
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
@@ -10,6 +16,21 @@ from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import MetaWorldEnv
 from ndp.envs.point_mass import PointMassEnv
 from ndp.envs.spec import TASKS, get_task_spec
+
+FAMILIES: dict[str, Callable[..., gym.Env]] = {
+    "metaworld": lambda spec, horizon, render_mode, **kw: MetaWorldEnv(
+        spec.metaworld_name or spec.name, horizon=horizon, render_mode=render_mode, **kw
+    ),
+    "jaco": lambda spec, horizon, render_mode, **kw: JacoEnv(
+        spec.name, horizon=horizon, render_mode=render_mode, **kw
+    ),
+    "toy": lambda spec, horizon, render_mode, **kw: PointMassEnv(
+        dim=spec.dmp_dofs, horizon=horizon, render_mode=render_mode, **kw
+    ),
+}
+"""Task family -> ``(spec, horizon, render_mode, **kw) -> env`` (a new family is one row)."""
+CHUNKED_KS = (5,)
+"""k of the registered chunked-env ids ``ndp/<name>-k<k>`` (any k: ``ndp.make_env``)."""
 
 
 def make_env(
@@ -46,14 +67,12 @@ def make_env(
         horizon = spec.horizon
     if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
         raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
-    if spec.family == "metaworld":
-        env: gym.Env = MetaWorldEnv(
-            spec.metaworld_name or spec.name, horizon=horizon, render_mode=render_mode, **kw
+    if spec.family not in FAMILIES:
+        raise ValueError(
+            f"family: no env class for family {spec.family!r} of task {spec.name!r}"
+            f" (known: {', '.join(FAMILIES)})"
         )
-    elif spec.family == "toy":
-        env = PointMassEnv(dim=spec.dmp_dofs, horizon=horizon, render_mode=render_mode, **kw)
-    else:
-        env = JacoEnv(spec.name, horizon=horizon, render_mode=render_mode, **kw)
+    env = FAMILIES[spec.family](spec, horizon, render_mode, **kw)
     if seed is not None:
         env.seed_next_reset(int(seed))  # type: ignore[attr-defined]
         env.action_space.seed(int(seed))
@@ -61,8 +80,15 @@ def make_env(
 
 
 def _make_registered(name: str, **kw: Any) -> gym.Env:
-    """gymnasium entry point."""
+    """gymnasium entry point (per-step env)."""
     return make_env(name, **kw)
+
+
+def _make_registered_chunked(name: str, k: int, stale_world: bool = True, **kw: Any) -> gym.Env:
+    """gymnasium entry point (chunked env)."""
+    from ndp.envs.chunked import ChunkedEnv
+
+    return ChunkedEnv(make_env(name, **kw), k, stale_world=stale_world)
 
 
 def register_envs() -> list[str]:
@@ -80,4 +106,14 @@ def register_envs() -> list[str]:
                 kwargs={"name": name},
             )
         ids.append(spec.env_id)
+        for k in CHUNKED_KS:
+            cid = f"ndp/{name}-k{k}"
+            if cid not in gym.registry:
+                gym.register(
+                    id=cid,
+                    entry_point="ndp.envs.factory:_make_registered_chunked",
+                    kwargs={"name": name, "k": k},
+                    disable_env_checker=True,
+                )
+            ids.append(cid)
     return ids

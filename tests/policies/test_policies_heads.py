@@ -271,3 +271,16 @@ def test_ndp_checkpoints_hold_only_learned_state_and_old_ones_load():
     fresh = build_actor_critic(39, spec, _cfg("ndp"))
     fresh.load_state_dict(legacy)  # strict: no unexpected / missing keys
     assert torch.equal(fresh.head.goal_scale, ac.head.goal_scale)  # recomputed, not loaded
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
+def test_heads_and_noise_on_cuda():
+    spec = get_task_spec("push-v3")
+    ac = build_actor_critic(39, spec, _cfg("ndp")).cuda()
+    dist, _ = ac.distribution(
+        torch.randn(8, 39, device="cuda"),
+        torch.zeros(8, 4, device="cuda"),
+        torch.zeros(8, 4, device="cuda"),
+    )
+    z = dist.sample()
+    assert z.device.type == "cuda" and dist.log_prob(z).shape == (8, 5)

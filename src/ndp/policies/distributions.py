@@ -78,7 +78,9 @@ class SubActionGaussian:
 
     def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
         """Draw sub-actions [B, k, A] (no gradient)."""
-        noise = torch.randn(self.mean.shape, generator=generator, dtype=self.mean.dtype)
+        noise = torch.randn(
+            self.mean.shape, generator=generator, dtype=self.mean.dtype, device=self.mean.device
+        )
         return (self.mean + noise * self.log_std.exp()).detach()
 
     def mode(self) -> torch.Tensor:
@@ -124,7 +126,9 @@ class ParamGaussian:
 
     def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
         """Draw raw parameters [B, P] (no gradient)."""
-        noise = torch.randn(self.mean.shape, generator=generator, dtype=self.mean.dtype)
+        noise = torch.randn(
+            self.mean.shape, generator=generator, dtype=self.mean.dtype, device=self.mean.device
+        )
         return (self.mean + noise * self.log_std.exp()).detach()
 
     def mode(self) -> torch.Tensor:

@@ -9,7 +9,9 @@ summarises them):
 - ``ndp-goalforcing``: the paper's forcing term proportional to (g - y0) (``--forcing goal``);
 - ``ndp-gs1``: the goal bound equal to the k-step reach (``--goal-scale 1``);
 - ``ndp-gripdmp``: the gripper DMP from the last sampled command (``--absolute-mode dmp``);
-- ``ndp-measured``: the DMP from the measured hand (``--dmp-state measured``);
+- ``ndp-measured``: the DMP from the measured hand with its velocity (``--dmp-state measured
+  --dmp-velocity state``; with a start at rest the frame alone changes nothing for delta DoF:
+  the trajectory relative to y0 does not depend on y0);
 - ``ndp-velstate``: the DMP starts with the state's velocity (``--dmp-velocity state``);
 - ``ndp-paramnoise``: parameter-space exploration (``--param-noise``), on from the default;
 - ``ndp-v0``: every fix off at once (the first release's head, value clip off);
@@ -39,7 +41,8 @@ ARMS = [
     Arm("ndp-goalforcing", "ndp", ("--forcing", "goal"), "f proportional to (g - y0)"),
     Arm("ndp-gs1", "ndp", ("--goal-scale", "1"), "goal bound = k-step reach"),
     Arm("ndp-gripdmp", "ndp", ("--absolute-mode", "dmp"), "gripper DMP from the sampled command"),
-    Arm("ndp-measured", "ndp", ("--dmp-state", "measured"), "DMP from the measured hand"),
+    Arm("ndp-measured", "ndp", ("--dmp-state", "measured", "--dmp-velocity", "state"),
+        "DMP from the measured hand and its velocity"),
     Arm("ndp-velstate", "ndp", ("--dmp-velocity", "state"), "DMP starts with the state velocity"),
     Arm("ndp-paramnoise", "ndp", ("--param-noise",), "parameter-space exploration"),
     Arm(

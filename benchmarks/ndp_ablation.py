@@ -41,8 +41,12 @@ ARMS = [
     Arm("ndp-goalforcing", "ndp", ("--forcing", "goal"), "f proportional to (g - y0)"),
     Arm("ndp-gs1", "ndp", ("--goal-scale", "1"), "goal bound = k-step reach"),
     Arm("ndp-gripdmp", "ndp", ("--absolute-mode", "dmp"), "gripper DMP from the sampled command"),
-    Arm("ndp-measured", "ndp", ("--dmp-state", "measured", "--dmp-velocity", "state"),
-        "DMP from the measured hand and its velocity"),
+    Arm(
+        "ndp-measured",
+        "ndp",
+        ("--dmp-state", "measured", "--dmp-velocity", "state"),
+        "DMP from the measured hand and its velocity",
+    ),
     Arm("ndp-velstate", "ndp", ("--dmp-velocity", "state"), "DMP starts with the state velocity"),
     Arm("ndp-paramnoise", "ndp", ("--param-noise",), "parameter-space exploration"),
     Arm(

@@ -50,7 +50,7 @@ DEFAULT_HORIZON = 50
 
 
 def point_mass_spec(dim: int = 2, horizon: int = DEFAULT_HORIZON) -> TaskSpec:
-    """The toy task's spec.
+    """The toy task's spec (its row of the task table, built in :mod:`ndp.envs.spec`).
 
     Args:
         dim: 2 or 3 (space dimension = DMP DoF = action size).
@@ -59,32 +59,9 @@ def point_mass_spec(dim: int = 2, horizon: int = DEFAULT_HORIZON) -> TaskSpec:
     Returns:
         The task's ``ndp.envs.TaskSpec``.
     """
-    if dim not in (2, 3):
-        raise ValueError(f"dim: expected 2 or 3, got {dim!r}")
-    name = "point-mass" if dim == 2 else "point-mass-3d"
-    fields: dict[str, Any] = {
-        "name": name,
-        "family": "toy",
-        "env_id": f"ndp/PointMass{dim}D-v0",
-        "dmp_dofs": dim,
-        "dof_names": ("x", "y", "z")[:dim],
-        "dof_units": ("m",) * dim,
-        "y0_source": "the point's position (m) and velocity (m/s)",
-        "action_dim": dim,
-        "action_low": (-1.0,) * dim,
-        "action_high": (1.0,) * dim,
-        "action_scale": (ACTION_SCALE,) * dim,
-        "action_absolute": (False,) * dim,
-        "horizon": int(horizon),
-        "control_dt": CONTROL_DT,
-        "sim_dt": CONTROL_DT,
-        "obs_dim": 3 * dim,
-        "metaworld_name": None,
-        "aliases": (name.replace("-", "_"),),
-    }
-    from ndp.envs.spec import TaskSpec  # late: spec.py builds its table from this function
+    from ndp.envs.spec import toy_spec
 
-    return TaskSpec(**fields)
+    return toy_spec(dim, horizon)
 
 
 class PointMassEnv(gym.Env):

@@ -26,7 +26,7 @@ from typing import Literal
 
 import torch
 
-from ndp.envs import jaco
+from ndp.envs import jaco, point_mass
 from ndp.envs.controllers import DeltaController
 from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metaworld_env_names
 from ndp.envs.presets import DEFAULT as DEFAULT_PRESET
@@ -169,14 +169,39 @@ def _jaco_spec(task: str) -> TaskSpec:
     )
 
 
+def toy_spec(dim: int = 2, horizon: int | None = None) -> TaskSpec:
+    """The toy point-mass task's row (``dim`` 2 or 3; ``ndp.envs.point_mass``)."""
+    if dim not in (2, 3):
+        raise ValueError(f"dim: expected 2 or 3, got {dim!r}")
+    name = "point-mass" if dim == 2 else "point-mass-3d"
+    return TaskSpec(
+        name=name,
+        family="toy",
+        env_id=f"ndp/PointMass{dim}D-v0",
+        dmp_dofs=dim,
+        dof_names=("x", "y", "z")[:dim],
+        dof_units=("m",) * dim,
+        y0_source="the point's position (m) and velocity (m/s)",
+        action_dim=dim,
+        action_low=(-1.0,) * dim,
+        action_high=(1.0,) * dim,
+        action_scale=(point_mass.ACTION_SCALE,) * dim,
+        action_absolute=(False,) * dim,
+        horizon=int(point_mass.DEFAULT_HORIZON if horizon is None else horizon),
+        control_dt=point_mass.CONTROL_DT,
+        sim_dt=point_mass.CONTROL_DT,
+        obs_dim=3 * dim,
+        metaworld_name=None,
+        aliases=(name.replace("-", "_"),),
+    )
+
+
 def _build_table() -> dict[str, TaskSpec]:
     table = {n: _metaworld_spec(n) for n in metaworld_env_names()}
     for task in ("throw", "pick"):
         table[task] = _jaco_spec(task)
-    from ndp.envs.point_mass import point_mass_spec  # the toy tasks of the tests and demo
-
-    for dim in (2, 3):
-        spec = point_mass_spec(dim)
+    for dim in (2, 3):  # the toy tasks of the tests and demo
+        spec = toy_spec(dim)
         table[spec.name] = spec
     return table
 

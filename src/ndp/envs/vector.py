@@ -240,8 +240,12 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
         self._slices = list(itertools.pairwise(bounds))
         self._local: _Slice | None = None
         if main_steps:
+            import torch
+
+            threads = torch.get_num_threads()  # env factories may set 1 (for workers)
             lo, hi = self._slices[0]
             self._local = _Slice([fn() for fn in env_fns[lo:hi]], lo, self._a)
+            torch.set_num_threads(threads)
         self._remote = self._slices[1:] if main_steps else self._slices
         self._conns, self._procs = [], []
         for idx, (lo, hi) in enumerate(self._remote):

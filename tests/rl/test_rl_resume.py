@@ -93,3 +93,37 @@ def test_sigkill_then_resume(tmp_path):
 
 def test_resume_errors(tmp_path):
     assert ndp_main(["rl", "train", "--resume", str(tmp_path / "nothing")]) == 2
+
+
+def test_corrupt_checkpoint_and_leftover_progress_give_one_line_errors(tmp_path):
+    from ndp.cli import main as ndp_main
+    from ndp.rl.checkpoint import load_checkpoint
+
+    run = tmp_path / "run"
+    run.mkdir()
+    for content in (b"", b"not a checkpoint at all", b"PK\x03\x04garbage"):
+        (run / "checkpoint.pt").write_bytes(content)
+        with pytest.raises(ValueError, match=r"checkpoint: (cannot read|.* not a checkpoint)"):
+            load_checkpoint(run / "checkpoint.pt")
+    assert ndp_main(["rl", "eval", str(run)]) == 2
+    # a directory with a previous run's progress but no checkpoint is not silently replaced
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "progress.csv").write_text("update,global_step\n1,512\n")
+    rc = ndp_main(
+        [
+            "rl",
+            "train",
+            "--task",
+            "point-mass",
+            "--steps",
+            "520",
+            "--run-dir",
+            str(other),
+            "--no-progress",
+            "--no-tensorboard",
+            "--vector",
+            "sync",
+        ]
+    )
+    assert rc == 2 and (other / "progress.csv").read_text().startswith("update,global_step")

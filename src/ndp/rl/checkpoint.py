@@ -25,8 +25,23 @@ def load_checkpoint(path: Path) -> dict[str, Any]:
 
     Raises:
         FileNotFoundError: no checkpoint at ``path``.
+        ValueError: the file is empty, truncated or not a checkpoint (one line naming it).
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"checkpoint: no such file {path}")
-    return torch.load(path, map_location="cpu", weights_only=False)
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=False)
+    except (EOFError, RuntimeError, OSError, ValueError, ImportError, AttributeError) as exc:
+        raise ValueError(
+            f"checkpoint: cannot read {path} ({type(exc).__name__}: {str(exc)[:120]}); the file "
+            "is empty, truncated or not a checkpoint of this package"
+        ) from None
+    except Exception as exc:  # unpickling garbage raises many kinds
+        raise ValueError(
+            f"checkpoint: cannot read {path} ({type(exc).__name__}); the file is not a "
+            "checkpoint of this package"
+        ) from None
+    if not isinstance(state, dict):
+        raise ValueError(f"checkpoint: {path} is not a checkpoint of this package (not a dict)")
+    return state

@@ -85,6 +85,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
     except TrainingDivergedError as exc:
         print(f"ndp: error: {exc}", file=sys.stderr)
         return 3
+    except KeyboardInterrupt:
+        run = args.resume or getattr(args, "run_dir", None) or "RUN_DIR"
+        print(
+            f"ndp: interrupted; the last checkpoint is kept. Continue with: ndp rl train "
+            f"--resume {run}",
+            file=sys.stderr,
+        )
+        return 130
     keys = ("update", "global_step", "charts/success_any", "charts/episode_return")
     print(json.dumps({k: metrics.get(k) for k in keys}))
     return 0

@@ -70,9 +70,10 @@ class Trainer:
             saved = TrainConfig.from_dict(ckpt["config"])
             if saved != cfg:
                 raise ValueError(f"resume: config differs from the checkpoint's in {self.run_dir}")
-        elif self.ckpt_path.exists():
+        elif self.ckpt_path.exists() or (self.run_dir / "progress.csv").exists():
+            held = "a checkpoint" if self.ckpt_path.exists() else "a run's progress.csv"
             raise ValueError(
-                f"run_dir: {self.run_dir} already holds a checkpoint; use --resume or another dir"
+                f"run_dir: {self.run_dir} already holds {held}; use --resume or another dir"
             )
         torch.set_num_threads(cfg.torch_threads)
         random.seed(cfg.seed)

@@ -92,3 +92,16 @@ def test_sb3_episode_counter_is_per_env_and_per_episode():
     n, succ, ret = c.pop()
     assert n == 3 and succ == pytest.approx(2 / 3) and ret == 2.0
     assert c.pop()[0] == 0
+
+
+def test_run_killed_before_its_first_checkpoint_restarts(tmp_path, monkeypatch):
+    import ndp.experiments.study as study
+
+    arm = Arm("ppo", "ppo")
+    run = run_dir(tmp_path, "point-mass", arm, 0)
+    _check_arm(run, arm, 520)
+    (run / "progress.csv").write_text("update,global_step\n1,512\n")  # no checkpoint.pt
+    calls = []
+    monkeypatch.setattr(study.subprocess, "run", lambda cmd, **kw: calls.append(cmd))
+    study.run_one("point-mass", arm, 0, 520, tmp_path, vector="sync")
+    assert not (run / "progress.csv").exists() and "--resume" not in calls[0]

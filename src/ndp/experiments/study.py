@@ -170,8 +170,12 @@ def run_one(
     _check_arm(run, arm, steps)
     if is_finished(run):
         return run
-    if arm.algo == "sb3-ppo" and (run / "progress.csv").is_file():
-        (run / "progress.csv").unlink()  # a killed SB3 run restarts from scratch
+    if (run / "progress.csv").is_file() and (
+        arm.algo == "sb3-ppo" or not (run / "checkpoint.pt").is_file()
+    ):
+        # killed before anything resumable was written (an SB3 run, or a run before its first
+        # checkpoint): this study's own partial log, restarted from scratch
+        (run / "progress.csv").unlink()
     t0 = time.time()
     log = run / "train.log"
     with log.open("a") as fh:

@@ -261,3 +261,23 @@ def test_positions_only_equal_the_full_rollout():
     torch.testing.assert_close(dmp_positions(goal, w, y0, dy0, cfg), full.pos)
     torch.testing.assert_close(DMPLayer(cfg).positions(goal, w, y0, dy0), full.pos)
     torch.testing.assert_close(full.pos[:, 0], y0)  # the RL head relies on it
+
+
+def test_config_refuses_divergent_euler_settings():
+    from ndp.dmp.config import euler_step_radius
+
+    # the cases: a_z = 400 at 50 steps (dt 0.02, a_z dt = 8) and a_z = 1e6
+    for a_z, steps in ((400.0, 50), (1e6, 300)):
+        with pytest.raises(ValueError, match="diverges"):
+            DMPConfig(a_z=a_z, steps=steps)
+    DMPConfig(a_z=150.0, steps=50)  # a_z dt = 3 < 4: bounded
+    assert euler_step_radius(100.0, 25.0, 1.0, 0.04) == pytest.approx(1.0)  # the boundary
+    # a learned a_z is checked at the top of its clamp range
+    with pytest.raises(ValueError, match="a_z"):
+        DMPConfig(steps=5, learn_az=True, az_range=(0.5, 30.0), subsample=1)
+    # and the bound is the real one: just below it the rollout stays finite, above it explodes
+    g = torch.ones(1, 1)
+    cfg = DMPConfig(a_z=190.0, steps=50)
+    w = torch.zeros(1, 1, cfg.n_basis)
+    y = dmp_rollout(g, w, torch.zeros(1, 1), cfg=cfg).pos
+    assert float(y.abs().max()) < 10.0

@@ -78,6 +78,15 @@ class DMPConfig:
             raise ValueError(
                 f"subsample: expected a divisor of steps={self.steps}, got {self.subsample}"
             )
+        a_z_max = max(self.a_z, hi) if self.learn_az else self.a_z
+        b_z = self.bz if not self.learn_az else a_z_max / 4.0
+        radius = euler_step_radius(a_z_max, b_z, self.tau, self.step_dt)
+        if radius >= 1.0:
+            raise ValueError(
+                f"a_z: explicit Euler with dt={self.step_dt:.4g} diverges for a_z={a_z_max:g} "
+                f"(spectral radius {radius:.3g} >= 1 of the step matrix; with b_z = a_z / 4 the "
+                f"condition is a_z * dt / tau < 4): use more steps or a smaller a_z"
+            )
 
     @property
     def bz(self) -> float:
@@ -93,6 +102,22 @@ class DMPConfig:
     def n_out(self) -> int:
         """Number of reported points per rollout, start included: steps // subsample + 1."""
         return self.steps // self.subsample + 1
+
+
+def euler_step_radius(a_z: float, b_z: float, tau: float, dt: float) -> float:
+    """Spectral radius of one explicit Euler step of the transformation system.
+
+    The homogeneous system ``d(y, z) = (z / tau, a_z (-b_z y - z) / tau)`` stepped with ``dt`` is
+    ``x <- M x`` with ``M = I + dt A``; the integration stays bounded iff the radius is < 1. For
+    the critically damped ``b_z = a_z / 4`` both eigenvalues are ``1 - a_z dt / (2 tau)``, so the
+    condition is ``a_z dt / tau < 4`` (no sign flip between steps below 2).
+    """
+    import cmath
+
+    t = 2.0 - dt * a_z / tau  # trace of M
+    d = 1.0 - dt * a_z / tau + dt * dt * a_z * b_z / (tau * tau)  # determinant of M
+    root = cmath.sqrt(t * t / 4.0 - d)
+    return max(abs(t / 2.0 + root), abs(t / 2.0 - root))
 
 
 def _check_int(name: str, value: object, low: int) -> None:

@@ -127,3 +127,32 @@ def test_corrupt_checkpoint_and_leftover_progress_give_one_line_errors(tmp_path)
         ]
     )
     assert rc == 2 and (other / "progress.csv").read_text().startswith("update,global_step")
+
+
+def test_resume_refuses_run_changing_options_and_extends_steps(tmp_path, capsys):
+    run = tmp_path / "run"
+    base = [
+        "rl",
+        "train",
+        "--task",
+        "point-mass",
+        "--steps-per-update",
+        "256",
+        "--minibatches",
+        "2",
+        "--no-progress",
+        "--no-tensorboard",
+        "--vector",
+        "sync",
+    ]
+    assert ndp_main([*base, "--steps", "512", "--run-dir", str(run)]) == 0
+    # nothing left to do: said so, exit 0, nothing changed
+    assert ndp_main(["rl", "train", "--resume", str(run)]) == 0
+    assert "nothing to do" in capsys.readouterr().err
+    # an option that would change the run is refused by name
+    assert ndp_main(["rl", "train", "--resume", str(run), "--lr", "1e-2"]) == 2
+    assert "['lr']" in capsys.readouterr().err
+    # extending the budget continues the same run
+    assert ndp_main(["rl", "train", "--resume", str(run), "--steps", "1024", "--no-progress"]) == 0
+    state = ck.load_checkpoint(run / "checkpoint.pt")
+    assert state["update"] == 4 and state["config"]["steps"] == 1024

@@ -78,8 +78,16 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     try:
         if args.resume:
-            over = {k: getattr(args, k) for k in ("progress", "tensorboard") if hasattr(args, k)}
+            skip = {"resume", "func", "command", "rl_command"}
+            over = {k: v for k, v in vars(args).items() if k not in skip}
             metrics = resume(args.resume, **over)
+            if not metrics:
+                print(
+                    f"ndp: nothing to do: {args.resume} has finished its budget; --resume with "
+                    "a larger --steps extends it",
+                    file=sys.stderr,
+                )
+                return 0
         else:
             metrics = train(config_from_args(args))
     except TrainingDivergedError as exc:

@@ -45,6 +45,11 @@ from ndp.rl.ppo import (
 )
 
 
+SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers")
+"""TrainConfig fields a resume may change: they change neither the numbers nor the history
+(``steps`` extends or shortens the budget)."""
+
+
 class TrainingDivergedError(FloatingPointError):
     """A loss, gradient or parameter became NaN / Inf; training stopped."""
 
@@ -68,6 +73,7 @@ class Trainer:
         if resume:
             ckpt = load_checkpoint(self.ckpt_path)
             saved = TrainConfig.from_dict(ckpt["config"])
+            saved = dataclasses.replace(saved, **{f: getattr(cfg, f) for f in SAFE_ON_RESUME})
             if saved != cfg:
                 raise ValueError(f"resume: config differs from the checkpoint's in {self.run_dir}")
         elif self.ckpt_path.exists() or (self.run_dir / "progress.csv").exists():
@@ -486,19 +492,21 @@ def resume(
     Args:
         run_dir: a directory written by :func:`train`.
         max_updates: stop after this many more updates.
-        **overrides: top-level fields that do not change the run (``progress``, ``tensorboard``).
+        **overrides: fields of :data:`SAFE_ON_RESUME` (``steps`` extends the budget); any
+            other field is refused with its name.
     """
     run_dir = Path(run_dir)
     cfg = load_config(run_dir / "config.json")
-    allowed = {"progress", "tensorboard"}
-    if set(overrides) - allowed:
-        raise ValueError(f"resume: only {sorted(allowed)} may change, got {sorted(overrides)}")
-    cfg = dataclasses.replace(cfg, run_dir=str(run_dir))
+    refused = sorted(set(overrides) - set(SAFE_ON_RESUME))
+    if refused:
+        raise ValueError(
+            f"resume: these options would change the run and are refused: {refused} (only "
+            f"{list(SAFE_ON_RESUME)} may change; start a new run for the others)"
+        )
+    cfg = dataclasses.replace(cfg, run_dir=str(run_dir), **overrides)
     if not (run_dir / CHECKPOINT_NAME).is_file():
         raise FileNotFoundError(f"resume: no checkpoint in {run_dir} (killed before the first)")
     trainer = Trainer(cfg, resume=True)
-    if overrides:
-        trainer.cfg = dataclasses.replace(trainer.cfg, **overrides)
     try:
         return trainer.train(max_updates)
     finally:

@@ -44,7 +44,6 @@ from ndp.rl.ppo import (
     value_loss,
 )
 
-
 SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers")
 """TrainConfig fields a resume may change: they change neither the numbers nor the history
 (``steps`` extends or shortens the budget)."""

@@ -130,9 +130,9 @@ def bench_ours(
 
 def bench_sb3(task: str, steps: int, num_envs: int, seed: int, subproc: bool) -> float:
     import torch
-    from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
+    from ndp.experiments.sb3_ppo import make_sb3_ppo
     from ndp.rl.envs import resolve_task
 
     torch.set_num_threads(1)
@@ -140,29 +140,7 @@ def bench_sb3(task: str, steps: int, num_envs: int, seed: int, subproc: bool) ->
     fns = [h.make for _ in range(num_envs)]
     base = SubprocVecEnv(fns, start_method="spawn") if subproc else DummyVecEnv(fns)
     venv = VecNormalize(base, gamma=0.99)
-    n_steps = 2048 // num_envs
-    model = PPO(
-        "MlpPolicy",
-        venv,
-        learning_rate=3e-4,
-        n_steps=n_steps,
-        batch_size=2048 // 32,
-        n_epochs=10,
-        gamma=0.99,
-        gae_lambda=0.95,
-        clip_range=0.1,
-        ent_coef=0.0,
-        vf_coef=0.5,
-        max_grad_norm=0.5,
-        seed=seed,
-        device="cpu",
-        verbose=0,
-        policy_kwargs={
-            "net_arch": {"pi": [100, 100], "vf": [100, 100]},
-            "activation_fn": torch.nn.Tanh,
-            "optimizer_kwargs": {"eps": 1e-5},
-        },
-    )
+    model = make_sb3_ppo(venv, seed, num_envs)
     w0 = time.perf_counter()
     model.learn(total_timesteps=steps)
     w = time.perf_counter() - w0

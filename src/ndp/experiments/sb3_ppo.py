@@ -28,6 +28,7 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -72,29 +73,16 @@ class EpisodeCounter:
         return len(eps), float(arr[:, 0].mean()), float(arr[:, 1].mean())
 
 
-def train_sb3(
-    task: str, steps: int, seed: int, run_dir: Path, num_envs: int = 4, horizon: int | None = None
-) -> Path:
-    """Train SB3 PPO; returns the run directory (see the module docstring)."""
+def make_sb3_ppo(venv: Any, seed: int, num_envs: int) -> Any:
+    """SB3 PPO with the supplement's settings (``PPOConfig`` defaults) on a normalised venv."""
     import torch
     from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from ndp.io import atomic_write_text
     from ndp.rl.config import PPOConfig
-    from ndp.rl.envs import resolve_task
 
-    torch.set_num_threads(1)
-    run_dir = Path(run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
     p = PPOConfig()
-    h = resolve_task(task)
-    venv = DummyVecEnv([lambda: h.make(horizon=horizon) for _ in range(num_envs)])
-    venv.seed(seed)
-    venv = VecNormalize(venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
     n_steps = p.steps_per_update // num_envs
-    model = PPO(
+    return PPO(
         "MlpPolicy",
         venv,
         learning_rate=p.lr,
@@ -116,6 +104,29 @@ def train_sb3(
             "optimizer_kwargs": {"eps": p.adam_eps},
         },
     )
+
+
+def train_sb3(
+    task: str, steps: int, seed: int, run_dir: Path, num_envs: int = 4, horizon: int | None = None
+) -> Path:
+    """Train SB3 PPO; returns the run directory (see the module docstring)."""
+    import torch
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from ndp.io import atomic_write_text
+    from ndp.rl.config import PPOConfig
+    from ndp.rl.envs import resolve_task
+
+    torch.set_num_threads(1)
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    p = PPOConfig()
+    h = resolve_task(task)
+    venv = DummyVecEnv([lambda: h.make(horizon=horizon) for _ in range(num_envs)])
+    venv.seed(seed)
+    venv = VecNormalize(venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
+    model = make_sb3_ppo(venv, seed, num_envs)
     counter = EpisodeCounter(num_envs)
     path = run_dir / "progress.csv"
     fh = path.open("w", newline="")

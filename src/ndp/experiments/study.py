@@ -398,6 +398,16 @@ def run_study(
         f"Command: `{command}`  ",
         f"Commit: {summary['commit']}, date: {summary['date']}; runs in `{args.runs_dir}`.",
         "",
+        *(
+            [
+                "Aggregated with `--plot-only`: the runs were made by this command without it "
+                "(resumable; each run's `arm.json` holds its options and `config.json` its "
+                "resolved config; docs/rl.md names the commits they ran at).",
+                "",
+            ]
+            if args.plot_only
+            else []
+        ),
         *intro,
         "Success area (success averaged over the budget; mean +- std over seeds):",
         "",

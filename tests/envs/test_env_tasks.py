@@ -161,3 +161,17 @@ def test_chunked_env_ids_and_unknown_family(monkeypatch):
     monkeypatch.setattr(factory, "get_task_spec", lambda name: odd)
     with pytest.raises(ValueError, match="family: no env class for family 'rover'"):
         factory.make_env("point-mass")
+
+
+def test_video_output_checked_before_work_and_written_atomically(tmp_path):
+    from ndp.envs.render import check_output_path, write_mp4
+
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(OSError, match="is a file, not a folder"):
+        check_output_path(blocker / "sub" / "v.mp4")
+    with pytest.raises(OSError, match="is a folder"):
+        check_output_path(tmp_path)
+    frames = [np.zeros((16, 16, 3), np.uint8)] * 3
+    out = write_mp4(frames, tmp_path / "v.mp4", fps=5)
+    assert out.stat().st_size > 0 and not list(tmp_path.glob(".v.*"))

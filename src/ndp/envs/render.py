@@ -6,6 +6,7 @@ first used; the Makefile exports it.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -37,10 +38,36 @@ def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> 
             raise ValueError(
                 f"frames: expected [H, W, 3] uint8 frames of shape {shape}, got {f.dtype} {f.shape}"
             )
+    path = check_output_path(path)
+    # written beside the target, then moved into place: a failed write leaves no partial file
+    # and an existing video intact
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+    try:
+        # macro_block_size=1 keeps odd sizes as they are instead of resizing them.
+        with imageio.get_writer(str(tmp), fps=fps, codec="libx264", macro_block_size=1) as w:
+            for f in frames:
+                w.append_data(np.asarray(f))
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise OSError(f"path: cannot write the video {path}: {exc.strerror or exc}") from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def check_output_path(path: str | Path) -> Path:
+    """Make ``path``'s folder (if needed) and check that a file can be written there, before
+    any expensive work; raises ``OSError`` in one line naming the path and the cause."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # macro_block_size=1 keeps odd sizes as they are instead of resizing them.
-    with imageio.get_writer(str(path), fps=fps, codec="libx264", macro_block_size=1) as w:
-        for f in frames:
-            w.append_data(np.asarray(f))
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise OSError(f"path: {path.parent} is a file, not a folder") from None
+    except OSError as exc:
+        raise OSError(f"path: cannot create {path.parent}: {exc.strerror or exc}") from None
+    if path.is_dir():
+        raise OSError(f"path: {path} is a folder; give a file name")
+    if not os.access(path.parent, os.W_OK):
+        raise OSError(f"path: {path.parent} is not writable")
     return path

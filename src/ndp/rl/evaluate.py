@@ -86,7 +86,10 @@ def render(
 
     os.environ.setdefault("MUJOCO_GL", "egl")
     from ndp.envs.chunked import ChunkedEnv
-    from ndp.envs.render import write_mp4
+    from ndp.envs.render import check_output_path, write_mp4
+
+    target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
+    check_output_path(target)  # before rendering anything
 
     pol = load_policy(run_dir)
     cfg = pol.cfg
@@ -97,7 +100,7 @@ def render(
         rows = [_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
     finally:
         env.close()
-    path = Path(out) if out is not None else Path(run_dir) / "video.mp4"
+    path = target
     fps = max(1, min(60, round(1.0 / float(pol.spec.control_dt))))
     write_mp4(rec.frames, path, fps=fps)
     return {

@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-METHODS = ("ndp", "ppo", "ppo-multi", "sb3-ppo")
-"""Methods an arm can name."""
+EXTERNAL_METHODS = ("sb3-ppo",)
+"""Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``)."""
 
 
 @dataclass(frozen=True)
@@ -54,8 +54,8 @@ class Arm:
     def __post_init__(self) -> None:
         from ndp.rl.methods import METHODS as RL_METHODS
 
-        if self.algo not in METHODS and self.algo not in RL_METHODS:
-            known = ", ".join([*RL_METHODS, "sb3-ppo"])
+        if self.algo not in EXTERNAL_METHODS and self.algo not in RL_METHODS:
+            known = ", ".join([*RL_METHODS, *EXTERNAL_METHODS])
             raise ValueError(f"algo: expected one of {known}, got {self.algo!r}")
         if not self.label or not all(c.isalnum() or c in "-_" for c in self.label):
             raise ValueError(f"label: expected letters, digits, '-' or '_', got {self.label!r}")
@@ -104,56 +104,15 @@ def train_command(
 ) -> list[str]:
     """The command that trains (or resumes) one run (``vector``: its vector env kind)."""
     if arm.algo == "sb3-ppo":
-        return [
-            sys.executable,
-            "-m",
-            "ndp.experiments.sb3_ppo",
-            "--task",
-            task,
-            "--steps",
-            str(steps),
-            "--seed",
-            str(seed),
-            "--num-envs",
-            str(num_envs),
-            "--run-dir",
-            str(run),
-        ]
+        return [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task,
+                "--steps", str(steps), "--seed", str(seed), "--num-envs", str(num_envs),
+                "--run-dir", str(run)]  # fmt: skip
+    rl_train = [sys.executable, "-m", "ndp.cli", "rl", "train"]
     if (run / "checkpoint.pt").is_file():
-        return [
-            sys.executable,
-            "-m",
-            "ndp.cli",
-            "rl",
-            "train",
-            "--resume",
-            str(run),
-            "--no-progress",
-        ]
-    return [
-        sys.executable,
-        "-m",
-        "ndp.cli",
-        "rl",
-        "train",
-        "--task",
-        task,
-        "--algo",
-        arm.algo,
-        "--seed",
-        str(seed),
-        "--steps",
-        str(steps),
-        "--num-envs",
-        str(num_envs),
-        "--run-dir",
-        str(run),
-        "--no-progress",
-        "--no-tensorboard",
-        "--vector",
-        vector,
-        *arm.args,
-    ]
+        return [*rl_train, "--resume", str(run), "--no-progress"]
+    return [*rl_train, "--task", task, "--algo", arm.algo, "--seed", str(seed),
+            "--steps", str(steps), "--num-envs", str(num_envs), "--run-dir", str(run),
+            "--no-progress", "--no-tensorboard", "--vector", vector, *arm.args]  # fmt: skip
 
 
 def run_one(

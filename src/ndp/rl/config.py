@@ -34,10 +34,6 @@ from typing import Any
 
 from ndp.policies.config import PolicyConfig
 
-ALGOS: dict[str, str] = {"ppo": "step", "ppo-multi": "multi", "ndp": "ndp"}
-"""The built-in methods' heads (the registry, with every registered method, is
-``ndp.rl.methods.METHODS``)."""
-
 
 @dataclass(frozen=True)
 class PPOConfig:

@@ -97,8 +97,8 @@ def bench_ours(
 ) -> dict[str, float]:
     """Wall steps/s of a training run, and its mean rollout / update seconds per update."""
     from ndp.rl.config import TrainConfig
-    from ndp.rl.logger import read_csv
     from ndp.rl.trainer import Trainer
+    from ndp.runs import read_metrics
 
     with tempfile.TemporaryDirectory() as tmp:
         tr = Trainer(
@@ -118,7 +118,7 @@ def bench_ours(
             w0 = time.perf_counter()
             tr.train()
             w = time.perf_counter() - w0
-            rows = read_csv(Path(tmp) / "r" / "progress.csv")
+            rows = read_metrics(Path(tmp) / "r" / "metrics.csv")
             return {
                 "wall": tr.global_step / w,
                 "rollout_s": float(np.mean([r["time/rollout_s"] for r in rows])),

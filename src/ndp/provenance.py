@@ -1,18 +1,61 @@
-"""Provenance of generated results: which commit produced them."""
+"""Provenance of runs and generated results (a leaf module): commit, dirty flag, command line.
+
+Nothing here imports the rest of the package, so every sub-package can record where its outputs
+came from.
+"""
 
 from __future__ import annotations
 
+import platform
 import subprocess
+import sys
+import time
 from pathlib import Path
+from typing import Any
+
+
+def _git(*args: str, cwd: str | Path | None = None) -> str | None:
+    try:
+        return subprocess.run(
+            ["git", *args],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=cwd or Path(__file__).parent,
+        ).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return None
 
 
 def git_commit(short: bool = True, cwd: str | Path | None = None) -> str:
     """The current git commit (short hash by default), or ``"unknown"`` outside a checkout."""
-    cmd = ["git", "rev-parse", *(["--short"] if short else []), "HEAD"]
-    try:
-        out = subprocess.run(
-            cmd, capture_output=True, text=True, check=True, cwd=cwd or Path(__file__).parent
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return out or "unknown"
+    out = _git("rev-parse", *(["--short"] if short else []), "HEAD", cwd=cwd)
+    return (out or "").strip() or "unknown"
+
+
+def git_dirty(cwd: str | Path | None = None) -> bool | None:
+    """Whether the checkout has uncommitted changes to tracked files (None outside a checkout)."""
+    out = _git("status", "--porcelain", "--untracked-files=no", cwd=cwd)
+    return None if out is None else bool(out.strip())
+
+
+def versions() -> dict[str, str]:
+    """Versions of Python and of the numerical packages already imported (none is imported)."""
+    out = {"python": platform.python_version()}
+    for name in ("ndp", "torch", "numpy", "gymnasium", "mujoco", "metaworld"):
+        mod = sys.modules.get(name)
+        if mod is not None:
+            out[name] = str(getattr(mod, "__version__", "unknown"))
+    return out
+
+
+def provenance(argv: list[str] | None = None) -> dict[str, Any]:
+    """Where a run session comes from: time, command line, commit, dirty flag, host, versions."""
+    return {
+        "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "argv": list(sys.argv if argv is None else argv),
+        "commit": git_commit(short=False),
+        "dirty": git_dirty(),
+        "host": platform.node(),
+        "versions": versions(),
+    }

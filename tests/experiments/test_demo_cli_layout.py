@@ -51,11 +51,12 @@ def test_atomic_write_keeps_old_file_on_failure(tmp_path):
 ALLOWED = {
     "dmp": set(),
     "nets": set(),
+    "runs": set(),  # run infrastructure (run dirs, metrics, checkpoints, typed CLIs)
     "envs": {"dmp"},
-    "policies": {"dmp", "nets", "envs"},
-    "il": {"dmp", "nets"},
-    "rl": {"dmp", "nets", "envs", "policies"},
-    "experiments": {"dmp", "nets", "envs", "policies", "rl", "il"},
+    "policies": {"dmp", "nets", "envs", "runs"},
+    "il": {"dmp", "nets", "runs"},
+    "rl": {"dmp", "nets", "envs", "policies", "runs"},
+    "experiments": {"dmp", "nets", "envs", "policies", "rl", "il", "runs"},
 }
 LEAVES = {"io", "provenance"}  # leaf helper modules anyone may import
 

@@ -24,7 +24,7 @@ from ndp.experiments.study import (
 
 def _write_run(path, xs, ys, done=True):
     path.mkdir(parents=True)
-    with (path / "progress.csv").open("w", newline="") as fh:
+    with (path / "metrics.csv").open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["update", "global_step", "charts/success_any"])
         for i, (x, y) in enumerate(zip(xs, ys, strict=True)):
@@ -100,8 +100,8 @@ def test_run_killed_before_its_first_checkpoint_restarts(tmp_path, monkeypatch):
     arm = Arm("ppo", "ppo")
     run = run_dir(tmp_path, "point-mass", arm, 0)
     _check_arm(run, arm, 520)
-    (run / "progress.csv").write_text("update,global_step\n1,512\n")  # no checkpoint.pt
+    (run / "metrics.csv").write_text("update,global_step\n1,512\n")  # no checkpoint.pt
     calls = []
     monkeypatch.setattr(study.subprocess, "run", lambda cmd, **kw: calls.append(cmd))
     study.run_one("point-mass", arm, 0, 520, tmp_path, vector="sync")
-    assert not (run / "progress.csv").exists() and "--resume" not in calls[0]
+    assert not (run / "metrics.csv").exists() and "--resume" not in calls[0]

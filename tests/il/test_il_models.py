@@ -74,7 +74,7 @@ def test_weights_parameterisation() -> None:
     assert torch.allclose(w, 10.0 * raw.view(2, 2, 31)[..., 1:])
     with pytest.raises(ValueError, match="forcing_param"):
         ModelConfig(forcing_param="nope")
-    with pytest.raises(ValueError, match="model kind"):
+    with pytest.raises(ValueError, match="model: expected one of"):
         ModelConfig(kind="rnn")
 
 

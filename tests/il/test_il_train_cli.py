@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 from pathlib import Path
 
@@ -124,18 +125,18 @@ def test_eval_command_and_bad_runs(tmp_path: Path, capsys) -> None:
     assert out["n_test"] == 20 and out["n_train"] == 40 and "test_dtw_px" not in out
     assert (tmp_path / "grid.png").exists()
     assert main(["il", "eval", str(tmp_path / "missing")]) == 2
-    assert "checkpoint not found" in capsys.readouterr().err
+    assert "checkpoint: no such file" in capsys.readouterr().err
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "checkpoint.pt").write_bytes(b"garbage")
     assert main(["il", "eval", str(bad)]) == 2
-    assert "cannot read checkpoint" in capsys.readouterr().err
+    assert "checkpoint: cannot read" in capsys.readouterr().err
 
 
 def test_cli_bad_data_paths(tmp_path: Path, capsys) -> None:
     args = _tiny_args(tmp_path, "x")
     assert main([*args, "--data", str(tmp_path / "nope.npz")]) == 2
-    assert "not found" in capsys.readouterr().err
+    assert "no such file" in capsys.readouterr().err
     corrupt = tmp_path / "corrupt.npz"
     corrupt.write_bytes(b"not an npz")
     assert main([*args, "--data", str(corrupt)]) == 2
@@ -188,8 +189,7 @@ def test_pendigits_writer_split_run(tmp_path: Path, pendigits_path: Path) -> Non
 
 
 def test_train_config_json_roundtrip(tmp_path: Path) -> None:
-    cfg = _tiny(tmp_path)
-    cfg.model.head_hidden = (16,)
+    cfg = _tiny(tmp_path, model=ModelConfig(kind="ndp", head_hidden=(16,)))
     again = TrainConfig.from_dict(json.loads(json.dumps(cfg.as_dict())))
     assert again.as_dict() == cfg.as_dict()
     with pytest.raises(ValueError, match="batch_size"):
@@ -203,13 +203,63 @@ def test_encoder_init_from_another_run(tmp_path: Path) -> None:
         for k, v in load_checkpoint(Path(first["checkpoint"]))["model"].items()
         if k.startswith("encoder.")
     }
-    cfg = _tiny(tmp_path, "cnn", epochs=1, model=ModelConfig(kind="cnn"), lr=1e-12)
-    cfg.encoder_init = str(tmp_path / "pre")
+    cfg = _tiny(
+        tmp_path,
+        "cnn",
+        epochs=1,
+        model=ModelConfig(kind="cnn"),
+        lr=1e-12,
+        encoder_init=str(tmp_path / "pre"),
+    )
     second = train(cfg)
     got = load_checkpoint(Path(second["checkpoint"]))["model"]
     for k, v in enc.items():  # lr 1e-12: the copied weights are still (almost) there
         assert torch.allclose(got[k], v, atol=1e-6), k
-    cfg.encoder_init = str(tmp_path / "missing")
-    cfg.run_dir = str(tmp_path / "other")
+    cfg = dataclasses.replace(
+        cfg, encoder_init=str(tmp_path / "missing"), run_dir=str(tmp_path / "other")
+    )
     with pytest.raises(FileNotFoundError):
         train(cfg)
+
+
+def test_new_run_refuses_a_directory_holding_a_run(tmp_path: Path, capsys) -> None:
+    train(_tiny(tmp_path, epochs=1))
+    before = (tmp_path / "run" / "checkpoint.pt").read_bytes()
+    with pytest.raises(ValueError, match=r"run_dir: .* already holds a checkpoint"):
+        train(_tiny(tmp_path, epochs=1))
+    assert main([*_tiny_args(tmp_path, "run")]) == 2
+    assert "already holds a checkpoint" in capsys.readouterr().err
+    assert (tmp_path / "run" / "checkpoint.pt").read_bytes() == before  # nothing lost
+
+
+def test_cli_resume_extends_epochs_and_refuses_other_changes(tmp_path: Path, capsys) -> None:
+    assert main([*_tiny_args(tmp_path, "run"), "--no-eval"]) == 0
+    capsys.readouterr()
+    run = str(tmp_path / "run")
+    assert main(["il", "train", "--resume", run, "--lr", "0.1"]) == 2
+    assert "['lr']" in capsys.readouterr().err
+    assert main(["il", "train", "--resume", run, "--epochs", "2", "--no-eval"]) == 0
+    capsys.readouterr()
+    assert load_checkpoint(tmp_path / "run")["epoch"] == 2
+    with (tmp_path / "run" / "metrics.csv").open() as f:
+        assert [r["epoch"] for r in csv.DictReader(f)] == ["1", "2"]
+    sessions = json.loads((tmp_path / "run" / "provenance.json").read_text())
+    assert [s["event"] for s in sessions] == ["start", "resume"]
+    assert all(s["commit"] and "argv" in s and "dirty" in s for s in sessions)
+
+
+def test_every_il_field_is_an_option_of_ndp_il_train(capsys) -> None:
+    """Every field of the IL config tree (data and model included) is reachable, except the
+    data-derived pixel frame; the old spellings --data, --model and --out still work."""
+    assert main(["il", "train", "--help"]) == 0
+    text = capsys.readouterr().out
+    renamed = {"source": "data", "kind": "model"}
+    names = [
+        renamed.get(f.name, f.name)
+        for c in (TrainConfig, DataConfig, ModelConfig)
+        for f in dataclasses.fields(c)
+        if f.name not in ("data", "model", "frame")
+    ]
+    missing = [n for n in names if f"--{n.replace('_', '-')}" not in text]
+    assert not missing
+    assert "--out" in text and "--frame" not in text

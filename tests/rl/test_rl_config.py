@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import json
 
 import pytest
@@ -13,9 +13,6 @@ from ndp.rl import envs as rl_envs
 from ndp.rl.config import (
     PPOConfig,
     TrainConfig,
-    add_dataclass_arguments,
-    config_from_args,
-    field_docs,
     resolve_config,
 )
 from ndp.rl.trainer import Trainer
@@ -70,39 +67,45 @@ def test_trainer_runs_what_the_config_says(tmp_path):
         tr.close()
 
 
-def test_field_docs_and_cli_roundtrip():
-    docs = field_docs(PPOConfig)
-    assert docs["ent_coef"] == "Entropy bonus coefficient."
-    parser = argparse.ArgumentParser()
-    add_dataclass_arguments(parser, TrainConfig)
-    add_dataclass_arguments(parser, PPOConfig)
-    add_dataclass_arguments(parser, PolicyConfig, skip=("head",))
-    args = parser.parse_args(
-        [
-            "--task",
-            "soccer-v3",
-            "--algo",
-            "ppo-multi",
-            "--k",
-            "3",
-            "--lr",
-            "1e-3",
-            "--hidden",
-            "64",
-            "64",
-            "--no-norm-obs",
-            "--horizon",
-            "none",
-            "--goal-scale",
-            "2",
-        ]
-    )
-    cfg = config_from_args(args)
+def test_cli_parses_every_field_flat_and_roundtrips():
+    from ndp.runs.cli import parse_config
+
+    args = ["--task", "soccer-v3", "--algo", "ppo-multi", "--k", "3", "--lr", "1e-3",
+            "--hidden", "64", "64", "--no-norm-obs", "--horizon", "None", "--goal-scale", "2",
+            "--clip-value-loss", "--dmp-state", "measured"]  # fmt: skip
+    cfg = parse_config(TrainConfig, args, prog="ndp rl train")
     assert cfg.task == "soccer-v3" and cfg.algo == "ppo-multi" and cfg.policy.k == 3
     assert cfg.ppo.lr == 1e-3 and not cfg.ppo.norm_obs and cfg.ppo.epochs == 10
     assert cfg.policy.hidden == (64, 64) and cfg.horizon is None
-    assert cfg.policy.goal_scale == 2.0
+    assert cfg.policy.goal_scale == 2.0 and cfg.ppo.clip_value_loss
+    assert cfg.policy.dmp_state == "measured"
     assert TrainConfig.from_dict(cfg.to_dict()) == cfg
+
+
+def test_every_train_field_is_an_option_of_ndp_rl_train(capsys):
+    """Every TrainConfig / PPOConfig / PolicyConfig field has its --flag in --help, except the
+    derived head; each help line carries the field's docstring."""
+    from ndp.cli import main
+
+    assert main(["rl", "train", "--help"]) == 0
+    text = capsys.readouterr().out
+    names = [f.name for c in (TrainConfig, PPOConfig, PolicyConfig) for f in dataclasses.fields(c)]
+    missing = [
+        n
+        for n in names
+        if n not in ("ppo", "policy", "head") and f"--{n.replace('_', '-')}" not in text
+    ]
+    assert not missing
+    assert "--head" not in text and "Entropy bonus coefficient" in text
+
+
+def test_cli_bad_value_names_the_option(capsys):
+    from ndp.cli import main
+
+    assert main(["rl", "train", "--lr", "abc"]) == 2
+    assert "--lr" in capsys.readouterr().err
+    assert main(["rl", "train", "--algo", "sac"]) == 2
+    assert "algo" in capsys.readouterr().err
 
 
 def _no_env(*a, **k):

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from ndp.rl.config import TrainConfig
-from ndp.rl.logger import read_csv
 from ndp.rl.trainer import train
+from ndp.runs import read_metrics
 
 
 @pytest.mark.slow
@@ -24,5 +24,5 @@ def test_ndp_learns_reach_v3_in_100k_steps(tmp_path):
             tensorboard=False,
         )
     )
-    rows = read_csv(tmp_path / "r" / "progress.csv")
+    rows = read_metrics(tmp_path / "r" / "metrics.csv")
     assert np.nanmean([r["charts/success_any"] for r in rows[-5:]]) >= 0.6

@@ -11,22 +11,22 @@ import time
 import pytest
 import torch
 
+from ndp import runs as ck
 from ndp.cli import main as ndp_main
-from ndp.rl import checkpoint as ck
-from ndp.rl.logger import read_csv
+from ndp.runs import read_metrics
 
 
 def test_atomic_save_keeps_previous_file_on_crash(tmp_path, monkeypatch):
     path = tmp_path / "c.pt"
-    ck.save_checkpoint(path, {"x": torch.ones(3)})
+    ck.save_checkpoint(path, {"x": torch.ones(3)}, kind="rl")
 
     def boom(obj, f):
         f.write(b"partial")
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(ck.torch, "save", boom)
+    monkeypatch.setattr(torch, "save", boom)
     with pytest.raises(RuntimeError):
-        ck.save_checkpoint(path, {"x": torch.zeros(3)})
+        ck.save_checkpoint(path, {"x": torch.zeros(3)}, kind="rl")
     monkeypatch.undo()
     assert torch.equal(ck.load_checkpoint(path)["x"], torch.ones(3))
     assert [p.name for p in tmp_path.iterdir()] == ["c.pt"]  # no temporary file left
@@ -58,13 +58,13 @@ def test_sigkill_then_resume(tmp_path):
         "--no-progress",
     ]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    csv_path = run / "progress.csv"
+    csv_path = run / "metrics.csv"
     deadline = time.time() + 120
     try:
         while time.time() < deadline:
             if proc.poll() is not None:
                 pytest.fail(f"training exited early: {proc.stderr.read().decode()[-2000:]}")
-            if csv_path.is_file() and len(read_csv(csv_path)) >= 5:
+            if csv_path.is_file() and len(read_metrics(csv_path)) >= 5:
                 break
             time.sleep(0.05)
         else:
@@ -76,13 +76,13 @@ def test_sigkill_then_resume(tmp_path):
             proc.kill()
             proc.wait()
     assert proc.returncode == -signal.SIGKILL
-    killed_rows = len(read_csv(csv_path))
+    killed_rows = len(read_metrics(csv_path))
     assert killed_rows < n_updates
     saved = ck.load_checkpoint(run / "checkpoint.pt")
     assert saved["update"] % 2 == 0 and killed_rows - saved["update"] <= 2  # <= one interval lost
 
     assert ndp_main(["rl", "train", "--resume", str(run), "--no-progress"]) == 0
-    rows = read_csv(csv_path)
+    rows = read_metrics(csv_path)
     assert [int(r["update"]) for r in rows] == list(range(1, n_updates + 1))
     steps = [r["global_step"] for r in rows]
     assert steps == sorted(steps) and len(set(steps)) == len(steps)
@@ -97,7 +97,7 @@ def test_resume_errors(tmp_path):
 
 def test_corrupt_checkpoint_and_leftover_progress_give_one_line_errors(tmp_path):
     from ndp.cli import main as ndp_main
-    from ndp.rl.checkpoint import load_checkpoint
+    from ndp.runs import load_checkpoint
 
     run = tmp_path / "run"
     run.mkdir()
@@ -109,7 +109,7 @@ def test_corrupt_checkpoint_and_leftover_progress_give_one_line_errors(tmp_path)
     # a directory with a previous run's progress but no checkpoint is not silently replaced
     other = tmp_path / "other"
     other.mkdir()
-    (other / "progress.csv").write_text("update,global_step\n1,512\n")
+    (other / "metrics.csv").write_text("update,global_step\n1,512\n")
     rc = ndp_main(
         [
             "rl",
@@ -126,7 +126,7 @@ def test_corrupt_checkpoint_and_leftover_progress_give_one_line_errors(tmp_path)
             "sync",
         ]
     )
-    assert rc == 2 and (other / "progress.csv").read_text().startswith("update,global_step")
+    assert rc == 2 and (other / "metrics.csv").read_text().startswith("update,global_step")
 
 
 def test_resume_refuses_run_changing_options_and_extends_steps(tmp_path, capsys):
@@ -151,7 +151,7 @@ def test_resume_refuses_run_changing_options_and_extends_steps(tmp_path, capsys)
     assert "nothing to do" in capsys.readouterr().err
     # an option that would change the run is refused by name
     assert ndp_main(["rl", "train", "--resume", str(run), "--lr", "1e-2"]) == 2
-    assert "['lr']" in capsys.readouterr().err
+    assert "['ppo.lr']" in capsys.readouterr().err
     # extending the budget continues the same run
     assert ndp_main(["rl", "train", "--resume", str(run), "--steps", "1024", "--no-progress"]) == 0
     state = ck.load_checkpoint(run / "checkpoint.pt")

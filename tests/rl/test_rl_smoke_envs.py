@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from ndp.rl.config import PPOConfig, TrainConfig
-from ndp.rl.logger import read_csv
 from ndp.rl.trainer import Trainer
+from ndp.runs import read_metrics
 
 
 @pytest.mark.parametrize("task", ["push-v3", "throw"])
@@ -47,4 +47,4 @@ def test_smoke_real_tasks(tmp_path, task, algo):
         assert math.isfinite(metrics[key]), key
     if algo == "ndp":
         assert metrics["dmp/goal_norm"] > 0 and math.isfinite(metrics["dmp/weight_norm"])
-    assert len(read_csv(tmp_path / "r" / "progress.csv")) == 1
+    assert len(read_metrics(tmp_path / "r" / "metrics.csv")) == 1

@@ -12,11 +12,11 @@ from gymnasium.utils.env_checker import check_env
 from ndp.cli import main as ndp_main
 from ndp.envs.point_mass import PointMassEnv
 from ndp.policies import PolicyConfig
-from ndp.rl.checkpoint import load_checkpoint
 from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.rl.evaluate import evaluate
-from ndp.rl.logger import TIME_METRICS, read_csv
+from ndp.rl.logger import TIME_METRICS
 from ndp.rl.trainer import Trainer, TrainingDivergedError, train
+from ndp.runs import load_checkpoint, read_metrics
 
 FAST = PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3)
 
@@ -64,7 +64,7 @@ def test_point_mass_seeded_spec_and_bounded_inverse_controller():
 
 def test_ndp_learns_point_mass_within_seconds(tmp_path):
     metrics = train(_cfg(tmp_path, steps=20_000))
-    rows = read_csv(tmp_path / "run" / "progress.csv")
+    rows = read_metrics(tmp_path / "run" / "metrics.csv")
     assert len(rows) == math.ceil(20_000 / 520)
     late = np.mean([r["charts/success_any"] for r in rows[-4:]])
     early = np.mean([r["charts/success_any"] for r in rows[:2]])
@@ -84,9 +84,9 @@ def test_same_seed_identical_metrics_and_different_seed_differs(tmp_path):
     def strip(rows):
         return [{k: v for k, v in r.items() if k not in TIME_METRICS} for r in rows]
 
-    a = strip(read_csv(tmp_path / "a" / "progress.csv"))
-    b = strip(read_csv(tmp_path / "b" / "progress.csv"))
-    c = strip(read_csv(tmp_path / "c" / "progress.csv"))
+    a = strip(read_metrics(tmp_path / "a" / "metrics.csv"))
+    b = strip(read_metrics(tmp_path / "b" / "metrics.csv"))
+    c = strip(read_metrics(tmp_path / "c" / "metrics.csv"))
     assert len(a) == 3
     assert a == b  # bit-identical (NaN-free rows compare equal)
     assert a != c
@@ -280,7 +280,7 @@ def test_worker_vector_env_gives_the_sync_rollout(tmp_path, task, algo):
 def test_async_vector_env_matches_sync(tmp_path):
     train(_cfg(tmp_path, "sync", steps=1040, num_envs=2))
     train(_cfg(tmp_path, "async", steps=1040, num_envs=2, vector="async"))
-    a = read_csv(tmp_path / "sync" / "progress.csv")
-    b = read_csv(tmp_path / "async" / "progress.csv")
+    a = read_metrics(tmp_path / "sync" / "metrics.csv")
+    b = read_metrics(tmp_path / "async" / "metrics.csv")
     key = "charts/episode_return"
     assert [r[key] for r in a] == [r[key] for r in b]

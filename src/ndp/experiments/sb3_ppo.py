@@ -9,7 +9,7 @@ trains on (``ndp.envs.make_env``; Meta-World random goals at every reset), ``Dum
 Success is counted per env and per episode: a per-env flag is set when ``info["success"]`` is
 true at any step of the episode and read when that env's episode ends (a callback that pools
 every env's infos into one list miscounts when several envs end at the same step). One row per
-rollout goes to ``<run_dir>/progress.csv`` with the keys ``update``, ``global_step``,
+rollout goes to ``<run_dir>/metrics.csv`` with the keys ``update``, ``global_step``,
 ``charts/episodes``, ``charts/success_any``, ``charts/episode_return`` (this package's metric
 names, docs/metrics.md), and ``done.json`` is written atomically at the end. A killed run is
 restarted from scratch (SB3 runs are short; nothing partial is reported as finished).
@@ -31,6 +31,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ndp.runs import METRICS_NAME
 
 FIELDS = (
     "update",
@@ -128,7 +130,7 @@ def train_sb3(
     venv = VecNormalize(venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
     model = make_sb3_ppo(venv, seed, num_envs)
     counter = EpisodeCounter(num_envs)
-    path = run_dir / "progress.csv"
+    path = run_dir / METRICS_NAME
     fh = path.open("w", newline="")
     writer = csv.DictWriter(fh, fieldnames=FIELDS)
     writer.writeheader()

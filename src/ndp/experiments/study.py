@@ -11,7 +11,7 @@ Every (task, arm, seed) is one ordinary run in ``<runs_dir>/<task>-<label>-s<see
   is refused (no silent mixing);
 - ``jobs`` runs go at once (one torch thread each; at most one per core).
 
-:func:`summarise` reads every run's ``progress.csv`` (``charts/success_any`` per update: the
+:func:`summarise` reads every run's ``metrics.csv`` (``charts/success_any`` per update: the
 training episodes' success at any step, stochastic policy) and computes per run the **success
 area** (the success curve averaged over the whole budget: the area under it divided by the
 budget, the sample-efficiency number) and the **final success** (mean of the last 10% of
@@ -33,6 +33,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ndp.runs import metrics_path, read_metrics
 
 EXTERNAL_METHODS = ("sb3-ppo",)
 """Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``)."""
@@ -92,10 +94,10 @@ def is_finished(run: Path) -> bool:
     ckpt = run / "checkpoint.pt"
     if not ckpt.is_file() or not (run / "config.json").is_file():
         return False
-    from ndp.rl.checkpoint import load_checkpoint
     from ndp.rl.config import TrainConfig
+    from ndp.runs import load_checkpoint
 
-    state = load_checkpoint(ckpt)
+    state = load_checkpoint(ckpt, kind="rl")
     return int(state["update"]) >= TrainConfig.from_dict(state["config"]).num_updates
 
 
@@ -129,12 +131,11 @@ def run_one(
     _check_arm(run, arm, steps)
     if is_finished(run):
         return run
-    if (run / "progress.csv").is_file() and (
-        arm.algo == "sb3-ppo" or not (run / "checkpoint.pt").is_file()
-    ):
+    log_file = metrics_path(run)
+    if log_file.is_file() and (arm.algo == "sb3-ppo" or not (run / "checkpoint.pt").is_file()):
         # killed before anything resumable was written (an SB3 run, or a run before its first
         # checkpoint): this study's own partial log, restarted from scratch
-        (run / "progress.csv").unlink()
+        log_file.unlink()
     t0 = time.time()
     log = run / "train.log"
     with log.open("a") as fh:
@@ -178,12 +179,9 @@ def run_grid(
 
 def load_curve(run: Path, key: str = "charts/success_any") -> tuple[np.ndarray, np.ndarray]:
     """(global_step [U], metric [U]) of a run; updates without finished episodes dropped."""
-    import csv
-
-    with (run / "progress.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    x = np.array([float(r["global_step"]) for r in rows])
-    y = np.array([float(r[key]) if r.get(key) not in (None, "") else math.nan for r in rows])
+    rows = read_metrics(run)
+    x = np.array([r["global_step"] for r in rows])
+    y = np.array([r.get(key, math.nan) for r in rows])
     keep = ~np.isnan(y)
     return x[keep], y[keep]
 
@@ -222,7 +220,7 @@ def summarise(
             areas, finals, curves, used, running = [], [], [], [], []
             for seed in seeds:
                 run = run_dir(runs_dir, task, arm, seed)
-                if not (run / "progress.csv").is_file():
+                if not metrics_path(run).is_file():
                     continue
                 if not is_finished(run):
                     running.append(seed)

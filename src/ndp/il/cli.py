@@ -1,241 +1,134 @@
-"""``ndp il train`` and ``ndp il eval``: thin command-line wiring over :mod:`ndp.il.train`."""
+"""``ndp il train`` and ``ndp il eval``: typed configs parsed by tyro (:mod:`ndp.runs.cli`).
+
+``ndp il train`` takes one option per field of :class:`ndp.il.train.TrainConfig` (its data and
+model settings included) plus ``--eval/--no-eval`` and ``--dtw/--no-dtw`` for the evaluation
+after training; ``--resume RUN_DIR`` continues a run (``--epochs`` extends it).
+``ndp il eval RUN`` evaluates a run's checkpoint, on its own test split or, with data options, on
+another data set (options not given keep the run's values).
+"""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
-from ndp.il.models import MODEL_KINDS, ModelConfig
-from ndp.il.train import DataConfig, TrainConfig, evaluate, train
+from ndp.il.train import DataConfig, TrainConfig
+from ndp.runs.cli import POSITIONAL
 
-
-def _add_data_args(p: argparse.ArgumentParser, defaults: bool) -> None:
-    """Data options; without ``defaults`` every option defaults to None (= keep the run's)."""
-    d = DataConfig()
-    p.add_argument(
-        "--data",
-        default=d.source if defaults else None,
-        help="'synthetic', 'pendigits', or a path to an .npz with images [n,H,W] and "
-        "trajectories [n,T,2] (default: %(default)s)",
-    )
-    p.add_argument(
-        "--data-dir",
-        default=d.data_dir if defaults else None,
-        help="cache folder of the synthetic set (default: %(default)s)",
-    )
-    p.add_argument(
-        "--n-samples",
-        type=int,
-        default=d.n_samples if defaults else None,
-        help="synthetic set size (default: %(default)s)",
-    )
-    p.add_argument(
-        "--data-seed",
-        type=int,
-        default=d.data_seed if defaults else None,
-        help="synthetic generator seed (default: %(default)s)",
-    )
-    p.add_argument(
-        "--pendigits-path",
-        default=d.pendigits_path if defaults else None,
-        help="Pendigits UNIPEN file (default: ../shared/data/pendigits/pendigits-train)",
-    )
-    p.add_argument(
-        "--split",
-        choices=("auto", "paper", "writer"),
-        default=d.split if defaults else None,
-        help="paper: shuffle the first n-train + n-test samples; writer: "
-        "writer-disjoint; auto: writer for Pendigits (default: %(default)s)",
-    )
-    p.add_argument(
-        "--n-train",
-        type=int,
-        default=d.n_train if defaults else None,
-        help="training samples of the paper split (default: %(default)s)",
-    )
-    p.add_argument(
-        "--n-test",
-        type=int,
-        default=d.n_test if defaults else None,
-        help="test samples of the paper split (default: %(default)s)",
-    )
-    p.add_argument(
-        "--test-fraction",
-        type=float,
-        default=d.test_fraction if defaults else None,
-        help="held-out fraction of writers / samples (default: %(default)s)",
-    )
-    p.add_argument(
-        "--split-seed",
-        type=int,
-        default=d.split_seed if defaults else None,
-        help="seed of the train/test shuffle (default: %(default)s)",
-    )
-    p.add_argument(
-        "--resample",
-        action="store_true",
-        default=None,
-        help="resample .npz trajectories of another length to 301 points",
-    )
+TRAIN_DESCRIPTION = (
+    "Train NDP, CNN or CNN-DMP on digit images -> pen trajectories (paper protocol by default). "
+    "--resume RUN_DIR continues a killed run from its checkpoint with its saved config; only "
+    "--epochs (extends it), --progress, --threads, --tensorboard and --eval-every may change."
+)
 
 
-def _data_config(args: argparse.Namespace, base: DataConfig | None = None) -> DataConfig:
-    base = base or DataConfig()
-    fields = {
-        "source": args.data,
-        "data_dir": args.data_dir,
-        "n_samples": args.n_samples,
-        "data_seed": args.data_seed,
-        "pendigits_path": args.pendigits_path,
-        "split": args.split,
-        "n_train": args.n_train,
-        "n_test": args.n_test,
-        "test_fraction": args.test_fraction,
-        "split_seed": args.split_seed,
-        "resample": args.resample,
-    }
-    values = {k: v for k, v in fields.items() if v is not None}
-    d = DataConfig(**{**base.__dict__, **values})
-    if d.source not in ("synthetic", "pendigits"):
-        path = Path(d.source)
-        if not path.exists():
-            raise FileNotFoundError(f"data file not found: {path}")
-    return d
+@dataclass(frozen=True)
+class TrainCommand:
+    """``ndp il train``: a training run, then (by default) its evaluation."""
+
+    config: TrainConfig = field(default_factory=TrainConfig)
+    """The run."""
+    eval: bool = True
+    """Evaluate the final checkpoint (test MSE, DTW, predictions.png, eval.json)."""
+    dtw: bool = True
+    """Include the DTW distance in that evaluation (about 10 ms per test sample)."""
 
 
-def _cmd_train(args: argparse.Namespace) -> int:
-    mdef = ModelConfig()
-    model = ModelConfig(
-        kind=args.model,
-        n_basis=args.n_basis,
-        a_z=args.a_z,
-        head_hidden=tuple(args.head_hidden),
-        forcing_param=args.forcing_param,
-        amp_scale=args.amp_scale if args.amp_scale is not None else mdef.amp_scale,
-    )
-    cfg = TrainConfig(
-        run_dir=args.out,
-        data=_data_config(args),
-        model=model,
-        epochs=args.epochs,
-        batch_size=args.batch_size,
-        lr=args.lr,
-        seed=args.seed,
-        threads=args.threads,
-        progress=not args.no_progress,
-        eval_every=args.eval_every,
-        max_train_batches=args.max_train_batches,
-        encoder_init=args.encoder_init,
-    )
-    summary = train(cfg, resume=args.resume)
-    if not args.no_eval:
-        summary["eval"] = evaluate(cfg.run_dir, dtw=not args.no_dtw, threads=args.threads)
+@dataclass(frozen=True)
+class EvalCommand:
+    """``ndp il eval RUN``: MSE in px^2 (mean +- std), DTW and a picture of a run's checkpoint."""
+
+    run: Annotated[str, POSITIONAL]
+    """Run directory (or its checkpoint file)."""
+    data: DataConfig = field(default_factory=DataConfig)
+    """Data set and split to evaluate on (default: the run's own)."""
+    png: str | None = None
+    """Output picture (None: RUN/predictions.png)."""
+    n_grid: int = 24
+    """Test samples drawn in the picture."""
+    dtw: bool = True
+    """Compute the DTW distance."""
+    train_error: bool = False
+    """Also report the training split's error."""
+    threads: int = 0
+    """torch CPU threads (0: torch's default)."""
+
+
+def _check_data_path(d: DataConfig) -> None:
+    if d.source not in ("synthetic", "pendigits") and not Path(d.source).exists():
+        raise FileNotFoundError(f"data: no such file {d.source}")
+
+
+def train_command(argv: list[str]) -> int:
+    """``ndp il train [--resume RUN_DIR] [options]``."""
+    from ndp.il.train import SAFE_ON_RESUME, evaluate, load_checkpoint, train
+    from ndp.runs.cli import changed_fields, parse_config, pop_option
+
+    resume_dir, rest = pop_option(argv, "--resume")
+    prog = "ndp il train"
+    if resume_dir is not None:
+        saved = TrainConfig.from_dict(load_checkpoint(Path(resume_dir))["config"])
+        saved = dataclasses.replace(saved, run_dir=str(resume_dir))
+        cmd = parse_config(
+            TrainCommand,
+            rest,
+            prog=prog,
+            description=TRAIN_DESCRIPTION,
+            default=TrainCommand(config=saved),
+        )
+        safe = (*SAFE_ON_RESUME, "model.frame")
+        refused = [f for f in changed_fields(saved, cmd.config) if f not in safe]
+        if refused:
+            raise ValueError(
+                f"resume: these options would change the run and are refused: {refused} (only "
+                f"{list(SAFE_ON_RESUME)} may change; start a new run for the others)"
+            )
+    else:
+        cmd = parse_config(TrainCommand, rest, prog=prog, description=TRAIN_DESCRIPTION)
+    cfg = cmd.config
+    _check_data_path(cfg.data)
+    summary = train(cfg, resume=resume_dir is not None)
+    if cmd.eval:
+        summary["eval"] = evaluate(cfg.run_dir, dtw=cmd.dtw, threads=cfg.threads)
     print(json.dumps(summary, indent=2))
     return 0
 
 
-def _cmd_eval(args: argparse.Namespace) -> int:
-    data_cfg = None
-    if any(
-        getattr(args, k) is not None
-        for k in (
-            "data",
-            "data_dir",
-            "n_samples",
-            "data_seed",
-            "pendigits_path",
-            "split",
-            "n_train",
-            "n_test",
-            "test_fraction",
-            "split_seed",
-            "resample",
-        )
-    ):
-        from ndp.il.train import load_checkpoint
+def eval_command(argv: list[str]) -> int:
+    """``ndp il eval RUN [options]``: data options not given keep the run's values."""
+    from ndp.il.train import evaluate, load_checkpoint
+    from ndp.runs.cli import parse_config
 
-        base = DataConfig(**load_checkpoint(Path(args.run))["config"]["data"])
-        data_cfg = _data_config(args, base)
+    prog = "ndp il eval"
+    first = parse_config(EvalCommand, argv, prog=prog)  # finds RUN (and handles --help)
+    saved = DataConfig(**load_checkpoint(Path(first.run))["config"]["data"])
+    cmd = parse_config(EvalCommand, argv, prog=prog, default=EvalCommand(run=first.run, data=saved))
+    _check_data_path(cmd.data)
     out = evaluate(
-        args.run,
-        data_cfg=data_cfg,
-        out_png=args.png,
-        n_grid=args.n_grid,
-        dtw=not args.no_dtw,
-        threads=args.threads,
-        include_train=args.train_error,
+        cmd.run,
+        data_cfg=cmd.data if cmd.data != saved else None,
+        out_png=cmd.png,
+        n_grid=cmd.n_grid,
+        dtw=cmd.dtw,
+        threads=cmd.threads,
+        include_train=cmd.train_error,
     )
     print(json.dumps(out, indent=2))
     return 0
 
 
+CONFIG_COMMANDS = {"il train": train_command, "il eval": eval_command}
+"""Commands whose options are a typed config (see ndp.cli)."""
+
+
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    """Register ``il`` with its sub-commands ``train`` and ``eval``."""
+    """Register ``il`` (listing only: its commands are parsed by :data:`CONFIG_COMMANDS`)."""
     il = sub.add_parser("il", help="imitation learning: image -> pen trajectory (digits)")
     il_sub = il.add_subparsers(dest="il_command", metavar="{train,eval}")
     il_sub.required = True
-
-    t = il_sub.add_parser(
-        "train",
-        help="train NDP, CNN or CNN-DMP",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
-    _add_data_args(t, defaults=True)
-    t.add_argument("--model", choices=MODEL_KINDS, default="ndp", help="model to train")
-    t.add_argument("--epochs", type=int, default=71, help="passes over the training split")
-    t.add_argument("--batch-size", type=int, default=100, help="samples per Adam step")
-    t.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate")
-    t.add_argument("--seed", type=int, default=0, help="initialisation / batch-order seed")
-    t.add_argument("--out", default="runs/il", help="run directory")
-    t.add_argument("--resume", action="store_true", help="continue from <out>/checkpoint.pt")
-    t.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
-    t.add_argument("--n-basis", type=int, default=30, help="DMP basis functions N")
-    t.add_argument("--a-z", type=float, default=25.0, help="DMP alpha_z")
-    t.add_argument(
-        "--head-hidden", type=int, nargs="*", default=[], help="hidden widths of the MLP head"
-    )
-    t.add_argument(
-        "--forcing-param",
-        choices=("amplitude", "weights"),
-        default="amplitude",
-        help="DMP head output: forcing amplitude w (g - y0) or raw weights",
-    )
-    t.add_argument(
-        "--amp-scale",
-        type=float,
-        default=None,
-        help="scale of the forcing-amplitude outputs (default 1000)",
-    )
-    t.add_argument(
-        "--eval-every", type=int, default=1, help="test MSE every this many epochs (0: at the end)"
-    )
-    t.add_argument(
-        "--max-train-batches",
-        type=int,
-        default=0,
-        help="cap batches per epoch (0: all; smoke tests)",
-    )
-    t.add_argument(
-        "--encoder-init",
-        default="",
-        help="pretraining: initialise the CNN encoder from this run's checkpoint",
-    )
-    t.add_argument("--no-progress", action="store_true", help="no progress bar")
-    t.add_argument("--no-eval", action="store_true", help="skip the final evaluation")
-    t.add_argument("--no-dtw", action="store_true", help="skip DTW in the final evaluation")
-    t.set_defaults(func=_cmd_train)
-
-    e = il_sub.add_parser(
-        "eval",
-        help="evaluate a run: MSE px^2 (mean +- std), DTW, PNG grid",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
-    e.add_argument("run", help="run directory (or checkpoint file)")
-    _add_data_args(e, defaults=False)
-    e.add_argument("--png", default=None, help="output picture (default <run>/predictions.png)")
-    e.add_argument("--n-grid", type=int, default=24, help="test samples in the picture")
-    e.add_argument("--no-dtw", action="store_true", help="skip the DTW distance")
-    e.add_argument("--train-error", action="store_true", help="also the training-split error")
-    e.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
-    e.set_defaults(func=_cmd_eval)
+    il_sub.add_parser("train", help="train NDP, CNN or CNN-DMP (ndp il train --help)")
+    il_sub.add_parser("eval", help="evaluate a run: MSE px^2, DTW, PNG grid (ndp il eval --help)")

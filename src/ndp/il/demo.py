@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -17,8 +18,8 @@ def run_il_demo(out_dir: Path, quick: bool = True, threads: int = 1) -> dict[str
     the paper split (10,000 / 2,000) for 20 epochs (several minutes).
 
     Args:
-        out_dir: output folder; the run goes to ``out_dir/il_ndp`` and the synthetic cache to
-            ``out_dir/il_data``.
+        out_dir: output folder; the run goes to ``out_dir/il_ndp`` (replaced if present) and
+            the synthetic cache to ``out_dir/il_data``.
         quick: the short setting above.
         threads: torch CPU threads (1 by default: two threads on cores shared with other
             work run many times slower).
@@ -45,6 +46,8 @@ def run_il_demo(out_dir: Path, quick: bool = True, threads: int = 1) -> dict[str
         progress=False,
         eval_every=0,
     )
+    if Path(cfg.run_dir).exists():  # the demo's own output folder: each demo run replaces it
+        shutil.rmtree(cfg.run_dir)
     summary = train(cfg)
     ev = evaluate(cfg.run_dir, dtw=True, threads=threads, n_grid=16)
     return {

@@ -28,22 +28,25 @@ as ``amp_scale * o_a`` (pixels / s^2 in DMP time).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from typing import Annotated
 
 import torch
 from torch import nn
 
 from ndp.dmp import DMPConfig, DMPLayer, fit_dmp
 from ndp.nets import MLP, MnistCNN
+from ndp.runs.cli import HIDDEN, cli
 
 MODEL_KINDS = ("ndp", "cnn", "cnn-dmp")
 
 
-@dataclass
+@dataclass(frozen=True)
 class ModelConfig:
     """Settings of an image-to-trajectory model."""
 
-    kind: str = "ndp"
-    """Model: 'ndp', 'cnn' or 'cnn-dmp'."""
+    kind: Annotated[str, cli(name="model")] = "ndp"
+    """Model: 'ndp' (CNN -> (g, w) -> DMP layer), 'cnn' (direct regression of the points) or
+    'cnn-dmp' (regression of least-squares DMP parameters)."""
     n_basis: int = 30
     """N, DMP basis functions per coordinate (DMP models)."""
     a_z: float = 25.0
@@ -56,8 +59,9 @@ class ModelConfig:
     """Hidden widths of the MLP head between the encoder and the outputs (empty: linear)."""
     image_size: int = 28
     """Images are resized to this side before the encoder (the paper: 40 -> 28)."""
-    frame: float = 40.0
-    """Side of the pixel frame of the trajectories (goal / point output scaling)."""
+    frame: Annotated[float, HIDDEN] = 40.0
+    """Side of the pixel frame of the trajectories (goal / point output scaling); taken from
+    the data set, not an option."""
     forcing_param: str = "amplitude"
     """DMP forcing output: 'amplitude' (a = w (g - y0)) or 'weights' (w directly)."""
     amp_scale: float = 1000.0
@@ -69,14 +73,22 @@ class ModelConfig:
 
     def __post_init__(self) -> None:
         if self.kind not in MODEL_KINDS:
-            raise ValueError(f"model kind must be one of {MODEL_KINDS}, got {self.kind!r}")
+            raise ValueError(f"model: expected one of {', '.join(MODEL_KINDS)}, got {self.kind!r}")
         if self.forcing_param not in ("amplitude", "weights"):
             raise ValueError(
-                f"forcing_param must be 'amplitude' or 'weights', got {self.forcing_param!r}"
+                f"forcing_param: expected 'amplitude' or 'weights', got {self.forcing_param!r}"
             )
-        if self.n_basis <= 0 or self.steps <= 0:
-            raise ValueError("n_basis and steps must be positive")
-        self.head_hidden = tuple(int(h) for h in self.head_hidden)
+        for name in ("n_basis", "steps", "feat_dim", "image_size"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+        for name in ("a_z", "frame", "amp_scale", "weight_scale"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v > 0):
+                raise ValueError(f"{name}: expected a number > 0, got {v!r}")
+        if any(int(h) < 1 for h in self.head_hidden):
+            raise ValueError(f"head_hidden: expected positive widths, got {self.head_hidden!r}")
+        object.__setattr__(self, "head_hidden", tuple(int(h) for h in self.head_hidden))
 
     @property
     def n_points(self) -> int:

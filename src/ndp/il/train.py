@@ -1,10 +1,12 @@
 """Training and evaluation of the image-to-trajectory models.
 
-One run directory holds everything of a run::
+One run directory (the layout and files of :mod:`ndp.runs`, shared with RL) holds everything
+of a run::
 
     <run_dir>/config.json          resolved TrainConfig (written at start)
+    <run_dir>/provenance.json      one entry per session: time, command, commit, dirty flag
     <run_dir>/checkpoint.pt        latest good checkpoint (written atomically every epoch)
-    <run_dir>/metrics.csv          one row per epoch, stable column names (see METRIC_NAMES)
+    <run_dir>/metrics.csv          one row per epoch, stable column names (see METRICS)
     <run_dir>/tb/                  TensorBoard event files (same names)
     <run_dir>/eval.json            evaluation summary (``ndp il eval``)
     <run_dir>/predictions.png      test images with predicted and demonstrated trajectories
@@ -15,14 +17,13 @@ samples shuffled with ``split_seed`` into 10,000 train / 2,000 test.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import json
 import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import torch
@@ -38,9 +39,13 @@ from ndp.il.data import (
 from ndp.il.metrics import dtw_distance, per_sample_mse, save_prediction_grid, summarize
 from ndp.il.models import CNNDMPModel, ModelConfig, TrajectoryModel, build_model
 from ndp.il.synthetic import SyntheticConfig
-from ndp.io import atomic_torch_save, atomic_write_text
+from ndp.io import atomic_write_text
+from ndp.runs import MetricsLogger, RunDir, save_checkpoint
+from ndp.runs import load_checkpoint as _load_run_checkpoint
+from ndp.runs.cli import cli
 
-METRIC_NAMES = (
+METRICS = (
+    "epoch",
     "train/loss",
     "train/mse_px2",
     "test/mse_px2",
@@ -48,7 +53,9 @@ METRIC_NAMES = (
     "time/epoch_s",
     "time/samples_per_s",
 )
-"""Per-epoch metric names, identical in metrics.csv and TensorBoard."""
+"""Columns of metrics.csv (one row per epoch; the same names in TensorBoard, x axis ``epoch``)."""
+METRIC_NAMES = METRICS[1:]
+"""The per-epoch metrics without the index column."""
 
 DEFAULT_PENDIGITS = Path(__file__).resolve().parents[4] / "shared" / "data" / "pendigits"
 
@@ -57,12 +64,13 @@ class NonFiniteLossError(ValueError):
     """Raised when the training loss becomes NaN or Inf; the last good checkpoint is kept."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class DataConfig:
     """Which data set and which split."""
 
-    source: str = "synthetic"
-    """'synthetic', 'pendigits' or a path to a user's .npz file."""
+    source: Annotated[str, cli(name="data")] = "synthetic"
+    """'synthetic', 'pendigits' or a path to a user's .npz file (images [n, H, W],
+    trajectories [n, T, 2])."""
     data_dir: str = "data"
     """Cache folder of the synthetic set."""
     n_samples: int = 20000
@@ -72,7 +80,8 @@ class DataConfig:
     pendigits_path: str = ""
     """UNIPEN file of Pendigits ('' = ../shared/data/pendigits/pendigits-train)."""
     split: str = "auto"
-    """'paper' (shuffle the first n_train + n_test), 'writer' (writer-disjoint), or 'auto'."""
+    """'paper' (shuffle the first n_train + n_test), 'writer' (writer-disjoint), or 'auto'
+    (writer for Pendigits, paper otherwise)."""
     n_train: int = 10000
     """Training samples of the paper split."""
     n_test: int = 2000
@@ -84,12 +93,31 @@ class DataConfig:
     resample: bool = False
     """Resample .npz trajectories of another length to 301 points instead of refusing."""
 
+    def __post_init__(self) -> None:
+        if self.split not in SPLITS:
+            raise ValueError(f"split: expected one of {', '.join(SPLITS)}, got {self.split!r}")
+        for name in ("n_samples", "n_train", "n_test"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+        if not (isinstance(self.test_fraction, (int, float)) and 0 < self.test_fraction < 1):
+            raise ValueError(
+                f"test_fraction: expected a number in (0, 1), got {self.test_fraction!r}"
+            )
 
-@dataclass
+
+SPLITS = ("auto", "paper", "writer")
+"""Train / test split kinds of :class:`DataConfig`."""
+
+SAFE_ON_RESUME = ("epochs", "progress", "threads", "tensorboard", "eval_every")
+"""TrainConfig fields a resume may change (``epochs`` extends the run); the others are refused."""
+
+
+@dataclass(frozen=True)
 class TrainConfig:
     """Everything that defines a training run (saved as config.json in the run directory)."""
 
-    run_dir: str = "runs/il"
+    run_dir: Annotated[str, cli(aliases=("--out",))] = "runs/il"
     """Output folder of the run."""
     data: DataConfig = field(default_factory=DataConfig)
     """Data set and split."""
@@ -106,9 +134,11 @@ class TrainConfig:
     threads: int = 0
     """torch CPU threads (0: leave torch's default)."""
     device: str = "cpu"
-    """torch device."""
+    """torch device of the model and the data ('cpu', 'cuda', 'cuda:1', ...)."""
     progress: bool = True
     """Show a tqdm progress bar."""
+    tensorboard: bool = True
+    """Write TensorBoard event files besides the CSV."""
     eval_every: int = 1
     """Evaluate the test MSE every this many epochs (0: only at the end)."""
     max_train_batches: int = 0
@@ -119,14 +149,27 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         if isinstance(self.data, dict):
-            self.data = DataConfig(**self.data)
+            object.__setattr__(self, "data", DataConfig(**self.data))
         if isinstance(self.model, dict):
-            self.model = ModelConfig(**self.model)
-        if self.epochs < 0 or self.batch_size <= 0 or not self.lr > 0:
+            object.__setattr__(self, "model", ModelConfig(**self.model))
+        for name, low in (("epochs", 0), ("batch_size", 1), ("threads", 0), ("seed", 0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
+        for name in ("eval_every", "max_train_batches"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise ValueError(f"{name}: expected an integer >= 0, got {v!r}")
+        if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"lr: expected a finite number > 0, got {self.lr!r}")
+        if not self.run_dir:
+            raise ValueError("run_dir: expected a directory, got ''")
+        try:
+            torch.device(self.device)
+        except RuntimeError:
             raise ValueError(
-                f"need epochs >= 0, batch_size > 0, lr > 0: {self.epochs}, "
-                f"{self.batch_size}, {self.lr}"
-            )
+                f"device: expected a torch device such as 'cpu' or 'cuda', got {self.device!r}"
+            ) from None
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-serialisable form."""
@@ -136,11 +179,14 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
-        """Inverse of :meth:`as_dict`."""
+        """Inverse of :meth:`as_dict` (unknown keys raise ValueError)."""
         d = dict(d)
-        d["data"] = DataConfig(**d.get("data", {}))
-        d["model"] = ModelConfig(**d.get("model", {}))
-        return cls(**d)
+        try:
+            d["data"] = DataConfig(**d.get("data", {}))
+            d["model"] = ModelConfig(**d.get("model", {}))
+            return cls(**d)
+        except TypeError as exc:
+            raise ValueError(f"config: {exc}") from None
 
 
 # --------------------------------------------------------------------------------------------
@@ -187,34 +233,16 @@ def make_split(data: DigitData, cfg: DataConfig) -> tuple[np.ndarray, np.ndarray
 
 
 def load_checkpoint(path: Path) -> dict[str, Any]:
-    """Read a checkpoint with a clear error for missing or corrupt files."""
-    path = Path(path)
-    if path.is_dir():
-        path = path / "checkpoint.pt"
-    if not path.exists():
-        raise FileNotFoundError(f"checkpoint not found: {path}")
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=False)
-    except Exception as exc:  # torch raises several types for corrupt files
-        raise ValueError(f"cannot read checkpoint {path}: {type(exc).__name__}: {exc}") from exc
-    if not isinstance(ckpt, dict) or "model" not in ckpt or "config" not in ckpt:
-        raise ValueError(f"{path} is not an ndp il checkpoint")
+    """Read an imitation checkpoint (a run directory or the file), one-line errors.
+
+    Raises:
+        FileNotFoundError: no checkpoint at ``path``.
+        ValueError: unreadable, or not an imitation checkpoint.
+    """
+    ckpt = _load_run_checkpoint(path, kind="il")
+    if "model" not in ckpt or "config" not in ckpt:
+        raise ValueError(f"checkpoint: {path} is not an imitation checkpoint of this package")
     return ckpt
-
-
-class _CSVLog:
-    """Append-only CSV with a fixed header."""
-
-    def __init__(self, path: Path, columns: tuple[str, ...]) -> None:
-        self.path = path
-        self.columns = ("epoch", *columns)
-        if not path.exists():
-            with path.open("w", newline="") as f:
-                csv.writer(f).writerow(self.columns)
-
-    def write(self, epoch: int, row: dict[str, float]) -> None:
-        with self.path.open("a", newline="") as f:
-            csv.writer(f).writerow([epoch] + [row.get(c, "") for c in self.columns[1:]])
 
 
 # --------------------------------------------------------------------------------------------
@@ -260,15 +288,20 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
         NonFiniteLossError: the loss became NaN / Inf (the last good checkpoint stays).
         FileNotFoundError, ValueError: bad data paths or files.
     """
-    run_dir = Path(cfg.run_dir)
-    ckpt_path = run_dir / "checkpoint.pt"
+    run = RunDir(cfg.run_dir)
+    run_dir, ckpt_path = run.path, run.checkpoint
     ckpt = None
     if resume:
+        run.open_for_resume()
         ckpt = load_checkpoint(ckpt_path)
         saved = TrainConfig.from_dict(ckpt["config"])
-        saved.epochs, saved.progress, saved.run_dir = cfg.epochs, cfg.progress, cfg.run_dir
-        saved.threads = cfg.threads
-        cfg = saved
+        cfg = dataclasses.replace(
+            saved,
+            **{f: getattr(cfg, f) for f in SAFE_ON_RESUME},
+            run_dir=cfg.run_dir,
+        )
+    else:
+        run.create()
     _set_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     device = torch.device(cfg.device)
@@ -279,8 +312,10 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
     y_all = torch.from_numpy(data.trajs)
     x_tr, y_tr = x_all[tr_idx].to(device), y_all[tr_idx].to(device)
     x_te, y_te = x_all[te_idx].to(device), y_all[te_idx].to(device)
-    if cfg.model.frame != data.frame[1]:
-        cfg.model.frame = float(data.frame[1])
+    if cfg.model.frame != data.frame[1]:  # the data set's pixel frame (derived, not chosen)
+        cfg = dataclasses.replace(
+            cfg, model=dataclasses.replace(cfg.model, frame=float(data.frame[1]))
+        )
 
     model = build_model(cfg.model).to(device)
     targets = None
@@ -302,12 +337,16 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
         gen.set_state(ckpt["generator"])
         torch.set_rng_state(ckpt["torch_rng"])
 
-    run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(run_dir / "config.json", json.dumps(cfg.as_dict(), indent=2) + "\n")
-    csv_log = _CSVLog(run_dir / "metrics.csv", METRIC_NAMES)
-    from torch.utils.tensorboard import SummaryWriter
-
-    writer = SummaryWriter(log_dir=str(run_dir / "tb"))
+    run.write_config(cfg.as_dict())
+    run.record_session("resume" if resume else "start")
+    logger = MetricsLogger(
+        run_dir,
+        METRICS,
+        step="epoch",
+        tensorboard=cfg.tensorboard,
+        resume_index=start_epoch if ckpt is not None else None,
+        resume_step=start_epoch if ckpt is not None else None,
+    )
     n_tr = x_tr.shape[0]
     steps_per_epoch = math.ceil(n_tr / cfg.batch_size)
     if cfg.max_train_batches > 0:
@@ -364,12 +403,10 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
                 err = per_sample_mse(predict(model, x_te, y_te[:, 0]).cpu(), y_te.cpu())
                 row["test/mse_px2"] = float(err.mean())
                 row["test/mse_px2_std"] = float(err.std())
-            for k, v in row.items():
-                writer.add_scalar(k, v, epoch + 1)
-            writer.flush()
-            csv_log.write(epoch + 1, row)
+            logger.log({"epoch": epoch + 1, **row})
             history.append({"epoch": epoch + 1, **row})
-            atomic_torch_save(
+            save_checkpoint(
+                ckpt_path,
                 {
                     "model": model.state_dict(),
                     "optimizer": opt.state_dict(),
@@ -379,12 +416,12 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
                     "generator": gen.get_state(),
                     "torch_rng": torch.get_rng_state(),
                 },
-                ckpt_path,
+                kind="il",
             )
     finally:
         if bar is not None:
             bar.close()
-        writer.close()
+        logger.close()
     return {
         "run_dir": str(run_dir),
         "checkpoint": str(ckpt_path),

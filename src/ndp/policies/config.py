@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
+
+from ndp.runs.cli import HIDDEN
 
 HEADS = ("step", "multi", "ndp")
 """Built-in action heads: one raw action per step, k raw actions per decision, DMP parameters
@@ -31,8 +34,9 @@ class PolicyConfig:
     over DMP time ``tau = 1``.
     """
 
-    head: str = "ndp"
-    """Action head: 'step' (PPO), 'multi' (PPO-multi) or 'ndp'."""
+    head: Annotated[str, HIDDEN] = "ndp"
+    """Action head: 'step' (PPO), 'multi' (PPO-multi) or 'ndp' (follows the method: not an
+    option of ``ndp rl train``)."""
     k: int = 5
     """Sub-steps (env steps) per policy decision; always 1 for the 'step' head."""
     hidden: tuple[int, ...] = (100, 100)

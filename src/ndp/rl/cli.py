@@ -11,12 +11,20 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from typing import Any
 
-from ndp.policies.config import PolicyConfig
-from ndp.rl.config import PPOConfig, TrainConfig, add_dataclass_arguments, config_from_args
+from ndp.rl.config import TrainConfig
+
+TRAIN_DESCRIPTION = (
+    "Train PPO / PPO-multi / NDP. Unset NDP fields come from the per-task preset of the task "
+    "table (ndp.envs.presets); the resolved config is saved as RUN_DIR/config.json. "
+    "--resume RUN_DIR continues a killed run: the other options are then taken from its "
+    "config.json, and only --steps (extends the budget), --progress, --tensorboard, --vector and "
+    "--env-workers may change."
+)
 
 
 def add_subparser(sub: Any) -> None:
@@ -25,25 +33,8 @@ def add_subparser(sub: Any) -> None:
     rl_sub = rl.add_subparsers(dest="rl_command", metavar="SUBCOMMAND")
     rl_sub.required = True
 
-    tr = rl_sub.add_parser(
-        "train",
-        help="train a policy",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-        description="Train PPO / PPO-multi / NDP. Unset NDP fields come from the per-task "
-        "preset of the task table (ndp.envs.presets). The resolved config is saved as "
-        "RUN_DIR/config.json.",
-    )
-    tr.add_argument(
-        "--resume",
-        metavar="RUN_DIR",
-        default=None,
-        help="continue a killed run from RUN_DIR's checkpoint (other options "
-        "except --progress/--tensorboard are taken from RUN_DIR/config.json)",
-    )
-    add_dataclass_arguments(tr, TrainConfig)
-    add_dataclass_arguments(tr, PPOConfig)
-    add_dataclass_arguments(tr, PolicyConfig, skip=("head",))
-    tr.set_defaults(func=_cmd_train)
+    # listed here for `ndp rl --help`; the options are parsed by CONFIG_COMMANDS["rl train"]
+    rl_sub.add_parser("train", help="train a policy (ndp rl train --help: every option)")
 
     ev = rl_sub.add_parser("eval", help="success of a trained run over N episodes")
     ev.add_argument("run_dir", metavar="RUN_DIR")
@@ -73,37 +64,59 @@ def add_subparser(sub: Any) -> None:
     rd.set_defaults(func=_cmd_render)
 
 
-def _cmd_train(args: argparse.Namespace) -> int:
-    from ndp.rl.trainer import TrainingDivergedError, resume, train
+def train_command(argv: list[str]) -> int:
+    """``ndp rl train [--resume RUN_DIR] [options of TrainConfig]``."""
+    from ndp.rl.config import load_config
+    from ndp.rl.trainer import SAFE_ON_RESUME, TrainingDivergedError, resume, train
+    from ndp.runs import RunDir
+    from ndp.runs.cli import changed_fields, parse_config, pop_option
 
+    resume_dir, rest = pop_option(argv, "--resume")
+    prog = "ndp rl train"
+    run_name = resume_dir or "RUN_DIR"
     try:
-        if args.resume:
-            skip = {"resume", "func", "command", "rl_command"}
-            over = {k: v for k, v in vars(args).items() if k not in skip}
-            metrics = resume(args.resume, **over)
+        if resume_dir is not None:
+            saved = load_config(RunDir(resume_dir).config)
+            saved = dataclasses.replace(saved, run_dir=str(resume_dir))
+            cfg = parse_config(
+                TrainConfig, rest, prog=prog, description=TRAIN_DESCRIPTION, default=saved
+            )
+            changed = changed_fields(saved, cfg)
+            refused = [f for f in changed if f not in SAFE_ON_RESUME]
+            if refused:
+                raise ValueError(
+                    f"resume: these options would change the run and are refused: {refused} "
+                    f"(only {list(SAFE_ON_RESUME)} may change; start a new run for the others)"
+                )
+            metrics = resume(resume_dir, **{f: getattr(cfg, f) for f in changed})
             if not metrics:
                 print(
-                    f"ndp: nothing to do: {args.resume} has finished its budget; --resume with "
+                    f"ndp: nothing to do: {resume_dir} has finished its budget; --resume with "
                     "a larger --steps extends it",
                     file=sys.stderr,
                 )
                 return 0
         else:
-            metrics = train(config_from_args(args))
+            cfg = parse_config(TrainConfig, rest, prog=prog, description=TRAIN_DESCRIPTION)
+            run_name = cfg.run_dir or f"runs/{cfg.task}-{cfg.algo}-s{cfg.seed}"
+            metrics = train(cfg)
     except TrainingDivergedError as exc:
         print(f"ndp: error: {exc}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:
-        run = args.resume or getattr(args, "run_dir", None) or "RUN_DIR"
         print(
             f"ndp: interrupted; the last checkpoint is kept. Continue with: ndp rl train "
-            f"--resume {run}",
+            f"--resume {run_name}",
             file=sys.stderr,
         )
         return 130
     keys = ("update", "global_step", "charts/success_any", "charts/episode_return")
     print(json.dumps({k: metrics.get(k) for k in keys}))
     return 0
+
+
+CONFIG_COMMANDS = {"rl train": train_command}
+"""Commands whose options are a typed config (see ndp.cli)."""
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:

@@ -1,8 +1,9 @@
 """Typed configuration of an RL run, its resolution against a task, and its argparse CLI.
 
 A run is one :class:`TrainConfig` holding a :class:`PPOConfig` and a
-:class:`~ndp.policies.PolicyConfig`. Every field has a one-line docstring, which becomes its
-``--help`` text (:func:`add_dataclass_arguments`). :func:`resolve_config` fills what depends on the
+:class:`~ndp.policies.PolicyConfig`. Every field has a docstring, which becomes its ``--help``
+text: ``ndp rl train`` is this dataclass tree parsed by tyro (:mod:`ndp.runs.cli`), one flat
+``--field-name`` option per field. :func:`resolve_config` fills what depends on the
 task (the action head of the method, the NDP preset, k = 1 for PPO) and validates everything
 before any environment is built; the resolved config is what runs and what is saved as
 ``config.json`` in the run directory.
@@ -17,17 +18,9 @@ supplement and it costs most of the gap to SB3's PPO, see docs/rl.md).
 
 from __future__ import annotations
 
-import argparse
-import ast
 import dataclasses
-import functools
-import inspect
-import itertools
 import json
 import math
-import textwrap
-import types
-import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -240,103 +233,12 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir)
 
 
-def save_config(cfg: TrainConfig, path: Path) -> None:
-    """Write the config as JSON (atomically)."""
-    from ndp.io import atomic_write_text
-
-    atomic_write_text(path, json.dumps(cfg.to_dict(), indent=2, sort_keys=True) + "\n")
-
-
 def load_config(path: Path) -> TrainConfig:
-    """Read a config written by :func:`save_config`."""
+    """Read a run's ``config.json`` (written by the trainer through :class:`ndp.runs.RunDir`)."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"config: no such file {path}")
     return TrainConfig.from_dict(json.loads(path.read_text()))
-
-
-# ------------------------------------------------------------------------------------------
-# Dataclass -> argparse
-# ------------------------------------------------------------------------------------------
-@functools.cache
-def field_docs(cls: type) -> dict[str, str]:
-    """The one-line docstring written under each field of a dataclass (parsed from source)."""
-    tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
-    body = tree.body[0].body  # type: ignore[attr-defined]
-    docs: dict[str, str] = {}
-    for node, nxt in itertools.pairwise(body):
-        if (
-            isinstance(node, ast.AnnAssign)
-            and isinstance(node.target, ast.Name)
-            and isinstance(nxt, ast.Expr)
-            and isinstance(nxt.value, ast.Constant)
-            and isinstance(nxt.value.value, str)
-        ):
-            docs[node.target.id] = " ".join(nxt.value.value.split())
-    return docs
-
-
-def _base_type(tp: Any) -> tuple[Any, bool]:
-    """(inner type, optional) of ``X | None``."""
-    if typing.get_origin(tp) in (typing.Union, types.UnionType):
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        return args[0], True
-    return tp, False
-
-
-def add_dataclass_arguments(
-    parser: argparse.ArgumentParser, cls: type, skip: tuple[str, ...] = ()
-) -> None:
-    """Add one ``--field-name`` option per field of a (flat) dataclass.
-
-    Options default to ``argparse.SUPPRESS`` so that only given values override the dataclass
-    defaults. ``bool`` fields get ``--x / --no-x``; ``X | None`` fields accept ``none``;
-    ``tuple[int, ...]`` fields take several values.
-    """
-    hints = typing.get_type_hints(cls)
-    docs = field_docs(cls)
-    group = parser.add_argument_group(cls.__name__)
-    for f in dataclasses.fields(cls):
-        if f.name in skip or dataclasses.is_dataclass(hints[f.name]):
-            continue
-        tp, optional = _base_type(hints[f.name])
-        default = f.default if f.default is not dataclasses.MISSING else None
-        help_ = f"{docs.get(f.name, '')} (default: {default})".replace("%", "%%")
-        flag = "--" + f.name.replace("_", "-")
-        kw: dict[str, Any] = {"dest": f.name, "default": argparse.SUPPRESS, "help": help_}
-        if tp is bool:
-            group.add_argument(flag, action=argparse.BooleanOptionalAction, **kw)
-        elif typing.get_origin(tp) is tuple:
-            group.add_argument(flag, nargs="+", type=typing.get_args(tp)[0], **kw)
-        else:
-            group.add_argument(flag, type=_optional(tp) if optional else tp, **kw)
-
-
-def _optional(tp: type) -> Any:
-    def parse(text: str) -> Any:
-        return None if text.lower() in ("none", "null") else tp(text)
-
-    parse.__name__ = tp.__name__
-    return parse
-
-
-def config_from_args(args: argparse.Namespace, base: TrainConfig | None = None) -> TrainConfig:
-    """Build a :class:`TrainConfig` from parsed options (only given options override ``base``)."""
-    base = base or TrainConfig()
-    given = vars(args)
-
-    def pick(cls: type, obj: Any) -> Any:
-        names = {f.name for f in dataclasses.fields(cls)}
-        upd = {n: given[n] for n in names if n in given}
-        if "hidden" in upd:
-            upd["hidden"] = tuple(upd["hidden"])
-        return dataclasses.replace(obj, **upd) if upd else obj
-
-    ppo = pick(PPOConfig, base.ppo)
-    policy = pick(PolicyConfig, base.policy)
-    top = {f.name for f in dataclasses.fields(TrainConfig)} - {"ppo", "policy"}
-    upd = {n: given[n] for n in top if n in given}
-    return dataclasses.replace(base, ppo=ppo, policy=policy, **upd)
 
 
 def _check_int(name: str, value: object, low: int) -> None:

@@ -39,16 +39,16 @@ def demo_config(out_dir: Path, quick: bool = True) -> TrainConfig:
     )
 
 
-def plot_curve(progress_csv: Path, out_png: Path, title: str) -> Path:
-    """Success (any step) and return vs env steps from a run's ``progress.csv``."""
+def plot_curve(run: Path, out_png: Path, title: str) -> Path:
+    """Success (any step) and return vs env steps from a run's ``metrics.csv`` (dir or file)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ndp.rl.logger import read_csv
+    from ndp.runs import read_metrics
 
-    rows = read_csv(progress_csv)
+    rows = read_metrics(run)
     x = [r["global_step"] for r in rows]
     fig, ax = plt.subplots(1, 2, figsize=(8, 3))
     ax[0].plot(x, [r["charts/success_any"] for r in rows], label="success (any step)")
@@ -90,9 +90,7 @@ def run_rl_demo(out_dir: Path, quick: bool = True) -> dict[str, Any]:
     if run_dir.exists():
         shutil.rmtree(run_dir)
     metrics = train(cfg)
-    curve = plot_curve(
-        run_dir / "progress.csv", out_dir / "rl_curve.png", f"NDP on {cfg.task} (seed {cfg.seed})"
-    )
+    curve = plot_curve(run_dir, out_dir / "rl_curve.png", f"NDP on {cfg.task} (seed {cfg.seed})")
     ev = evaluate(run_dir, episodes=10, deterministic=True)
     vid = render(run_dir, out_dir / "rl_video.mp4", episodes=2)
     return {

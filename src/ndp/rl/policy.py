@@ -164,11 +164,11 @@ def load_policy(path: str | Path) -> Policy:
             TrainConfig.from_dict(meta["config"]), int(meta["obs_dim"]), state, meta["obs_norm"]
         )
     if (path / "config.json").is_file():
-        from ndp.rl.checkpoint import CHECKPOINT_NAME, load_checkpoint
         from ndp.rl.config import load_config
+        from ndp.runs import load_checkpoint
 
         cfg = load_config(path / "config.json")
-        ckpt = load_checkpoint(path / CHECKPOINT_NAME)
+        ckpt = load_checkpoint(path, kind="rl")
         return _build(cfg, int(ckpt["obs_dim"]), ckpt["model"], ckpt["obs_norm"])
     raise FileNotFoundError(
         f"path: {path} holds neither a training run (config.json + checkpoint.pt) nor an "

@@ -29,11 +29,10 @@ import torch
 
 from ndp.policies import build_actor_critic
 from ndp.policies.distributions import SubActionGaussian
-from ndp.rl.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
-from ndp.rl.config import TrainConfig, load_config, resolve_config, save_config
+from ndp.rl.config import TrainConfig, load_config, resolve_config
 from ndp.rl.envs import env_seeds, make_vector_env, resolve_task, step_info
 from ndp.rl.gae import bootstrap_truncated, gae_substeps
-from ndp.rl.logger import Logger
+from ndp.rl.logger import METRICS
 from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
 from ndp.rl.optim import FlatAdam
 from ndp.rl.ppo import (
@@ -43,6 +42,7 @@ from ndp.rl.ppo import (
     policy_loss,
     value_loss,
 )
+from ndp.runs import MetricsLogger, RunDir, load_checkpoint, save_checkpoint
 
 SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers")
 """TrainConfig fields a resume may change: they change neither the numbers nor the history
@@ -67,19 +67,18 @@ class Trainer:
         self.cfg = cfg
         self.spec = task.spec
         self.run_dir = Path(cfg.run_dir or ".")
-        self.ckpt_path = self.run_dir / CHECKPOINT_NAME
+        self.run = RunDir(self.run_dir)
+        self.ckpt_path = self.run.checkpoint
         ckpt = None
         if resume:
-            ckpt = load_checkpoint(self.ckpt_path)
+            self.run.open_for_resume()
+            ckpt = load_checkpoint(self.ckpt_path, kind="rl")
             saved = TrainConfig.from_dict(ckpt["config"])
             saved = dataclasses.replace(saved, **{f: getattr(cfg, f) for f in SAFE_ON_RESUME})
             if saved != cfg:
                 raise ValueError(f"resume: config differs from the checkpoint's in {self.run_dir}")
-        elif self.ckpt_path.exists() or (self.run_dir / "progress.csv").exists():
-            held = "a checkpoint" if self.ckpt_path.exists() else "a run's progress.csv"
-            raise ValueError(
-                f"run_dir: {self.run_dir} already holds {held}; use --resume or another dir"
-            )
+        else:
+            self.run.create()
         torch.set_num_threads(cfg.torch_threads)
         random.seed(cfg.seed)
         np.random.seed(cfg.seed)  # noqa: NPY002  (third-party code may use it)
@@ -112,8 +111,8 @@ class Trainer:
         self.last_ckpt_update: int | None = None
         if ckpt is not None:
             self._load_state(ckpt)
-        self.run_dir.mkdir(parents=True, exist_ok=True)
-        save_config(cfg, self.run_dir / "config.json")
+        self.run.write_config(cfg.to_dict())
+        self.run.record_session("resume" if resume else "start")
         # Episode bookkeeping.
         self._ep_ret = np.zeros(cfg.num_envs)
         self._ep_ret_live = np.zeros(cfg.num_envs)
@@ -156,7 +155,7 @@ class Trainer:
     def save(self) -> Path:
         """Write the checkpoint atomically (only with finite parameters)."""
         self._check_params("before saving a checkpoint")
-        save_checkpoint(self.ckpt_path, self.state_dict())
+        save_checkpoint(self.ckpt_path, self.state_dict(), kind="rl")
         self.last_ckpt_update = self.update
         return self.ckpt_path
 
@@ -379,10 +378,12 @@ class Trainer:
 
         cfg = self.cfg
         resumed = self.last_ckpt_update is not None
-        logger = Logger(
+        logger = MetricsLogger(
             self.run_dir,
-            cfg.tensorboard,
-            resume_update=self.update if resumed else None,
+            METRICS,
+            step="global_step",
+            tensorboard=cfg.tensorboard,
+            resume_index=self.update if resumed else None,
             resume_step=self.global_step if resumed else None,
         )
         bar = tqdm(
@@ -495,7 +496,7 @@ def resume(
             other field is refused with its name.
     """
     run_dir = Path(run_dir)
-    cfg = load_config(run_dir / "config.json")
+    cfg = load_config(RunDir(run_dir).config)
     refused = sorted(set(overrides) - set(SAFE_ON_RESUME))
     if refused:
         raise ValueError(
@@ -503,8 +504,7 @@ def resume(
             f"{list(SAFE_ON_RESUME)} may change; start a new run for the others)"
         )
     cfg = dataclasses.replace(cfg, run_dir=str(run_dir), **overrides)
-    if not (run_dir / CHECKPOINT_NAME).is_file():
-        raise FileNotFoundError(f"resume: no checkpoint in {run_dir} (killed before the first)")
+    RunDir(run_dir).open_for_resume()
     trainer = Trainer(cfg, resume=True)
     try:
         return trainer.train(max_updates)

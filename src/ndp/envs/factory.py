@@ -12,6 +12,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from ndp.envs.base import defer_seed
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import MetaWorldEnv
 from ndp.envs.point_mass import PointMassEnv
@@ -73,9 +74,7 @@ def make_env(
             f" (known: {', '.join(FAMILIES)})"
         )
     env = FAMILIES[spec.family](spec, horizon, render_mode, **kw)
-    if seed is not None:
-        env.seed_next_reset(int(seed))  # type: ignore[attr-defined]
-        env.action_space.seed(int(seed))
+    defer_seed(env, seed)
     return env
 
 

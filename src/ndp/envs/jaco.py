@@ -26,11 +26,12 @@ import importlib.util
 from pathlib import Path
 from typing import Any, ClassVar
 
-import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils.ezpickle import EzPickle
+
+from ndp.envs.base import NDPEnv, sim_unstable, warning_count
 
 SIM_DT = 0.002
 """MuJoCo timestep (s)."""
@@ -182,7 +183,7 @@ def jaco_ik(
     return q
 
 
-class JacoEnv(gym.Env, EzPickle):
+class JacoEnv(NDPEnv, EzPickle):
     """Jaco arm with a 0.08 m, 0.2 kg cube; ``task`` selects Throw or Pick.
 
     Observation (float64, 34; clipped to ``OBS_BOUND``): arm joint angles [6], finger angles [3],
@@ -228,13 +229,8 @@ class JacoEnv(gym.Env, EzPickle):
         EzPickle.__init__(self, task, horizon, render_mode, width, height, camera)
         if task not in ("throw", "pick"):
             raise ValueError(f"task: expected 'throw' or 'pick', got {task!r}")
-        if int(horizon) < 1:
-            raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
+        self._setup(horizon, render_mode, action_dim=7)
         self.task = task
-        self.horizon = int(horizon)
-        self.render_mode = render_mode
         self.width, self.height, self.camera = int(width), int(height), camera
         self.model = build_jaco_model()
         self.data = mujoco.MjData(self.model)
@@ -249,20 +245,13 @@ class JacoEnv(gym.Env, EzPickle):
         self._basket_mocap = m.body("basket").mocapid[0]
         self._ctrl_lo = m.actuator_ctrlrange[:, 0].copy()
         self._ctrl_hi = m.actuator_ctrlrange[:, 1].copy()
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
         self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, dtype=np.float64)
         self._target = np.zeros(9)
         self._target_rate = np.zeros(7)
         self._goal = np.zeros(3)
         self._cube_rest_z = CUBE_HALF
         self._steps = 0
-        self._unstable = False
         self._renderer: mujoco.Renderer | None = None
-        self._pending_seed: int | None = None
-
-    def seed_next_reset(self, seed: int | None) -> None:
-        """Use ``seed`` on the next reset that is not given one (``make_env(seed=...)``)."""
-        self._pending_seed = seed
 
     @property
     def joint_targets(self) -> np.ndarray:
@@ -361,9 +350,7 @@ class JacoEnv(gym.Env, EzPickle):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset; ``seed`` re-seeds the jitter of cube (Pick) or basket (Throw) positions."""
-        if seed is None and self._pending_seed is not None:
-            seed, self._pending_seed = self._pending_seed, None
-        super().reset(seed=seed)
+        self._reset_rng(seed)
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         jitter = self.np_random.uniform(-0.05, 0.05, size=2)
@@ -412,12 +399,7 @@ class JacoEnv(gym.Env, EzPickle):
         pos, vel = self.robot_state()
         reward, success = self._reward_success(self._cube_pos().copy())
         del reward
-        return self._obs(), {
-            "success": success,
-            "robot_pos": pos,
-            "robot_vel": vel,
-            "sim_unstable": False,
-        }
+        return self._obs(), self._state_info(success, pos, vel)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One env step (``FRAME_SKIP`` simulator steps).
@@ -433,13 +415,8 @@ class JacoEnv(gym.Env, EzPickle):
         Raises:
             ValueError: wrong shape or non-finite values in ``action``.
         """
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (7,):
-            raise ValueError(f"action: expected shape (7,), got {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError("action: expected finite values, got NaN or inf")
-        if self._unstable or self._steps >= self.horizon:
-            raise RuntimeError("episode is over: call reset()")
+        a = self._check_action(action)
+        self._check_running(self._steps)
         a = np.clip(a, -1.0, 1.0)
         delta = np.concatenate([a[:6] * ARM_DELTA, np.full(3, a[6] * FINGER_DELTA)])
         prev = self._target
@@ -448,32 +425,22 @@ class JacoEnv(gym.Env, EzPickle):
         self._target_rate = np.concatenate([moved[:6], [moved[6:].mean()]]) / CONTROL_DT
         d = self.data
         d.ctrl[:] = self._target
-        warn_before = _warning_count(d)
+        warn_before = warning_count(d)
         last_obs = self._obs()
         mujoco.mj_step(self.model, d, nstep=FRAME_SKIP)
         self._steps += 1
-        unstable = _warning_count(d) > warn_before or not (
-            np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))
-        )
+        unstable = sim_unstable(d, warn_before)
         pos, vel = self.robot_state()
         if unstable:
-            self._unstable = True
-            info = {
-                "success": False,
-                "robot_pos": np.nan_to_num(pos),
-                "robot_vel": np.nan_to_num(vel),
-                "sim_unstable": True,
-            }
-            return last_obs, 0.0, False, True, info
+            return self._unstable_step(last_obs, pos, vel)
         reward, success = self._reward_success(self._cube_pos().copy())
         truncated = self._steps >= self.horizon
-        info = {"success": success, "robot_pos": pos, "robot_vel": vel, "sim_unstable": False}
+        info = self._state_info(success, pos, vel)
         return self._obs(), float(reward), False, truncated, info
 
     def render(self) -> np.ndarray | None:
         """Upright RGB frame [H, W, 3] uint8 from ``self.camera`` (``render_mode="rgb_array"``)."""
-        if self.render_mode is None:
-            gym.logger.warn("render() called without render_mode='rgb_array'")
+        if not self._render_guard():
             return None
         if self._renderer is None:
             self._renderer = mujoco.Renderer(self.model, height=self.height, width=self.width)
@@ -485,13 +452,3 @@ class JacoEnv(gym.Env, EzPickle):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-
-
-def _warning_count(data: mujoco.MjData) -> int:
-    """Total of MuJoCo's instability warnings (bad qpos / qvel / qacc) so far."""
-    w = data.warning
-    return int(
-        w[int(mujoco.mjtWarning.mjWARN_BADQPOS)].number
-        + w[int(mujoco.mjtWarning.mjWARN_BADQVEL)].number
-        + w[int(mujoco.mjtWarning.mjWARN_BADQACC)].number
-    )

@@ -16,13 +16,11 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-import gymnasium as gym
 import mujoco
 import numpy as np
-from gymnasium import spaces
 from gymnasium.utils.ezpickle import EzPickle
 
-from ndp.envs.jaco import _warning_count
+from ndp.envs.base import NDPEnv, sim_unstable, warning_count
 
 METAWORLD_POS_SCALE = 0.01
 """Metres the hand target (mocap) moves per env step for an xyz action of 1 (metaworld default)."""
@@ -88,7 +86,7 @@ def metaworld_env_names() -> list[str]:
     return list(ALL_V3_ENVIRONMENTS)
 
 
-class MetaWorldEnv(gym.Env, EzPickle):
+class MetaWorldEnv(NDPEnv, EzPickle):
     """One Meta-World v3 task with random goals on every reset and a configurable horizon.
 
     Actions [4] in ``[-1, 1]`` (clipped): hand-target displacement / ``METAWORLD_POS_SCALE`` for
@@ -124,13 +122,8 @@ class MetaWorldEnv(gym.Env, EzPickle):
         EzPickle.__init__(self, task, horizon, render_mode, width, height, camera_name)
         if task not in ALL_V3_ENVIRONMENTS:
             raise ValueError(f"task: expected a Meta-World v3 name, got {task!r}")
-        if int(horizon) < 1:
-            raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
+        self._setup(horizon, render_mode, action_dim=4)
         self.task = task
-        self.horizon = int(horizon)
-        self.render_mode = render_mode
         env = ALL_V3_ENVIRONMENTS[task](
             render_mode=render_mode, camera_name=camera_name, width=width, height=height
         )
@@ -146,7 +139,6 @@ class MetaWorldEnv(gym.Env, EzPickle):
         self.model: mujoco.MjModel = env.model
         self.data: mujoco.MjData = env.data
         self.observation_space = env.sawyer_observation_space
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         m = self.model
         world_q: list[int] = []
         world_v: list[int] = []
@@ -163,15 +155,9 @@ class MetaWorldEnv(gym.Env, EzPickle):
         self._gripper = -1.0
         self._gripper_rate = 0.0
         self._obs: np.ndarray | None = None
-        self._unstable = False
-        self._pending_seed: int | None = None
         self._vel6 = np.zeros(6)
         self._mocap_vel = np.zeros(3)
         self.control_dt = float(m.opt.timestep * env.frame_skip)
-
-    def seed_next_reset(self, seed: int | None) -> None:
-        """Use ``seed`` on the next reset that is not given one (``make_env(seed=...)``)."""
-        self._pending_seed = seed
 
     # ------------------------------------------------------------------ state access
     def robot_state(self) -> tuple[np.ndarray, np.ndarray]:
@@ -272,9 +258,7 @@ class MetaWorldEnv(gym.Env, EzPickle):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset with a new random object + goal configuration (seeded)."""
-        if seed is None and self._pending_seed is not None:
-            seed, self._pending_seed = self._pending_seed, None
-        super().reset(seed=seed)
+        self._reset_rng(seed)
         self.mw.np_random = self.np_random  # metaworld draws its reset vector from this
         obs, _ = self.mw.reset()
         self._gripper = -1.0  # metaworld's hand reset leaves the gripper open (command -1)
@@ -283,12 +267,7 @@ class MetaWorldEnv(gym.Env, EzPickle):
         self._unstable = False
         self._obs = np.asarray(obs, dtype=np.float64)
         pos, vel = self.robot_state()
-        return self._obs.copy(), {
-            "success": False,
-            "robot_pos": pos,
-            "robot_vel": vel,
-            "sim_unstable": False,
-        }
+        return self._obs.copy(), self._state_info(False, pos, vel)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One env step.
@@ -304,49 +283,29 @@ class MetaWorldEnv(gym.Env, EzPickle):
         Raises:
             ValueError: wrong shape or non-finite values in ``action``.
         """
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (4,):
-            raise ValueError(f"action: expected shape (4,), got {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError("action: expected finite values, got NaN or inf")
+        a = self._check_action(action)
         if self._obs is None:
             raise RuntimeError("call reset() before step()")
-        if self._unstable or self.mw.curr_path_length >= self.horizon:
-            raise RuntimeError("episode is over: call reset()")
+        self._check_running(self.mw.curr_path_length)
         a = np.clip(a, -1.0, 1.0).astype(np.float32)
-        warn_before = _warning_count(self.data)
+        warn_before = warning_count(self.data)
         mocap_before = self.data.mocap_pos[0].copy()
         obs, reward, _, truncated, mw_info = self.mw.step(a)
         self._mocap_vel = (self.data.mocap_pos[0] - mocap_before) / self.control_dt
         self._gripper_rate = (float(a[3]) - self._gripper) / self.control_dt
         self._gripper = float(a[3])
-        unstable = _warning_count(self.data) > warn_before or not (
-            np.all(np.isfinite(self.data.qpos)) and np.all(np.isfinite(self.data.qvel))
-        )
+        unstable = sim_unstable(self.data, warn_before)
         pos, vel = self.robot_state()
         info: dict[str, Any] = {k: float(v) for k, v in mw_info.items()}
         if unstable:
-            self._unstable = True
-            info.update(
-                success=False,
-                robot_pos=np.nan_to_num(pos),
-                robot_vel=np.nan_to_num(vel),
-                sim_unstable=True,
-            )
-            return self._obs.copy(), 0.0, False, True, info
+            return self._unstable_step(self._obs.copy(), pos, vel, info)
         self._obs = np.asarray(obs, dtype=np.float64)
-        info.update(
-            success=bool(mw_info["success"] > 0.5),
-            robot_pos=pos,
-            robot_vel=vel,
-            sim_unstable=False,
-        )
+        info.update(self._state_info(bool(mw_info["success"] > 0.5), pos, vel))
         return self._obs.copy(), float(reward), False, bool(truncated), info
 
     def render(self) -> np.ndarray | None:
         """Upright RGB frame [H, W, 3] uint8 (``render_mode="rgb_array"``)."""
-        if self.render_mode is None:
-            gym.logger.warn("render() called without render_mode='rgb_array'")
+        if not self._render_guard():
             return None
         frame = self.mw.render()
         # metaworld's cameras come out of MuJoCo's renderer bottom row first: flip to upright.

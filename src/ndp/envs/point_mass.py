@@ -28,9 +28,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+
+from ndp.envs.base import NDPEnv, defer_seed
 
 if TYPE_CHECKING:
     from ndp.envs.spec import TaskSpec
@@ -64,7 +65,7 @@ def point_mass_spec(dim: int = 2, horizon: int = DEFAULT_HORIZON) -> TaskSpec:
     return toy_spec(dim, horizon)
 
 
-class PointMassEnv(gym.Env):
+class PointMassEnv(NDPEnv):
     """Point mass reaching a random goal; see the module docstring.
 
     Observation [3 D]: position, velocity (m/s) and goal. Action [D] in [-1, 1].
@@ -92,15 +93,9 @@ class PointMassEnv(gym.Env):
         """
         if dim not in (2, 3):
             raise ValueError(f"dim: expected 2 or 3, got {dim!r}")
-        if int(horizon) < 1:
-            raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
+        self._setup(horizon, render_mode, action_dim=int(dim))
         self.dim = int(dim)
-        self.horizon = int(horizon)
         self.terminate_on_success = bool(terminate_on_success)
-        self.render_mode = render_mode
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(self.dim,), dtype=np.float32)
         # position in the box [-1, 1], velocity at most ACTION_SCALE / CONTROL_DT, goal in
         # [-0.9, 0.9]: every observation entry is bounded
         vmax = ACTION_SCALE / CONTROL_DT
@@ -110,11 +105,6 @@ class PointMassEnv(gym.Env):
         self._vel = np.zeros(self.dim)
         self._goal = np.zeros(self.dim)
         self._steps = 0
-        self._next_seed: int | None = None
-
-    def seed_next_reset(self, seed: int | None) -> None:
-        """Use ``seed`` for the next ``reset()`` that is not given one (as the other envs)."""
-        self._next_seed = seed
 
     # ------------------------------------------------------------------ state access
     def robot_state(self) -> tuple[np.ndarray, np.ndarray]:
@@ -149,9 +139,7 @@ class PointMassEnv(gym.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Draw a start in ``[-0.5, 0.5]^D`` and a goal near it; returns ``(obs [3D], info)``."""
-        if seed is None and self._next_seed is not None:
-            seed, self._next_seed = self._next_seed, None
-        super().reset(seed=seed)
+        self._reset_rng(seed)
         rng = self.np_random
         self._pos = rng.uniform(-0.5, 0.5, self.dim)
         self._vel = np.zeros(self.dim)
@@ -210,7 +198,5 @@ def make_point_mass_env(
         render_mode=render_mode,
         **kw,
     )
-    if seed is not None:
-        env.seed_next_reset(int(seed))
-        env.action_space.seed(int(seed))
+    defer_seed(env, seed)
     return env

@@ -1,0 +1,191 @@
+"""What every env family of the package shares, written once (:class:`NDPEnv`).
+
+- Argument checks: ``render_mode`` against ``metadata["render_modes"]`` and a positive
+  ``horizon`` (one-line ``ValueError`` naming the argument).
+- Deferred seeding: :meth:`NDPEnv.seed_next_reset` stores a seed that the next ``reset()``
+  without a seed uses (``make_env(..., seed=...)``); :func:`defer_seed` is the factories' half
+  (also seeds the action space's sampler).
+- The unstable-simulator rule of the MuJoCo envs: a step after which MuJoCo counted a bad
+  qpos / qvel / qacc warning, or whose qpos / qvel are not finite, ends the episode by truncation
+  with reward 0, the previous observation and ``info["sim_unstable"] = True``; further steps raise
+  until ``reset()``.
+- The robot-state info keys the chunked wrapper reads (``success``, ``robot_pos``,
+  ``robot_vel``, ``sim_unstable``).
+- The ``[-1, 1]^A`` float32 action box and the render guard.
+
+Subclasses provide ``robot_state()`` (and ``world_snapshot`` / ``stale_reward`` /
+``command_state`` for :class:`ndp.envs.ChunkedEnv`), ``reset`` and ``step``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+SIM_UNSTABLE = "sim_unstable"
+"""Info key: the simulator went unstable and the episode was truncated."""
+
+
+def check_render_mode(render_mode: str | None, modes: list[str] | tuple[str, ...]) -> None:
+    """Raise unless ``render_mode`` is None or one of ``modes``.
+
+    Raises:
+        ValueError: ``render_mode: expected None or 'rgb_array', got 'human'``.
+    """
+    if render_mode is not None and render_mode not in modes:
+        allowed = " or ".join(["None", *(repr(m) for m in modes)])
+        raise ValueError(f"render_mode: expected {allowed}, got {render_mode!r}")
+
+
+def check_horizon(horizon: Any) -> int:
+    """``int(horizon)`` if it is at least 1.
+
+    Raises:
+        ValueError: ``horizon: expected a positive int, got 0``.
+    """
+    try:
+        value = int(horizon)
+    except (TypeError, ValueError):
+        value = 0
+    if value < 1:
+        raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
+    return value
+
+
+def defer_seed(env: gym.Env, seed: int | None) -> None:
+    """Seed the first ``reset()`` that is not given a seed, and the action space's sampler
+    (the ``seed`` argument of the factories); None leaves both unseeded."""
+    if seed is not None:
+        env.seed_next_reset(int(seed))  # type: ignore[attr-defined]
+        env.action_space.seed(int(seed))
+
+
+def warning_count(data: mujoco.MjData) -> int:
+    """Total of MuJoCo's instability warnings (bad qpos / qvel / qacc) so far."""
+    w = data.warning
+    return int(
+        w[int(mujoco.mjtWarning.mjWARN_BADQPOS)].number
+        + w[int(mujoco.mjtWarning.mjWARN_BADQVEL)].number
+        + w[int(mujoco.mjtWarning.mjWARN_BADQACC)].number
+    )
+
+
+def sim_unstable(data: mujoco.MjData, warnings_before: int) -> bool:
+    """True if MuJoCo warned since ``warnings_before`` (:func:`warning_count`) or qpos / qvel
+    hold a NaN or inf."""
+    return warning_count(data) > warnings_before or not (
+        np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))
+    )
+
+
+class NDPEnv(gym.Env):
+    """Base of the package's envs: checks, deferred seeding, the unstable-simulator rule.
+
+    A subclass sets ``metadata["render_modes"]`` (the modes :meth:`_setup` accepts besides
+    None), calls :meth:`_setup` in its ``__init__`` (after its own argument checks),
+    :meth:`_reset_rng` at the start of ``reset`` and, in a MuJoCo ``step``,
+    :meth:`_check_running`, :meth:`_check_action` and :meth:`_unstable_step`.
+    """
+
+    horizon: int
+    """Env steps per episode."""
+    _unstable: bool = False
+    """The simulator went unstable this episode (MuJoCo envs; cleared by reset)."""
+    _pending_seed: int | None = None
+    """Seed for the next ``reset()`` that is not given one."""
+
+    def _setup(self, horizon: Any, render_mode: str | None, action_dim: int) -> None:
+        """Check and store ``horizon`` and ``render_mode``; set the ``[-1, 1]^action_dim``
+        float32 action space.
+
+        Raises:
+            ValueError: horizon below 1 (or not a number); render mode not None or one of
+                ``metadata["render_modes"]``.
+        """
+        horizon = check_horizon(horizon)
+        check_render_mode(render_mode, self.metadata["render_modes"])
+        self.horizon = horizon
+        self.render_mode = render_mode
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(int(action_dim),), dtype=np.float32)
+        self._unstable = False
+        self._pending_seed = None
+
+    # ------------------------------------------------------------------ seeding
+    def seed_next_reset(self, seed: int | None) -> None:
+        """Use ``seed`` on the next reset that is not given one (``make_env(seed=...)``)."""
+        self._pending_seed = seed
+
+    def _reset_rng(self, seed: int | None) -> None:
+        """``gymnasium.Env.reset(seed=...)`` with the deferred seed where ``seed`` is None (the
+        deferred seed is then used up; an explicit ``seed`` leaves it for a later reset)."""
+        if seed is None and self._pending_seed is not None:
+            seed, self._pending_seed = self._pending_seed, None
+        super().reset(seed=seed)
+
+    # ------------------------------------------------------------------ step helpers
+    def _check_action(self, action: Any) -> np.ndarray:
+        """``action`` as float64 of the action space's shape, finite (not yet clipped).
+
+        Raises:
+            ValueError: wrong shape, or NaN / inf values.
+        """
+        a = np.asarray(action, dtype=np.float64)
+        shape = self.action_space.shape
+        if a.shape != shape:
+            raise ValueError(f"action: expected shape {shape}, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError("action: expected finite values, got NaN or inf")
+        return a
+
+    def _check_running(self, steps: int) -> None:
+        """Raise if the episode ended (``steps`` reached the horizon, or the simulator went
+        unstable).
+
+        Raises:
+            RuntimeError: ``episode is over: call reset()``.
+        """
+        if self._unstable or steps >= self.horizon:
+            raise RuntimeError("episode is over: call reset()")
+
+    @staticmethod
+    def _state_info(
+        success: bool, pos: np.ndarray, vel: np.ndarray, unstable: bool = False
+    ) -> dict[str, Any]:
+        """The info keys of every reset and step: ``success``, ``robot_pos``, ``robot_vel``,
+        ``sim_unstable``."""
+        return {"success": success, "robot_pos": pos, "robot_vel": vel, SIM_UNSTABLE: unstable}
+
+    def _unstable_step(
+        self,
+        last_obs: np.ndarray,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        info: dict[str, Any] | None = None,
+    ) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """End the episode on an unstable simulator: mark it, and return the step's tuple.
+
+        Args:
+            last_obs: The observation before the step (returned as this step's).
+            pos: Robot position now (non-finite values are replaced by finite ones).
+            vel: Robot velocity now (likewise).
+            info: Info to extend (e.g. the simulator's own keys); None: a new one.
+
+        Returns:
+            ``(last_obs, 0.0, False, True, info)`` with ``success`` False and
+            ``sim_unstable`` True.
+        """
+        self._unstable = True
+        info = {} if info is None else info
+        info.update(self._state_info(False, np.nan_to_num(pos), np.nan_to_num(vel), True))
+        return last_obs, 0.0, False, True, info
+
+    def _render_guard(self) -> bool:
+        """True if a frame can be rendered; else warns (as gymnasium does) and returns False."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without render_mode='rgb_array'")
+            return False
+        return True

@@ -1,6 +1,7 @@
 # Two commands do everything on a fresh machine:
 #   make demo   -> creates .venv, installs the package, runs the main demo (outputs in runs/demo)
 #   make test   -> creates .venv, installs the package with test extras, runs the default test suite
+# Both install `.[dev]` (every extra) at the exact versions of constraints.txt.
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -10,11 +11,12 @@ export PYOPENGL_PLATFORM ?= egl
 
 .PHONY: install demo test test-slow lint bench clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --upgrade pip setuptools wheel
-	# torch is named in the same command so pip takes the local CPU build, never the CUDA one.
-	$(BIN)/python -m pip install "torch==2.13.0" -e ".[dev]"
+	# torch is named in the same command, pinned by constraints.txt to the release of the local CPU
+	# build, so pip takes that build, never a CUDA one.
+	$(BIN)/python -m pip install -c constraints.txt torch -e ".[dev]"
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -22,6 +22,11 @@ Public API (imported lazily, so ``import ndp`` stays cheap):
 - ``ndp.load_policy(path)``: a trained policy (a run directory or an export) with
   ``act(obs, info)``, ``reset()`` and ``make_env()``; ``ndp.export_policy(run, out)`` writes a
   safetensors + JSON export that loads without unpickling.
+
+``pip install neural-dynamic-policies`` (torch and numpy only) gives :mod:`ndp.dmp`,
+:mod:`ndp.nets` and :mod:`ndp.policies`; the simulators, trainers and tools are extras:
+``[envs]`` (``make_env``), ``[rl]`` (``load_policy``, ``ndp rl``), ``[il]`` (``ndp il``),
+``[ray]``, and ``[dev]`` for all of them plus the test tools.
 """
 
 from __future__ import annotations
@@ -30,12 +35,13 @@ from typing import Any
 
 __version__ = "0.1.0"
 
+# name -> (module, attribute, the extra that module needs; None: the core install)
 _LAZY = {
-    "DMPLayer": ("ndp.dmp", "DMPLayer"),
-    "DMPConfig": ("ndp.dmp", "DMPConfig"),
-    "Policy": ("ndp.rl.policy", "Policy"),
-    "load_policy": ("ndp.rl.policy", "load_policy"),
-    "export_policy": ("ndp.rl.policy", "export_policy"),
+    "DMPLayer": ("ndp.dmp", "DMPLayer", None),
+    "DMPConfig": ("ndp.dmp", "DMPConfig", None),
+    "Policy": ("ndp.rl.policy", "Policy", "rl"),
+    "load_policy": ("ndp.rl.policy", "load_policy", "rl"),
+    "export_policy": ("ndp.rl.policy", "export_policy", "rl"),
 }
 
 __all__ = ["DMPConfig", "DMPLayer", "Policy", "export_policy", "load_policy", "make_env"]
@@ -63,17 +69,42 @@ def make_env(
         An :class:`ndp.envs.ChunkedEnv` (actions [k, A]; info with the robot and commanded
         state a policy's ``act(obs, info)`` reads).
     """
-    from ndp.envs import ChunkedEnv
-    from ndp.envs import make_env as make_step_env
+    try:
+        from ndp.envs import ChunkedEnv
+        from ndp.envs import make_env as make_step_env
+    except ModuleNotFoundError as exc:
+        hint = _missing_extra(exc, "make_env", "envs")
+        if hint is None:
+            raise
+        raise hint from exc
 
     base = make_step_env(task, horizon=horizon, seed=seed, render_mode=render_mode)
     return ChunkedEnv(base, k, stale_world=stale_world)
+
+
+def _missing_extra(
+    exc: ModuleNotFoundError, what: str, extra: str | None
+) -> ModuleNotFoundError | None:
+    """``exc`` with the extra that installs the missing module named (None: not an extra's)."""
+    if extra is None or (exc.name or "ndp").split(".")[0] == "ndp":
+        return None
+    return ModuleNotFoundError(
+        f"{exc}: ndp.{what} needs the [{extra}] extra "
+        f"(pip install 'neural-dynamic-policies[{extra}]')",
+        name=exc.name,
+    )
 
 
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
         import importlib
 
-        module, attr = _LAZY[name]
-        return getattr(importlib.import_module(module), attr)
+        module, attr, extra = _LAZY[name]
+        try:
+            return getattr(importlib.import_module(module), attr)
+        except ModuleNotFoundError as exc:
+            hint = _missing_extra(exc, name, extra)
+            if hint is None:
+                raise
+            raise hint from exc
     raise AttributeError(f"module 'ndp' has no attribute {name!r}")

@@ -13,20 +13,48 @@ import importlib
 import sys
 from collections.abc import Callable, Sequence
 from types import ModuleType
+from typing import Any
 
 # Sub-command modules, each with ``add_subparser(subparsers) -> None`` that registers a parser
 # whose ``func(args) -> int`` runs the command.
 _COMMAND_MODULES = ("ndp.experiments.demo", "ndp.il.cli", "ndp.rl.cli")
+# The command and the extra of the modules that need one: without it installed, the command is
+# still listed and says what to install instead of failing the whole ``ndp`` command.
+_EXTRAS = {"ndp.il.cli": ("il", "il"), "ndp.rl.cli": ("rl", "rl")}
 
 
-def _modules() -> list[ModuleType]:
-    out = []
+def _missing_extra_message(command: str, extra: str, missing: str) -> str:
+    return (
+        f"ndp {command}: needs the [{extra}] extra (missing module {missing!r}): "
+        f"pip install 'neural-dynamic-policies[{extra}]'"
+    )
+
+
+def _add_missing_extra(sub: Any, command: str, extra: str, missing: str) -> None:
+    p = sub.add_parser(command, help=f"(needs the [{extra}] extra: not installed)")
+    p.add_argument("args", nargs=argparse.REMAINDER)
+
+    def func(args: argparse.Namespace) -> int:
+        print(_missing_extra_message(command, extra, missing), file=sys.stderr)
+        return 2
+
+    p.set_defaults(func=func)
+
+
+def _modules() -> list[tuple[str, ModuleType | str]]:
+    """(name, module) per command module, or (name, missing third-party module) for a module
+    whose extra is not installed."""
+    out: list[tuple[str, ModuleType | str]] = []
     for name in _COMMAND_MODULES:
         try:
-            out.append(importlib.import_module(name))
-        except ModuleNotFoundError as exc:  # a sub-package not present in this build
-            if exc.name != name:
+            out.append((name, importlib.import_module(name)))
+        except ModuleNotFoundError as exc:
+            if exc.name == name:  # a sub-package not present in this build
+                continue
+            missing = (exc.name or "").split(".")[0]
+            if name not in _EXTRAS or missing in ("", "ndp"):
                 raise
+            out.append((name, missing))
     return out
 
 
@@ -34,13 +62,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ndp", description="Neural Dynamic Policies")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for module in _modules():
-        module.add_subparser(sub)
+    for name, module in _modules():
+        if isinstance(module, str):
+            _add_missing_extra(sub, *_EXTRAS[name], module)
+        else:
+            module.add_subparser(sub)
     return parser
 
 
 def _config_command(argv: list[str]) -> Callable[[list[str]], int] | None:
-    for module in _modules():
+    for _name, module in _modules():
+        if isinstance(module, str):
+            continue
         for words, run in getattr(module, "CONFIG_COMMANDS", {}).items():
             n = len(words.split())
             if argv[:n] == words.split():
@@ -60,6 +93,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser = build_parser()
         args = parser.parse_args(args_list)
         return int(args.func(args) or 0)
+    except ModuleNotFoundError as exc:
+        if (exc.name or "ndp").split(".")[0] == "ndp":
+            raise
+        # a third-party package of an extra that is not installed (a core-only install)
+        print(
+            f"ndp: error: {exc}: install the extras this command needs "
+            "(pip install 'neural-dynamic-policies[envs]', '[rl]', '[il]'; '[dev]' for all)",
+            file=sys.stderr,
+        )
+        return 2
     except (ValueError, OSError) as exc:  # bad input, unreadable or unwritable files
         print(f"ndp: error: {exc}", file=sys.stderr)
         return 2

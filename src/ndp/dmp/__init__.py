@@ -35,6 +35,7 @@ from ndp.dmp.integrate import (
     dmp_rollout,
     dmp_rollout_fast,
     dmp_rollout_reference,
+    euler_step,
     linear_map_f64,
     validate_inputs,
 )
@@ -55,6 +56,7 @@ __all__ = [
     "dmp_rollout_fast",
     "dmp_rollout_reference",
     "dmp_sensitivities",
+    "euler_step",
     "fit_dmp",
     "forcing_features",
     "linear_map_f64",

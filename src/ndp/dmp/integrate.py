@@ -21,7 +21,7 @@ applies it with one matrix product.
 from __future__ import annotations
 
 import functools
-from typing import NamedTuple
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 import torch
@@ -44,6 +44,44 @@ class DMPTrajectory(NamedTuple):
 # --------------------------------------------------------------------------------------------
 # Input checks
 # --------------------------------------------------------------------------------------------
+Num = TypeVar("Num", torch.Tensor, np.ndarray)
+
+
+def euler_step(
+    y: Num,
+    z: Num,
+    goal: Num | float,
+    f: Num,
+    a_z: Any,
+    b_z: Any,
+    tau: float,
+    dt: float,
+    forcing: str,
+) -> tuple[Num, Num, Num]:
+    """One explicit Euler step of the transformation system (the one place it is written).
+
+    Used by the reference loop, the linear-map builder (on unit inputs) and the analytic
+    sensitivities (on derivative states: dy/dw follows the same step with goal 0, dy/dg with
+    goal 1). Works on tensors and arrays of any broadcastable shapes.
+
+    Args:
+        y, z: position and scaled velocity z = tau * dy before the step.
+        goal: g.
+        f: forcing term of this step.
+        a_z, b_z: spring constants (numbers or broadcastable tensors).
+        tau, dt: temporal scale and step size.
+        forcing: 'released' (f added outside the a_z bracket) or 'supplement' (inside it).
+
+    Returns:
+        (y_next, z_next, dz): the new state and the derivative dz used (ddy = dz / tau).
+    """
+    if forcing == "released":
+        dz = (a_z * (b_z * (goal - y) - z) + f) / tau
+    else:
+        dz = a_z * (b_z * (goal - y) - z + f) / tau
+    return y + z / tau * dt, z + dz * dt, dz
+
+
 def _check_tensor(name: str, t: object, ndim: int, shape_doc: str) -> torch.Tensor:
     if not isinstance(t, torch.Tensor):
         raise ValueError(f"{name}: expected a torch.Tensor of shape {shape_doc}, got {type(t)}")
@@ -189,13 +227,7 @@ def _reference(
             f = (weights @ psi) / psi.sum() * x  # [B, D]
             if cfg.scale_by_goal:
                 f = f * (goal - y0)
-        if cfg.forcing == "released":
-            dz = (az * (bz * (goal - y) - z) + f) / tau
-        else:
-            dz = az * (bz * (goal - y) - z + f) / tau
-        dy = z / tau
-        y = y + dy * dt
-        z = z + dz * dt
+        y, z, dz = euler_step(y, z, goal, f, az, bz, tau, dt, cfg.forcing)
         pos.append(y)
         vel.append(z / tau)
         acc.append(dz / tau)
@@ -245,12 +277,7 @@ def _linear_map_f64(cfg: DMPConfig, a_z: float | None) -> np.ndarray:
     pos, vel, acc = [y.copy()], [z / tau], [np.zeros(n + 3)]
     for t in range(cfg.steps):
         f[:n] = feats[t]
-        if cfg.forcing == "released":
-            dz = (az * (bz * (unit_g - y) - z) + f) / tau
-        else:
-            dz = az * (bz * (unit_g - y) - z + f) / tau
-        y = y + z / tau * dt
-        z = z + dz * dt
+        y, z, dz = euler_step(y, z, unit_g, f, az, bz, tau, dt, cfg.forcing)
         pos.append(y)
         vel.append(z / tau)
         acc.append(dz / tau)

@@ -21,7 +21,7 @@ import torch
 
 from ndp.dmp.basis import basis_centres, normalised_rbf
 from ndp.dmp.config import DMPConfig
-from ndp.dmp.integrate import spring_constants, validate_inputs
+from ndp.dmp.integrate import euler_step, spring_constants, validate_inputs
 
 
 def dmp_sensitivities(
@@ -70,14 +70,9 @@ def dmp_sensitivities(
             else:
                 df_dw = (phi * x).expand_as(weights)
                 df_dg = torch.zeros_like(goal)
-        if cfg.forcing == "released":
-            dwz = (az_w * (-bz_w * w_y - w_z) + df_dw) / tau
-            dgz = (az * (bz * (1.0 - g_y) - g_z) + df_dg) / tau
-        else:
-            dwz = az_w * (-bz_w * w_y - w_z + df_dw) / tau
-            dgz = az * (bz * (1.0 - g_y) - g_z + df_dg) / tau
-        w_y, w_z = w_y + w_z / tau * dt, w_z + dwz * dt
-        g_y, g_z = g_y + g_z / tau * dt, g_z + dgz * dt
+        # the transformation system's Euler step on the derivative states (dg/dw = 0, dg/dg = 1)
+        w_y, w_z, _ = euler_step(w_y, w_z, 0.0, df_dw, az_w, bz_w, tau, dt, cfg.forcing)
+        g_y, g_z, _ = euler_step(g_y, g_z, 1.0, df_dg, az, bz, tau, dt, cfg.forcing)
         out_w.append(w_y)
         out_g.append(g_y)
     sl = slice(None, None, cfg.subsample)

@@ -284,3 +284,30 @@ def test_async_vector_env_matches_sync(tmp_path):
     b = read_metrics(tmp_path / "async" / "metrics.csv")
     key = "charts/episode_return"
     assert [r[key] for r in a] == [r[key] for r in b]
+
+
+def test_device_option_is_checked_before_anything_runs():
+    from ndp.rl.config import TrainConfig
+
+    with pytest.raises(ValueError, match="device: expected a torch device"):
+        TrainConfig(device="gpu0")
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
+def test_update_on_cuda_rollout_on_cpu(tmp_path):
+    from ndp.rl.config import TrainConfig
+    from ndp.rl.trainer import Trainer
+
+    cfg = TrainConfig(task="point-mass", algo="ndp", steps=1040, device="cuda", vector="sync",
+                      run_dir=str(tmp_path / "r"), progress=False, tensorboard=False)  # fmt: skip
+    tr = Trainer(cfg)
+    try:
+        m = tr.train()
+        assert math.isfinite(m["losses/policy"])
+        assert next(tr.model.parameters()).device.type == "cuda"
+        assert next(tr.rollout_model.parameters()).device.type == "cpu"
+        learner, actor = tr.model.state_dict(), tr.rollout_model.state_dict()
+        for name, a in learner.items():
+            assert torch.equal(a.cpu(), actor[name])  # the rollout acts with the updated policy
+    finally:
+        tr.close()

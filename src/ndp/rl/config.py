@@ -131,6 +131,9 @@ class TrainConfig:
     """Show a progress bar."""
     torch_threads: int = 1
     """torch intra-op threads of the trainer (1 where env workers run beside it)."""
+    device: str = "cpu"
+    """torch device of the PPO update ('cpu', 'cuda', 'cuda:1', ...); the rollout always acts
+    on the CPU beside the simulators (with a copy of the policy refreshed after each update)."""
     ppo: PPOConfig = field(default_factory=PPOConfig)
     """PPO hyperparameters."""
     policy: PolicyConfig = field(default_factory=PolicyConfig)
@@ -150,6 +153,7 @@ class TrainConfig:
         _check_int("torch_threads", self.torch_threads, 1)
         if self.horizon is not None:
             _check_int("horizon", self.horizon, 1)
+        _check_device(self.device)
         if self.vector not in ("auto", "sync", "workers", "async"):
             raise ValueError(
                 f"vector: expected 'auto', 'sync', 'workers' or 'async', got {self.vector!r}"
@@ -239,6 +243,17 @@ def load_config(path: Path) -> TrainConfig:
     if not path.is_file():
         raise FileNotFoundError(f"config: no such file {path}")
     return TrainConfig.from_dict(json.loads(path.read_text()))
+
+
+def _check_device(device: object) -> None:
+    import torch
+
+    try:
+        torch.device(device)  # type: ignore[call-overload]
+    except (RuntimeError, TypeError):
+        raise ValueError(
+            f"device: expected a torch device such as 'cpu' or 'cuda', got {device!r}"
+        ) from None
 
 
 def _check_int(name: str, value: object, low: int) -> None:

@@ -16,6 +16,7 @@ bounds. A non-finite loss, gradient or parameter stops training with
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import itertools
 import math
@@ -44,9 +45,10 @@ from ndp.rl.ppo import (
 )
 from ndp.runs import MetricsLogger, RunDir, load_checkpoint, save_checkpoint
 
-SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers")
+SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers", "device")
 """TrainConfig fields a resume may change: they change neither the numbers nor the history
-(``steps`` extends or shortens the budget)."""
+(``steps`` extends or shortens the budget; ``device`` moves the update, which changes float
+rounding only)."""
 
 
 class TrainingDivergedError(FloatingPointError):
@@ -98,7 +100,13 @@ class Trainer:
         )
         obs_dim = int(np.prod(self.envs.single_observation_space.shape))
         self.obs_dim = obs_dim
-        self.model = build_actor_critic(obs_dim, self.spec, cfg.policy)
+        self.device = torch.device(cfg.device)
+        model = build_actor_critic(obs_dim, self.spec, cfg.policy)
+        # The rollout acts on the CPU (one small batch per decision, beside the simulators);
+        # the update runs on ``device``. Off the CPU the rollout uses a CPU copy, refreshed after
+        # every update.
+        self.rollout_model = model if self.device.type == "cpu" else copy.deepcopy(model)
+        self.model = model.to(self.device)
         p = cfg.ppo
         # one flat buffer: one clip and one fused Adam step per mini-batch (ndp.rl.optim)
         self.opt = FlatAdam(self.model, lr=p.lr, eps=p.adam_eps)
@@ -142,6 +150,7 @@ class Trainer:
 
     def _load_state(self, ckpt: dict[str, Any]) -> None:
         self.model.load_state_dict(ckpt["model"])
+        self._sync_rollout_model()
         self.opt.load_state_dict(ckpt["optimizer"])
         self.obs_norm.load_state_dict(ckpt["obs_norm"])
         self.ret_norm.load_state_dict(ckpt["ret_norm"])
@@ -151,6 +160,10 @@ class Trainer:
         self.update = int(ckpt["update"])
         self.global_step = int(ckpt["global_step"])
         self.last_ckpt_update = self.update
+
+    def _sync_rollout_model(self) -> None:
+        if self.rollout_model is not self.model:
+            self.rollout_model.load_state_dict(self.model.state_dict())
 
     def save(self) -> Path:
         """Write the checkpoint atomically (only with finite parameters)."""
@@ -199,13 +212,13 @@ class Trainer:
             dy0 = torch.as_tensor(self._dy0, dtype=torch.float32)
             with torch.no_grad():
                 try:
-                    dist, aux = self.model.distribution(obs_n, y0, dy0)
+                    dist, aux = self.rollout_model.distribution(obs_n, y0, dy0)
                 except FloatingPointError as exc:
                     msg = f"non-finite DMP input during the rollout ({exc})"
                     raise self._diverged(msg) from None
                 z = dist.sample()
                 logp = dist.log_prob(z)
-                values = self.model.value(obs_n)
+                values = self.rollout_model.value(obs_n)
                 act = torch.maximum(torch.minimum(dist.actions(z), self.high), self.low)
             if not bool(torch.isfinite(act).all()):
                 raise self._diverged("non-finite actions (check the observations)")
@@ -235,7 +248,7 @@ class Trainer:
                 fin = np.stack([np.asarray(o, dtype=np.float64) for o in infos["final_obs"][boot]])
                 fin = torch.from_numpy(self.obs_norm(fin.reshape(-1, self.obs_dim)))
                 with torch.no_grad():
-                    v_fin = self.model.value(fin)[:, 0].numpy()
+                    v_fin = self.rollout_model.value(fin)[:, 0].numpy()
                 r_n = bootstrap_truncated(r_n, mask, boot, v_fin, gamma)
             rew_b[t], mask_b[t], end_b[t] = r_n, mask, done
             executed += int(mask.sum())
@@ -264,7 +277,7 @@ class Trainer:
 
         with torch.no_grad():
             last_obs = torch.from_numpy(self.obs_norm(self._obs))
-            last_v = self.model.value(last_obs)[:, 0].numpy()
+            last_v = self.rollout_model.value(last_obs)[:, 0].numpy()
         adv, ret = gae_substeps(rew_b, val_b, mask_b, end_b, last_v, gamma, self.cfg.ppo.gae_lambda)
         assert z_b is not None and logp_b is not None
         n = T * E
@@ -292,6 +305,11 @@ class Trainer:
             frac = 1.0 - self.update / self.cfg.num_updates
             for g in self.opt.param_groups:
                 g["lr"] = p.lr * frac
+        if self.device.type != "cpu":
+            batch = {
+                key: val.to(self.device) if isinstance(val, torch.Tensor) else val
+                for key, val in batch.items()
+            }
         mask = batch["mask"]
         adv = batch["adv"]
         per_decision = bool(getattr(self.model.head, "param_noise", False))
@@ -311,7 +329,7 @@ class Trainer:
         keys = ("obs", "y0", "dy0", "z", "logp", "values", "returns")
         vmask_all = batch["mask"]
         for _ in range(p.epochs):
-            perm = torch.randperm(n)
+            perm = torch.randperm(n, device=mask.device)
             # one gather per epoch; mini-batches are then contiguous slices (views)
             shuf = {key: batch[key][perm] for key in keys}
             shuf["adv"], shuf["mask"], shuf["vmask"] = adv[perm], mask[perm], vmask_all[perm]
@@ -358,6 +376,7 @@ class Trainer:
                 ):
                     stats[key].append(val.detach())
         self._check_params("after the update")
+        self._sync_rollout_model()
         out = {k: float(torch.stack(v).mean()) for k, v in stats.items()}
         valid = vmask_all > 0
         y, yhat = batch["returns"][valid], batch["values"][valid]

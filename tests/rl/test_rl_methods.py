@@ -76,3 +76,97 @@ def test_registry_rejects_duplicates_and_unknown_heads():
     with pytest.raises(ValueError, match="already registered"):
         register_head("ndp")(lambda cfg, spec: None)
     assert set(METHODS) >= {"ppo", "ppo-multi", "ndp"}
+
+
+class RandomSearch:
+    """A toy off-policy-style learner (hill climbing on the actor's weights) that uses only the
+    public seams: the resolved config, ``make_vector_env``, ``ndp.runs``, the policy checkpoint
+    keys. Its runs are then evaluated by ``ndp rl eval`` like any PPO run."""
+
+    def __init__(self, cfg, resume):
+        import numpy as np
+
+        from ndp.policies import build_actor_critic
+        from ndp.rl.envs import make_vector_env, resolve_task
+        from ndp.rl.normalize import ObsNormalizer
+        from ndp.runs import RunDir
+
+        self.cfg, self.run = cfg, RunDir(cfg.run_dir)
+        assert not resume
+        self.run.create()
+        task = resolve_task(cfg.task)
+        self.envs = make_vector_env(task, cfg.k, cfg.num_envs, vector="sync")
+        self.obs_dim = int(np.prod(self.envs.single_observation_space.shape))
+        self.model = build_actor_critic(self.obs_dim, task.spec, cfg.policy)
+        self.norm = ObsNormalizer(self.obs_dim, enabled=False)
+        self.run.write_config(cfg.to_dict())
+
+    def _score(self, seed):
+        obs, _ = self.envs.reset(seed=[seed + i for i in range(self.cfg.num_envs)])
+        total, steps = 0.0, 0
+        for _ in range(20):
+            o = torch.as_tensor(obs, dtype=torch.float32).reshape(self.cfg.num_envs, -1)
+            with torch.no_grad():
+                dist, _ = self.model.distribution(o, torch.zeros(len(o), 2), torch.zeros(len(o), 2))
+            obs, r, _, _, _ = self.envs.step(dist.mean.clamp(-1, 1).numpy())
+            total, steps = total + float(r.sum()), steps + self.cfg.num_envs * self.cfg.k
+        return total / self.cfg.num_envs, steps
+
+    def train(self, max_updates=None):
+        from ndp.rl.logger import METRICS
+        from ndp.runs import MetricsLogger, save_checkpoint
+
+        update = step = 0
+        best, _ = self._score(0)
+        with MetricsLogger(self.run.path, METRICS, step="global_step", tensorboard=False) as log:
+            while step < self.cfg.steps:
+                keep = {k: v.clone() for k, v in self.model.state_dict().items()}
+                with torch.no_grad():
+                    for prm in self.model.actor.parameters():
+                        prm.add_(0.05 * torch.randn_like(prm))
+                score, n = self._score(0)
+                if score < best:
+                    self.model.load_state_dict(keep)
+                best = max(best, score)
+                update, step = update + 1, step + n
+                metrics = {"update": update, "global_step": step, "charts/episode_return": best}
+                log.log(metrics)
+        save_checkpoint(
+            self.run.checkpoint,
+            {
+                "model": self.model.state_dict(),
+                "obs_norm": self.norm.state_dict(),
+                "obs_dim": self.obs_dim,
+                "config": self.cfg.to_dict(),
+                "update": update,
+                "global_step": step,
+            },
+            kind="rl",
+        )
+        return metrics
+
+    def close(self):
+        self.envs.close()
+
+
+def test_a_registered_learner_trains_and_its_run_evaluates(tmp_path, capsys):
+    from ndp.rl.methods import POLICY_CHECKPOINT_KEYS
+    from ndp.runs import load_checkpoint, read_metrics
+
+    register_method(Method("random-search", "step", "hill climbing", learner=RandomSearch))
+    try:
+        run = tmp_path / "rs"
+        args = ["rl", "train", "--task", "point-mass", "--algo", "random-search", "--steps",
+                "400", "--run-dir", str(run), "--no-progress"]  # fmt: skip
+        assert ndp_main(args) == 0
+        rows = read_metrics(run)
+        assert (
+            len(rows) == 5 and rows[-1]["charts/episode_return"] >= rows[0]["charts/episode_return"]
+        )
+        assert set(POLICY_CHECKPOINT_KEYS) <= set(load_checkpoint(run, kind="rl"))
+        capsys.readouterr()
+        assert ndp_main(["rl", "eval", str(run), "--episodes", "2", "--mode", "deterministic"]) == 0
+        out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        assert out["episodes"] == 2 and 0.0 <= out["success_any"] <= 1.0
+    finally:
+        METHODS.pop("random-search")

@@ -4,6 +4,12 @@ against a task, and the extra metrics it logs, in one place.
 Adding an on-policy method = its head (``ndp.policies.heads.register_head``) and one
 :func:`register_method` line; ``ndp rl train --algo NAME`` then trains it with the shared
 trainer, envs, evaluation and rendering (``tests/rl/test_rl_methods.py`` does exactly that).
+
+An off-policy (or any other) learner plugs in through :attr:`Method.learner`: it gets the
+resolved config and builds its envs with :func:`ndp.rl.envs.make_vector_env`, writes its run
+with :mod:`ndp.runs` and leaves a checkpoint with the keys of :data:`POLICY_CHECKPOINT_KEYS`;
+``ndp rl eval / render / export`` and ``ndp.load_policy`` then work on its runs unchanged
+(``tests/rl/test_rl_methods.py`` registers a toy random-search learner and evaluates it).
 """
 
 from __future__ import annotations
@@ -54,6 +60,17 @@ class Method:
     """``(policy config with k set, task spec) -> PolicyConfig changes`` (task presets)."""
     metrics: tuple[str, ...] = field(default=())
     """Extra metric keys this method fills (docs/metrics.md)."""
+    learner: Callable[[Any, bool], Any] | None = None
+    """``learner(resolved TrainConfig, resume) -> object with train(max_updates=None) -> last
+    metrics and close()``, for a method with its own learning loop (off-policy, evolution, ...);
+    None: the shared PPO trainer (:class:`ndp.rl.trainer.Trainer`)."""
+
+
+POLICY_CHECKPOINT_KEYS = ("model", "obs_norm", "obs_dim", "config", "update", "global_step")
+"""What a learner's ``checkpoint.pt`` (``ndp.runs.save_checkpoint(..., kind='rl')``) must hold
+for evaluation, rendering, export and resume bookkeeping: ``model`` is the state dict of
+``ndp.policies.build_actor_critic(obs_dim, spec, config.policy)``, ``obs_norm`` that of
+``ndp.rl.normalize.ObsNormalizer``, ``config`` the resolved ``TrainConfig.to_dict()``."""
 
 
 METHODS: dict[str, Method] = {}

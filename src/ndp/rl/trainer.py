@@ -494,9 +494,20 @@ def _robot_state(
     )
 
 
+def make_learner(cfg: TrainConfig, resume: bool = False) -> Any:
+    """The learner of ``cfg.algo``: its registered :attr:`Method.learner`, else :class:`Trainer`."""
+    from ndp.rl.methods import METHODS
+
+    build = METHODS[cfg.algo].learner
+    if build is None:
+        return Trainer(cfg, resume=resume)
+    task = resolve_task(cfg.task)
+    return build(resolve_config(cfg, task.spec), resume)
+
+
 def train(cfg: TrainConfig, max_updates: int | None = None) -> dict[str, float]:
     """Train a fresh run (see :class:`Trainer`); returns the last update's metrics."""
-    trainer = Trainer(cfg)
+    trainer = make_learner(cfg)
     try:
         return trainer.train(max_updates)
     finally:
@@ -524,7 +535,7 @@ def resume(
         )
     cfg = dataclasses.replace(cfg, run_dir=str(run_dir), **overrides)
     RunDir(run_dir).open_for_resume()
-    trainer = Trainer(cfg, resume=True)
+    trainer = make_learner(cfg, resume=True)
     try:
         return trainer.train(max_updates)
     finally:

@@ -70,26 +70,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _config_command(argv: list[str]) -> Callable[[list[str]], int] | None:
-    for _name, module in _modules():
+def _config_command(argv: list[str]) -> tuple[str, Callable[[list[str]], int]] | None:
+    """(module name, runner) of the typed-config command that ``argv`` names, if any."""
+    for name, module in _modules():
         if isinstance(module, str):
             continue
         for words, run in getattr(module, "CONFIG_COMMANDS", {}).items():
             n = len(words.split())
             if argv[:n] == words.split():
-                return lambda rest, run=run, n=n: run(rest[n:])
+                return name, lambda rest, run=run, n=n: run(rest[n:])
     return None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args_list = list(sys.argv[1:] if argv is None else argv)
     try:
-        run = _config_command(args_list)
-        if run is not None:
+        found = _config_command(args_list)
+        if found is not None:
+            name, run = found
             try:
                 return int(run(args_list) or 0)
             except SystemExit as exc:  # --help (0) or a bad option (2), message already shown
                 return exc.code if isinstance(exc.code, int) else 2
+            except ModuleNotFoundError as exc:
+                missing = (exc.name or "ndp").split(".")[0]
+                if missing == "ndp" or name not in _EXTRAS:
+                    raise
+                print(_missing_extra_message(*_EXTRAS[name], missing), file=sys.stderr)
+                return 2
         parser = build_parser()
         args = parser.parse_args(args_list)
         return int(args.func(args) or 0)

@@ -96,3 +96,25 @@ def test_atomic_write_gives_usual_file_mode(tmp_path):
     umask = os.umask(0)
     os.umask(umask)
     assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["--help"], ["rl", "train", "--help"], ["il", "train", "--help"], ["il", "eval", "--help"],
+     ["rl", "train", "--lr", "abc"], ["il", "train", "--bogus"], ["rl", "eval", "--help"]],
+)  # fmt: skip
+def test_help_and_argument_errors_import_no_heavy_module(argv):
+    """Help and argument errors never import torch, scipy or the simulators (they answer in a
+    fraction of a second; benchmarks/cli_startup.py measures it)."""
+    code = (
+        "import sys\nfrom ndp.cli import main\n"
+        "try:\n    rc = main(sys.argv[1:])\nexcept SystemExit as e:\n    rc = e.code\n"
+        "heavy = [m for m in ('torch', 'scipy', 'gymnasium', 'mujoco', 'metaworld') "
+        "if m in sys.modules]\n"
+        "print('HEAVY', heavy, 'RC', rc)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=120
+    ).stdout
+    assert "HEAVY [] RC" in out, out[-500:]
+    assert out.strip().endswith("RC 0") == ("--help" in argv)

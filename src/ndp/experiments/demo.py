@@ -19,15 +19,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-import torch
-
-from ndp.dmp import RBF_KINDS, DMPConfig, dmp_rollout, fit_dmp
 from ndp.io import atomic_write_text
 
 
 def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
     """Plot DMP rollouts and a fit; returns a summary with the fit error."""
     import matplotlib
+    import torch
+
+    from ndp.dmp import RBF_KINDS, DMPConfig, dmp_rollout, fit_dmp
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

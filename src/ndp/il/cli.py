@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated
 
-from ndp.il.train import DataConfig, TrainConfig
+from ndp.il.config import DataConfig, TrainConfig
 from ndp.runs.cli import POSITIONAL
 
 TRAIN_DESCRIPTION = (
@@ -65,13 +65,14 @@ def _check_data_path(d: DataConfig) -> None:
 
 def train_command(argv: list[str]) -> int:
     """``ndp il train [--resume RUN_DIR] [options]``."""
-    from ndp.il.train import SAFE_ON_RESUME, evaluate, load_checkpoint, train
+    from ndp.il.config import SAFE_ON_RESUME
+    from ndp.runs import load_checkpoint
     from ndp.runs.cli import changed_fields, parse_config, pop_option
 
     resume_dir, rest = pop_option(argv, "--resume")
     prog = "ndp il train"
     if resume_dir is not None:
-        saved = TrainConfig.from_dict(load_checkpoint(Path(resume_dir))["config"])
+        saved = TrainConfig.from_dict(load_checkpoint(Path(resume_dir), kind="il")["config"])
         saved = dataclasses.replace(saved, run_dir=str(resume_dir))
         cmd = parse_config(
             TrainCommand,
@@ -91,6 +92,8 @@ def train_command(argv: list[str]) -> int:
         cmd = parse_config(TrainCommand, rest, prog=prog, description=TRAIN_DESCRIPTION)
     cfg = cmd.config
     _check_data_path(cfg.data)
+    from ndp.il.train import evaluate, train  # torch and the data loaders, once parsed
+
     summary = train(cfg, resume=resume_dir is not None)
     if cmd.eval:
         summary["eval"] = evaluate(cfg.run_dir, dtw=cmd.dtw, threads=cfg.threads)
@@ -100,14 +103,16 @@ def train_command(argv: list[str]) -> int:
 
 def eval_command(argv: list[str]) -> int:
     """``ndp il eval RUN [options]``: data options not given keep the run's values."""
-    from ndp.il.train import evaluate, load_checkpoint
+    from ndp.runs import load_checkpoint
     from ndp.runs.cli import parse_config
 
     prog = "ndp il eval"
     first = parse_config(EvalCommand, argv, prog=prog)  # finds RUN (and handles --help)
-    saved = DataConfig(**load_checkpoint(Path(first.run))["config"]["data"])
+    saved = DataConfig(**load_checkpoint(Path(first.run), kind="il")["config"]["data"])
     cmd = parse_config(EvalCommand, argv, prog=prog, default=EvalCommand(run=first.run, data=saved))
     _check_data_path(cmd.data)
+    from ndp.il.train import evaluate
+
     out = evaluate(
         cmd.run,
         data_cfg=cmd.data if cmd.data != saved else None,

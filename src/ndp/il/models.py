@@ -27,89 +27,22 @@ as ``amp_scale * o_a`` (pixels / s^2 in DMP time).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
-from typing import Annotated
-
 import torch
 from torch import nn
 
-from ndp.dmp import DMPConfig, DMPLayer, fit_dmp
+from ndp.dmp import DMPLayer, fit_dmp
+from ndp.il.config import MODEL_KINDS, ModelConfig
 from ndp.nets import MLP, MnistCNN
-from ndp.runs.cli import HIDDEN, cli
 
-MODEL_KINDS = ("ndp", "cnn", "cnn-dmp")
-
-
-@dataclass(frozen=True)
-class ModelConfig:
-    """Settings of an image-to-trajectory model."""
-
-    kind: Annotated[str, cli(name="model")] = "ndp"
-    """Model: 'ndp' (CNN -> (g, w) -> DMP layer), 'cnn' (direct regression of the points) or
-    'cnn-dmp' (regression of least-squares DMP parameters)."""
-    n_basis: int = 30
-    """N, DMP basis functions per coordinate (DMP models)."""
-    a_z: float = 25.0
-    """DMP spring constant alpha_z (b_z = a_z / 4)."""
-    steps: int = 300
-    """k, DMP integration steps = trajectory points - 1."""
-    feat_dim: int = 200
-    """Width of the CNN encoder's last fully connected layer."""
-    head_hidden: tuple[int, ...] = field(default_factory=tuple)
-    """Hidden widths of the MLP head between the encoder and the outputs (empty: linear)."""
-    image_size: int = 28
-    """Images are resized to this side before the encoder (the paper: 40 -> 28)."""
-    frame: Annotated[float, HIDDEN] = 40.0
-    """Side of the pixel frame of the trajectories (goal / point output scaling); taken from
-    the data set, not an option."""
-    forcing_param: str = "amplitude"
-    """DMP forcing output: 'amplitude' (a = w (g - y0)) or 'weights' (w directly)."""
-    amp_scale: float = 1000.0
-    """Scale of the forcing-amplitude outputs (pixels / s^2)."""
-    weight_scale: float = 100.0
-    """Scale of the raw weight outputs when forcing_param == 'weights'."""
-    fit_ridge: float = 1e-3
-    """Ridge of the least-squares DMP fit that makes CNN-DMP's parameter targets."""
-
-    def __post_init__(self) -> None:
-        if self.kind not in MODEL_KINDS:
-            raise ValueError(f"model: expected one of {', '.join(MODEL_KINDS)}, got {self.kind!r}")
-        if self.forcing_param not in ("amplitude", "weights"):
-            raise ValueError(
-                f"forcing_param: expected 'amplitude' or 'weights', got {self.forcing_param!r}"
-            )
-        for name in ("n_basis", "steps", "feat_dim", "image_size"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
-        for name in ("a_z", "frame", "amp_scale", "weight_scale"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and v > 0):
-                raise ValueError(f"{name}: expected a number > 0, got {v!r}")
-        if any(int(h) < 1 for h in self.head_hidden):
-            raise ValueError(f"head_hidden: expected positive widths, got {self.head_hidden!r}")
-        object.__setattr__(self, "head_hidden", tuple(int(h) for h in self.head_hidden))
-
-    @property
-    def n_points(self) -> int:
-        """Trajectory points, steps + 1."""
-        return self.steps + 1
-
-    def dmp_config(self) -> DMPConfig:
-        """The DMP integrator settings (tau = 1, dt = 1 / steps); amplitude outputs use the
-        unscaled forcing term (``scale_by_goal=False``)."""
-        return DMPConfig(
-            n_basis=self.n_basis,
-            a_z=self.a_z,
-            steps=self.steps,
-            scale_by_goal=self.forcing_param != "amplitude",
-        )
-
-    def as_dict(self) -> dict:
-        """Plain-dict form (JSON-serialisable)."""
-        d = asdict(self)
-        d["head_hidden"] = list(self.head_hidden)
-        return d
+__all__ = [
+    "MODEL_KINDS",
+    "CNNDMPModel",
+    "CNNModel",
+    "ModelConfig",
+    "NDPModel",
+    "TrajectoryModel",
+    "build_model",
+]
 
 
 class TrajectoryModel(nn.Module):

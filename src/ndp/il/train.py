@@ -21,13 +21,13 @@ import dataclasses
 import json
 import math
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Any
 
 import numpy as np
 import torch
 
+from ndp.il.config import SAFE_ON_RESUME, SPLITS, DataConfig, ModelConfig, TrainConfig
 from ndp.il.data import (
     DigitData,
     load_npz,
@@ -37,12 +37,11 @@ from ndp.il.data import (
     writer_split,
 )
 from ndp.il.metrics import dtw_distance, per_sample_mse, save_prediction_grid, summarize
-from ndp.il.models import CNNDMPModel, ModelConfig, TrajectoryModel, build_model
+from ndp.il.models import CNNDMPModel, TrajectoryModel, build_model
 from ndp.il.synthetic import SyntheticConfig
 from ndp.io import atomic_write_text
 from ndp.runs import MetricsLogger, RunDir, save_checkpoint
 from ndp.runs import load_checkpoint as _load_run_checkpoint
-from ndp.runs.cli import cli
 
 METRICS = (
     "epoch",
@@ -57,136 +56,28 @@ METRICS = (
 METRIC_NAMES = METRICS[1:]
 """The per-epoch metrics without the index column."""
 
+__all__ = [
+    "METRICS",
+    "METRIC_NAMES",
+    "SAFE_ON_RESUME",
+    "SPLITS",
+    "DataConfig",
+    "ModelConfig",
+    "NonFiniteLossError",
+    "TrainConfig",
+    "evaluate",
+    "load_checkpoint",
+    "load_data",
+    "make_split",
+    "predict",
+    "train",
+]
+
 DEFAULT_PENDIGITS = Path(__file__).resolve().parents[4] / "shared" / "data" / "pendigits"
 
 
 class NonFiniteLossError(ValueError):
     """Raised when the training loss becomes NaN or Inf; the last good checkpoint is kept."""
-
-
-@dataclass(frozen=True)
-class DataConfig:
-    """Which data set and which split."""
-
-    source: Annotated[str, cli(name="data")] = "synthetic"
-    """'synthetic', 'pendigits' or a path to a user's .npz file (images [n, H, W],
-    trajectories [n, T, 2])."""
-    data_dir: str = "data"
-    """Cache folder of the synthetic set."""
-    n_samples: int = 20000
-    """Synthetic set size (the split uses its first n_train + n_test samples)."""
-    data_seed: int = 0
-    """Seed of the synthetic generator."""
-    pendigits_path: str = ""
-    """UNIPEN file of Pendigits ('' = ../shared/data/pendigits/pendigits-train)."""
-    split: str = "auto"
-    """'paper' (shuffle the first n_train + n_test), 'writer' (writer-disjoint), or 'auto'
-    (writer for Pendigits, paper otherwise)."""
-    n_train: int = 10000
-    """Training samples of the paper split."""
-    n_test: int = 2000
-    """Test samples of the paper split."""
-    test_fraction: float = 0.2
-    """Fraction of writers (writer split) or samples (npz without n_train) held out."""
-    split_seed: int = 0
-    """Seed of the train / test shuffle."""
-    resample: bool = False
-    """Resample .npz trajectories of another length to 301 points instead of refusing."""
-
-    def __post_init__(self) -> None:
-        if self.split not in SPLITS:
-            raise ValueError(f"split: expected one of {', '.join(SPLITS)}, got {self.split!r}")
-        for name in ("n_samples", "n_train", "n_test"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
-        if not (isinstance(self.test_fraction, (int, float)) and 0 < self.test_fraction < 1):
-            raise ValueError(
-                f"test_fraction: expected a number in (0, 1), got {self.test_fraction!r}"
-            )
-
-
-SPLITS = ("auto", "paper", "writer")
-"""Train / test split kinds of :class:`DataConfig`."""
-
-SAFE_ON_RESUME = ("epochs", "progress", "threads", "tensorboard", "eval_every")
-"""TrainConfig fields a resume may change (``epochs`` extends the run); the others are refused."""
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    """Everything that defines a training run (saved as config.json in the run directory)."""
-
-    run_dir: Annotated[str, cli(aliases=("--out",))] = "runs/il"
-    """Output folder of the run."""
-    data: DataConfig = field(default_factory=DataConfig)
-    """Data set and split."""
-    model: ModelConfig = field(default_factory=ModelConfig)
-    """Model settings."""
-    epochs: int = 71
-    """Passes over the training split."""
-    batch_size: int = 100
-    """Samples per Adam step."""
-    lr: float = 1e-3
-    """Adam learning rate."""
-    seed: int = 0
-    """Seed of initialisation and batch order."""
-    threads: int = 0
-    """torch CPU threads (0: leave torch's default)."""
-    device: str = "cpu"
-    """torch device of the model and the data ('cpu', 'cuda', 'cuda:1', ...)."""
-    progress: bool = True
-    """Show a tqdm progress bar."""
-    tensorboard: bool = True
-    """Write TensorBoard event files besides the CSV."""
-    eval_every: int = 1
-    """Evaluate the test MSE every this many epochs (0: only at the end)."""
-    max_train_batches: int = 0
-    """Stop each epoch after this many batches (0: all; for smoke tests)."""
-    encoder_init: str = ""
-    """Pretraining option: a run directory / checkpoint whose CNN encoder weights initialise
-    this model's encoder ('' = train from scratch)."""
-
-    def __post_init__(self) -> None:
-        if isinstance(self.data, dict):
-            object.__setattr__(self, "data", DataConfig(**self.data))
-        if isinstance(self.model, dict):
-            object.__setattr__(self, "model", ModelConfig(**self.model))
-        for name, low in (("epochs", 0), ("batch_size", 1), ("threads", 0), ("seed", 0)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
-        for name in ("eval_every", "max_train_batches"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise ValueError(f"{name}: expected an integer >= 0, got {v!r}")
-        if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
-            raise ValueError(f"lr: expected a finite number > 0, got {self.lr!r}")
-        if not self.run_dir:
-            raise ValueError("run_dir: expected a directory, got ''")
-        try:
-            torch.device(self.device)
-        except RuntimeError:
-            raise ValueError(
-                f"device: expected a torch device such as 'cpu' or 'cuda', got {self.device!r}"
-            ) from None
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-serialisable form."""
-        d = dataclasses.asdict(self)
-        d["model"] = self.model.as_dict()
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
-        """Inverse of :meth:`as_dict` (unknown keys raise ValueError)."""
-        d = dict(d)
-        try:
-            d["data"] = DataConfig(**d.get("data", {}))
-            d["model"] = ModelConfig(**d.get("model", {}))
-            return cls(**d)
-        except TypeError as exc:
-            raise ValueError(f"config: {exc}") from None
 
 
 # --------------------------------------------------------------------------------------------

@@ -4,16 +4,35 @@ PPO, PPO-multi and NDP share one :class:`ActorCritic`; they differ only in the a
 (:mod:`ndp.policies.heads`).
 """
 
-from ndp.policies.actor_critic import ActorCritic, build_actor_critic
-from ndp.policies.config import HEADS, PolicyConfig
-from ndp.policies.distributions import (
-    ParamGaussian,
-    PolicyDistribution,
-    SubActionGaussian,
-    diag_gaussian_entropy,
-    diag_gaussian_log_prob,
-)
-from ndp.policies.heads import ActionHead, MultiHead, NDPHead, StepHead, build_head
+from typing import Any
+
+_EXPORTS = {
+    "ActorCritic": "actor_critic",
+    "build_actor_critic": "actor_critic",
+    "HEADS": "config",
+    "PolicyConfig": "config",
+    "ParamGaussian": "distributions",
+    "PolicyDistribution": "distributions",
+    "SubActionGaussian": "distributions",
+    "diag_gaussian_entropy": "distributions",
+    "diag_gaussian_log_prob": "distributions",
+    "ActionHead": "heads",
+    "MultiHead": "heads",
+    "NDPHead": "heads",
+    "StepHead": "heads",
+    "build_head": "heads",
+}
+
+
+def __getattr__(name: str) -> Any:
+    """Import the sub-module of an exported name on first use (the configs import without
+    torch, so command-line parsers stay fast)."""
+    if name in _EXPORTS:
+        import importlib
+
+        return getattr(importlib.import_module(f"ndp.policies.{_EXPORTS[name]}"), name)
+    raise AttributeError(f"module 'ndp.policies' has no attribute {name!r}")
+
 
 __all__ = [
     "HEADS",

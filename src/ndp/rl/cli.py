@@ -66,10 +66,15 @@ def add_subparser(sub: Any) -> None:
 
 def train_command(argv: list[str]) -> int:
     """``ndp rl train [--resume RUN_DIR] [options of TrainConfig]``."""
-    from ndp.rl.config import load_config
-    from ndp.rl.trainer import SAFE_ON_RESUME, TrainingDivergedError, resume, train
+    from ndp.rl.config import SAFE_ON_RESUME, load_config
     from ndp.runs import RunDir
     from ndp.runs.cli import changed_fields, parse_config, pop_option
+
+    # the trainer (torch, the simulators) is imported only once the options are parsed
+    def trainer() -> Any:
+        from ndp.rl import trainer as module
+
+        return module
 
     resume_dir, rest = pop_option(argv, "--resume")
     prog = "ndp rl train"
@@ -88,7 +93,7 @@ def train_command(argv: list[str]) -> int:
                     f"resume: these options would change the run and are refused: {refused} "
                     f"(only {list(SAFE_ON_RESUME)} may change; start a new run for the others)"
                 )
-            metrics = resume(resume_dir, **{f: getattr(cfg, f) for f in changed})
+            metrics = trainer().resume(resume_dir, **{f: getattr(cfg, f) for f in changed})
             if not metrics:
                 print(
                     f"ndp: nothing to do: {resume_dir} has finished its budget; --resume with "
@@ -99,8 +104,8 @@ def train_command(argv: list[str]) -> int:
         else:
             cfg = parse_config(TrainConfig, rest, prog=prog, description=TRAIN_DESCRIPTION)
             run_name = cfg.run_dir or f"runs/{cfg.task}-{cfg.algo}-s{cfg.seed}"
-            metrics = train(cfg)
-    except TrainingDivergedError as exc:
+            metrics = trainer().train(cfg)
+    except FloatingPointError as exc:  # ndp.rl.trainer.TrainingDivergedError
         print(f"ndp: error: {exc}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:

@@ -27,6 +27,11 @@ from typing import Any
 
 from ndp.policies.config import PolicyConfig
 
+SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers", "device")
+"""TrainConfig fields a resume may change: they change neither the numbers nor the history
+(``steps`` extends or shortens the budget; ``device`` moves the update, which changes float
+rounding only)."""
+
 
 @dataclass(frozen=True)
 class PPOConfig:

@@ -18,8 +18,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ndp.envs.presets import ndp_preset
-
 _NDP_FIELDS = ("n_basis", "a_z", "dmp_steps", "goal_scale", "weight_scale")
 
 
@@ -31,6 +29,8 @@ def no_dmp(policy: Any, spec: Any) -> dict[str, Any]:
 def resolve_ndp(policy: Any, spec: Any) -> dict[str, Any]:
     """NDP: ``n_basis``, ``a_z``, ``goal_scale`` from the task's preset where None;
     ``dmp_steps`` = preset steps per sub-step * k; ``weight_scale`` = a_z^2 / 4 where None."""
+    from ndp.envs.presets import ndp_preset
+
     pre = spec.ndp if getattr(spec, "ndp", None) is not None else ndp_preset(spec.name)
     a_z = float(policy.a_z if policy.a_z is not None else pre.a_z)
     return {

@@ -30,7 +30,7 @@ import torch
 
 from ndp.policies import build_actor_critic
 from ndp.policies.distributions import SubActionGaussian
-from ndp.rl.config import TrainConfig, load_config, resolve_config
+from ndp.rl.config import SAFE_ON_RESUME, TrainConfig, load_config, resolve_config
 from ndp.rl.envs import env_seeds, make_vector_env, resolve_task, step_info
 from ndp.rl.gae import bootstrap_truncated, gae_substeps
 from ndp.rl.logger import METRICS
@@ -44,11 +44,6 @@ from ndp.rl.ppo import (
     value_loss,
 )
 from ndp.runs import MetricsLogger, RunDir, load_checkpoint, save_checkpoint
-
-SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers", "device")
-"""TrainConfig fields a resume may change: they change neither the numbers nor the history
-(``steps`` extends or shortens the budget; ``device`` moves the update, which changes float
-rounding only)."""
 
 
 class TrainingDivergedError(FloatingPointError):

@@ -1,0 +1,220 @@
+"""Typed, frozen configs of an imitation run (torch-free: the command line parses them fast).
+
+:class:`TrainConfig` holds a :class:`DataConfig` and a :class:`ModelConfig`; every field has a
+docstring, which is its ``--help`` text in ``ndp il train`` (tyro, :mod:`ndp.runs.cli`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING, Annotated, Any
+
+from ndp.runs.cli import HIDDEN, cli
+
+if TYPE_CHECKING:
+    from ndp.dmp import DMPConfig
+
+MODEL_KINDS = ("ndp", "cnn", "cnn-dmp")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Settings of an image-to-trajectory model."""
+
+    kind: Annotated[str, cli(name="model")] = "ndp"
+    """Model: 'ndp' (CNN -> (g, w) -> DMP layer), 'cnn' (direct regression of the points) or
+    'cnn-dmp' (regression of least-squares DMP parameters)."""
+    n_basis: int = 30
+    """N, DMP basis functions per coordinate (DMP models)."""
+    a_z: float = 25.0
+    """DMP spring constant alpha_z (b_z = a_z / 4)."""
+    steps: int = 300
+    """k, DMP integration steps = trajectory points - 1."""
+    feat_dim: int = 200
+    """Width of the CNN encoder's last fully connected layer."""
+    head_hidden: tuple[int, ...] = field(default_factory=tuple)
+    """Hidden widths of the MLP head between the encoder and the outputs (empty: linear)."""
+    image_size: int = 28
+    """Images are resized to this side before the encoder (the paper: 40 -> 28)."""
+    frame: Annotated[float, HIDDEN] = 40.0
+    """Side of the pixel frame of the trajectories (goal / point output scaling); taken from
+    the data set, not an option."""
+    forcing_param: str = "amplitude"
+    """DMP forcing output: 'amplitude' (a = w (g - y0)) or 'weights' (w directly)."""
+    amp_scale: float = 1000.0
+    """Scale of the forcing-amplitude outputs (pixels / s^2)."""
+    weight_scale: float = 100.0
+    """Scale of the raw weight outputs when forcing_param == 'weights'."""
+    fit_ridge: float = 1e-3
+    """Ridge of the least-squares DMP fit that makes CNN-DMP's parameter targets."""
+
+    def __post_init__(self) -> None:
+        if self.kind not in MODEL_KINDS:
+            raise ValueError(f"model: expected one of {', '.join(MODEL_KINDS)}, got {self.kind!r}")
+        if self.forcing_param not in ("amplitude", "weights"):
+            raise ValueError(
+                f"forcing_param: expected 'amplitude' or 'weights', got {self.forcing_param!r}"
+            )
+        for name in ("n_basis", "steps", "feat_dim", "image_size"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+        for name in ("a_z", "frame", "amp_scale", "weight_scale"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v > 0):
+                raise ValueError(f"{name}: expected a number > 0, got {v!r}")
+        if any(int(h) < 1 for h in self.head_hidden):
+            raise ValueError(f"head_hidden: expected positive widths, got {self.head_hidden!r}")
+        object.__setattr__(self, "head_hidden", tuple(int(h) for h in self.head_hidden))
+
+    @property
+    def n_points(self) -> int:
+        """Trajectory points, steps + 1."""
+        return self.steps + 1
+
+    def dmp_config(self) -> DMPConfig:
+        """The DMP integrator settings (tau = 1, dt = 1 / steps); amplitude outputs use the
+        unscaled forcing term (``scale_by_goal=False``)."""
+        from ndp.dmp import DMPConfig
+
+        return DMPConfig(
+            n_basis=self.n_basis,
+            a_z=self.a_z,
+            steps=self.steps,
+            scale_by_goal=self.forcing_param != "amplitude",
+        )
+
+    def as_dict(self) -> dict:
+        """Plain-dict form (JSON-serialisable)."""
+        d = asdict(self)
+        d["head_hidden"] = list(self.head_hidden)
+        return d
+
+
+@dataclass(frozen=True)
+class DataConfig:
+    """Which data set and which split."""
+
+    source: Annotated[str, cli(name="data")] = "synthetic"
+    """'synthetic', 'pendigits' or a path to a user's .npz file (images [n, H, W],
+    trajectories [n, T, 2])."""
+    data_dir: str = "data"
+    """Cache folder of the synthetic set."""
+    n_samples: int = 20000
+    """Synthetic set size (the split uses its first n_train + n_test samples)."""
+    data_seed: int = 0
+    """Seed of the synthetic generator."""
+    pendigits_path: str = ""
+    """UNIPEN file of Pendigits ('' = ../shared/data/pendigits/pendigits-train)."""
+    split: str = "auto"
+    """'paper' (shuffle the first n_train + n_test), 'writer' (writer-disjoint), or 'auto'
+    (writer for Pendigits, paper otherwise)."""
+    n_train: int = 10000
+    """Training samples of the paper split."""
+    n_test: int = 2000
+    """Test samples of the paper split."""
+    test_fraction: float = 0.2
+    """Fraction of writers (writer split) or samples (npz without n_train) held out."""
+    split_seed: int = 0
+    """Seed of the train / test shuffle."""
+    resample: bool = False
+    """Resample .npz trajectories of another length to 301 points instead of refusing."""
+
+    def __post_init__(self) -> None:
+        if self.split not in SPLITS:
+            raise ValueError(f"split: expected one of {', '.join(SPLITS)}, got {self.split!r}")
+        for name in ("n_samples", "n_train", "n_test"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+        if not (isinstance(self.test_fraction, (int, float)) and 0 < self.test_fraction < 1):
+            raise ValueError(
+                f"test_fraction: expected a number in (0, 1), got {self.test_fraction!r}"
+            )
+
+
+SPLITS = ("auto", "paper", "writer")
+"""Train / test split kinds of :class:`DataConfig`."""
+
+SAFE_ON_RESUME = ("epochs", "progress", "threads", "tensorboard", "eval_every")
+"""TrainConfig fields a resume may change (``epochs`` extends the run); the others are refused."""
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything that defines a training run (saved as config.json in the run directory)."""
+
+    run_dir: Annotated[str, cli(aliases=("--out",))] = "runs/il"
+    """Output folder of the run."""
+    data: DataConfig = field(default_factory=DataConfig)
+    """Data set and split."""
+    model: ModelConfig = field(default_factory=ModelConfig)
+    """Model settings."""
+    epochs: int = 71
+    """Passes over the training split."""
+    batch_size: int = 100
+    """Samples per Adam step."""
+    lr: float = 1e-3
+    """Adam learning rate."""
+    seed: int = 0
+    """Seed of initialisation and batch order."""
+    threads: int = 0
+    """torch CPU threads (0: leave torch's default)."""
+    device: str = "cpu"
+    """torch device of the model and the data ('cpu', 'cuda', 'cuda:1', ...)."""
+    progress: bool = True
+    """Show a tqdm progress bar."""
+    tensorboard: bool = True
+    """Write TensorBoard event files besides the CSV."""
+    eval_every: int = 1
+    """Evaluate the test MSE every this many epochs (0: only at the end)."""
+    max_train_batches: int = 0
+    """Stop each epoch after this many batches (0: all; for smoke tests)."""
+    encoder_init: str = ""
+    """Pretraining option: a run directory / checkpoint whose CNN encoder weights initialise
+    this model's encoder ('' = train from scratch)."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.data, dict):
+            object.__setattr__(self, "data", DataConfig(**self.data))
+        if isinstance(self.model, dict):
+            object.__setattr__(self, "model", ModelConfig(**self.model))
+        for name, low in (("epochs", 0), ("batch_size", 1), ("threads", 0), ("seed", 0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
+        for name in ("eval_every", "max_train_batches"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise ValueError(f"{name}: expected an integer >= 0, got {v!r}")
+        if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"lr: expected a finite number > 0, got {self.lr!r}")
+        if not self.run_dir:
+            raise ValueError("run_dir: expected a directory, got ''")
+        import torch
+
+        try:
+            torch.device(self.device)
+        except RuntimeError:
+            raise ValueError(
+                f"device: expected a torch device such as 'cpu' or 'cuda', got {self.device!r}"
+            ) from None
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-serialisable form."""
+        d = dataclasses.asdict(self)
+        d["model"] = self.model.as_dict()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
+        """Inverse of :meth:`as_dict` (unknown keys raise ValueError)."""
+        d = dict(d)
+        try:
+            d["data"] = DataConfig(**d.get("data", {}))
+            d["model"] = ModelConfig(**d.get("model", {}))
+            return cls(**d)
+        except TypeError as exc:
+            raise ValueError(f"config: {exc}") from None

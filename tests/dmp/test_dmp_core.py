@@ -281,3 +281,25 @@ def test_config_refuses_divergent_euler_settings():
     w = torch.zeros(1, 1, cfg.n_basis)
     y = dmp_rollout(g, w, torch.zeros(1, 1), cfg=cfg).pos
     assert float(y.abs().max()) < 10.0
+
+
+@pytest.mark.parametrize("b,d", [(0, 2), (3, 0)])
+@pytest.mark.parametrize("method", ["fast", "loop"])
+def test_empty_batch_or_dof_gives_empty_results(b, d, method):
+    cfg = DMPConfig(n_basis=5, steps=10)
+    traj = dmp_rollout(torch.zeros(b, d), torch.zeros(b, d, 5), torch.zeros(b, d), cfg=cfg,
+                       method=method)  # fmt: skip
+    for t in (traj.pos, traj.vel, traj.acc):
+        assert t.shape == (b, 11, d)
+
+
+def test_finite_inputs_that_overflow_are_caught_at_the_outputs():
+    cfg = DMPConfig(n_basis=5, steps=10, scale_by_goal=False)
+    w = torch.full((1, 1, 5), 2.5e38)  # finite (their sum is not); the accelerations overflow
+    with pytest.raises(FloatingPointError, match="outputs: the rollout is not finite"):
+        DMPLayer(cfg)(torch.ones(1, 1), w, torch.zeros(1, 1))
+    with pytest.raises(FloatingPointError, match="outputs"):
+        dmp_rollout(torch.ones(1, 1), w, torch.zeros(1, 1), cfg=cfg, method="loop", check=True)
+    big = DMPConfig(n_basis=5, steps=10)  # scale_by_goal: w * (g - y0) itself overflows
+    with pytest.raises(FloatingPointError, match=r"w \* \(g - y0\) overflow"):
+        DMPLayer(big)(torch.full((1, 1), 1e20), torch.full((1, 1, 5), 1e20), torch.zeros(1, 1))

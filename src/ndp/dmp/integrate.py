@@ -334,8 +334,13 @@ def _fast_packed(
     if check and not bool(torch.isfinite(u.sum())):
         # One reduction over the packed inputs; name the culprit only when something is wrong.
         check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0)
-        raise FloatingPointError("inputs: expected finite values, their sum overflows")
-    return u.reshape(b * d, -1), m
+        if not bool(torch.isfinite(u).all()):
+            raise FloatingPointError(
+                f"inputs: the forcing amplitudes w * (g - y0) overflow {u.dtype} (finite goal, "
+                "weights and y0 whose product is not)"
+            )
+        # only the sum overflowed: the outputs are checked after the product
+    return u.reshape(b * d, u.shape[-1]), m  # explicit width: B = 0 or D = 0 give empty results
 
 
 def _fast(
@@ -349,8 +354,20 @@ def _fast(
     u, m = _fast_packed(cfg, goal, weights, y0, dy0, check)
     b, d = goal.shape
     out = (u @ m).view(b, d, 3, cfg.n_out).permute(2, 0, 3, 1)
+    if check:
+        _check_outputs(out)
     pos, vel, acc = out.unbind(0)
     return DMPTrajectory(pos, vel, acc)
+
+
+def _check_outputs(out: torch.Tensor) -> None:
+    """Finite inputs can still overflow (huge weights in float32): one reduction over the
+    outputs, a one-line error when it is not finite."""
+    if not bool(torch.isfinite(out).all()):
+        raise FloatingPointError(
+            "outputs: the rollout is not finite although its inputs are (goal / weights too "
+            f"large for {out.dtype}); scale the inputs down or use float64"
+        )
 
 
 def _fast_positions(
@@ -363,7 +380,10 @@ def _fast_positions(
 ) -> torch.Tensor:
     u, m = _fast_packed(cfg, goal, weights, y0, dy0, check)
     b, d = goal.shape
-    return (u @ m[:, : cfg.n_out]).view(b, d, cfg.n_out).transpose(1, 2)
+    pos = (u @ m[:, : cfg.n_out]).view(b, d, cfg.n_out).transpose(1, 2)
+    if check:
+        _check_outputs(pos)
+    return pos
 
 
 def dmp_rollout(
@@ -407,9 +427,15 @@ def dmp_rollout(
             raise ValueError("method: 'fast' needs a fixed a_z; use 'loop' or 'auto' with learn_az")
         lo, hi = cfg.az_range
         assert a_z is not None  # checked above
-        return _reference(cfg, goal, weights, y0, dy0, a_z.clamp(lo, hi))
+        traj = _reference(cfg, goal, weights, y0, dy0, a_z.clamp(lo, hi))
+        if check:
+            _check_outputs(traj.pos)
+        return traj
     if method == "loop":
-        return _reference(cfg, goal, weights, y0, dy0, None)
+        traj = _reference(cfg, goal, weights, y0, dy0, None)
+        if check:
+            _check_outputs(traj.pos)
+        return traj
     return _fast(cfg, goal, weights, y0, dy0, check)
 
 

@@ -29,10 +29,29 @@ def atomic_write(path: str | os.PathLike, write: Callable[[BinaryIO], Any]) -> N
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and exc.filename is None:
+            # e.g. a full disk inside torch.save: name the file and the cause in one line
+            raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from exc
         raise
+
+
+TMP_GLOB = ".*.tmp"
+"""Pattern of the temporary files :func:`atomic_write` creates (``.<name>.<random>.tmp``)."""
+
+
+def remove_stale_tmp(folder: str | os.PathLike) -> list[Path]:
+    """Delete temporary files a killed :func:`atomic_write` left in ``folder``; returns them."""
+    folder = Path(folder)
+    removed = []
+    if folder.is_dir():
+        for p in folder.glob(TMP_GLOB):
+            if p.is_file():
+                p.unlink()
+                removed.append(p)
+    return removed
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:

@@ -22,7 +22,8 @@ from ndp.runs.cli import POSITIONAL
 TRAIN_DESCRIPTION = (
     "Train NDP, CNN or CNN-DMP on digit images -> pen trajectories (paper protocol by default). "
     "--resume RUN_DIR continues a killed run from its checkpoint with its saved config; only "
-    "--epochs (extends it), --progress, --threads, --tensorboard and --eval-every may change."
+    "--epochs (extends it), --progress, --threads, --tensorboard and --eval-every may change. "
+    "A directory that holds a run is refused unless --overwrite (which names what it removes)."
 )
 
 
@@ -67,9 +68,13 @@ def train_command(argv: list[str]) -> int:
     """``ndp il train [--resume RUN_DIR] [options]``."""
     from ndp.il.config import SAFE_ON_RESUME
     from ndp.runs import load_checkpoint
-    from ndp.runs.cli import changed_fields, parse_config, pop_option
+    from ndp.runs.cli import changed_fields, parse_config, pop_flag, pop_option
+    from ndp.runs.signals import report_stop, stop_on_sigterm
 
     resume_dir, rest = pop_option(argv, "--resume")
+    overwrite, rest = pop_flag(rest, "--overwrite")
+    if overwrite and resume_dir is not None:
+        raise ValueError("--overwrite: cannot be combined with --resume (replace or continue)")
     prog = "ndp il train"
     if resume_dir is not None:
         saved = TrainConfig.from_dict(load_checkpoint(Path(resume_dir), kind="il")["config"])
@@ -94,7 +99,11 @@ def train_command(argv: list[str]) -> int:
     _check_data_path(cfg.data)
     from ndp.il.train import evaluate, train  # torch and the data loaders, once parsed
 
-    summary = train(cfg, resume=resume_dir is not None)
+    try:
+        with stop_on_sigterm():
+            summary = train(cfg, resume=resume_dir is not None, overwrite=overwrite)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (ndp.runs.signals.Terminated)
+        return report_stop(exc, f"ndp il train --resume {cfg.run_dir}")
     if cmd.eval:
         summary["eval"] = evaluate(cfg.run_dir, dtw=cmd.dtw, threads=cfg.threads)
     print(json.dumps(summary, indent=2))

@@ -167,13 +167,15 @@ def _set_threads(n: int) -> None:
 # --------------------------------------------------------------------------------------------
 
 
-def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
+def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> dict[str, Any]:
     """Train a model; returns a summary (final metrics, timings, paths).
 
     Args:
         cfg: run settings. With ``resume`` the run directory's config.json is used instead
             except for ``epochs`` (so a run can be extended) and ``progress``.
         resume: continue from ``<run_dir>/checkpoint.pt``.
+        overwrite: remove an earlier run in ``run_dir`` first (its files are named on stderr);
+            without it (and without ``resume``) such a directory is refused.
 
     Raises:
         NonFiniteLossError: the loss became NaN / Inf (the last good checkpoint stays).
@@ -192,7 +194,7 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
             run_dir=cfg.run_dir,
         )
     else:
-        run.create()
+        run.create(overwrite=overwrite)
     _set_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     device = torch.device(cfg.device)

@@ -22,8 +22,9 @@ TRAIN_DESCRIPTION = (
     "Train PPO / PPO-multi / NDP. Unset NDP fields come from the per-task preset of the task "
     "table (ndp.envs.presets); the resolved config is saved as RUN_DIR/config.json. "
     "--resume RUN_DIR continues a killed run: the other options are then taken from its "
-    "config.json, and only --steps (extends the budget), --progress, --tensorboard, --vector and "
-    "--env-workers may change."
+    "config.json, and only --steps (extends the budget), --progress, --tensorboard, --vector, "
+    "--env-workers and --device may change. A directory that holds a run is refused unless "
+    "--overwrite (which names the files it removes)."
 )
 
 
@@ -65,10 +66,11 @@ def add_subparser(sub: Any) -> None:
 
 
 def train_command(argv: list[str]) -> int:
-    """``ndp rl train [--resume RUN_DIR] [options of TrainConfig]``."""
+    """``ndp rl train [--resume RUN_DIR | --overwrite] [options of TrainConfig]``."""
     from ndp.rl.config import SAFE_ON_RESUME, load_config
     from ndp.runs import RunDir
-    from ndp.runs.cli import changed_fields, parse_config, pop_option
+    from ndp.runs.cli import changed_fields, parse_config, pop_flag, pop_option
+    from ndp.runs.signals import report_stop, stop_on_sigterm
 
     # the trainer (torch, the simulators) is imported only once the options are parsed
     def trainer() -> Any:
@@ -77,44 +79,43 @@ def train_command(argv: list[str]) -> int:
         return module
 
     resume_dir, rest = pop_option(argv, "--resume")
+    overwrite, rest = pop_flag(rest, "--overwrite")
+    if overwrite and resume_dir is not None:
+        raise ValueError("--overwrite: cannot be combined with --resume (replace or continue)")
     prog = "ndp rl train"
     run_name = resume_dir or "RUN_DIR"
     try:
-        if resume_dir is not None:
-            saved = load_config(RunDir(resume_dir).config)
-            saved = dataclasses.replace(saved, run_dir=str(resume_dir))
-            cfg = parse_config(
-                TrainConfig, rest, prog=prog, description=TRAIN_DESCRIPTION, default=saved
-            )
-            changed = changed_fields(saved, cfg)
-            refused = [f for f in changed if f not in SAFE_ON_RESUME]
-            if refused:
-                raise ValueError(
-                    f"resume: these options would change the run and are refused: {refused} "
-                    f"(only {list(SAFE_ON_RESUME)} may change; start a new run for the others)"
+        with stop_on_sigterm():
+            if resume_dir is not None:
+                saved = load_config(RunDir(resume_dir).config)
+                saved = dataclasses.replace(saved, run_dir=str(resume_dir))
+                cfg = parse_config(
+                    TrainConfig, rest, prog=prog, description=TRAIN_DESCRIPTION, default=saved
                 )
-            metrics = trainer().resume(resume_dir, **{f: getattr(cfg, f) for f in changed})
-            if not metrics:
-                print(
-                    f"ndp: nothing to do: {resume_dir} has finished its budget; --resume with "
-                    "a larger --steps extends it",
-                    file=sys.stderr,
-                )
-                return 0
-        else:
-            cfg = parse_config(TrainConfig, rest, prog=prog, description=TRAIN_DESCRIPTION)
-            run_name = cfg.run_dir or f"runs/{cfg.task}-{cfg.algo}-s{cfg.seed}"
-            metrics = trainer().train(cfg)
+                changed = changed_fields(saved, cfg)
+                refused = [f for f in changed if f not in SAFE_ON_RESUME]
+                if refused:
+                    raise ValueError(
+                        f"resume: these options would change the run and are refused: {refused} "
+                        f"(only {list(SAFE_ON_RESUME)} may change; start a new run for the others)"
+                    )
+                metrics = trainer().resume(resume_dir, **{f: getattr(cfg, f) for f in changed})
+                if not metrics:
+                    print(
+                        f"ndp: nothing to do: {resume_dir} has finished its budget; --resume "
+                        "with a larger --steps extends it",
+                        file=sys.stderr,
+                    )
+                    return 0
+            else:
+                cfg = parse_config(TrainConfig, rest, prog=prog, description=TRAIN_DESCRIPTION)
+                run_name = cfg.run_dir or f"runs/{cfg.task}-{cfg.algo}-s{cfg.seed}"
+                metrics = trainer().train(cfg, overwrite=overwrite)
     except FloatingPointError as exc:  # ndp.rl.trainer.TrainingDivergedError
         print(f"ndp: error: {exc}", file=sys.stderr)
         return 3
-    except KeyboardInterrupt:
-        print(
-            f"ndp: interrupted; the last checkpoint is kept. Continue with: ndp rl train "
-            f"--resume {run_name}",
-            file=sys.stderr,
-        )
-        return 130
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (ndp.runs.signals.Terminated)
+        return report_stop(exc, f"ndp rl train --resume {run_name}")
     keys = ("update", "global_step", "charts/success_any", "charts/episode_return")
     print(json.dumps({k: metrics.get(k) for k in keys}))
     return 0

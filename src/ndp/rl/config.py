@@ -247,7 +247,18 @@ def load_config(path: Path) -> TrainConfig:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"config: no such file {path}")
-    return TrainConfig.from_dict(json.loads(path.read_text()))
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"config: {path} is not valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"config: {path} does not hold a JSON object")
+    try:
+        return TrainConfig.from_dict(data)
+    except ValueError as exc:
+        raise ValueError(
+            f"config: {path} is not a config of this version ({str(exc).removeprefix('config: ')})"
+        ) from None
 
 
 def _check_device(device: object) -> None:

@@ -500,8 +500,15 @@ def make_learner(cfg: TrainConfig, resume: bool = False) -> Any:
     return build(resolve_config(cfg, task.spec), resume)
 
 
-def train(cfg: TrainConfig, max_updates: int | None = None) -> dict[str, float]:
-    """Train a fresh run (see :class:`Trainer`); returns the last update's metrics."""
+def train(
+    cfg: TrainConfig, max_updates: int | None = None, overwrite: bool = False
+) -> dict[str, float]:
+    """Train a fresh run (see :class:`Trainer`); returns the last update's metrics.
+
+    ``overwrite``: remove an earlier run in the run directory first (its files are named on
+    stderr); without it such a directory is refused."""
+    if overwrite:
+        RunDir(resolve_config(cfg).run_dir or ".").create(overwrite=True)
     trainer = make_learner(cfg)
     try:
         return trainer.train(max_updates)

@@ -1,0 +1,189 @@
+"""What a failure gives the user (docs/reliability.md): signals, kills, full disks, run
+directories in the way; nothing already saved is lost and every message is one line."""
+
+from __future__ import annotations
+
+import errno
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+
+from ndp.cli import main as ndp_main
+from ndp.runs import load_checkpoint, read_metrics
+
+RL_TINY = ["--task", "point-mass", "--algo", "ndp", "--steps-per-update", "512", "--minibatches",
+           "4", "--vector", "sync", "--no-progress", "--no-tensorboard"]  # fmt: skip
+
+
+def _rl(run: Path, steps: int, *extra: str) -> list[str]:
+    return ["rl", "train", *RL_TINY, "--steps", str(steps), "--run-dir", str(run), *extra]
+
+
+def _wait_rows(proc: subprocess.Popen, csv: Path, rows: int, timeout: float = 120) -> None:
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if proc.poll() is not None:
+            pytest.fail(f"exited early: {proc.stderr.read().decode()[-2000:]}")
+        if csv.is_file() and len(read_metrics(csv)) >= rows:
+            return
+        time.sleep(0.05)
+    proc.kill()
+    pytest.fail("no progress in time")
+
+
+@pytest.mark.parametrize("sig,code,word", [(signal.SIGTERM, 143, "terminated"),
+                                           (signal.SIGINT, 130, "interrupted")])  # fmt: skip
+def test_rl_signal_stops_cleanly_and_resumes(tmp_path, sig, code, word):
+    run = tmp_path / "run"
+    cmd = [sys.executable, "-m", "ndp.cli", *_rl(run, 520 * 40, "--checkpoint-every", "2")]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _wait_rows(proc, run / "metrics.csv", 3)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    err = err.decode()
+    assert proc.returncode == code, err[-2000:]
+    assert err.strip().splitlines()[-1] == (
+        f"ndp: {word}; the last checkpoint is kept. Continue with: ndp rl train --resume {run}"
+    )
+    assert "Traceback" not in err
+    saved = load_checkpoint(run, kind="rl")["update"]
+    assert not list(run.glob(".*.tmp"))
+    assert ndp_main(["rl", "train", "--resume", str(run), "--steps", str(saved * 520 + 520),
+                     "--no-progress"]) == 0  # fmt: skip
+    rows = read_metrics(run)
+    assert [int(r["update"]) for r in rows] == list(range(1, len(rows) + 1))
+
+
+def test_il_sigterm_stops_cleanly(tmp_path):
+    run = tmp_path / "il"
+    cmd = [sys.executable, "-m", "ndp.cli", "il", "train", "--data-dir", str(tmp_path / "data"),
+           "--n-samples", "60", "--n-train", "40", "--n-test", "20", "--batch-size", "20",
+           "--epochs", "500", "--threads", "1", "--out", str(run), "--no-progress",
+           "--no-eval"]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _wait_rows(proc, run / "metrics.csv", 2, timeout=180)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err.decode()[-2000:]
+    assert f"Continue with: ndp il train --resume {run}" in err.decode()
+    epoch = load_checkpoint(run, kind="il")["epoch"]
+    assert [r["epoch"] for r in read_metrics(run)][:epoch] == list(range(1, epoch + 1))
+
+
+def test_il_kill_between_metrics_and_checkpoint_leaves_no_duplicate_rows(tmp_path, monkeypatch):
+    """A kill after an epoch's row was logged but before its checkpoint was written: the
+    resumed run rewrites that epoch once (no 1, 2, 3, 3, 4)."""
+    from ndp.il import train as il_train
+    from ndp.il.config import DataConfig, TrainConfig
+
+    cfg = TrainConfig(run_dir=str(tmp_path / "r"), epochs=3, batch_size=20, threads=1,
+                      progress=False, data=DataConfig(data_dir=str(tmp_path / "d"), n_samples=60,
+                                                      n_train=40, n_test=20))  # fmt: skip
+    real = il_train.save_checkpoint
+    calls = []
+
+    def dies_at_second(path, state, kind):
+        calls.append(state["epoch"])
+        if state["epoch"] == 2:
+            raise KeyboardInterrupt  # as if killed during the write
+        real(path, state, kind=kind)
+
+    monkeypatch.setattr(il_train, "save_checkpoint", dies_at_second)
+    with pytest.raises(KeyboardInterrupt):
+        il_train.train(cfg)
+    monkeypatch.setattr(il_train, "save_checkpoint", real)
+    assert [r["epoch"] for r in read_metrics(tmp_path / "r")] == [1, 2]
+    assert load_checkpoint(tmp_path / "r", kind="il")["epoch"] == 1
+    il_train.train(cfg, resume=True)
+    assert [r["epoch"] for r in read_metrics(tmp_path / "r")] == [1, 2, 3]
+
+
+def test_stale_temporary_files_are_removed_on_the_next_start(tmp_path):
+    run = tmp_path / "run"
+    assert ndp_main(_rl(run, 520)) == 0
+    stale = run / ".checkpoint.pt.k1ll3d.tmp"
+    stale.write_bytes(b"half a checkpoint")
+    assert ndp_main(["rl", "train", "--resume", str(run), "--steps", "1040", "--no-progress"]) == 0
+    assert not stale.exists()
+
+
+def test_overwrite_says_what_it_removes_and_keeps_other_files(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert ndp_main(_rl(run, 520)) == 0
+    (run / "notes.txt").write_text("mine")
+    capsys.readouterr()
+    assert ndp_main(_rl(run, 520)) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert ndp_main([*_rl(run, 520), "--overwrite"]) == 0
+    err = capsys.readouterr().err
+    assert "removing the earlier run" in err and "checkpoint.pt" in err and "metrics.csv" in err
+    assert (run / "notes.txt").read_text() == "mine" and len(read_metrics(run)) == 1
+    assert ndp_main([*_rl(run, 520), "--overwrite", "--resume", str(run)]) == 2
+
+
+def test_full_disk_during_a_checkpoint_is_one_line_and_keeps_the_last_one(tmp_path, monkeypatch,
+                                                                          capsys):  # fmt: skip
+    run = tmp_path / "run"
+    real = torch.save
+    n = {"saves": 0}
+
+    def fills_the_disk(obj, f, *a, **k):
+        n["saves"] += 1
+        if n["saves"] >= 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real(obj, f, *a, **k)
+
+    monkeypatch.setattr(torch, "save", fills_the_disk)
+    rc = ndp_main(_rl(run, 520 * 3, "--checkpoint-every", "1"))
+    monkeypatch.undo()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1
+    assert "No space left on device" in err[0] and str(run / "checkpoint.pt") in err[0]
+    assert load_checkpoint(run, kind="rl")["update"] == 1  # the last good checkpoint
+    assert not list(run.glob(".*.tmp"))
+
+
+@pytest.mark.parametrize("command", ["rl", "il"])
+def test_run_directory_under_a_file_is_one_line(tmp_path, capsys, command):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    if command == "rl":
+        argv = _rl(blocker / "run", 520)
+    else:
+        argv = ["il", "train", "--out", str(blocker / "run"), "--no-progress"]
+    assert ndp_main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "a parent is a file" in err[0]
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root ignores directory permissions")
+def test_read_only_run_directory_is_refused_before_training(tmp_path, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        assert ndp_main(_rl(ro, 520)) == 2
+        assert "is not writable" in capsys.readouterr().err
+    finally:
+        ro.chmod(0o700)
+
+
+def test_corrupt_files_give_one_line_errors(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert ndp_main(_rl(run, 520)) == 0
+    (run / "config.json").write_text("{broken")
+    capsys.readouterr()
+    assert ndp_main(["rl", "train", "--resume", str(run)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "config.json" in err[0]
+    il = tmp_path / "il"
+    il.mkdir()
+    (il / "checkpoint.pt").write_bytes(b"")
+    assert ndp_main(["il", "eval", str(il)]) == 2
+    assert "checkpoint: cannot read" in capsys.readouterr().err

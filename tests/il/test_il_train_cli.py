@@ -263,3 +263,66 @@ def test_every_il_field_is_an_option_of_ndp_il_train(capsys) -> None:
     missing = [n for n in names if f"--{n.replace('_', '-')}" not in text]
     assert not missing
     assert "--out" in text and "--frame" not in text
+
+
+def _npz_of(tmp_path: Path, n: int = 30) -> Path:
+    """A user file: n samples of the synthetic set with labels and three writers."""
+    from ndp.il.train import load_data
+
+    d = load_data(DataConfig(data_dir=str(tmp_path / "data"), n_samples=60))
+    p = tmp_path / "user_digits.npz"
+    np.savez(p, images=d.images[:n], trajectories=d.trajs[:n], labels=d.labels[:n],
+             writers=np.arange(n) % 3)  # fmt: skip
+    return p
+
+
+def test_eval_on_any_file_scores_every_sample_and_keeps_the_runs_record(tmp_path, capsys):
+    train(_tiny(tmp_path, epochs=1))
+    own = evaluate(tmp_path / "run", dtw=False)
+    record = (tmp_path / "run" / "eval.json").read_text()
+    f = _npz_of(tmp_path)
+    capsys.readouterr()
+    rc = main(["il", "eval", str(tmp_path / "run"), "--data", str(f), "--split", "all",
+               "--no-dtw", "--grid", "worst", "--n-grid", "4", "--save-predictions"])  # fmt: skip
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n_test"] == 30 and out["split"] == "all"
+    assert out["json"].endswith("eval-user_digits-all.json") and Path(out["json"]).is_file()
+    assert (tmp_path / "run" / "eval.json").read_text() == record  # untouched
+    assert own["n_test"] == 20
+    m = out["test_mse_px2"]
+    assert m["p10"] <= m["p25"] <= m["median"] <= m["p75"] <= m["p90"] <= m["p99"] <= m["max"]
+    assert sum(v["n"] for v in out["per_writer"].values()) == 30 and set(out["per_writer"]) == {
+        "0",
+        "1",
+        "2",
+    }
+    assert sum(v["n"] for v in out["per_class"].values()) == 30
+    z = np.load(out["predictions"])
+    assert z["pred"].shape == (30, 301, 2) and z["mse_px2"].shape == (30,)
+    assert np.isclose(z["mse_px2"].mean(), m["mean"])
+    assert Path(out["png"]).name == "predictions-user_digits-all.png"
+
+
+def test_grid_picks_and_whole_file_training(tmp_path):
+    from ndp.il.metrics import pick_samples
+
+    e = np.array([5.0, 1.0, 9.0, 3.0, 7.0])
+    assert list(pick_samples(e, 2, "worst")) == [2, 4]
+    assert list(pick_samples(e, 1, "median")) == [0]
+    assert list(pick_samples(e, 3, "first")) == [0, 1, 2]
+    assert len(set(pick_samples(e, 3, "random"))) == 3
+    with pytest.raises(ValueError, match="grid"):
+        pick_samples(e, 2, "best")
+    f = _npz_of(tmp_path)
+    data = DataConfig(source=str(f), split="all")
+    summary = train(_tiny(tmp_path, "whole", data=data, epochs=1))
+    assert summary["n_train"] == 30 and summary["n_test"] == 0
+    row = read_rows(tmp_path / "whole")[0]
+    assert row["train/mse_px2"] > 0 and np.isnan(row["test/mse_px2"])
+
+
+def read_rows(run: Path):
+    from ndp.runs import read_metrics
+
+    return read_metrics(run)

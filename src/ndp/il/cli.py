@@ -41,16 +41,24 @@ class TrainCommand:
 
 @dataclass(frozen=True)
 class EvalCommand:
-    """``ndp il eval RUN``: MSE in px^2 (mean +- std), DTW and a picture of a run's checkpoint."""
+    """``ndp il eval RUN``: MSE in px^2 (mean, std, percentiles, per class and per writer), DTW
+    and a picture of a run's checkpoint; on its test split, or on any data with the data options
+    (``--split all`` scores every sample; results then go to RUN/eval-<tag>.json)."""
 
     run: Annotated[str, POSITIONAL]
     """Run directory (or its checkpoint file)."""
     data: DataConfig = field(default_factory=DataConfig)
     """Data set and split to evaluate on (default: the run's own)."""
     png: str | None = None
-    """Output picture (None: RUN/predictions.png)."""
+    """Output picture (None: RUN/predictions.png; with other data RUN/predictions-<tag>.png)."""
     n_grid: int = 24
-    """Test samples drawn in the picture."""
+    """Samples drawn in the picture."""
+    grid: str = "first"
+    """Which samples the picture shows: 'first', 'random', 'median' (around the median error)
+    or 'worst'; each panel is titled with the digit, the writer and the MSE."""
+    save_predictions: bool = False
+    """Also save the predictions, demonstrations, indices, labels, writers and per-sample MSE
+    as RUN/predictions[-<tag>].npz."""
     dtw: bool = True
     """Compute the DTW distance."""
     train_error: bool = False
@@ -130,6 +138,8 @@ def eval_command(argv: list[str]) -> int:
         dtw=cmd.dtw,
         threads=cmd.threads,
         include_train=cmd.train_error,
+        grid=cmd.grid,
+        save_predictions=cmd.save_predictions,
     )
     print(json.dumps(out, indent=2))
     return 0

@@ -109,8 +109,9 @@ class DataConfig:
     pendigits_path: str = ""
     """UNIPEN file of Pendigits ('' = ../shared/data/pendigits/pendigits-train)."""
     split: str = "auto"
-    """'paper' (shuffle the first n_train + n_test), 'writer' (writer-disjoint), or 'auto'
-    (writer for Pendigits, paper otherwise)."""
+    """'paper' (shuffle the first n_train + n_test), 'writer' (writer-disjoint), 'auto' (writer
+    for Pendigits, paper otherwise) or 'all' (every sample: train on a whole file without a test
+    part, or score every sample of a file with ``ndp il eval``)."""
     n_train: int = 10000
     """Training samples of the paper split."""
     n_test: int = 2000
@@ -135,7 +136,7 @@ class DataConfig:
             )
 
 
-SPLITS = ("auto", "paper", "writer")
+SPLITS = ("auto", "paper", "writer", "all")
 """Train / test split kinds of :class:`DataConfig`."""
 
 SAFE_ON_RESUME = ("epochs", "progress", "threads", "tensorboard", "eval_every")

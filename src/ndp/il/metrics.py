@@ -12,6 +12,7 @@ Definitions (pixels of the 40 x 40 frame):
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -87,15 +88,66 @@ def dtw_distance(
     return out
 
 
+PERCENTILES = (10, 25, 75, 90, 99)
+"""Percentiles :func:`summarize` reports besides the median."""
+
+
 def summarize(errors: np.ndarray) -> dict[str, float]:
-    """Mean, std, median and max of per-sample errors."""
+    """Mean, std, median, max and the :data:`PERCENTILES` (``p10``, ...) of per-sample errors
+    (NaN for an empty set)."""
     e = np.asarray(errors, dtype=np.float64)
-    return {
+    if e.size == 0:
+        return dict.fromkeys(("mean", "std", "median", "max", *(f"p{q}" for q in PERCENTILES)),
+                             math.nan)  # fmt: skip
+    out = {
         "mean": float(e.mean()),
         "std": float(e.std()),
         "median": float(np.median(e)),
         "max": float(e.max()),
     }
+    for q, v in zip(PERCENTILES, np.percentile(e, PERCENTILES), strict=True):
+        out[f"p{q}"] = float(v)
+    return out
+
+
+def grouped(errors: np.ndarray, groups: np.ndarray) -> dict[str, dict[str, float]]:
+    """Per group (digit class, writer): count, mean, median and max of per-sample errors.
+
+    Samples whose group is -1 (unknown) are left out; an empty dict when no group is known."""
+    e = np.asarray(errors, dtype=np.float64)
+    g = np.asarray(groups)
+    out: dict[str, dict[str, float]] = {}
+    for key in np.unique(g[g >= 0]):
+        sel = e[g == key]
+        out[str(int(key))] = {
+            "n": int(sel.size),
+            "mean": float(sel.mean()),
+            "median": float(np.median(sel)),
+            "max": float(sel.max()),
+        }
+    return out
+
+
+GRID_PICKS = ("first", "random", "median", "worst")
+"""Which samples the prediction picture shows."""
+
+
+def pick_samples(errors: np.ndarray, n: int, how: str = "first", seed: int = 0) -> np.ndarray:
+    """Indices of ``n`` samples to draw: the first ones, a seeded random set, those around the
+    median error, or the worst."""
+    e = np.asarray(errors, dtype=np.float64)
+    n = min(n, e.size)
+    if how == "first":
+        return np.arange(n)
+    if how == "random":
+        return np.sort(np.random.default_rng(seed).choice(e.size, size=n, replace=False))
+    order = np.argsort(e, kind="stable")
+    if how == "worst":
+        return order[::-1][:n]
+    if how == "median":
+        lo = max(0, e.size // 2 - n // 2)
+        return order[lo : lo + n]
+    raise ValueError(f"grid: expected one of {', '.join(GRID_PICKS)}, got {how!r}")
 
 
 def save_prediction_grid(

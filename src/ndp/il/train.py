@@ -36,10 +36,18 @@ from ndp.il.data import (
     paper_split,
     writer_split,
 )
-from ndp.il.metrics import dtw_distance, per_sample_mse, save_prediction_grid, summarize
+from ndp.il.metrics import (
+    GRID_PICKS,
+    dtw_distance,
+    grouped,
+    per_sample_mse,
+    pick_samples,
+    save_prediction_grid,
+    summarize,
+)
 from ndp.il.models import CNNDMPModel, TrajectoryModel, build_model
 from ndp.il.synthetic import SyntheticConfig
-from ndp.io import atomic_write_text
+from ndp.io import atomic_save_npz, atomic_write_text
 from ndp.runs import MetricsLogger, RunDir, save_checkpoint
 from ndp.runs import load_checkpoint as _load_run_checkpoint
 
@@ -107,10 +115,12 @@ def make_split(data: DigitData, cfg: DataConfig) -> tuple[np.ndarray, np.ndarray
     split = cfg.split
     if split == "auto":
         split = "writer" if np.all(data.writers >= 0) and cfg.source == "pendigits" else "paper"
+    if split == "all":  # every sample trains; no test part
+        return np.arange(len(data)), np.arange(0)
     if split == "writer":
         return writer_split(data.writers, cfg.test_fraction, cfg.split_seed)
     if split != "paper":
-        raise ValueError(f"split must be 'paper', 'writer' or 'auto', got {cfg.split!r}")
+        raise ValueError(f"split: expected one of {', '.join(SPLITS)}, got {cfg.split!r}")
     n_train, n_test = cfg.n_train, cfg.n_test
     if cfg.source not in ("synthetic",) and n_train + n_test > len(data):
         n_test = max(1, round(cfg.test_fraction * len(data)))
@@ -292,7 +302,8 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
                 "time/samples_per_s": seen / dt,
             }
             last_epoch = epoch + 1 == cfg.epochs
-            if (cfg.eval_every > 0 and (epoch + 1) % cfg.eval_every == 0) or last_epoch:
+            scheduled = cfg.eval_every > 0 and (epoch + 1) % cfg.eval_every == 0
+            if (scheduled or last_epoch) and x_te.shape[0] > 0:
                 err = per_sample_mse(predict(model, x_te, y_te[:, 0]).cpu(), y_te.cpu())
                 row["test/mse_px2"] = float(err.mean())
                 row["test/mse_px2_std"] = float(err.std())
@@ -363,6 +374,18 @@ def load_model(ckpt: dict[str, Any]) -> tuple[TrajectoryModel, TrainConfig]:
     return model, cfg
 
 
+def data_tag(cfg: DataConfig) -> str:
+    """A file-name tag for a data set and split (``pendigits-test-all``, ``synthetic-paper``)."""
+    if cfg.source == "pendigits":
+        name = "pendigits" + (f"-{Path(cfg.pendigits_path).name}" if cfg.pendigits_path else "")
+    elif cfg.source == "synthetic":
+        name = f"synthetic-n{cfg.n_samples}-s{cfg.data_seed}"
+    else:
+        name = Path(cfg.source).stem
+    tag = f"{name}-{cfg.split}"
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in tag)
+
+
 def evaluate(
     run_dir: Path | str,
     data_cfg: DataConfig | None = None,
@@ -371,55 +394,92 @@ def evaluate(
     dtw: bool = True,
     threads: int = 0,
     include_train: bool = False,
+    grid: str = "first",
+    save_predictions: bool = False,
 ) -> dict[str, Any]:
-    """Evaluate a run's checkpoint on its test split (or on another data set).
+    """Evaluate a run's checkpoint on its test split, or on any data set.
+
+    With the run's own data the results go to ``<run>/eval.json`` and ``predictions.png``; with
+    another data set or split (``data_cfg``) to ``eval-<tag>.json`` / ``predictions-<tag>.png``
+    (:func:`data_tag`), never over the run's own record. With ``split='all'`` every sample of the
+    data is scored.
 
     Args:
         run_dir: run folder (or a checkpoint file).
         data_cfg: data / split to evaluate on; default: the run's own.
-        out_png: where to draw the prediction grid (default ``<run_dir>/predictions.png``).
-        n_grid: test samples in the picture.
+        out_png: where to draw the prediction grid (default: see above).
+        n_grid: samples in the picture.
         dtw: also compute the DTW distance (about 10 ms per sample).
         threads: torch CPU threads (0: default).
         include_train: also report the error over the training split.
+        grid: which samples the picture shows: 'first', 'random', 'median' or 'worst'.
+        save_predictions: also write ``predictions[-<tag>].npz``: predicted and demonstrated
+            trajectories, sample indices, labels, writers and per-sample MSE.
 
     Returns:
-        Summary dict (written to ``<run_dir>/eval.json``): ``test_mse_px2`` and ``test_dtw_px``
-        as mean / std / median / max, the epoch, sizes and paths.
+        Summary dict (also written as JSON): ``test_mse_px2`` and ``test_dtw_px`` as mean / std /
+        median / max / percentiles, ``per_class`` and ``per_writer`` tables (n, mean, median,
+        max), the epoch, sizes and paths.
     """
+    if grid not in GRID_PICKS:
+        raise ValueError(f"grid: expected one of {', '.join(GRID_PICKS)}, got {grid!r}")
     _set_threads(threads)
     path = Path(run_dir)
     ckpt = load_checkpoint(path)
     run_path = path if path.is_dir() else path.parent
     model, cfg = load_model(ckpt)
-    dcfg = data_cfg or cfg.data
+    own = data_cfg is None or data_cfg == cfg.data
+    dcfg = cfg.data if data_cfg is None else data_cfg
     data = load_data(dcfg, cfg.model.n_points)
     tr_idx, te_idx = make_split(data, dcfg)
+    scored = tr_idx if len(te_idx) == 0 else te_idx  # 'all': every sample
     x = torch.from_numpy(data.images)
     y = torch.from_numpy(data.trajs)
     t0 = time.perf_counter()
-    pred = predict(model, x[te_idx], y[te_idx][:, 0]).numpy()
+    pred = predict(model, x[scored], y[scored][:, 0]).numpy()
     infer_s = time.perf_counter() - t0
-    demo = data.trajs[te_idx]
+    demo = data.trajs[scored]
     mse = per_sample_mse(pred, demo)
+    suffix = "" if own else f"-{data_tag(dcfg)}"
     out: dict[str, Any] = {
         "model": cfg.model.kind,
         "data": dcfg.source,
+        "split": dcfg.split,
         "epoch": int(ckpt["epoch"]),
-        "n_test": len(te_idx),
+        "n_test": len(scored),
         "test_mse_px2": summarize(mse),
+        "per_class": grouped(mse, data.labels[scored]),
+        "per_writer": grouped(mse, data.writers[scored]),
         "inference_s": infer_s,
     }
     if dtw:
         out["test_dtw_px"] = summarize(dtw_distance(pred, demo))
-    if include_train:
+    if include_train and len(te_idx) > 0:
         pred_tr = predict(model, x[tr_idx], y[tr_idx][:, 0]).numpy()
         out["n_train"] = len(tr_idx)
         out["train_mse_px2"] = summarize(per_sample_mse(pred_tr, data.trajs[tr_idx]))
-    png = Path(out_png) if out_png else run_path / "predictions.png"
-    k = min(n_grid, len(te_idx))
-    titles = [f"{int(data.labels[i])}: {e:.2f}" for i, e in zip(te_idx[:k], mse[:k], strict=True)]
-    save_prediction_grid(png, data.images[te_idx[:k]], demo[:k], pred[:k], titles=titles)
+    png = Path(out_png) if out_png else run_path / f"predictions{suffix}.png"
+    pick = pick_samples(mse, n_grid, grid, seed=0)
+    titles = []
+    for i in pick:
+        w = int(data.writers[scored[i]])
+        who = f" w{w}" if w >= 0 else ""
+        titles.append(f"{int(data.labels[scored[i]])}{who}: {mse[i]:.2f}")
+    save_prediction_grid(png, data.images[scored[pick]], demo[pick], pred[pick], titles=titles)
     out["png"] = str(png)
-    atomic_write_text(run_path / "eval.json", json.dumps(out, indent=2) + "\n")
+    out["grid"] = grid
+    if save_predictions:
+        npz = run_path / f"predictions{suffix}.npz"
+        atomic_save_npz(
+            npz,
+            pred=pred.astype(np.float32),
+            demo=demo.astype(np.float32),
+            index=np.asarray(scored),
+            labels=data.labels[scored],
+            writers=data.writers[scored],
+            mse_px2=mse,
+        )
+        out["predictions"] = str(npz)
+    out["json"] = str(run_path / f"eval{suffix}.json")
+    atomic_write_text(run_path / f"eval{suffix}.json", json.dumps(out, indent=2) + "\n")
     return out

@@ -20,13 +20,15 @@ Public API: :class:`DMPConfig`, :class:`DMPLayer`, :func:`dmp_rollout` (auto),
 """
 
 from ndp.dmp.basis import (
+    RBF_FUNCTIONS,
+    RBF_KINDS,
     basis_centres,
     canonical_phase,
     forcing_features,
     normalised_rbf,
     rbf,
 )
-from ndp.dmp.config import FORCING_FORMS, RBF_KINDS, DMPConfig
+from ndp.dmp.config import FORCING_FORMS, DMPConfig
 from ndp.dmp.fit import fit_dmp
 from ndp.dmp.integrate import (
     DMPTrajectory,
@@ -44,6 +46,7 @@ from ndp.dmp.sensitivity import dmp_sensitivities
 
 __all__ = [
     "FORCING_FORMS",
+    "RBF_FUNCTIONS",
     "RBF_KINDS",
     "DMPConfig",
     "DMPLayer",

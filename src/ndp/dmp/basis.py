@@ -7,10 +7,22 @@ and inverse widths of the N basis functions, e_i = (x - c_i)^2.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import torch
 
-from ndp.dmp.config import RBF_KINDS, DMPConfig
+from ndp.dmp.config import DMPConfig
+
+RBF_FUNCTIONS: dict[str, Callable[[torch.Tensor], torch.Tensor]] = {
+    "gaussian": lambda he: torch.exp(-he),
+    "multiquadric": lambda he: torch.sqrt(1.0 + he),
+    "inverse_quadric": lambda he: 1.0 / (1.0 + he),
+    "inverse_multiquadric": lambda he: 1.0 / torch.sqrt(1.0 + he),
+    "linear": lambda he: he,
+}
+"""Radial basis kinds: name -> psi as a function of h (x - c)^2 (the one table of kinds: adding
+a kind is one entry here; ``DMPConfig.rbf`` accepts every name in it)."""
+RBF_KINDS = tuple(RBF_FUNCTIONS)
 
 
 def canonical_phase(cfg: DMPConfig, dtype: torch.dtype = torch.float64) -> torch.Tensor:
@@ -49,18 +61,10 @@ def rbf(x: torch.Tensor, c: torch.Tensor, h: torch.Tensor, kind: str) -> torch.T
     Returns:
         psi: [..., N].
     """
-    he = h * (x.unsqueeze(-1) - c) ** 2
-    if kind == "gaussian":
-        return torch.exp(-he)
-    if kind == "multiquadric":
-        return torch.sqrt(1.0 + he)
-    if kind == "inverse_quadric":
-        return 1.0 / (1.0 + he)
-    if kind == "inverse_multiquadric":
-        return 1.0 / torch.sqrt(1.0 + he)
-    if kind == "linear":
-        return he
-    raise ValueError(f"kind: expected one of {', '.join(RBF_KINDS)}, got {kind!r}")
+    fn = RBF_FUNCTIONS.get(kind)
+    if fn is None:
+        raise ValueError(f"kind: expected one of {', '.join(RBF_FUNCTIONS)}, got {kind!r}")
+    return fn(h * (x.unsqueeze(-1) - c) ** 2)
 
 
 def normalised_rbf(x: torch.Tensor, c: torch.Tensor, h: torch.Tensor, kind: str) -> torch.Tensor:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-RBF_KINDS = ("gaussian", "multiquadric", "inverse_quadric", "inverse_multiquadric", "linear")
 FORCING_FORMS = ("released", "supplement")
 
 
@@ -60,8 +59,10 @@ class DMPConfig:
         _check_pos("tau", self.tau)
         if self.dt is not None:
             _check_pos("dt", self.dt)
-        if self.rbf not in RBF_KINDS:
-            raise ValueError(f"rbf: expected one of {', '.join(RBF_KINDS)}, got {self.rbf!r}")
+        from ndp.dmp.basis import RBF_FUNCTIONS  # the one table of kinds
+
+        if self.rbf not in RBF_FUNCTIONS:
+            raise ValueError(f"rbf: expected one of {', '.join(RBF_FUNCTIONS)}, got {self.rbf!r}")
         if self.forcing not in FORCING_FORMS:
             raise ValueError(
                 f"forcing: expected one of {', '.join(FORCING_FORMS)}, got {self.forcing!r}"
@@ -133,3 +134,12 @@ def _check_pos(name: str, value: object) -> None:
         or value <= 0
     ):
         raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+
+
+def __getattr__(name: str) -> object:
+    """``RBF_KINDS`` lives in :mod:`ndp.dmp.basis` (next to the functions); kept here too."""
+    if name == "RBF_KINDS":
+        from ndp.dmp.basis import RBF_KINDS
+
+        return RBF_KINDS
+    raise AttributeError(f"module 'ndp.dmp.config' has no attribute {name!r}")

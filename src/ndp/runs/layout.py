@@ -1,0 +1,184 @@
+"""The run directory: file names, creation (never over an existing run), resume, provenance."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+from pathlib import Path
+from typing import Any
+
+from ndp.io import atomic_write_text, remove_stale_tmp
+from ndp.provenance import provenance
+
+CONFIG_NAME = "config.json"
+"""The resolved config of the run."""
+CHECKPOINT_NAME = "checkpoint.pt"
+"""The latest good checkpoint."""
+METRICS_NAME = "metrics.csv"
+"""One row per update (RL) or epoch (imitation)."""
+LEGACY_METRICS_NAMES = ("progress.csv",)
+"""Earlier names of the metrics file (RL runs of version 0.1); read, and renamed on resume."""
+PROVENANCE_NAME = "provenance.json"
+"""A list with one entry per session of the run (see :func:`ndp.provenance.provenance`)."""
+TB_DIR = "tb"
+"""TensorBoard event folder."""
+RUN_OUTPUTS = ("eval.json", "predictions.png", "video.mp4")
+"""Outputs that commands write from a run (removed with it by ``overwrite``)."""
+
+
+class RunDir:
+    """A run directory and the files every trainer writes into it.
+
+    Args:
+        path: the directory (created by :meth:`create`).
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+
+    @property
+    def config(self) -> Path:
+        return self.path / CONFIG_NAME
+
+    @property
+    def checkpoint(self) -> Path:
+        return self.path / CHECKPOINT_NAME
+
+    @property
+    def metrics(self) -> Path:
+        return self.path / METRICS_NAME
+
+    @property
+    def tensorboard(self) -> Path:
+        return self.path / TB_DIR
+
+    def held(self) -> str | None:
+        """What in the directory belongs to an earlier run (None: nothing)."""
+        if self.checkpoint.exists():
+            return "a checkpoint"
+        for name in (METRICS_NAME, *LEGACY_METRICS_NAMES):
+            if (self.path / name).exists():
+                return f"a run's {name}"
+        return None
+
+    def run_files(self) -> list[Path]:
+        """The files and folders of a run in the directory (what ``overwrite`` removes)."""
+        names = (
+            CONFIG_NAME,
+            CHECKPOINT_NAME,
+            METRICS_NAME,
+            *LEGACY_METRICS_NAMES,
+            PROVENANCE_NAME,
+            TB_DIR,
+            *RUN_OUTPUTS,
+        )
+        return [self.path / n for n in names if (self.path / n).exists()]
+
+    def create(self, overwrite: bool = False) -> list[Path]:
+        """Make the directory for a new run; refuse one that holds an earlier run.
+
+        Args:
+            overwrite: remove the earlier run's files first (and say which on stderr); other
+                files in the directory are left alone.
+
+        Returns:
+            The paths removed (empty without ``overwrite``).
+
+        Raises:
+            ValueError: the directory holds a checkpoint or a metrics file (one line).
+            OSError: the directory cannot be made or written (a file in the way, no
+                permission), one line naming the path.
+        """
+        if self.path.exists() and not self.path.is_dir():
+            raise ValueError(f"run_dir: {self.path} exists and is not a directory")
+        held = self.held()
+        removed: list[Path] = []
+        if held is not None and not overwrite:
+            raise ValueError(
+                f"run_dir: {self.path} already holds {held}; resume it (--resume), replace it "
+                "(--overwrite) or choose another run directory"
+            )
+        if held is not None:
+            removed = self.run_files()
+            print(
+                f"ndp: --overwrite: removing the earlier run in {self.path}: "
+                + ", ".join(p.name for p in removed),
+                file=sys.stderr,
+            )
+            for p in removed:
+                shutil.rmtree(p) if p.is_dir() else p.unlink()
+        try:
+            self.path.mkdir(parents=True, exist_ok=True)
+        except (FileExistsError, NotADirectoryError):  # a parent is a regular file
+            raise OSError(f"run_dir: cannot create {self.path}: a parent is a file") from None
+        self._check_writable()
+        remove_stale_tmp(self.path)
+        return removed
+
+    def _check_writable(self) -> None:
+        probe = self.path / f".write-test-{os.getpid()}"
+        try:
+            probe.write_bytes(b"")
+            probe.unlink()
+        except OSError as exc:
+            raise OSError(
+                exc.errno, f"run_dir: {self.path} is not writable ({exc.strerror or exc})"
+            ) from None
+
+    def open_for_resume(self) -> None:
+        """Check that a run can be resumed here; rename a legacy metrics file to the new name.
+
+        Raises:
+            FileNotFoundError: no checkpoint in the directory.
+        """
+        if not self.checkpoint.is_file():
+            raise FileNotFoundError(
+                f"resume: no checkpoint in {self.path} (the run was killed before its first "
+                "checkpoint, or this is not a run directory)"
+            )
+        self._check_writable()
+        remove_stale_tmp(self.path)  # left by a write that was killed
+        if not self.metrics.exists():
+            for name in LEGACY_METRICS_NAMES:
+                old = self.path / name
+                if old.is_file():
+                    old.rename(self.metrics)
+                    break
+
+    def write_config(self, config: dict[str, Any]) -> None:
+        """Write ``config.json`` atomically (sorted keys, one trailing newline)."""
+        atomic_write_text(self.config, json.dumps(config, indent=2, sort_keys=True) + "\n")
+
+    def read_config(self) -> dict[str, Any]:
+        """Read ``config.json``.
+
+        Raises:
+            FileNotFoundError: no config in the directory.
+            ValueError: the file is not JSON.
+        """
+        if not self.config.is_file():
+            raise FileNotFoundError(f"config: no such file {self.config}")
+        try:
+            out = json.loads(self.config.read_text())
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"config: {self.config} is not valid JSON ({exc})") from None
+        if not isinstance(out, dict):
+            raise ValueError(f"config: {self.config} does not hold a JSON object")
+        return out
+
+    def record_session(self, event: str, argv: list[str] | None = None) -> dict[str, Any]:
+        """Append one provenance entry (``event``: 'start' or 'resume') to provenance.json."""
+        path = self.path / PROVENANCE_NAME
+        sessions: list[dict[str, Any]] = []
+        if path.is_file():
+            try:
+                loaded = json.loads(path.read_text())
+                sessions = loaded if isinstance(loaded, list) else []
+            except json.JSONDecodeError:
+                sessions = []  # an unreadable record is replaced, never a reason to stop a run
+        entry = {"event": event, **provenance(argv)}
+        sessions.append(entry)
+        atomic_write_text(path, json.dumps(sessions, indent=2) + "\n")
+        return entry

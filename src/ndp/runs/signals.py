@@ -1,0 +1,51 @@
+"""Clean stops: SIGTERM becomes an exception, so a run stops like on Ctrl-C.
+
+Both unwind the trainer (the last good checkpoint stays: checkpoint writes are atomic and a
+killed write removes its temporary file), and the command prints one line with the command that
+resumes and exits 130 (SIGINT) or 143 (SIGTERM).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import sys
+from collections.abc import Iterator
+from typing import Any
+
+
+class Terminated(KeyboardInterrupt):
+    """Raised in the main thread when the process receives SIGTERM."""
+
+
+def exit_code(exc: KeyboardInterrupt) -> int:
+    """130 for Ctrl-C (SIGINT), 143 for SIGTERM: 128 + the signal number, as shells report."""
+    return 143 if isinstance(exc, Terminated) else 130
+
+
+@contextlib.contextmanager
+def stop_on_sigterm() -> Iterator[None]:
+    """Within the block, SIGTERM raises :class:`Terminated` (restored afterwards)."""
+
+    def handler(signum: int, frame: Any) -> None:
+        raise Terminated(signum)
+
+    try:
+        old = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def report_stop(exc: KeyboardInterrupt, resume_command: str) -> int:
+    """Print the one line a stopped run gives; returns the exit code."""
+    what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+    print(
+        f"ndp: {what}; the last checkpoint is kept. Continue with: {resume_command}",
+        file=sys.stderr,
+    )
+    return exit_code(exc)

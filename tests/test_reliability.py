@@ -187,3 +187,25 @@ def test_corrupt_files_give_one_line_errors(tmp_path, capsys):
     (il / "checkpoint.pt").write_bytes(b"")
     assert ndp_main(["il", "eval", str(il)]) == 2
     assert "checkpoint: cannot read" in capsys.readouterr().err
+
+
+def test_repeated_sigkill_with_a_checkpoint_every_update_loses_and_duplicates_nothing(tmp_path):
+    """SIGKILL three times at varying moments (a checkpoint is written after every update, so
+    some kills land in or near a write); each resume continues; the final metrics hold every
+    update exactly once and the TensorBoard-free CSV equals an update sequence 1..N."""
+    run = tmp_path / "run"
+    n = 16
+    first = [sys.executable, "-m", "ndp.cli", *_rl(run, 520 * n, "--checkpoint-every", "1")]
+    again = [sys.executable, "-m", "ndp.cli", "rl", "train", "--resume", str(run), "--no-progress"]
+    for round_, delay in enumerate((0.0, 0.13, 0.31)):
+        cmd = first if round_ == 0 else again
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        rows = len(read_metrics(run)) if (run / "metrics.csv").exists() else 0
+        _wait_rows(proc, run / "metrics.csv", rows + 2)
+        time.sleep(delay)
+        proc.kill()
+        proc.wait(timeout=30)
+    assert ndp_main(["rl", "train", "--resume", str(run), "--no-progress"]) == 0
+    assert [int(r["update"]) for r in read_metrics(run)] == list(range(1, n + 1))
+    assert load_checkpoint(run, kind="rl")["update"] == n
+    assert not list(run.glob(".*.tmp"))

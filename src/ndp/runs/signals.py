@@ -25,20 +25,27 @@ def exit_code(exc: KeyboardInterrupt) -> int:
 
 @contextlib.contextmanager
 def stop_on_sigterm() -> Iterator[None]:
-    """Within the block, SIGTERM raises :class:`Terminated` (restored afterwards)."""
+    """Within the block, SIGTERM raises :class:`Terminated` and SIGINT ``KeyboardInterrupt``
+    (also where SIGINT was ignored at start-up, as for a shell's background jobs: a run is
+    stopped by ``kill -INT`` as by Ctrl-C); the previous handlers are restored afterwards."""
 
-    def handler(signum: int, frame: Any) -> None:
+    def on_term(signum: int, frame: Any) -> None:
         raise Terminated(signum)
 
+    def on_int(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
     try:
-        old = signal.signal(signal.SIGTERM, handler)
+        old_term = signal.signal(signal.SIGTERM, on_term)
+        old_int = signal.signal(signal.SIGINT, on_int)
     except ValueError:  # not the main thread: leave signals alone
         yield
         return
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, old)
+        signal.signal(signal.SIGTERM, old_term)
+        signal.signal(signal.SIGINT, old_int)
 
 
 def report_stop(exc: KeyboardInterrupt, resume_command: str) -> int:

@@ -56,7 +56,8 @@ ALLOWED = {
     "policies": {"dmp", "nets", "envs", "runs"},
     "il": {"dmp", "nets", "runs"},
     "rl": {"dmp", "nets", "envs", "policies", "runs"},
-    "experiments": {"dmp", "nets", "envs", "policies", "rl", "il", "runs"},
+    "bc": {"dmp", "nets", "envs", "policies", "rl", "runs"},
+    "experiments": {"dmp", "nets", "envs", "policies", "rl", "il", "bc", "runs"},
 }
 LEAVES = {"io", "provenance"}  # leaf helper modules anyone may import
 

@@ -152,7 +152,9 @@ CONFIG_COMMANDS = {"il train": train_command, "il eval": eval_command}
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     """Register ``il`` (listing only: its commands are parsed by :data:`CONFIG_COMMANDS`)."""
     il = sub.add_parser("il", help="imitation learning: image -> pen trajectory (digits)")
-    il_sub = il.add_subparsers(dest="il_command", metavar="{train,eval}")
+    il_sub = il.add_subparsers(dest="il_command", metavar="{train,eval,collect,bc}")
     il_sub.required = True
     il_sub.add_parser("train", help="train NDP, CNN or CNN-DMP (ndp il train --help)")
     il_sub.add_parser("eval", help="evaluate a run: MSE px^2, DTW, PNG grid (ndp il eval --help)")
+    il_sub.add_parser("collect", help="record scripted-expert demonstrations of a robot task")
+    il_sub.add_parser("bc", help="behaviour cloning (NDP or a plain network) on demonstrations")

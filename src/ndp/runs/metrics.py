@@ -57,6 +57,8 @@ class MetricsLogger:
         resume_index: when resuming, keep the CSV rows with index <= this and drop TensorBoard
             events with a step after ``resume_step``.
         resume_step: the x-axis value of the checkpoint resumed from.
+        filename, tb_dir: the CSV's file name and the TensorBoard folder inside ``run_dir``
+            (other than the defaults only for a second log, e.g. behaviour cloning before RL).
     """
 
     def __init__(
@@ -67,12 +69,14 @@ class MetricsLogger:
         tensorboard: bool = True,
         resume_index: int | None = None,
         resume_step: int | None = None,
+        filename: str = METRICS_NAME,
+        tb_dir: str = TB_DIR,
     ) -> None:
         self.columns = tuple(columns)
         if step not in self.columns:
             raise ValueError(f"step: {step!r} is not one of the columns")
         self.index, self.step = self.columns[0], step
-        self.path = Path(run_dir) / METRICS_NAME
+        self.path = Path(run_dir) / filename
         self.path.parent.mkdir(parents=True, exist_ok=True)
         rows: list[dict[str, str]] = []
         if resume_index is not None and self.path.is_file():
@@ -92,7 +96,7 @@ class MetricsLogger:
             from torch.utils.tensorboard import SummaryWriter
 
             purge = None if resume_step is None else int(resume_step) + 1
-            self._tb = SummaryWriter(str(Path(run_dir) / TB_DIR), purge_step=purge)
+            self._tb = SummaryWriter(str(Path(run_dir) / tb_dir), purge_step=purge)
 
     def log(self, metrics: dict[str, Any]) -> None:
         """Write one row (unknown names raise ValueError; missing or NaN values stay empty)."""

@@ -1,0 +1,130 @@
+"""Scripted experts for demonstrations: Meta-World's own policies, the Jaco Throw / Pick scripts
+and the toy task's straight line.
+
+An expert is an object with ``reset(env, obs, info)`` and ``act(env, obs, info) -> action [A]``
+in [-1, 1]; ``env`` is the unwrapped task env (scripts may read its simulator, as a human
+demonstrator sees the scene), ``obs`` and ``info`` what the per-step env returned last.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+
+
+class Expert(Protocol):
+    """A per-step demonstrator."""
+
+    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None: ...
+
+    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray: ...
+
+
+class MetaWorldExpert:
+    """Meta-World's scripted policy of the task (``metaworld.policies.ENV_POLICY_MAP``)."""
+
+    def __init__(self, name: str) -> None:
+        from metaworld.policies import ENV_POLICY_MAP
+
+        if name not in ENV_POLICY_MAP:
+            raise ValueError(f"task: Meta-World ships no scripted policy for {name!r}")
+        self.policy = ENV_POLICY_MAP[name]()
+
+    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
+        pass
+
+    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        return np.clip(np.asarray(self.policy.get_action(obs), dtype=np.float64), -1.0, 1.0)
+
+
+class PointMassExpert:
+    """Straight to the goal at full speed (the toy task: obs = position, velocity, goal)."""
+
+    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
+        pass
+
+    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        from ndp.envs.point_mass import ACTION_SCALE
+
+        d = len(obs) // 3
+        return np.clip((obs[2 * d :] - obs[:d]) / ACTION_SCALE, -1.0, 1.0)
+
+
+class ThrowExpert:
+    """Swing the grip site along a 40-degree line at ``speed`` m/s by resolved-rate control (arm
+    Jacobian pseudo-inverse on the joint targets), open the hand at step ``release``."""
+
+    def __init__(self, speed: float = 3.2, release: int = 17) -> None:
+        self.speed, self.release, self.t = float(speed), int(release), 0
+
+    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
+        self.t = 0
+
+    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        import mujoco
+
+        from ndp.envs import jaco as J
+
+        m, d = env.model, env.data
+        if self.t < self.release:
+            jacp = np.zeros((3, m.nv))
+            mujoco.mj_jacSite(m, d, jacp, None, m.site("jaco/hand/gripsite").id)
+            arm_v = [m.joint(j).dofadr[0] for j in J.ARM_JOINTS]
+            ramp = min(1.0, (self.t + 1) / 5)
+            v = self.speed * np.array([0.0, np.cos(0.7), np.sin(0.7)]) * ramp
+            dq = np.linalg.pinv(jacp[:, arm_v]) @ v * J.CONTROL_DT
+            a = np.r_[dq / J.ARM_DELTA, 1.0]
+        else:
+            a = np.r_[np.zeros(6), -1.0]
+        self.t += 1
+        return np.clip(a, -1.0, 1.0)
+
+
+class PickExpert:
+    """Above the cube, down, close the fingers, lift: joint-target waypoints from the arm's
+    inverse kinematics, approached at half the action bound."""
+
+    def __init__(self) -> None:
+        self.plan: list[tuple[np.ndarray, float, int]] = []
+
+    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
+        from ndp.envs import jaco as J
+
+        cube = np.asarray(obs[18:21], dtype=np.float64).copy()
+        above = J.jaco_ik(env.model, cube + np.array([0, 0, 0.15]), q0=J.PICK_HOME)
+        grasp = J.jaco_ik(env.model, cube + np.array([0, 0, 0.03]), q0=above)
+        lift = J.jaco_ik(env.model, cube + np.array([0, 0, 0.25]), q0=grasp)
+        self.plan = [(above, -1.0, 30), (grasp, -1.0, 30), (grasp, 1.0, 25), (lift, 1.0, 40)]
+
+    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        from ndp.envs import jaco as J
+
+        while self.plan and self.plan[0][2] <= 0:
+            self.plan.pop(0)
+        if not self.plan:
+            return np.r_[np.zeros(6), 1.0]
+        q, fingers, steps = self.plan[0]
+        self.plan[0] = (q, fingers, steps - 1)
+        a = np.clip((q - env.joint_targets[:6]) / J.ARM_DELTA, -1.0, 1.0) * 0.5
+        return np.r_[a, fingers]
+
+
+def expert_for(task: str) -> Expert:
+    """The scripted expert of a task (canonical name or alias).
+
+    Raises:
+        ValueError: the task has no expert (one line naming it).
+    """
+    from ndp.envs.spec import get_task_spec
+
+    spec = get_task_spec(task)
+    if spec.name in ("point-mass", "point-mass-3d"):
+        return PointMassExpert()
+    if spec.name == "throw":
+        return ThrowExpert()
+    if spec.name == "pick":
+        return PickExpert()
+    if spec.family == "metaworld":
+        return MetaWorldExpert(spec.name)
+    raise ValueError(f"task: no scripted expert for {spec.name!r}")

@@ -1,0 +1,253 @@
+"""Behaviour cloning of NDP and of a plain network on recorded demonstrations.
+
+For every recorded step t, the policy sees the observation (and, for NDP, the robot state the
+DMP starts from) and predicts the k actions the expert took at t..t+k-1; the loss is the mean
+squared error between the policy's mean sub-actions [k, A] and those actions, over the sub-steps
+that stay inside the episode. The loss is on the actions, not on trajectory points, because the
+actions are what both policies output and what the executed behaviour depends on (for NDP the
+DMP rollout passes through the task's inverse controller, so the gradient reaches the goal and
+forcing weights through the same map RL uses).
+
+The run directory is an RL run at update 0 (``config.json`` = the RL ``TrainConfig`` of the
+method, ``checkpoint.pt`` with the policy, the observation statistics of the demonstrations and
+a fresh PPO state), plus ``bc.json`` and ``bc_metrics.csv``. So ``ndp rl eval / render /
+export`` and ``ndp.load_policy`` use it as they are, and ``ndp rl train --resume RUN --steps N``
+fine-tunes the cloned policy with PPO.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import math
+import random
+import time
+from dataclasses import dataclass, field
+from typing import Annotated, Any
+
+import numpy as np
+
+from ndp.policies.config import PolicyConfig
+from ndp.runs.cli import cli
+
+BC_MODELS = {"ndp": "ndp", "nn": "ppo-multi", "nn-step": "ppo"}
+"""BC model -> the RL method whose actor it trains."""
+
+BC_METRICS = ("epoch", "train/loss", "val/loss", "time/epoch_s")
+"""Columns of ``bc_metrics.csv`` (one row per epoch; MSE of the actions, in action units^2)."""
+
+
+@dataclass(frozen=True)
+class BCConfig:
+    """``ndp il bc``: clone a demonstrator into an NDP or plain-network policy."""
+
+    demos: Annotated[str, cli(aliases=("--data",))] = ""
+    """Demonstrations file (.npz from ``ndp il collect``, or your own in that format)."""
+    model: str = "ndp"
+    """'ndp' (DMP head through the task's inverse controller), 'nn' (k raw actions per
+    decision, the PPO-multi actor) or 'nn-step' (one action per env step, the PPO actor)."""
+    run_dir: Annotated[str, cli(aliases=("--out",))] = "runs/bc"
+    """Run directory (refused if it holds a run, unless --overwrite)."""
+    episodes: int = 0
+    """Use the first this many demonstrated episodes (0: all)."""
+    epochs: int = 100
+    """Passes over the demonstrations."""
+    batch_size: int = 256
+    """Samples (recorded steps) per Adam step."""
+    lr: float = 1e-3
+    """Adam learning rate."""
+    val_fraction: float = 0.1
+    """Fraction of the episodes held out for the validation loss (0: none)."""
+    seed: int = 0
+    """Seed of initialisation, split and batch order."""
+    threads: int = 1
+    """torch CPU threads."""
+    progress: bool = True
+    """Show a progress bar."""
+    tensorboard: bool = True
+    """Write TensorBoard events (under RUN/tb_bc) besides the CSV."""
+    policy: PolicyConfig = field(default_factory=PolicyConfig)
+    """Network and head settings, as for RL (the head follows the model)."""
+
+    def __post_init__(self) -> None:
+        if self.model not in BC_MODELS:
+            raise ValueError(f"model: expected one of {', '.join(BC_MODELS)}, got {self.model!r}")
+        for name, low in (("episodes", 0), ("epochs", 1), ("batch_size", 1), ("threads", 1),
+                          ("seed", 0)):  # fmt: skip
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
+        if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"lr: expected a finite number > 0, got {self.lr!r}")
+        if not 0.0 <= self.val_fraction < 1.0:
+            raise ValueError(
+                f"val_fraction: expected a number in [0, 1), got {self.val_fraction!r}"
+            )
+        if self.policy.param_noise:
+            raise ValueError("param_noise: behaviour cloning trains the mean; not supported")
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def _windows(episode: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices [S, k] of the k steps from each step and their mask (same episode) [S, k]."""
+    s = len(episode)
+    idx = np.minimum(np.arange(s)[:, None] + np.arange(k)[None, :], s - 1)
+    mask = episode[idx] == episode[:, None]
+    return idx, mask
+
+
+def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
+    """Clone the demonstrations of ``cfg.demos``; returns a summary (losses, sizes, paths).
+
+    Raises:
+        FileNotFoundError, ValueError: bad demonstrations file or settings (one line).
+    """
+    import torch
+
+    from ndp.bc.demos import load_demos
+    from ndp.policies import build_actor_critic
+    from ndp.rl.config import TrainConfig, resolve_config
+    from ndp.rl.envs import resolve_task
+    from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
+    from ndp.rl.optim import FlatAdam
+    from ndp.runs import MetricsLogger, RunDir, save_checkpoint
+
+    if not cfg.demos:
+        raise ValueError("demos: expected a demonstrations file (--demos FILE)")
+    demos = load_demos(cfg.demos)
+    if cfg.episodes:
+        if cfg.episodes > demos.n_episodes:
+            raise ValueError(
+                f"episodes: {cfg.demos} holds {demos.n_episodes} episodes, asked {cfg.episodes}"
+            )
+        demos = demos.first(cfg.episodes)
+    task = resolve_task(demos.task)
+    spec = task.spec
+    horizon = demos.meta.get("horizon")
+    rl_cfg = resolve_config(
+        TrainConfig(
+            task=spec.name,
+            algo=BC_MODELS[cfg.model],
+            seed=cfg.seed,
+            run_dir=cfg.run_dir,
+            horizon=None if horizon in (None, spec.horizon) else int(horizon),
+            torch_threads=cfg.threads,
+            policy=cfg.policy,
+        ),
+        spec,
+    )
+    obs_dim = demos.obs.shape[1]
+    if demos.actions.shape[1] != spec.action_dim:
+        raise ValueError(
+            f"actions: {cfg.demos} has {demos.actions.shape[1]} action dimensions, task "
+            f"{spec.name} has {spec.action_dim}"
+        )
+    run = RunDir(cfg.run_dir)
+    run.create(overwrite=overwrite)
+    run.write_config(rl_cfg.to_dict())
+    run.record_session("start")
+    from ndp.io import atomic_write_text
+
+    meta = {"bc": cfg.to_dict(), "demos": str(cfg.demos), "episodes": demos.n_episodes,
+            "steps": len(demos.obs), "demos_meta": demos.meta}  # fmt: skip
+    atomic_write_text(run.path / "bc.json", json.dumps(meta, indent=2, default=str) + "\n")
+
+    torch.set_num_threads(cfg.threads)
+    random.seed(cfg.seed)
+    np.random.seed(cfg.seed)  # noqa: NPY002
+    torch.manual_seed(cfg.seed)
+    model = build_actor_critic(obs_dim, spec, rl_cfg.policy)
+    k = rl_cfg.k
+    p = rl_cfg.ppo
+    obs_norm = ObsNormalizer(obs_dim, p.clip_obs, p.norm_obs)
+    obs_n = torch.from_numpy(obs_norm(demos.obs, update=True))
+    commanded = rl_cfg.policy.dmp_state == "commanded"
+    y0 = torch.as_tensor(demos.cmd_pos if commanded else demos.robot_pos, dtype=torch.float32)
+    dy0 = torch.as_tensor(demos.cmd_vel if commanded else demos.robot_vel, dtype=torch.float32)
+    idx, mask = _windows(demos.episode, k)
+    target = torch.as_tensor(demos.actions[idx], dtype=torch.float32)  # [S, k, A]
+    mask_t = torch.as_tensor(mask, dtype=torch.float32).unsqueeze(-1)  # [S, k, 1]
+
+    rng = np.random.default_rng(cfg.seed)
+    n_ep = demos.n_episodes
+    n_val = round(cfg.val_fraction * n_ep) if n_ep >= 2 else 0
+    val_eps = set(rng.choice(n_ep, size=n_val, replace=False).tolist()) if n_val else set()
+    is_val = np.isin(demos.episode, list(val_eps))
+    tr = torch.as_tensor(np.flatnonzero(~is_val))
+    va = torch.as_tensor(np.flatnonzero(is_val))
+    params = [q for name, q in model.named_parameters()
+              if not name.startswith("critic") and not name.endswith("log_std")]  # fmt: skip
+    opt = torch.optim.Adam(params, lr=cfg.lr)
+
+    def loss_of(sel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        dist, _ = model.distribution(obs_n[sel], y0[sel], dy0[sel])
+        err = (dist.mean - target[sel]) ** 2 * mask_t[sel]
+        return err.sum() / (mask_t[sel].sum() * target.shape[-1]).clamp(min=1.0), err
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=cfg.epochs, disable=not cfg.progress, desc=f"bc {cfg.model} {spec.name}")
+    gen = torch.Generator().manual_seed(cfg.seed)
+    row: dict[str, float] = {}
+    t_run = time.perf_counter()
+    with MetricsLogger(run.path, BC_METRICS, step="epoch", tensorboard=cfg.tensorboard,
+                       filename="bc_metrics.csv", tb_dir="tb_bc") as log:  # fmt: skip
+        for epoch in range(cfg.epochs):
+            t0 = time.perf_counter()
+            perm = tr[torch.randperm(len(tr), generator=gen)]
+            total, seen = 0.0, 0
+            for lo in range(0, len(perm), cfg.batch_size):
+                sel = perm[lo : lo + cfg.batch_size]
+                loss, _ = loss_of(sel)
+                if not bool(torch.isfinite(loss)):
+                    raise FloatingPointError(
+                        f"bc: the loss became {float(loss)} at epoch {epoch + 1}; try a lower --lr"
+                    )
+                opt.zero_grad(set_to_none=True)
+                loss.backward()
+                opt.step()
+                total += float(loss.detach()) * len(sel)
+                seen += len(sel)
+            with torch.no_grad():
+                val = float(loss_of(va)[0]) if len(va) else math.nan
+            row = {"epoch": epoch + 1, "train/loss": total / max(seen, 1), "val/loss": val,
+                   "time/epoch_s": time.perf_counter() - t0}  # fmt: skip
+            log.log(row)
+            bar.update(1)
+            bar.set_postfix(loss=f"{row['train/loss']:.4f}")
+    bar.close()
+    with torch.no_grad():  # exploration std for stochastic use / RL fine-tuning: the fit's error
+        _, err = loss_of(tr)
+        per_dim = err.sum(dim=(0, 1)) / mask_t[tr].sum().clamp(min=1.0)
+        model.head.log_std.copy_(per_dim.sqrt().clamp(0.05, 1.0).log())
+    state = {
+        "model": model.state_dict(),
+        "optimizer": FlatAdam(copy.deepcopy(model), lr=p.lr, eps=p.adam_eps).state_dict(),
+        "obs_norm": obs_norm.state_dict(),
+        "ret_norm": ReturnNormalizer(
+            rl_cfg.num_envs, p.gamma, p.clip_reward, p.norm_return
+        ).state_dict(),
+        "rng": {
+            "torch": torch.get_rng_state(),
+            "numpy": np.random.get_state(),  # noqa: NPY002
+            "python": random.getstate(),
+        },
+        "update": 0,
+        "global_step": 0,
+        "config": rl_cfg.to_dict(),
+        "obs_dim": obs_dim,
+        "bc": meta,
+    }
+    save_checkpoint(run.checkpoint, state, kind="rl")
+    return {
+        "run_dir": str(run.path),
+        "algo": rl_cfg.algo,
+        "episodes": demos.n_episodes,
+        "train_steps": len(tr),
+        "val_steps": len(va),
+        "final": row,
+        "train_wall_s": time.perf_counter() - t_run,
+    }

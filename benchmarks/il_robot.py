@@ -6,9 +6,9 @@ count and seed a BC run (``ndp il bc``, the first n episodes) is trained to
 ``RUNS/<task>-<model>-n<n>-s<seed>`` and evaluated closed loop (one decision per k env steps,
 stale-world rule, deterministic) over ``--eval-episodes`` episodes with seeds disjoint from the
 demonstrations'. Reported per task, model and n: success (any step) mean +- std over seeds, and
-the smoothness of the executed path, the mean squared jerk of the DMP-driven robot coordinates
-(third difference of the sub-step positions / control_dt^3, averaged over time, DoF and
-episodes; lower is smoother). Everything is resumable: finished runs and evaluations are reused.
+the smoothness of the executed arm path (``ndp.experiments.smoothness``: mean squared jerk, lower
+is smoother, and SPARC, closer to 0 is smoother; hand xyz on Meta-World, arm joints on Jaco).
+Everything is resumable: finished runs and evaluations are reused.
 
     python benchmarks/il_robot.py --tasks throw pick push-v3 soccer-v3 faucet-open-v3 \\
         --demos 25 100 400 --seeds 0 1 2 --eval-episodes 50 --runs-dir RUNS \\
@@ -32,31 +32,11 @@ MODELS = ("nn", "ndp")
 
 
 def evaluate_smooth(run: Path, episodes: int, seed: int) -> dict[str, float]:
-    """Closed-loop success and mean squared jerk of the executed robot path."""
-    import ndp
+    """Closed-loop success, mean squared jerk and SPARC of the executed arm path."""
+    from ndp.experiments.smoothness import run_smoothness
 
-    policy = ndp.load_policy(run)
-    env = policy.make_env()
-    dt = float(policy.spec.control_dt)
-    succ, jerks = [], []
-    try:
-        for ep in range(episodes):
-            obs, info = env.reset(seed=seed + ep)
-            policy.reset()
-            path = [np.asarray(info["robot_pos"], dtype=np.float64)]
-            while True:
-                obs, _, term, trunc, info = env.step(policy.act(obs, info))
-                n = int(info.get("n_substeps", len(info["robot_pos"]) - 1))
-                path.extend(np.asarray(info["robot_pos"], dtype=np.float64)[1 : n + 1])
-                if term or trunc:
-                    break
-            succ.append(float(info["success_any"]))
-            p = np.stack(path)
-            if len(p) >= 4:
-                jerks.append(float(np.mean((np.diff(p, n=3, axis=0) / dt**3) ** 2)))
-    finally:
-        env.close()
-    return {"success": float(np.mean(succ)), "jerk": float(np.mean(jerks)) if jerks else np.nan}
+    out = run_smoothness(run, episodes, seed)
+    return {"success": out["success"], "jerk": out["jerk"], "sparc": out["sparc"]}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -117,8 +97,10 @@ def main(argv: list[str] | None = None) -> int:
                 if per_seed:
                     s = np.array([r["success"] for r in per_seed])
                     j = np.array([r["jerk"] for r in per_seed])
+                    sp = np.array([r.get("sparc", np.nan) for r in per_seed])
                     results[key] = {"success_mean": float(s.mean()), "success_std": float(s.std()),
-                                    "jerk_mean": float(np.nanmean(j)), "n_seeds": len(per_seed),
+                                    "jerk_mean": float(np.nanmean(j)),
+                                    "sparc_mean": float(np.nanmean(sp)), "n_seeds": len(per_seed),
                                     "per_seed": per_seed}  # fmt: skip
     cmd = "python benchmarks/il_robot.py " + " ".join(argv if argv is not None else sys.argv[1:])
     out = {"command": cmd, "commit": git_commit(), "date": time.strftime("%Y-%m-%d"),
@@ -134,8 +116,10 @@ def main(argv: list[str] | None = None) -> int:
         "jerk of the executed path (lower is smoother). The paper reports NDP ahead of the "
         "plain network on four of five tasks (its numbers are not verified here).",
         "",
-        "| task | demos | " + " | ".join(f"{m} success | {m} jerk" for m in args.models) + " |",
-        "|---|---|" + "---|---|" * len(args.models),
+        "| task | demos | "
+        + " | ".join(f"{m} success | {m} jerk | {m} SPARC" for m in args.models)
+        + " |",
+        "|---|---|" + "---|---|---|" * len(args.models),
     ]
     for task in args.tasks:
         for n in args.demos:
@@ -144,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
                 r = results.get(f"{task}/{m}/n{n}")
                 cells += (
                     [f"{r['success_mean']:.2f} +- {r['success_std']:.2f} (n={r['n_seeds']})",
-                     f"{r['jerk_mean']:.3g}"] if r else ["-", "-"]
+                     f"{r['jerk_mean']:.3g}", f"{r['sparc_mean']:.2f}"] if r else ["-"] * 3
                 )  # fmt: skip
             lines.append(f"| {task} | {n} | " + " | ".join(cells) + " |")
     atomic_write_text(Path(args.out).with_suffix(".md"), "\n".join(lines) + "\n")

@@ -62,6 +62,12 @@ def add_subparser(sub: Any) -> None:
     rd.add_argument("--episodes", type=int, default=1, help="episodes to record (default 1)")
     rd.add_argument("--seed", type=int, default=10_000, help="first episode seed")
     rd.add_argument("--stochastic", action="store_true", help="sample actions (default: mean)")
+    rd.add_argument(
+        "--compare",
+        metavar="RUN_DIR_B",
+        default=None,
+        help="a second run of the same task, shown to the right on the same seeds",
+    )
     rd.set_defaults(func=_cmd_render)
 
 
@@ -144,5 +150,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
 def _cmd_render(args: argparse.Namespace) -> int:
     from ndp.rl.evaluate import render
 
-    print(json.dumps(render(args.run_dir, args.out, args.episodes, not args.stochastic, args.seed)))
+    out = render(
+        args.run_dir, args.out, args.episodes, not args.stochastic, args.seed, args.compare
+    )
+    print(json.dumps(out))
     return 0

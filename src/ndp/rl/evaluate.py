@@ -63,33 +63,11 @@ def evaluate(
     return out
 
 
-def render(
-    run_dir: str | Path,
-    out: str | Path | None = None,
-    episodes: int = 1,
-    deterministic: bool = True,
-    seed: int = 10_000,
-) -> dict[str, Any]:
-    """Render ``episodes`` episodes of a trained policy to one mp4 (every env step is a frame).
-
-    Args:
-        run_dir: a training run directory.
-        out: mp4 path (default ``run_dir/video.mp4``).
-        episodes: episodes to record back to back.
-        deterministic: act with the mode.
-        seed: first episode seed.
-
-    Returns:
-        ``{"path", "frames", "success_any", ...}``.
-    """
-    import os
-
-    os.environ.setdefault("MUJOCO_GL", "egl")
+def _record(
+    run_dir: str | Path, episodes: int, deterministic: bool, seed: int
+) -> tuple[list[np.ndarray], list[dict[str, Any]], Any]:
+    """Frames (every env step) and episode rows of a run's policy, and the policy."""
     from ndp.envs.chunked import ChunkedEnv
-    from ndp.envs.render import check_output_path, write_mp4
-
-    target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
-    check_output_path(target)  # before rendering anything
 
     pol = load_policy(run_dir)
     cfg = pol.cfg
@@ -100,11 +78,66 @@ def render(
         rows = [_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
     finally:
         env.close()
-    path = target
+    return rec.frames, rows, pol
+
+
+def side_by_side(a: list[np.ndarray], b: list[np.ndarray]) -> list[np.ndarray]:
+    """Frames of two videos next to each other (the shorter one holds its last frame)."""
+    n = max(len(a), len(b))
+    out = []
+    for i in range(n):
+        fa, fb = a[min(i, len(a) - 1)], b[min(i, len(b) - 1)]
+        h = max(fa.shape[0], fb.shape[0])
+        fa, fb = (np.pad(f, ((0, h - f.shape[0]), (0, 0), (0, 0))) for f in (fa, fb))
+        out.append(np.concatenate([fa, np.full((h, 4, 3), 255, np.uint8), fb], axis=1))
+    return out
+
+
+def render(
+    run_dir: str | Path,
+    out: str | Path | None = None,
+    episodes: int = 1,
+    deterministic: bool = True,
+    seed: int = 10_000,
+    compare: str | Path | None = None,
+) -> dict[str, Any]:
+    """Render ``episodes`` episodes of a trained policy to one mp4 (every env step is a frame).
+
+    Args:
+        run_dir: a training run directory.
+        out: mp4 path (default ``run_dir/video.mp4``).
+        episodes: episodes to record back to back.
+        deterministic: act with the mode.
+        seed: first episode seed.
+        compare: a second run of the same task, rendered on the same seeds to the right of the
+            first (e.g. NDP vs PPO-multi, the supplement's videos).
+
+    Returns:
+        ``{"path", "frames", "success_any", ...}`` (``success_any_compare`` with ``compare``).
+    """
+    import os
+
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    from ndp.envs.render import check_output_path, write_mp4
+
+    target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
+    check_output_path(target)  # before rendering anything
+    frames, rows, pol = _record(run_dir, episodes, deterministic, seed)
+    result: dict[str, Any] = {}
+    if compare is not None:
+        other = load_policy(compare)
+        if other.cfg.task != pol.cfg.task:
+            raise ValueError(
+                f"compare: {compare} is a {other.cfg.task} run, {run_dir} a {pol.cfg.task} run"
+            )
+        frames_b, rows_b, _ = _record(compare, episodes, deterministic, seed)
+        frames = side_by_side(frames, frames_b)
+        result["success_any_compare"] = float(np.mean([r["success_any"] for r in rows_b]))
     fps = max(1, min(60, round(1.0 / float(pol.spec.control_dt))))
-    write_mp4(rec.frames, path, fps=fps)
+    write_mp4(frames, target, fps=fps)
     return {
-        "path": str(path),
-        "frames": len(rec.frames),
+        "path": str(target),
+        "frames": len(frames),
         "success_any": float(np.mean([r["success_any"] for r in rows])),
+        **result,
     }

@@ -284,3 +284,47 @@ def test_heads_and_noise_on_cuda():
     )
     z = dist.sample()
     assert z.device.type == "cuda" and dist.log_prob(z).shape == (8, 5)
+
+
+def test_ndp_only_g_outputs_goals_only_and_equals_a_zero_forcing_dmp():
+    spec = get_task_spec("push-v3")
+    torch.manual_seed(3)
+    full = build_actor_critic(39, spec, _cfg("ndp")).head
+    only = build_actor_critic(39, spec, _cfg("ndp", only_g=True)).head
+    assert only.n_params == 4 and full.n_params == 4 * 7
+    raw_g = torch.randn(5, 4)
+    y0 = torch.tensor([[0.0, 0.6, 0.2, -1.0]]).expand(5, 4)
+    raw_full = torch.cat([raw_g, torch.zeros(5, 4 * 6)], dim=1)  # tanh(0) = 0: no forcing
+    a_only, _, w = only.decode(raw_g, y0, torch.zeros(5, 4))
+    a_full, _, _ = full.decode(raw_full, y0, torch.zeros(5, 4))
+    torch.testing.assert_close(a_only, a_full)
+    assert float(w.abs().max()) == 0.0
+
+
+def test_ndp_learned_a_z_starts_at_the_preset_and_gets_a_gradient():
+    spec = get_task_spec("push-v3")
+    torch.manual_seed(4)
+    fixed = build_actor_critic(39, spec, _cfg("ndp")).head
+    learned = build_actor_critic(39, spec, _cfg("ndp", learn_az=True)).head
+    assert learned.n_params == fixed.n_params + 1 and not learned._fused
+    raw = torch.randn(6, fixed.n_params)
+    y0 = torch.tensor([[0.0, 0.6, 0.2, -1.0]]).expand(6, 4)
+    raw_az = torch.cat([raw, torch.zeros(6, 1)], dim=1).requires_grad_(True)
+    preset = float(fixed.dmp.config.a_z)
+    torch.testing.assert_close(learned.a_z_of(raw_az), torch.full((6,), preset))
+    a_l, _, _ = learned.decode(raw_az, y0, torch.zeros(6, 4))
+    a_f, _, _ = fixed.decode(raw, y0, torch.zeros(6, 4))
+    torch.testing.assert_close(a_l, a_f, atol=1e-5, rtol=1e-4)  # loop vs folded map, same a_z
+    a_l[..., :3].sum().backward()
+    assert float(raw_az.grad[:, -1].abs().max()) > 0  # the spring constant learns
+    big = learned.a_z_of(torch.full((1, learned.n_params), 100.0))
+    assert 29.9 < float(big) <= 30.0  # within the clamp range
+
+
+@pytest.mark.parametrize("flag", ["--only-g", "--learn-az"])
+def test_ablation_switches_train_through_the_cli(tmp_path, flag):
+    from ndp.cli import main
+
+    assert main(["rl", "train", "--task", "point-mass", "--steps", "520", "--steps-per-update",
+                 "512", "--minibatches", "4", "--vector", "sync", "--run-dir", str(tmp_path / "r"),
+                 "--no-progress", "--no-tensorboard", flag]) == 0  # fmt: skip

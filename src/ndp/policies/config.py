@@ -66,6 +66,13 @@ class PolicyConfig:
     independent of y0 and start at dy0 = 0; False: relative to y0 like every other DoF."""
     param_noise: bool = False
     """NDP: explore with a Gaussian over the DMP parameters (one log-prob per decision)."""
+    only_g: bool = False
+    """NDP ablation 'only-g': no forcing term; the network outputs the goals only (a critically
+    damped spring to g per decision)."""
+    learn_az: bool = False
+    """NDP ablation: a learned spring constant, one more network output per decision mapped
+    into [0.5, 30] (b_z = a_z / 4; the preset a_z at a zero output); the DMP then runs the
+    reference integration loop instead of the folded map (slower)."""
     mean_clip: bool = False
     """NDP: clip the sub-action means to the action bounds before the noise (the first
     release's handicap); False: only the executed sample is clipped, as for PPO."""

@@ -27,6 +27,7 @@ physical velocity v (units/s) is therefore ``v * decision_dt / tau`` in DMP time
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -152,14 +153,21 @@ class NDPHead(ActionHead):
                 f"dmp: steps/subsample must give k={k} points, got steps={dmp.steps}, "
                 f"subsample={dmp.subsample}"
             )
-        if dmp.learn_az:
-            raise ValueError("dmp: a learned a_z is not supported by the RL head")
         self.k = int(k)
         self.dmp_dofs = int(dmp_dofs)
         self.action_dim = int(action_dim)
         self.n_basis = dmp.n_basis
-        self.n_params = self.dmp_dofs * (1 + self.n_basis)
+        # only-g (the supplement's ablation): no forcing term, the network outputs goals only;
+        # a learned a_z: one more output per decision, a_z in dmp.az_range (b_z = a_z / 4)
+        self.only_g = bool(dmp.only_g)
+        self.learn_az = bool(dmp.learn_az)
+        n_w = 0 if self.only_g else self.dmp_dofs * self.n_basis
+        self.n_params = self.dmp_dofs + n_w + (1 if self.learn_az else 0)
         self.dmp = DMPLayer(dmp)
+        if self.learn_az:
+            lo, hi = dmp.az_range
+            frac = min(max((dmp.a_z - lo) / (hi - lo), 1e-3), 1 - 1e-3)
+            self._az_offset = math.log(frac / (1.0 - frac))  # raw 0 gives the preset a_z
         gs = torch.as_tensor(goal_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
         self.register_buffer("goal_scale", gs, persistent=False)
         # DoF with a fixed goal centre (absolute commands) ignore y0 and dy0 for the goal.
@@ -187,7 +195,11 @@ class NDPHead(ActionHead):
         self.param_noise = bool(param_noise)
         n_std = self.n_params if self.param_noise else self.action_dim
         self.log_std = nn.Parameter(torch.full((n_std,), float(init_log_std)))
-        self._fused = linear_controller is not None and self.action_dim == self.dmp_dofs
+        self._fused = (
+            linear_controller is not None
+            and self.action_dim == self.dmp_dofs
+            and not self.learn_az  # the folded map is built for one a_z
+        )
         if self._fused:
             assert linear_controller is not None
             scale, absolute, low, high = (torch.as_tensor(x) for x in linear_controller)
@@ -227,9 +239,12 @@ class NDPHead(ActionHead):
         b, d = raw.shape[0], self.dmp_dofs
         step = self.goal_scale * torch.tanh(raw[:, :d])
         goal = torch.where(self.absolute_goal, self.goal_center + step, y0 + step)
-        weights = self.weight_scale.unsqueeze(-1) * torch.tanh(
-            raw[:, d:].reshape(b, d, self.n_basis)
-        )
+        if self.only_g:
+            weights = raw.new_zeros(b, d, self.n_basis)
+        else:
+            weights = self.weight_scale.unsqueeze(-1) * torch.tanh(
+                raw[:, d : d + d * self.n_basis].reshape(b, d, self.n_basis)
+            )
         if self.start_at_rest:
             dy0_dmp = torch.zeros_like(y0)
         else:
@@ -237,6 +252,12 @@ class NDPHead(ActionHead):
                 self.absolute_goal, 0.0, dy0 * (self.decision_dt / self.dmp.config.tau)
             )
         return goal, weights, dy0_dmp
+
+    def a_z_of(self, raw: torch.Tensor) -> torch.Tensor:
+        """The learned spring constant [B] of each decision (``learn_az``): the last raw output
+        through a sigmoid onto ``az_range`` (0 gives the configured a_z)."""
+        lo, hi = self.dmp.config.az_range
+        return lo + (hi - lo) * torch.sigmoid(raw[:, -1] + self._az_offset)
 
     def decode(
         self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
@@ -264,7 +285,10 @@ class NDPHead(ActionHead):
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """:meth:`decode` composed step by step: DMP layer, then the inverse controller."""
         goal, weights, dy0_dmp = self._goal_weights_dy0(raw, y0, dy0)
-        traj = self.dmp.positions(goal, weights, y0, dy0_dmp)  # [B, k + 1, D], traj[:, 0] = y0
+        if self.learn_az:
+            traj = self.dmp(goal, weights, y0, dy0_dmp, a_z=self.a_z_of(raw)).pos
+        else:
+            traj = self.dmp.positions(goal, weights, y0, dy0_dmp)  # [B, k + 1, D]; [:, 0] = y0
         if self._any_direct:  # the goal is the command of every sub-step
             traj = torch.where(self.direct, goal.unsqueeze(1), traj)
         actions = self.inverse_controller(traj, clip=self.mean_clip)  # [B, k, A]
@@ -293,7 +317,8 @@ class NDPHead(ActionHead):
             f"k={self.k}, D={self.dmp_dofs}, A={self.action_dim}, N={self.n_basis}, "
             f"decision_dt={self.decision_dt}, param_noise={self.param_noise}, "
             f"mean_clip={self.mean_clip}, direct={self.direct.tolist()}, "
-            f"start_at_rest={self.start_at_rest}"
+            f"start_at_rest={self.start_at_rest}, only_g={self.only_g}, "
+            f"learn_az={self.learn_az}"
         )
 
 
@@ -379,6 +404,8 @@ def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
         subsample=int(cfg.dmp_steps) // cfg.k,
         rbf=cfg.rbf,
         scale_by_goal=not amplitude,
+        only_g=bool(getattr(cfg, "only_g", False)),
+        learn_az=bool(getattr(cfg, "learn_az", False)),
     )
     return NDPHead(
         k=cfg.k,

@@ -30,7 +30,7 @@ def _hold(name, offset, kp, reach_s=2.0, hold_s=3.0, force=None, torque=None):
     env.reset(seed=0)
     arm, d, m = env.arm, env.data, env.model
     n = arm.ctrl.n_axes
-    period = int(round(0.1 / m.opt.timestep))
+    period = round(0.1 / m.opt.timestep)
     arm.set_goal(d, np.asarray(offset, float), np.full(n, kp), np.ones(n), period)
     goal = arm.goal.copy()
     if force is not None:

@@ -45,7 +45,9 @@ def test_vices_needs_a_task_with_a_torque_variant():
         ("vices-low-freq", "throw", JacoTorqueEnv),
     ],
 )
-def test_smoke_training_with_bounded_actions_then_eval(tmp_path, monkeypatch, capsys, algo, task, cls):
+def test_smoke_training_with_bounded_actions_then_eval(
+    tmp_path, monkeypatch, capsys, algo, task, cls
+):
     seen: list[float] = []
     step = cls.step
 

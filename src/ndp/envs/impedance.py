@@ -285,6 +285,13 @@ class ImpedanceController:
         )
 
 
+def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
+    """``idx`` as a slice if it is a run of consecutive integers, else unchanged."""
+    if len(idx) and np.array_equal(idx, np.arange(idx[0], idx[0] + len(idx))):
+        return slice(int(idx[0]), int(idx[0]) + len(idx))
+    return idx
+
+
 class ImpedanceArm:
     """Run-time state of an :class:`ImpedanceController` on one MuJoCo model.
 
@@ -327,6 +334,8 @@ class ImpedanceArm:
         self.qadr = np.array([model.joint(j).qposadr[0] for j in joints])
         self.dofs = np.array([model.joint(j).dofadr[0] for j in joints])
         self.act = np.array([model.actuator(a).id for a in actuators])
+        # the same indices as slices where contiguous (views: no copy at every simulator step)
+        self._q, self._v, self._a = (_as_slice(i) for i in (self.qadr, self.dofs, self.act))
         self.limit = np.asarray(ctrl.torque_limit, dtype=np.float64)
         self.ee_kind, self.ee_id = "body", -1
         if ee is not None:
@@ -443,12 +452,12 @@ class ImpedanceArm:
         arm's dynamics including the gripper it carries); the torques are its arm rows."""
         self.step_in_period += 1
         goal, kp, zeta = self._interpolated()
-        m, d, dofs = self.model, data, self.dofs
+        m, d, dofs, qadr = self.model, data, self._v, self._q
         qvel = d.qvel[dofs]
         kv = 2.0 * np.sqrt(kp) * zeta
         vfull, mv = self._vfull, self._mv
         if self.ctrl.space == "joint":
-            vfull[dofs] = kp * (goal - d.qpos[self.qadr]) - kv * qvel
+            vfull[dofs] = kp * (goal - d.qpos[qadr]) - kv * qvel
             mujoco.mj_mulM(m, d, mv, vfull)
             return mv[dofs] + d.qfrc_bias[dofs] - d.qfrc_passive[dofs]
         jac, jm, err, gains, damp = self._jfull, self._jm, self._err, self._gains, self._damp
@@ -464,7 +473,7 @@ class ImpedanceArm:
         gains[:3] = kp
         damp[:3] = kv
         kn = self.ctrl.null_kp
-        vfull[dofs] = kn * (self.posture - d.qpos[self.qadr]) - 2.0 * math.sqrt(kn) * qvel
+        vfull[dofs] = kn * (self.posture - d.qpos[qadr]) - 2.0 * math.sqrt(kn) * qvel
         mujoco.mj_mulM(m, d, mv, vfull)
         tau = osc_torque(jac, jm, d.qfrc_bias - d.qfrc_passive, err, jac @ d.qvel, gains, damp, mv)
         return tau[dofs]
@@ -477,18 +486,18 @@ class ImpedanceArm:
             ``(saturated, finite)``: torque entries clipped at their limits over the steps, and
             False if a torque was not finite (that step and the rest are then not run).
         """
-        m = self.model
+        m, act, limit = self.model, self._a, self.limit
         saturated = 0
         for _ in range(int(nstep)):
             mujoco.mj_step1(m, data)
             tau = self.torque(data)
-            if not np.all(np.isfinite(tau)):
-                data.ctrl[self.act] = 0.0
+            if not math.isfinite(float(tau.sum())):  # NaN / inf anywhere
+                data.ctrl[act] = 0.0
                 return saturated, False
-            over = np.abs(tau) > self.limit
+            over = np.abs(tau) > limit
             if over.any():
                 saturated += int(np.count_nonzero(over))
-                tau = np.minimum(np.maximum(tau, -self.limit), self.limit)
-            data.ctrl[self.act] = tau
+                tau = np.minimum(np.maximum(tau, -limit), limit)
+            data.ctrl[act] = tau
             mujoco.mj_step2(m, data)
         return saturated, True

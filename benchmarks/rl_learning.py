@@ -1,19 +1,28 @@
-"""Learning comparison: NDP vs PPO vs PPO-multi, success vs env steps, several tasks and seeds.
+"""Learning comparison: NDP vs PPO vs PPO-multi vs VICES, success vs env steps, tasks x seeds.
 
 Every (task, method, seed) run is an ordinary ``ndp rl train`` run in
 ``<runs-dir>/<task>-<method>-s<seed>`` (ndp.experiments.study): an interrupted run is resumed,
 a finished one reused, so the command can be re-run to extend or re-plot. Every method gets the
 same budget, seeds, PPO settings and evaluation; extra ``ndp rl train`` options after ``--`` go
-to all three alike (e.g. ``-- --init-log-std -0.7``). Success is the training episodes' success
+to every method alike (e.g. ``-- --init-log-std -0.7``). Success is the training episodes' success
 at any step (stochastic policy, ``charts/success_any``). Writes ``<out>.json``, ``<out>.md`` (the
 tables: success area = the success curve averaged over the budget, and final success = the mean
 of the last 10% of updates, mean +- std over seeds, with the command, commit and date) and
 ``<out>.png`` (curves).
 
+VICES (``vices``, ``vices-pos``, ``vices-low-freq``) trains on the torque-actuated variant of
+each task (``ndp.envs.TORQUE_TASKS``) with the same budget, seeds, PPO settings and success
+measure (the same task's success).
+
 The issue's protocol (days of CPU on 2 cores; resumable)::
 
     python benchmarks/rl_learning.py --steps 300000 --seeds 0 1 2 \
         --tasks push-v3 soccer-v3 faucet-open-v3 throw pick reach-v3
+
+with the VICES rows (same runs directory: the finished NDP / PPO runs are reused)::
+
+    python benchmarks/rl_learning.py --steps 300000 --seeds 0 1 2 --tasks push-v3 throw \
+        --algos ndp ppo ppo-multi vices vices-pos vices-low-freq
 """
 
 from __future__ import annotations
@@ -27,7 +36,14 @@ ARMS = (
     Arm("ndp", "ndp", (), "NDP (default head)"),
     Arm("ppo", "ppo", (), "PPO"),
     Arm("ppo-multi", "ppo-multi", (), "PPO-multi"),
+    Arm("vices", "vices", (), "VICES (torque-actuated task; OSC on Meta-World, joint on Jaco)"),
+    Arm("vices-pos", "vices-pos", (), "VICES in end-effector space (OSC) on every task"),
+    Arm("vices-low-freq", "vices-low-freq", (), "VICES, one decision per 5 env steps"),
 )
+
+DEFAULT_ALGOS = ("ndp", "ppo", "ppo-multi")
+"""Arms of a plain run: the VICES arms are named with ``--algos`` (a study re-run with more arms
+reuses the finished runs of the others, so the VICES rows join the same table)."""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -38,7 +54,11 @@ def main(argv: list[str] | None = None) -> int:
         default=["push-v3", "soccer-v3", "faucet-open-v3", "throw", "pick", "reach-v3"],
     )
     p.add_argument(
-        "--algos", nargs="+", default=[a.label for a in ARMS], choices=[a.label for a in ARMS]
+        "--algos",
+        nargs="+",
+        default=list(DEFAULT_ALGOS),
+        choices=[a.label for a in ARMS],
+        help=f"arms to run and tabulate (default: {' '.join(DEFAULT_ALGOS)})",
     )
     add_study_arguments(p, "runs/rl_learning", "docs/results/rl_learning", 300_000)
     args = p.parse_args(argv)

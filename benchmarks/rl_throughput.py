@@ -12,6 +12,9 @@ mini-batches, 10 epochs, [100, 100] tanh, observation and return normalisation):
   with the default vector env (``auto``: env slices in the main process and N - 1 workers) and,
   as ``<method>-sync``, in one process; setup (process start) excluded; the run's rollout and
   update times are reported apart (seconds per update);
+- ``vices`` / ``vices-sync``: ``ndp rl train --algo vices`` likewise (PPO on the torque-actuated
+  variant of the task, the impedance controller at every simulator step), against
+  ``raw-1-vices``: the torque-actuated env stepped in one process as ``raw-1``;
 - ``sb3-dummy`` / ``sb3-subproc``: stable-baselines3 PPO with ``DummyVecEnv`` and with
   ``SubprocVecEnv`` (+ ``VecNormalize``), same hyperparameters, same per-step env; the better
   of the two is ``sb3-best``.
@@ -43,6 +46,15 @@ import numpy as np
 from ndp.experiments.provenance import git_commit
 
 OURS = ("ppo", "ppo-multi", "ndp")
+VICES = ("vices", "vices-sync", "raw-1-vices")
+"""The VICES rows (``--methods``; in the default set)."""
+
+
+def torque_task(task: str) -> str:
+    """The torque-actuated row VICES trains on for ``task``."""
+    from ndp.envs import get_task_spec, torque_variant
+
+    return torque_variant(get_task_spec(task)).name
 
 
 def _raw_loop(task: str, steps: int, num_envs: int, seed: int) -> float:
@@ -157,6 +169,8 @@ def measure(
     torch.set_num_threads(1)
     if method == "raw-1":
         return {"wall": _raw_loop(task, steps, num_envs, seed)}
+    if method == "raw-1-vices":
+        return {"wall": _raw_loop(torque_task(task), steps, num_envs, seed)}
     if method == "raw-N":
         return {"wall": bench_raw_parallel(task, steps, num_envs, seed, cores)}
     if method.startswith("sb3-"):
@@ -178,7 +192,8 @@ def main(argv: list[str] | None = None) -> int:
         "--methods",
         nargs="+",
         default=None,
-        help="subset of: raw-1 raw-N ppo ppo-multi ndp <m>-sync sb3-dummy sb3-subproc",
+        help="subset of: raw-1 raw-N ppo ppo-multi ndp <m>-sync vices vices-sync raw-1-vices "
+        "sb3-dummy sb3-subproc",
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="write <out>.json and <out>.md")
@@ -189,6 +204,7 @@ def main(argv: list[str] | None = None) -> int:
         "raw-N",
         *OURS,
         *(f"{m}-sync" for m in OURS),
+        *VICES,
         "sb3-dummy",
         "sb3-subproc",
     ]
@@ -216,6 +232,9 @@ def main(argv: list[str] | None = None) -> int:
             for base in ("raw-N", "raw-1", "sb3-best"):
                 if base in res and m != base and not m.startswith("raw"):
                     v[f"vs_{base}"] = v["wall"] / res[base]["wall"]
+        for m in ("vices", "vices-sync"):
+            if m in res and "raw-1-vices" in res:
+                res[m]["vs_raw-1-vices"] = res[m]["wall"] / res["raw-1-vices"]["wall"]
         if "ndp" in res and "raw-1" in res:
             res["ndp"]["minutes_1M"] = 1e6 / res["ndp"]["wall"] / 60
             res["raw-1"]["minutes_1M"] = 1e6 / res["raw-1"]["wall"] / 60

@@ -2,7 +2,8 @@
 
 - :data:`TASKS` / :func:`get_task_spec`: per-task spec table (DMP coordinates, units, action
   bounds and scale, inverse controller, horizon, clocks).
-- :func:`make_env`: plain per-step env for the 50 Meta-World v3 tasks and Jaco Throw / Pick.
+- :func:`make_env`: plain per-step env for the 50 Meta-World v3 tasks and Jaco Throw / Pick,
+  and their torque-actuated variants (:data:`TORQUE_TASKS`, the VICES baseline).
 - :class:`ChunkedEnv`: k sub-steps per decision with the stale-world reward rule.
 - :func:`write_mp4`: save rendered frames.
 
@@ -11,16 +12,18 @@ All tasks are registered with gymnasium as ``ndp/<name>`` (``ndp/push-v3``,
 """
 
 from ndp.envs.chunked import ChunkedEnv
-from ndp.envs.factory import make_env, register_envs
+from ndp.envs.factory import make_env, register_envs, register_torque_envs
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import MetaWorldEnv
 from ndp.envs.render import write_mp4
-from ndp.envs.spec import TASKS, TaskSpec, get_task_spec
+from ndp.envs.spec import TASKS, TORQUE_TASKS, TaskSpec, get_task_spec, torque_variant
 
 register_envs()
+register_torque_envs()
 
 __all__ = [
     "TASKS",
+    "TORQUE_TASKS",
     "ChunkedEnv",
     "JacoEnv",
     "MetaWorldEnv",
@@ -28,5 +31,7 @@ __all__ = [
     "get_task_spec",
     "make_env",
     "register_envs",
+    "register_torque_envs",
+    "torque_variant",
     "write_mp4",
 ]

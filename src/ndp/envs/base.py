@@ -28,6 +28,11 @@ from gymnasium import spaces
 
 SIM_UNSTABLE = "sim_unstable"
 """Info key: the simulator went unstable and the episode was truncated."""
+CTRL_INFO = ("ctrl_gains_clipped", "ctrl_torque_saturated", "ctrl_nonfinite")
+"""Info counters of the torque-actuated envs (``ndp.envs.torque``): gain entries clipped to
+their range, torque entries clipped at the limit (over the simulator steps), a non-finite
+torque (the episode then ends like an unstable simulator). ``ChunkedEnv`` sums them over a
+decision (0 for envs without them)."""
 
 
 def check_render_mode(render_mode: str | None, modes: list[str] | tuple[str, ...]) -> None:

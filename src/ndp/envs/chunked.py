@@ -24,6 +24,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from ndp.envs.base import CTRL_INFO
+
 
 class ChunkedEnv(gym.Wrapper):
     """Execute k sub-actions per step; report per-sub-step rewards, masks and robot states.
@@ -46,6 +48,9 @@ class ChunkedEnv(gym.Wrapper):
       where the env has it: the target the actions move; else the measured state).
     - ``n_substeps`` int: sub-steps executed.
     - ``sim_unstable`` bool: the simulator went unstable (the episode was truncated).
+    - ``ctrl_gains_clipped`` / ``ctrl_torque_saturated`` / ``ctrl_nonfinite`` int: the
+      torque-actuated envs' controller counters summed over the executed sub-steps (0 for
+      other envs; ``ndp.envs.base.CTRL_INFO``).
 
     ``reset`` info has ``robot_pos``, ``robot_vel``, ``dmp_y0``, ``dmp_dy0``, ``cmd_y0``,
     ``cmd_dy0`` [D] and ``success_any`` False.
@@ -139,6 +144,7 @@ class ChunkedEnv(gym.Wrapper):
             self._last_state if self._last_state is not None else (self._base.robot_state())
         )
         snapshot = None
+        ctrl = dict.fromkeys(CTRL_INFO, 0)
         terminated = truncated = unstable = False
         obs: Any = None
         n = 0
@@ -154,6 +160,8 @@ class ChunkedEnv(gym.Wrapper):
             if self.stale_world and i == 0 and not unstable:
                 snapshot = self._base.world_snapshot()
             mask[i] = 1.0
+            for key in CTRL_INFO:
+                ctrl[key] += int(info.get(key, 0))
             sub_succ[i] = float(bool(info.get("success", False)))
             if "robot_pos" in info and "robot_vel" in info:
                 rpos[i + 1], rvel[i + 1] = info["robot_pos"], info["robot_vel"]
@@ -183,5 +191,6 @@ class ChunkedEnv(gym.Wrapper):
             "cmd_dy0": cvel,
             "n_substeps": n,
             "sim_unstable": unstable,
+            **ctrl,
         }
         return obs, float(sub_r.sum()), bool(terminated), bool(truncated), out

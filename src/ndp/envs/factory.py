@@ -16,7 +16,7 @@ from ndp.envs.base import defer_seed
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import MetaWorldEnv
 from ndp.envs.point_mass import PointMassEnv
-from ndp.envs.spec import TASKS, get_task_spec
+from ndp.envs.spec import TASKS, TORQUE_TASKS, get_task_spec
 
 FAMILIES: dict[str, Callable[..., gym.Env]] = {
     "metaworld": lambda spec, horizon, render_mode, **kw: MetaWorldEnv(
@@ -30,6 +30,26 @@ FAMILIES: dict[str, Callable[..., gym.Env]] = {
     ),
 }
 """Task family -> ``(spec, horizon, render_mode, **kw) -> env`` (a new family is one row)."""
+
+
+def _torque_metaworld(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+    from ndp.envs.torque import MetaWorldTorqueEnv
+
+    task = spec.metaworld_name or spec.name
+    return MetaWorldTorqueEnv(task, spec.controller, horizon, render_mode, **kw)
+
+
+def _torque_jaco(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+    from ndp.envs.torque import JacoTorqueEnv
+
+    return JacoTorqueEnv(spec.base_task, spec.controller, horizon, render_mode, **kw)
+
+
+TORQUE_FAMILIES: dict[str, Callable[..., gym.Env]] = {
+    "metaworld": _torque_metaworld,
+    "jaco": _torque_jaco,
+}
+"""Task family -> env factory of its torque-actuated rows (``spec.actuation == "torque"``)."""
 CHUNKED_KS = (5,)
 """k of the registered chunked-env ids ``ndp/<name>-k<k>`` (any k: ``ndp.make_env``)."""
 
@@ -68,12 +88,13 @@ def make_env(
         horizon = spec.horizon
     if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
         raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
-    if spec.family not in FAMILIES:
+    families = TORQUE_FAMILIES if spec.actuation == "torque" else FAMILIES
+    if spec.family not in families:
         raise ValueError(
             f"family: no env class for family {spec.family!r} of task {spec.name!r}"
-            f" (known: {', '.join(FAMILIES)})"
+            f" (known: {', '.join(families)})"
         )
-    env = FAMILIES[spec.family](spec, horizon, render_mode, **kw)
+    env = families[spec.family](spec, horizon, render_mode, **kw)
     defer_seed(env, seed)
     return env
 
@@ -88,6 +109,24 @@ def _make_registered_chunked(name: str, k: int, stale_world: bool = True, **kw: 
     from ndp.envs.chunked import ChunkedEnv
 
     return ChunkedEnv(make_env(name, **kw), k, stale_world=stale_world)
+
+
+def register_torque_envs() -> list[str]:
+    """Register the torque-actuated rows (``ndp/<name>``, per-step env only; idempotent).
+
+    Returns:
+        The registered ids, e.g. ``"ndp/push-v3-osc"``, ``"ndp/throw-joint"``.
+    """
+    ids = []
+    for name, spec in TORQUE_TASKS.items():
+        if spec.env_id not in gym.registry:
+            gym.register(
+                id=spec.env_id,
+                entry_point="ndp.envs.factory:_make_registered",
+                kwargs={"name": name},
+            )
+        ids.append(spec.env_id)
+    return ids
 
 
 def register_envs() -> list[str]:

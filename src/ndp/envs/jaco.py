@@ -45,6 +45,10 @@ FINGER_DELTA = 0.1
 """Finger joint-target change (rad) for an action of 1 (all three fingers, tied)."""
 ARM_JOINTS = tuple(f"jaco/joint_{i}" for i in range(1, 7))
 FINGER_JOINTS = tuple(f"jaco/hand/finger_{i}" for i in range(1, 4))
+POSITION_ACTUATORS = tuple(f"a_joint_{i}" for i in range(1, 7)) + tuple(
+    f"a_finger_{i}" for i in range(1, 4)
+)
+"""The scene's position actuators: six arm joints, then the three fingers."""
 FINGER_OPEN = 0.15
 """Finger angle (rad) fully open (joint lower limit)."""
 FINGER_CLOSED = 1.35
@@ -229,10 +233,10 @@ class JacoEnv(NDPEnv, EzPickle):
         EzPickle.__init__(self, task, horizon, render_mode, width, height, camera)
         if task not in ("throw", "pick"):
             raise ValueError(f"task: expected 'throw' or 'pick', got {task!r}")
-        self._setup(horizon, render_mode, action_dim=7)
+        self._setup(horizon, render_mode, action_dim=self._action_dim())
         self.task = task
         self.width, self.height, self.camera = int(width), int(height), camera
-        self.model = build_jaco_model()
+        self.model = self._build_model()
         self.data = mujoco.MjData(self.model)
         m = self.model
         self._arm_q = np.array([m.joint(j).qposadr[0] for j in ARM_JOINTS])
@@ -243,8 +247,9 @@ class JacoEnv(NDPEnv, EzPickle):
         self._cube_v = m.joint("cube").dofadr[0]
         self._grip = m.site("jaco/hand/gripsite").id
         self._basket_mocap = m.body("basket").mocapid[0]
-        self._ctrl_lo = m.actuator_ctrlrange[:, 0].copy()
-        self._ctrl_hi = m.actuator_ctrlrange[:, 1].copy()
+        self._act = np.array([m.actuator(a).id for a in POSITION_ACTUATORS])
+        self._ctrl_lo = m.actuator_ctrlrange[self._act, 0].copy()
+        self._ctrl_hi = m.actuator_ctrlrange[self._act, 1].copy()
         self.observation_space = spaces.Box(-OBS_BOUND, OBS_BOUND, dtype=np.float64)
         self._target = np.zeros(9)
         self._target_rate = np.zeros(7)
@@ -252,6 +257,14 @@ class JacoEnv(NDPEnv, EzPickle):
         self._cube_rest_z = CUBE_HALF
         self._steps = 0
         self._renderer: mujoco.Renderer | None = None
+
+    def _action_dim(self) -> int:
+        """Size of one action (7; the torque-actuated variant overrides it)."""
+        return 7
+
+    def _build_model(self) -> mujoco.MjModel:
+        """The model of this env (the torque-actuated variant adds its actuators)."""
+        return build_jaco_model()
 
     @property
     def joint_targets(self) -> np.ndarray:
@@ -365,7 +378,7 @@ class JacoEnv(NDPEnv, EzPickle):
         d.qpos[self._fin_q] = FINGER_OPEN if cube is None else fingers
         self._target = np.concatenate([home, np.full(3, fingers)])
         self._target_rate = np.zeros(7)
-        d.ctrl[:] = self._target
+        d.ctrl[self._act] = self._target
         if cube is None:
             # Throw: hold the cube kinematically at the grip site while the fingers close on it.
             mujoco.mj_forward(m, d)
@@ -424,7 +437,7 @@ class JacoEnv(NDPEnv, EzPickle):
         moved = self._target - prev
         self._target_rate = np.concatenate([moved[:6], [moved[6:].mean()]]) / CONTROL_DT
         d = self.data
-        d.ctrl[:] = self._target
+        d.ctrl[self._act] = self._target
         warn_before = warning_count(d)
         last_obs = self._obs()
         mujoco.mj_step(self.model, d, nstep=FRAME_SKIP)

@@ -122,9 +122,9 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         EzPickle.__init__(self, task, horizon, render_mode, width, height, camera_name)
         if task not in ALL_V3_ENVIRONMENTS:
             raise ValueError(f"task: expected a Meta-World v3 name, got {task!r}")
-        self._setup(horizon, render_mode, action_dim=4)
+        self._setup(horizon, render_mode, action_dim=self._action_dim())
         self.task = task
-        env = ALL_V3_ENVIRONMENTS[task](
+        env = self._task_class(ALL_V3_ENVIRONMENTS[task])(
             render_mode=render_mode, camera_name=camera_name, width=width, height=height
         )
         # Task setup as metaworld's own benchmark construction does it, but with the random
@@ -158,6 +158,14 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         self._vel6 = np.zeros(6)
         self._mocap_vel = np.zeros(3)
         self.control_dt = float(m.opt.timestep * env.frame_skip)
+
+    def _action_dim(self) -> int:
+        """Size of one action (4; the torque-actuated variant overrides it)."""
+        return 4
+
+    def _task_class(self, cls: type) -> type:
+        """The metaworld task class to instantiate (the torque-actuated variant overrides it)."""
+        return cls
 
     # ------------------------------------------------------------------ state access
     def robot_state(self) -> tuple[np.ndarray, np.ndarray]:

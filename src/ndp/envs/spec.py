@@ -16,10 +16,19 @@ torch, batched, differentiable up to the optional clip), today all ``DeltaContro
 
 If ``robot_pos`` [..., D] is given it replaces ``p[..., 0, :]`` (the measured start).
 A task with another actuation gets another controller in its row (``CONTROLLERS``).
+
+Torque-actuated rows (:data:`TORQUE_TASKS`, the VICES baseline; ``ndp.envs.torque``): each is
+its position-controlled row (``base_task``) with ``actuation="torque"`` and an
+``ImpedanceController`` (``ndp.envs.impedance``) whose action layout sets ``action_dim``. Names:
+``<task>-<space>[-zeta][-k<period>]`` with space ``osc`` (end-effector; every task) or ``joint``
+(Jaco only), ``-zeta`` when the policy also chooses the damping ratio, ``-k5`` when it decides
+once per 5 env steps (VICES low-frequency). Clocks: ``sim_dt`` is the controller's rate,
+``control_dt`` the env step, ``controller.period * control_dt`` the policy's decision period.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 from dataclasses import dataclass, field
 from typing import Literal
@@ -28,6 +37,7 @@ import torch
 
 from ndp.envs import jaco, point_mass
 from ndp.envs.controllers import DeltaController
+from ndp.envs.impedance import ImpedanceController
 from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metaworld_env_names
 from ndp.envs.presets import DEFAULT as DEFAULT_PRESET
 from ndp.envs.presets import NDP_PRESETS, NDPPreset
@@ -80,9 +90,16 @@ class TaskSpec:
     measured per task (``ndp.envs.metaworld_env.REWARD_FROM_OBS``)."""
     aliases: tuple[str, ...] = field(default=())
     """Other names :func:`get_task_spec` accepts for this task."""
-    controller: DeltaController | None = None
+    controller: DeltaController | ImpedanceController | None = None
     """The low-level controller, trajectory points -> actions (``ndp.envs.controllers``); None:
-    a :class:`DeltaController` built from the ``action_*`` fields."""
+    a :class:`DeltaController` built from the ``action_*`` fields. Torque-actuated rows hold an
+    :class:`~ndp.envs.impedance.ImpedanceController` (their action layout and gains)."""
+    actuation: Literal["position", "torque"] = "position"
+    """How the arm is driven: ``"position"`` (mocap / joint position targets, the paper's
+    tasks) or ``"torque"`` (torque actuators under ``controller``, the VICES baseline)."""
+    base_task: str | None = None
+    """Torque-actuated rows: the position-controlled row they are a variant of (same rewards,
+    success, observations, horizon); None for the position-controlled rows."""
     ndp: NDPPreset | None = None
     """The NDP head's per-task DMP settings (``ndp.envs.presets``); None: the task's row of
     ``NDP_PRESETS`` (or its ``DEFAULT``)."""
@@ -196,6 +213,55 @@ def toy_spec(dim: int = 2, horizon: int | None = None) -> TaskSpec:
     )
 
 
+def torque_task_name(base: str, space: str, learn_damping: bool = False, period: int = 1) -> str:
+    """Name of a torque-actuated row: ``<base>-<space>[-zeta][-k<period>]``."""
+    return (
+        f"{base}-{space}"
+        + ("-zeta" if learn_damping else "")
+        + (f"-k{period}" if period > 1 else "")
+    )
+
+
+TORQUE_PERIODS = (1, 5)
+"""Decision periods (env steps) of the torque-actuated rows: every step (VICES) and 5 (VICES
+low-frequency, one decision per k = 5 env steps as NDP decides)."""
+
+
+def _torque_spec(base: TaskSpec, space: str, learn_damping: bool, period: int) -> TaskSpec:
+    from ndp.envs import torque
+
+    if base.family == "metaworld":
+        ctrl = torque.sawyer_controller(learn_damping, period)
+    else:
+        ctrl = torque.jaco_controller(space, learn_damping, period)
+    name = torque_task_name(base.name, space, learn_damping, period)
+    a = ctrl.action_dim
+    return dataclasses.replace(
+        base,
+        name=name,
+        env_id=f"ndp/{name}",
+        action_dim=a,
+        action_low=(-1.0,) * a,
+        action_high=(1.0,) * a,
+        controller=ctrl,
+        actuation="torque",
+        base_task=base.name,
+        aliases=(),
+    )
+
+
+def _build_torque_table(tasks: dict[str, TaskSpec]) -> dict[str, TaskSpec]:
+    table = {}
+    for base in tasks.values():
+        spaces = {"metaworld": ("osc",), "jaco": ("joint", "osc")}.get(base.family, ())
+        for space in spaces:
+            for damping in (False, True):
+                for period in TORQUE_PERIODS:
+                    spec = _torque_spec(base, space, damping, period)
+                    table[spec.name] = spec
+    return table
+
+
 def _build_table() -> dict[str, TaskSpec]:
     table = {n: _metaworld_spec(n) for n in metaworld_env_names()}
     for task in ("throw", "pick"):
@@ -210,7 +276,48 @@ TASKS: dict[str, TaskSpec] = _build_table()
 """name -> TaskSpec for the 50 Meta-World v3 tasks, ``"throw"`` / ``"pick"`` and the toy
 ``"point-mass"`` / ``"point-mass-3d"``."""
 
+TORQUE_TASKS: dict[str, TaskSpec] = _build_torque_table(TASKS)
+"""name -> TaskSpec of the torque-actuated variants (VICES): ``push-v3-osc``, ``throw-joint``,
+``throw-osc``, ... (see the module docstring); looked up by :func:`get_task_spec` like
+:data:`TASKS`."""
+
 _ALIASES: dict[str, str] = {a: s.name for s in TASKS.values() for a in (*s.aliases, s.env_id)}
+_ALIASES.update({s.env_id: s.name for s in TORQUE_TASKS.values()})
+
+
+def torque_variant(
+    spec: TaskSpec,
+    space: str | None = None,
+    learn_damping: bool | None = None,
+    period: int | None = None,
+) -> TaskSpec:
+    """The torque-actuated row of a task (a torque row maps to its sibling).
+
+    Args:
+        spec: any row with a torque variant (Meta-World, Jaco; or a torque row).
+        space: ``"osc"`` or ``"joint"``; None: the row's own (torque rows), else ``"osc"`` for
+            Meta-World and ``"joint"`` for the Jaco tasks (VICES's defaults).
+        learn_damping: None: the row's own (False for position rows).
+        period: decision period in env steps; None: the row's own (1 for position rows).
+
+    Raises:
+        ValueError: the task has no such variant (e.g. the toy point mass).
+    """
+    ctrl = spec.controller if isinstance(spec.controller, ImpedanceController) else None
+    base = spec.base_task or spec.name
+    if space is None:
+        if ctrl is not None:
+            space = "osc" if ctrl.space == "ee" else "joint"
+        else:
+            space = "osc" if spec.family == "metaworld" else "joint"
+    if learn_damping is None:
+        learn_damping = bool(ctrl.learn_damping) if ctrl is not None else False
+    if period is None:
+        period = ctrl.period if ctrl is not None else 1
+    name = torque_task_name(base, space, learn_damping, period)
+    if name not in TORQUE_TASKS:
+        raise ValueError(f"task: {spec.name!r} has no torque-actuated variant {name!r}")
+    return TORQUE_TASKS[name]
 
 
 def get_task_spec(name: str) -> TaskSpec:
@@ -229,8 +336,11 @@ def get_task_spec(name: str) -> TaskSpec:
         raise ValueError(f"name: expected a task name string, got {type(name).__name__}")
     if name in TASKS:
         return TASKS[name]
+    if name in TORQUE_TASKS:
+        return TORQUE_TASKS[name]
     if name in _ALIASES:
-        return TASKS[_ALIASES[name]]
+        key = _ALIASES[name]
+        return TASKS[key] if key in TASKS else TORQUE_TASKS[key]
     close = difflib.get_close_matches(name, list(TASKS) + list(_ALIASES), n=5, cutoff=0.5)
     hint = ", ".join(close) if close else "see ndp.envs.TASKS"
     raise ValueError(f"name: unknown task {name!r}; close names: {hint}")

@@ -54,6 +54,9 @@ def info_schema(k: int, dof: int) -> dict[str, tuple[tuple[int, ...], type]]:
         "cmd_dy0": ((dof,), f),
         "n_substeps": ((), np.int64),
         "sim_unstable": ((), b),
+        "ctrl_gains_clipped": ((), np.int64),
+        "ctrl_torque_saturated": ((), np.int64),
+        "ctrl_nonfinite": ((), np.int64),
     }
 
 

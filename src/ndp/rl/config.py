@@ -109,7 +109,8 @@ class TrainConfig:
     task: str = "reach-v3"
     """Task name (see ndp.envs.TASKS) or 'point-mass' (the toy task)."""
     algo: str = "ndp"
-    """Method: 'ndp', 'ppo' or 'ppo-multi'."""
+    """Method: 'ndp', 'ppo', 'ppo-multi', or 'vices' / 'vices-pos' / 'vices-low-freq' (PPO on
+    the torque-actuated variant of the task under variable impedance control)."""
     steps: int = 500_000
     """Total env steps (sub-steps) to train for."""
     seed: int = 0
@@ -213,6 +214,8 @@ class TrainConfig:
 def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     """Fill the task-dependent fields and validate; nothing here builds an environment.
 
+    - ``task``: the method's task-table row (``Method.task_variant``: VICES runs the
+      torque-actuated variant of the requested task), by its canonical name.
     - ``policy.head`` follows ``algo``; ``policy.k`` is 1 for PPO.
     - NDP: ``n_basis``, ``a_z``, ``goal_scale`` from the task's preset where None;
       ``dmp_steps`` = preset steps per sub-step * k; ``weight_scale`` = a_z^2 / 4 where None.
@@ -233,6 +236,8 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     from ndp.rl.methods import METHODS
 
     method = METHODS[cfg.algo]
+    if method.task_variant is not None:
+        spec = method.task_variant(spec)
     pol = cfg.policy
     k = 1 if method.head in SINGLE_STEP_HEADS else pol.k
     with_k = dataclasses.replace(pol, head=method.head, k=k)

@@ -27,6 +27,9 @@ METRICS: tuple[str, ...] = (
     "policy/std",
     "dmp/goal_norm",
     "dmp/weight_norm",
+    "ctrl/gains_clipped",
+    "ctrl/torque_saturated",
+    "ctrl/nonfinite",
     "time/rollout_s",
     "time/update_s",
 )

@@ -60,6 +60,9 @@ class Method:
     """``(policy config with k set, task spec) -> PolicyConfig changes`` (task presets)."""
     metrics: tuple[str, ...] = field(default=())
     """Extra metric keys this method fills (docs/metrics.md)."""
+    task_variant: Callable[[Any], Any] | None = None
+    """``task spec -> the task-table row this method runs on`` (VICES: the torque-actuated
+    variant of the requested task, ``ndp.envs.torque_variant``); None: the requested row."""
     learner: Callable[[Any, bool], Any] | None = None
     """``learner(resolved TrainConfig, resume) -> object with train(max_updates=None) -> last
     metrics and close()``, for a method with its own learning loop (off-policy, evolution, ...);
@@ -102,3 +105,7 @@ register_method(
         metrics=("dmp/goal_norm", "dmp/weight_norm"),
     )
 )
+
+from ndp.rl import vices as _vices  # noqa: E402  (registers vices, vices-pos, vices-low-freq)
+
+del _vices

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from ndp.envs.base import CTRL_INFO
 from ndp.policies import build_actor_critic
 from ndp.policies.distributions import SubActionGaussian
 from ndp.rl.config import SAFE_ON_RESUME, TrainConfig, load_config, resolve_config
@@ -61,6 +62,8 @@ class Trainer:
     def __init__(self, cfg: TrainConfig, resume: bool = False) -> None:
         task = resolve_task(cfg.task)
         cfg = resolve_config(cfg, task.spec)
+        if cfg.task != task.spec.name:  # the method runs another row (VICES: torque variant)
+            task = resolve_task(cfg.task)
         self.cfg = cfg
         self.spec = task.spec
         self.run_dir = Path(cfg.run_dir or ".")
@@ -200,6 +203,7 @@ class Trainer:
         episodes: list[tuple[float, float, float, float, float]] = []
         goal_norms: list[float] = []
         weight_norms: list[float] = []
+        ctrl = dict.fromkeys(CTRL_INFO, 0.0)
         executed = 0
         for t in range(T):
             obs_n = torch.from_numpy(self.obs_norm(self._obs, update=True))
@@ -247,6 +251,9 @@ class Trainer:
                 r_n = bootstrap_truncated(r_n, mask, boot, v_fin, gamma)
             rew_b[t], mask_b[t], end_b[t] = r_n, mask, done
             executed += int(mask.sum())
+            for key in CTRL_INFO:
+                if key in infos or "final_info" in infos:
+                    ctrl[key] += float(step_info(infos, done, key).sum())
 
             self._ep_ret += (sub_r * mask).sum(1)
             self._ep_ret_live += (live * mask).sum(1)
@@ -290,6 +297,7 @@ class Trainer:
             "executed": executed,
             "goal_norm": float(np.mean(goal_norms)) if goal_norms else math.nan,
             "weight_norm": float(np.mean(weight_norms)) if weight_norms else math.nan,
+            "ctrl": ctrl,
         }
 
     # ----------------------------------------------------------------------- update
@@ -448,6 +456,7 @@ class Trainer:
                     "policy/std": std,
                     "dmp/goal_norm": batch["goal_norm"],
                     "dmp/weight_norm": batch["weight_norm"],
+                    **self._ctrl_metrics(batch),
                     "time/rollout_s": t1 - t0,
                     "time/update_s": t2 - t1,
                 }
@@ -463,6 +472,21 @@ class Trainer:
             bar.close()
             logger.close()
         return metrics
+
+    def _ctrl_metrics(self, batch: dict[str, Any]) -> dict[str, float]:
+        """Controller counters of the torque-actuated tasks (NaN for the others): gain entries
+        clipped and non-finite torques over the update, saturated torque entries per env
+        step."""
+        if self.spec.actuation != "torque":
+            return dict.fromkeys(
+                ("ctrl/gains_clipped", "ctrl/torque_saturated", "ctrl/nonfinite"), math.nan
+            )
+        c = batch["ctrl"]
+        return {
+            "ctrl/gains_clipped": c["ctrl_gains_clipped"],
+            "ctrl/torque_saturated": c["ctrl_torque_saturated"] / max(batch["executed"], 1),
+            "ctrl/nonfinite": c["ctrl_nonfinite"],
+        }
 
     def close(self) -> None:
         """Close the environments."""

@@ -599,7 +599,7 @@ class DyneLearner:
         q1, q2 = self.critic(b["obs"], b["z"])
         critic_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)
         if not bool(torch.isfinite(critic_loss)):
-            raise self._diverged(f"non-finite critic loss ({float(critic_loss)})")
+            raise self._diverged(f"non-finite critic loss ({float(critic_loss.detach())})")
         self.critic_opt.zero_grad()
         critic_loss.backward()
         self.critic_opt.step()
@@ -612,7 +612,7 @@ class DyneLearner:
                 b["obs"], self.head.latent(self.model.actor(b["obs"]))
             ).mean()
             if not bool(torch.isfinite(actor_loss)):
-                raise self._diverged(f"non-finite actor loss ({float(actor_loss)})")
+                raise self._diverged(f"non-finite actor loss ({float(actor_loss.detach())})")
             self.actor_opt.zero_grad()
             actor_loss.backward()
             self.actor_opt.step()

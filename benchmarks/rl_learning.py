@@ -1,10 +1,11 @@
-"""Learning comparison: NDP vs PPO vs PPO-multi, success vs env steps, several tasks and seeds.
+"""Learning comparison: NDP vs PPO vs PPO-multi vs Dyn-E, success vs env steps, tasks and seeds.
 
 Every (task, method, seed) run is an ordinary ``ndp rl train`` run in
 ``<runs-dir>/<task>-<method>-s<seed>`` (ndp.experiments.study): an interrupted run is resumed,
 a finished one reused, so the command can be re-run to extend or re-plot. Every method gets the
 same budget, seeds, PPO settings and evaluation; extra ``ndp rl train`` options after ``--`` go
-to all three alike (e.g. ``-- --init-log-std -0.7``). Success is the training episodes' success
+to all arms alike (e.g. ``-- --init-log-std -0.7``; Dyn-E ignores the PPO and NDP ones). Dyn-E's
+budget includes the random exploration data its embedding is trained on (docs/dyne.md). Success is the training episodes' success
 at any step (stochastic policy, ``charts/success_any``). Writes ``<out>.json``, ``<out>.md`` (the
 tables: success area = the success curve averaged over the budget, and final success = the mean
 of the last 10% of updates, mean +- std over seeds, with the command, commit and date) and
@@ -27,6 +28,7 @@ ARMS = (
     Arm("ndp", "ndp", (), "NDP (default head)"),
     Arm("ppo", "ppo", (), "PPO"),
     Arm("ppo-multi", "ppo-multi", (), "PPO-multi"),
+    Arm("dyne", "dyne", (), "Dyn-E (TD3 in a learned k-action embedding; exploration data counted)"),
 )
 
 

@@ -5,11 +5,11 @@ Every (task, method, seed) run is an ordinary ``ndp rl train`` run in
 a finished one reused, so the command can be re-run to extend or re-plot. Every method gets the
 same budget, seeds, PPO settings and evaluation; extra ``ndp rl train`` options after ``--`` go
 to all arms alike (e.g. ``-- --init-log-std -0.7``; Dyn-E ignores the PPO and NDP ones). Dyn-E's
-budget includes the random exploration data its embedding is trained on (docs/dyne.md). Success is the training episodes' success
-at any step (stochastic policy, ``charts/success_any``). Writes ``<out>.json``, ``<out>.md`` (the
-tables: success area = the success curve averaged over the budget, and final success = the mean
-of the last 10% of updates, mean +- std over seeds, with the command, commit and date) and
-``<out>.png`` (curves).
+budget includes the random exploration data its embedding is trained on (docs/dyne.md). Success
+is the training episodes' success at any step (stochastic policy, ``charts/success_any``).
+Writes ``<out>.json``, ``<out>.md`` (the tables: success area = the success curve averaged over
+the budget, and final success = the mean of the last 10% of updates, mean +- std over seeds,
+with the command, commit and date) and ``<out>.png`` (curves).
 
 The issue's protocol (days of CPU on 2 cores; resumable)::
 
@@ -28,7 +28,7 @@ ARMS = (
     Arm("ndp", "ndp", (), "NDP (default head)"),
     Arm("ppo", "ppo", (), "PPO"),
     Arm("ppo-multi", "ppo-multi", (), "PPO-multi"),
-    Arm("dyne", "dyne", (), "Dyn-E (TD3 in a learned k-action embedding; exploration data counted)"),
+    Arm("dyne", "dyne", (), "Dyn-E (TD3 in a learned k-action embedding, exploration counted)"),
 )
 
 

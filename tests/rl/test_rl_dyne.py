@@ -114,7 +114,7 @@ def test_td3_in_the_latent_improves_on_point_mass_fast(tmp_path):
 @pytest.mark.slow
 def test_td3_in_the_latent_solves_point_mass(tmp_path):
     """Default Dyn-E settings, 20k env steps (5k exploration): measured success 1.0 from about
-    10k env steps on; ~2 min."""
+    10k env steps on; 2-3 min."""
     cfg = _cfg(tmp_path, steps=20_000, dyne=DyneConfig(), ppo=PPOConfig(steps_per_update=1000))
     lr = _learner(cfg)
     try:
@@ -152,7 +152,8 @@ def _same(a, b, path="") -> None:
 
 
 def test_checkpoint_round_trip_includes_the_replay_buffer(tmp_path):
-    cfg = _cfg(tmp_path, dyne=dataclasses.replace(FAST, embed_updates=100, decoder_updates=100))
+    small = dataclasses.replace(FAST, embed_updates=100, decoder_updates=100, updates_per_step=0.1)
+    cfg = _cfg(tmp_path, dyne=small)
     lr = _learner(cfg)
     try:
         lr.train(max_updates=6)  # 4 exploration iterations (checkpoint), then 2 of TD3

@@ -283,3 +283,64 @@ def test_smoke_real_tasks(tmp_path, task):
 
     out = evaluate(tmp_path / "r", episodes=1)
     assert 0.0 <= out["success_any"] <= 1.0
+
+
+def _cli_args(run, steps):
+    return ["rl", "train", "--task", "point-mass", "--algo", "dyne", "--run-dir", str(run),
+            "--steps", str(steps), "--steps-per-update", "200", "--explore-steps", "400",
+            "--embed-updates", "50", "--decoder-updates", "50", "--updates-per-step", "0.2",
+            "--checkpoint-every", "2", "--vector", "sync", "--no-progress",
+            "--no-tensorboard"]  # fmt: skip
+
+
+def test_two_runs_with_one_seed_are_identical(tmp_path):
+    from ndp.rl.logger import TIME_METRICS
+
+    for name in ("a", "b"):
+        assert ndp_main(_cli_args(tmp_path / name, 1200)) == 0
+    rows_a, rows_b = read_metrics(tmp_path / "a"), read_metrics(tmp_path / "b")
+    drop = {*TIME_METRICS}
+    assert [{k: v for k, v in r.items() if k not in drop} for r in rows_a] == [
+        {k: v for k, v in r.items() if k not in drop} for r in rows_b
+    ]
+    _same(load_checkpoint(tmp_path / "a")["model"], load_checkpoint(tmp_path / "b")["model"])
+
+
+def test_sigkill_then_resume(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    run, n = tmp_path / "run", 20
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "ndp.cli", *_cli_args(run, 200 * n)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+    deadline = time.time() + 120
+    try:
+        while time.time() < deadline:
+            if proc.poll() is not None:
+                pytest.fail(f"training exited early: {proc.stderr.read().decode()[-2000:]}")
+            if (run / "metrics.csv").is_file() and len(read_metrics(run)) >= 5:
+                break
+            time.sleep(0.05)
+        else:
+            pytest.fail("training produced no progress in time")
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == -signal.SIGKILL
+    assert len(read_metrics(run)) < n
+    assert ndp_main(["rl", "train", "--resume", str(run), "--no-progress"]) == 0
+    rows = read_metrics(run)
+    assert [r["update"] for r in rows] == list(range(1, n + 1))
+    ckpt = load_checkpoint(run, kind="rl")
+    assert ckpt["update"] == n and ckpt["global_step"] == 200 * n
+    # every TD3 iteration's 40 decisions are in the buffer exactly once
+    assert ckpt["dyne"]["replay"]["size"] == 40 * (n - 2)

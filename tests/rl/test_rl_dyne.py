@@ -56,7 +56,9 @@ def test_dyne_is_registered_with_the_td3_actor():
 
 
 def test_embedding_prediction_loss_falls_and_decoder_reconstructs(tmp_path):
-    cfg = _cfg(tmp_path, dyne=dataclasses.replace(FAST, embed_updates=1500, decoder_updates=1500))
+    # measured (seeds 0, 1): prediction loss 0.36 over the first 10% of the steps -> 0.13,
+    # cycle and predicted-effect errors 0.001, displacement error 0.08-0.11 of its spread
+    cfg = _cfg(tmp_path, dyne=dataclasses.replace(FAST, embed_updates=1000, decoder_updates=1000))
     lr = _learner(cfg)
     try:
         for _ in range(lr.n_explore):
@@ -79,9 +81,9 @@ def test_embedding_prediction_loss_falls_and_decoder_reconstructs(tmp_path):
         pred, pred_rec = emb.predict(s0, emb.encode(act)[0]), emb.predict(s0, emb.encode(rec)[0])
     assert float(rec.abs().max()) <= 1.0  # tanh-bounded to the action range
     # the encoder maps a decoded sequence back onto its latent ...
-    assert float(((z_rec - z) ** 2).mean()) < 0.05
+    assert float(((z_rec - z) ** 2).mean()) < 0.02
     # ... so that it has the same predicted effect on the state ...
-    assert float(((pred_rec - pred) ** 2).mean()) < 0.05
+    assert float(((pred_rec - pred) ** 2).mean()) < 0.02
     # ... and the same physical effect: the point mass moves by 0.05 * sum of the actions
     disp, disp_rec = act.sum(1), rec.sum(1)
     err = float(((disp_rec - disp) ** 2).sum(1).mean())

@@ -1,14 +1,15 @@
-"""Learning comparison: NDP vs PPO vs PPO-multi vs VICES, success vs env steps, tasks x seeds.
+"""Learning comparison: NDP vs PPO vs PPO-multi vs Dyn-E vs VICES: success vs env steps.
 
 Every (task, method, seed) run is an ordinary ``ndp rl train`` run in
 ``<runs-dir>/<task>-<method>-s<seed>`` (ndp.experiments.study): an interrupted run is resumed,
 a finished one reused, so the command can be re-run to extend or re-plot. Every method gets the
 same budget, seeds, PPO settings and evaluation; extra ``ndp rl train`` options after ``--`` go
-to every method alike (e.g. ``-- --init-log-std -0.7``). Success is the training episodes' success
-at any step (stochastic policy, ``charts/success_any``). Writes ``<out>.json``, ``<out>.md`` (the
-tables: success area = the success curve averaged over the budget, and final success = the mean
-of the last 10% of updates, mean +- std over seeds, with the command, commit and date) and
-``<out>.png`` (curves).
+to all arms alike (e.g. ``-- --init-log-std -0.7``; Dyn-E ignores the PPO and NDP ones). Dyn-E's
+budget includes the random exploration data its embedding is trained on (docs/dyne.md). Success
+is the training episodes' success at any step (stochastic policy, ``charts/success_any``).
+Writes ``<out>.json``, ``<out>.md`` (the tables: success area = the success curve averaged over
+the budget, and final success = the mean of the last 10% of updates, mean +- std over seeds,
+with the command, commit and date) and ``<out>.png`` (curves).
 
 VICES (``vices``, ``vices-pos``, ``vices-low-freq``) trains on the torque-actuated variant of
 each task (``ndp.envs.TORQUE_TASKS``) with the same budget, seeds, PPO settings and success
@@ -39,6 +40,7 @@ ARMS = (
     Arm("vices", "vices", (), "VICES (torque-actuated task; OSC on Meta-World, joint on Jaco)"),
     Arm("vices-pos", "vices-pos", (), "VICES in end-effector space (OSC) on every task"),
     Arm("vices-low-freq", "vices-low-freq", (), "VICES, one decision per 5 env steps"),
+    Arm("dyne", "dyne", (), "Dyn-E (TD3 in a learned k-action embedding, exploration counted)"),
 )
 
 DEFAULT_ALGOS = ("ndp", "ppo", "ppo-multi")

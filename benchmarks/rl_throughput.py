@@ -1,4 +1,4 @@
-"""Training throughput (env steps/s) of PPO, PPO-multi and NDP vs raw env stepping and SB3 PPO.
+"""Training throughput (env steps/s) of PPO, PPO-multi, NDP and Dyn-E vs raw env stepping and SB3.
 
 In one run, per task, measured in interleaved rounds (``--repeats``, median reported), with the
 supplement's PPO settings everywhere (2048 env steps per update over ``--num-envs`` envs, 32
@@ -15,6 +15,10 @@ mini-batches, 10 epochs, [100, 100] tanh, observation and return normalisation):
 - ``vices`` / ``vices-sync``: ``ndp rl train --algo vices`` likewise (PPO on the torque-actuated
   variant of the task, the impedance controller at every simulator step), against
   ``raw-1-vices``: the torque-actuated env stepped in one process as ``raw-1``;
+- ``dyne`` / ``dyne-sync``: Dyn-E's TD3 phase (``ndp.rl.dyne.DyneLearner``) at the original work's
+  update-to-data ratio (one TD3 gradient step per env step, batch 100), acting, decoding and
+  updating included; its exploration phase and the embedding's training (one iteration, a few
+  hundred steps, done first) are excluded from the rate; rollout / update seconds per iteration;
 - ``sb3-dummy`` / ``sb3-subproc``: stable-baselines3 PPO with ``DummyVecEnv`` and with
   ``SubprocVecEnv`` (+ ``VecNormalize``), same hyperparameters, same per-step env; the better
   of the two is ``sb3-best``.
@@ -45,7 +49,7 @@ import numpy as np
 
 from ndp.experiments.provenance import git_commit
 
-OURS = ("ppo", "ppo-multi", "ndp")
+OURS = ("ppo", "ppo-multi", "ndp", "dyne")
 VICES = ("vices", "vices-sync", "raw-1-vices")
 """The VICES rows (``--methods``; in the default set)."""
 
@@ -107,32 +111,46 @@ def bench_raw_parallel(task: str, steps: int, num_envs: int, seed: int, procs: i
 def bench_ours(
     task: str, algo: str, steps: int, num_envs: int, seed: int, vector: str
 ) -> dict[str, float]:
-    """Wall steps/s of a training run, and its mean rollout / update seconds per update."""
-    from ndp.rl.config import TrainConfig
-    from ndp.rl.trainer import Trainer
+    """Wall steps/s of a training run, and its mean rollout / update seconds per update.
+
+    Dyn-E: one exploration iteration and a short embedding fit first (not timed), then
+    ``steps`` env steps of TD3 (timed)."""
+    import dataclasses
+
+    from ndp.rl.config import DyneConfig, TrainConfig
+    from ndp.rl.trainer import make_learner
     from ndp.runs import read_metrics
 
     with tempfile.TemporaryDirectory() as tmp:
-        tr = Trainer(
-            TrainConfig(
-                task=task,
-                algo=algo,
-                steps=steps,
-                seed=seed,
-                num_envs=num_envs,
-                run_dir=str(Path(tmp) / "r"),
-                progress=False,
-                tensorboard=False,
-                vector=vector,
-            )
+        cfg = TrainConfig(
+            task=task,
+            algo=algo,
+            steps=steps,
+            seed=seed,
+            num_envs=num_envs,
+            run_dir=str(Path(tmp) / "r"),
+            progress=False,
+            tensorboard=False,
+            vector=vector,
         )
+        if algo == "dyne":
+            cfg = dataclasses.replace(
+                cfg,
+                steps=steps + cfg.env_steps_per_update,
+                dyne=DyneConfig(explore_steps=1, embed_updates=200, decoder_updates=200),
+            )
+        tr = make_learner(cfg)
         try:
+            skip = getattr(tr, "n_explore", 0)
+            if skip:
+                tr.train(max_updates=skip)
+            g0 = tr.global_step
             w0 = time.perf_counter()
             tr.train()
             w = time.perf_counter() - w0
-            rows = read_metrics(Path(tmp) / "r" / "metrics.csv")
+            rows = read_metrics(Path(tmp) / "r" / "metrics.csv")[skip:]
             return {
-                "wall": tr.global_step / w,
+                "wall": (tr.global_step - g0) / w,
                 "rollout_s": float(np.mean([r["time/rollout_s"] for r in rows])),
                 "update_s": float(np.mean([r["time/update_s"] for r in rows])),
             }
@@ -192,8 +210,8 @@ def main(argv: list[str] | None = None) -> int:
         "--methods",
         nargs="+",
         default=None,
-        help="subset of: raw-1 raw-N ppo ppo-multi ndp <m>-sync vices vices-sync raw-1-vices "
-        "sb3-dummy sb3-subproc",
+        help="subset of: raw-1 raw-N ppo ppo-multi ndp dyne <m>-sync vices vices-sync "
+        "raw-1-vices sb3-dummy sb3-subproc",
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="write <out>.json and <out>.md")

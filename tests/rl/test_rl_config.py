@@ -11,6 +11,7 @@ from ndp.envs.presets import NDP_PRESETS
 from ndp.policies import PolicyConfig
 from ndp.rl import envs as rl_envs
 from ndp.rl.config import (
+    DyneConfig,
     PPOConfig,
     TrainConfig,
     resolve_config,
@@ -89,11 +90,13 @@ def test_every_train_field_is_an_option_of_ndp_rl_train(capsys):
 
     assert main(["rl", "train", "--help"]) == 0
     text = capsys.readouterr().out
-    names = [f.name for c in (TrainConfig, PPOConfig, PolicyConfig) for f in dataclasses.fields(c)]
+    classes = (TrainConfig, PPOConfig, PolicyConfig, DyneConfig)
+    names = [f.name for c in classes for f in dataclasses.fields(c)]
+    assert len(names) == len(set(names))  # flat options: no two fields share a name
     missing = [
         n
         for n in names
-        if n not in ("ppo", "policy", "head") and f"--{n.replace('_', '-')}" not in text
+        if n not in ("ppo", "policy", "dyne", "head") and f"--{n.replace('_', '-')}" not in text
     ]
     assert not missing
     assert "--head" not in text and "Entropy bonus coefficient" in text

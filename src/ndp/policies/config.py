@@ -7,9 +7,9 @@ from typing import Annotated
 
 from ndp.runs.cli import HIDDEN
 
-HEADS = ("step", "multi", "ndp")
-"""Built-in action heads: one raw action per step, k raw actions per decision, DMP parameters
-(more register with ``ndp.policies.heads.register_head``)."""
+HEADS = ("step", "multi", "ndp", "dyne")
+"""Built-in action heads: one raw action per step, k raw actions per decision, DMP parameters,
+a Dyn-E latent decoded into k actions (more register with ``ndp.policies.heads.register_head``)."""
 FORCING = ("amplitude", "goal")
 """NDP forcing-weight forms: bounded amplitude per DoF, or the paper's f proportional to g - y0."""
 ABSOLUTE_MODES = ("direct", "dmp")
@@ -35,7 +35,7 @@ class PolicyConfig:
     """
 
     head: Annotated[str, HIDDEN] = "ndp"
-    """Action head: 'step' (PPO), 'multi' (PPO-multi) or 'ndp' (follows the method: not an
+    """Action head: 'step' (PPO), 'multi' (PPO-multi), 'ndp' or 'dyne' (follows the method: not an
     option of ``ndp rl train``)."""
     k: int = 5
     """Sub-steps (env steps) per policy decision; always 1 for the 'step' head."""

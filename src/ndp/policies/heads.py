@@ -426,6 +426,19 @@ def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
     )
 
 
+@register_head("dyne")
+def _build_dyne(cfg: Any, spec: Any) -> ActionHead:
+    from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
+
+    return DyneHead(
+        cfg.k, spec.action_dim, _as_tensor(spec.action_low), _as_tensor(spec.action_high)
+    )
+
+
+def _as_tensor(x: Any) -> torch.Tensor:
+    return torch.as_tensor(np.asarray(x, dtype=np.float32))
+
+
 def _linear_controller(spec: Any) -> tuple[torch.Tensor, ...] | None:
     """(scale, absolute, low, high) [D] of a task whose controller is linear (a
     ``DeltaController``), else None (the composed path is used)."""

@@ -19,8 +19,9 @@ from typing import Any
 from ndp.rl.config import TrainConfig
 
 TRAIN_DESCRIPTION = (
-    "Train PPO / PPO-multi / NDP. Unset NDP fields come from the per-task preset of the task "
-    "table (ndp.envs.presets); the resolved config is saved as RUN_DIR/config.json. "
+    "Train PPO / PPO-multi / NDP / Dyn-E (--algo dyne: docs/dyne.md). Unset NDP fields come "
+    "from the per-task preset of the task table (ndp.envs.presets); the resolved config is "
+    "saved as RUN_DIR/config.json. "
     "--resume RUN_DIR continues a killed run: the other options are then taken from its "
     "config.json, and only --steps (extends the budget), --progress, --tensorboard, --vector, "
     "--env-workers and --device may change. A directory that holds a run is refused unless "
@@ -30,7 +31,7 @@ TRAIN_DESCRIPTION = (
 
 def add_subparser(sub: Any) -> None:
     """Register ``rl`` with sub-commands ``train``, ``eval``, ``render`` and ``export``."""
-    rl = sub.add_parser("rl", help="reinforcement learning: PPO, PPO-multi and NDP")
+    rl = sub.add_parser("rl", help="reinforcement learning: PPO, PPO-multi, NDP and Dyn-E")
     rl_sub = rl.add_subparsers(dest="rl_command", metavar="SUBCOMMAND")
     rl_sub.required = True
 

@@ -106,6 +106,47 @@ register_method(
     )
 )
 
+
+DYNE_METRICS = (
+    "dyne/embed_loss",
+    "dyne/embed_kl",
+    "dyne/decoder_loss",
+    "dyne/q",
+    "dyne/replay",
+    "dyne/gradient_steps",
+)
+"""Extra ``metrics.csv`` columns of Dyn-E runs (docs/metrics.md)."""
+
+
+def resolve_dyne(policy: Any, spec: Any) -> dict[str, Any]:
+    """Dyn-E: no DMP; the TD3 actor is 400-300 ReLU (the original's) unless ``hidden`` /
+    ``activation`` were changed from the PPO defaults ((100, 100), tanh)."""
+    out = no_dmp(policy, spec)
+    if tuple(policy.hidden) == (100, 100):
+        out["hidden"] = (400, 300)
+    if policy.activation == "tanh":
+        out["activation"] = "relu"
+    return out
+
+
+def _dyne_learner(cfg: Any, resume: bool) -> Any:
+    from ndp.rl.dyne import DyneLearner  # torch and the simulators only once it trains
+
+    return DyneLearner(cfg, resume)
+
+
+register_method(
+    Method(
+        "dyne",
+        "dyne",
+        "Dyn-E: TD3 in a learned, dynamics-aware embedding of k-action sequences",
+        resolve=resolve_dyne,
+        metrics=DYNE_METRICS,
+        learner=_dyne_learner,
+    )
+)
+
+
 from ndp.rl import vices as _vices  # noqa: E402  (registers vices, vices-pos, vices-low-freq)
 
 del _vices

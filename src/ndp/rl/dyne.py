@@ -1,0 +1,733 @@
+"""Dyn-E (Whitney, Agarwal, Cho, Gupta, "Dynamics-aware Embeddings", ICLR 2020): TD3 acting once
+per k env steps in a learned embedding of k-action sequences (``ndp rl train --algo dyne``).
+
+A run has two phases, on one budget of env steps (``--steps``) and one ``metrics.csv``:
+
+1. **Exploration** (``explore_steps``, rounded up to whole iterations): every env runs uniformly
+   random k-action sequences through the chunked env. Each full chunk gives (robot state at its
+   start, the k actions, the state change over the chunk), state = the chunked env's
+   ``robot_pos`` / ``robot_vel`` (joint or hand positions and velocities). The embedding
+   (:class:`ndp.policies.dyne.SequenceEmbedding`) and the action decoder are trained on them
+   (:func:`train_embedding`), then frozen; the decoder and the latent range become the policy's
+   action head (:class:`ndp.policies.dyne.DyneHead`). These env steps count in ``global_step``.
+2. **TD3 in the latent** (Fujimoto et al., 2018): the actor (``--hidden``, 400-300 ReLU) outputs
+   ``max_latent * tanh(.)``; exploration adds N(0, (expl_noise * max_latent)^2) and clips; the
+   latent is decoded into k actions, clipped to the action bounds and executed open loop by the
+   chunked env with the same stale-world rule as NDP. A replay entry is one decision: (obs,
+   latent, k sub-rewards, k sub-step mask, next decision's obs, terminated). Twin critics
+   ``Q(obs, latent)`` (the latent repeated to about half the observation size, as in the
+   original) regress onto ``sum_j gamma^j r_j + gamma^n (1 - terminated) min Q'(obs', pi'(obs') +
+   clip(noise))`` (n = executed sub-steps; a truncated episode bootstraps from its final
+   observation); the actor and the targets update every ``policy_delay`` critic steps (soft,
+   ``tau``). ``updates_per_step`` gradient steps per env step (the original's ratio: 1).
+
+Iterations: one row of ``metrics.csv`` (``update``) per ``cfg.decisions_per_env`` decisions in
+every env, as for PPO (``--steps-per-update``), so budgets, ``--checkpoint-every`` and the
+studies' bookkeeping are the same. The first checkpoint is written once the embedding is
+trained (a run killed during exploration restarts from scratch); from then on a checkpoint holds
+the policy (``model``: actor + head with the frozen decoder, the keys of
+``ndp.rl.methods.POLICY_CHECKPOINT_KEYS``), the embedding, critics, target nets, optimisers, the
+replay buffer (filled part), RNGs and counters: ``--resume`` continues with all of them; only
+the simulator states are not saved (every env starts a new episode, as for PPO).
+
+Observations enter TD3 unnormalised (as in the original); the checkpoint's ``obs_norm`` holds
+identity statistics so that ``ndp rl eval`` / ``render`` / ``export`` feed the policy exactly
+what it trained on (clipped to +- ``clip_obs``).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import random
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+from ndp.nets.mlp import MLP
+from ndp.policies import build_actor_critic
+from ndp.policies.dyne import ActionDecoder, DyneHead, SequenceEmbedding
+from ndp.rl import envs as rl_envs
+from ndp.rl.config import SAFE_ON_RESUME, DyneConfig, TrainConfig
+from ndp.rl.logger import METRICS
+from ndp.rl.methods import DYNE_METRICS
+from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.trainer import TrainingDivergedError
+from ndp.runs import MetricsLogger, RunDir, load_checkpoint, save_checkpoint
+
+DEFAULT_EXPLORE_STEPS = 50_000
+"""Exploration env steps of the embedding where a task has no preset: 10k sequences of k = 5,
+a sixth of the learning study's 300k budget (the original used 100k random 4-step sequences,
+400k env steps, for budgets of 1M-10M env steps)."""
+DYNE_EXPLORE_STEPS = {"point-mass": 5_000, "point-mass-3d": 5_000}
+"""Per-task presets of ``explore_steps`` (env steps of random action sequences)."""
+
+COLUMNS = (*METRICS, *DYNE_METRICS)
+"""Columns of a Dyn-E run's ``metrics.csv``."""
+
+
+def resolve_dyne_config(cfg: TrainConfig) -> TrainConfig:
+    """Fill ``dyne.explore_steps`` from the task's preset where None."""
+    if cfg.dyne.explore_steps is not None:
+        return cfg
+    n = DYNE_EXPLORE_STEPS.get(cfg.task, DEFAULT_EXPLORE_STEPS)
+    return dataclasses.replace(cfg, dyne=dataclasses.replace(cfg.dyne, explore_steps=n))
+
+
+def explore_iterations(cfg: TrainConfig) -> int:
+    """Iterations (rows) of the exploration phase: ceil(explore_steps / env steps per row)."""
+    assert cfg.dyne.explore_steps is not None
+    return math.ceil(cfg.dyne.explore_steps / cfg.env_steps_per_update)
+
+
+def check_budget(cfg: TrainConfig) -> None:
+    """The budget must leave at least one TD3 iteration after the exploration data."""
+    n = explore_iterations(cfg)
+    if cfg.num_updates <= n:
+        raise ValueError(
+            f"steps: Dyn-E spends its first {n * cfg.env_steps_per_update} env steps "
+            f"(explore_steps={cfg.dyne.explore_steps}, in iterations of "
+            f"{cfg.env_steps_per_update}) on exploration data for the embedding; --steps "
+            f"{cfg.steps} leaves no TD3 iteration (use more --steps or fewer --explore-steps)"
+        )
+
+
+# --------------------------------------------------------------------------- embedding
+def train_embedding(
+    emb: SequenceEmbedding,
+    decoder: ActionDecoder,
+    s0: torch.Tensor,
+    actions: torch.Tensor,
+    delta: torch.Tensor,
+    cfg: DyneConfig,
+    generator: torch.Generator | None = None,
+) -> dict[str, float]:
+    """Train the embedding on random action sequences, then the decoder; freeze both.
+
+    1. Whitening statistics of ``s0`` and ``delta``; ``embed_updates`` Adam (amsgrad) steps on
+       the whitened prediction error + ``kl_weight`` KL (:meth:`SequenceEmbedding.loss`).
+    2. The encoder means over the data give the latent's whitening statistics and its range
+       ``max_latent`` = the largest whitened magnitude.
+    3. ``decoder_updates`` Adam steps on ``|| white(E(D(z))) - z ||^2 + norm_weight * sum ||a||``
+       over whitened latents z of the data (the encoder is frozen).
+
+    Args:
+        emb, decoder: the networks (trained in place).
+        s0: start states [N, S]; actions [N, k, A]; delta: state changes [N, S].
+        cfg: the Dyn-E settings.
+        generator: torch generator of the mini-batch indices and the VAE noise seed.
+
+    Returns:
+        ``embed_loss_first`` / ``embed_loss`` (prediction loss over the first / last 10% of the
+        steps), ``embed_kl``, ``decoder_loss_first`` / ``decoder_loss`` (cycle loss, likewise),
+        ``max_latent``, ``sequences`` (N).
+    """
+    n = s0.shape[0]
+    if n < 2:
+        raise ValueError(f"explore_steps: expected at least 2 full action sequences, got {n}")
+    b = min(cfg.embed_batch, n)
+    emb.set_state_stats(s0, delta)
+    opt = torch.optim.Adam(emb.parameters(), lr=cfg.embed_lr, amsgrad=True)
+    pred_hist: list[float] = []
+    kl_hist: list[float] = []
+    emb.train()
+    for _ in range(cfg.embed_updates):
+        idx = torch.randint(n, (b,), generator=generator)
+        loss, pred, kl = emb.loss(s0[idx], actions[idx], delta[idx], cfg.kl_weight)
+        if not bool(torch.isfinite(loss)):
+            raise TrainingDivergedError(
+                f"the embedding's loss became {float(loss)} (check the exploration data)"
+            )
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        pred_hist.append(float(pred.detach()))
+        kl_hist.append(float(kl.detach()))
+    emb.eval()
+    for p in emb.parameters():
+        p.requires_grad_(False)
+    with torch.no_grad():
+        mu = torch.cat([emb.encode(actions[i : i + 4096])[0] for i in range(0, n, 4096)])
+        std = mu.std(0)
+        emb.z_mean.copy_(mu.mean(0))
+        emb.z_std.copy_(torch.where(std > 1e-6, std, torch.ones_like(std)))
+        white = emb.whiten_latent(mu)
+        max_latent = float(white.abs().max())
+    dopt = torch.optim.Adam(decoder.parameters(), lr=cfg.embed_lr)
+    dec_hist: list[float] = []
+    for _ in range(cfg.decoder_updates):
+        z = white[torch.randint(n, (b,), generator=generator)]
+        a = decoder(z)
+        z_hat = emb.whiten_latent(emb.encode(a)[0])
+        recon = F.mse_loss(z_hat, z)
+        loss = recon + cfg.norm_weight * a.norm(dim=2).sum()
+        if not bool(torch.isfinite(loss)):
+            raise TrainingDivergedError(f"the action decoder's loss became {float(loss)}")
+        dopt.zero_grad()
+        loss.backward()
+        dopt.step()
+        dec_hist.append(float(recon.detach()))
+    for p in decoder.parameters():
+        p.requires_grad_(False)
+
+    def _mean(h: list[float], last: bool) -> float:
+        if not h:
+            return math.nan
+        m = max(1, len(h) // 10)
+        return float(np.mean(h[-m:] if last else h[:m]))
+
+    return {
+        "embed_loss_first": _mean(pred_hist, False),
+        "embed_loss": _mean(pred_hist, True),
+        "embed_kl": _mean(kl_hist, True),
+        "decoder_loss_first": _mean(dec_hist, False),
+        "decoder_loss": _mean(dec_hist, True),
+        "max_latent": max_latent,
+        "sequences": float(n),
+    }
+
+
+# --------------------------------------------------------------------------- TD3 pieces
+class TwinCritic(nn.Module):
+    """Two Q networks ``Q_i(obs, latent)``; the latent is repeated ``max(1, (O // 2) // L)``
+    times so that it is not drowned by a long observation (the original's critic)."""
+
+    def __init__(self, obs_dim: int, latent_dim: int, hidden: tuple[int, ...], activation: str):
+        super().__init__()
+        self.repeat = max(1, (obs_dim // 2) // latent_dim)
+        in_dim = obs_dim + latent_dim * self.repeat
+        self.q1 = MLP(in_dim, hidden, 1, activation)
+        self.q2 = MLP(in_dim, hidden, 1, activation)
+
+    def _x(self, obs: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+        return torch.cat((obs, z.repeat(1, self.repeat)), dim=-1)
+
+    def forward(self, obs: torch.Tensor, z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        x = self._x(obs, z)
+        return self.q1(x).squeeze(-1), self.q2(x).squeeze(-1)
+
+    def first(self, obs: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+        return self.q1(self._x(obs, z)).squeeze(-1)
+
+
+class DecisionReplay:
+    """Ring buffer of decisions (float32 numpy arrays); ``state_dict`` holds the filled part."""
+
+    FIELDS = ("obs", "z", "rew", "mask", "next_obs", "term")
+
+    def __init__(self, capacity: int, obs_dim: int, latent_dim: int, k: int) -> None:
+        self.capacity = int(capacity)
+        shapes = {
+            "obs": (obs_dim,),
+            "z": (latent_dim,),
+            "rew": (k,),
+            "mask": (k,),
+            "next_obs": (obs_dim,),
+            "term": (),
+        }
+        self.data = {
+            name: np.zeros((self.capacity, *shape), np.float32) for name, shape in shapes.items()
+        }
+        self.ptr = 0
+        self.size = 0
+
+    def add(self, **batch: np.ndarray) -> None:
+        """Append E decisions (every field [E, ...])."""
+        n = len(batch["obs"])
+        idx = (self.ptr + np.arange(n)) % self.capacity
+        for name in self.FIELDS:
+            self.data[name][idx] = batch[name]
+        self.ptr = int((self.ptr + n) % self.capacity)
+        self.size = int(min(self.size + n, self.capacity))
+
+    def sample(self, n: int, rng: np.random.Generator) -> dict[str, torch.Tensor]:
+        idx = rng.integers(0, self.size, size=n)
+        return {name: torch.from_numpy(arr[idx]) for name, arr in self.data.items()}
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "capacity": self.capacity,
+            "ptr": self.ptr,
+            "size": self.size,
+            "data": {name: arr[: self.size].copy() for name, arr in self.data.items()},
+        }
+
+    def load_state_dict(self, d: dict[str, Any]) -> None:
+        if int(d["capacity"]) != self.capacity:
+            raise ValueError(
+                f"replay: the checkpoint's buffer holds {d['capacity']} decisions, "
+                f"expected {self.capacity}"
+            )
+        self.ptr, self.size = int(d["ptr"]), int(d["size"])
+        for name in self.FIELDS:
+            self.data[name][: self.size] = d["data"][name]
+
+
+def _robot_state(info: dict[str, Any], n: int) -> np.ndarray:
+    """The measured robot positions and velocities now [E, 2 D] (the next chunk's start)."""
+    return np.concatenate(
+        [np.asarray(info[key], dtype=np.float64).reshape(n, -1) for key in ("dmp_y0", "dmp_dy0")],
+        axis=1,
+    )
+
+
+def _soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
+    with torch.no_grad():
+        for t, s in zip(target.parameters(), source.parameters(), strict=True):
+            t.mul_(1.0 - tau).add_(s, alpha=tau)
+
+
+# --------------------------------------------------------------------------- learner
+class DyneLearner:
+    """Dyn-E on the shared run infrastructure (see the module docstring).
+
+    Args:
+        cfg: the resolved config (``resolve_config``); ``dyne.explore_steps`` is filled here.
+        resume: continue from ``cfg.run_dir``'s checkpoint (same config required).
+    """
+
+    def __init__(self, cfg: TrainConfig, resume: bool = False) -> None:
+        task = rl_envs.resolve_task(cfg.task)
+        cfg = resolve_dyne_config(cfg)
+        check_budget(cfg)  # before any env is built
+        self.cfg, self.spec = cfg, task.spec
+        self.run = RunDir(cfg.run_dir or ".")
+        ckpt = None
+        if resume:
+            self.run.open_for_resume()
+            ckpt = load_checkpoint(self.run.checkpoint, kind="rl")
+            saved = TrainConfig.from_dict(ckpt["config"])
+            saved = dataclasses.replace(saved, **{f: getattr(cfg, f) for f in SAFE_ON_RESUME})
+            if saved != cfg:
+                raise ValueError(f"resume: config differs from the checkpoint's in {self.run.path}")
+        else:
+            self.run.create()
+        torch.set_num_threads(cfg.torch_threads)
+        random.seed(cfg.seed)
+        np.random.seed(cfg.seed)  # noqa: NPY002  (third-party code may use it)
+        torch.manual_seed(cfg.seed)
+        self.rng = np.random.default_rng(cfg.seed)
+        self.gen = torch.Generator().manual_seed(cfg.seed)
+
+        self.k, self.E = cfg.k, cfg.num_envs
+        self.T = cfg.decisions_per_env
+        self.n_explore = explore_iterations(cfg)
+        self.envs = rl_envs.make_vector_env(
+            task, self.k, self.E, cfg.stale_world, cfg.horizon, cfg.vector, cfg.env_workers
+        )
+        self.obs_dim = int(np.prod(self.envs.single_observation_space.shape))
+        self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
+        head = self.model.head
+        assert isinstance(head, DyneHead)
+        self.head: DyneHead = head
+        self.L = head.latent_dim
+        pol = cfg.policy
+        self.state_dim = 2 * int(self.spec.dmp_dofs)
+        self.embedding = SequenceEmbedding(self.k, self.spec.action_dim, self.state_dim, self.L)
+        self.critic = TwinCritic(self.obs_dim, self.L, tuple(pol.hidden), pol.activation)
+        self.critic_target = copy.deepcopy(self.critic)
+        self.actor_target = copy.deepcopy(self.model.actor)
+        for net in (self.critic_target, self.actor_target):
+            net.requires_grad_(False)
+        d = cfg.dyne
+        self.actor_opt = torch.optim.Adam(self.model.actor.parameters(), lr=d.actor_lr, fused=True)
+        self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=d.critic_lr, fused=True)
+        self.replay = DecisionReplay(d.replay_size, self.obs_dim, self.L, self.k)
+        # identity statistics: TD3 sees raw observations (clipped), as eval will
+        self.obs_norm = ObsNormalizer(self.obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
+        self.low = np.asarray(self.spec.action_low, dtype=np.float64)
+        self.high = np.asarray(self.spec.action_high, dtype=np.float64)
+        self.update = 0
+        self.global_step = 0
+        self.rl_steps = 0  # env steps of the TD3 phase
+        self.grad_steps = 0
+        self.update_debt = 0.0
+        self.embed_stats: dict[str, float] = {}
+        self.embedded = False
+        self._explore_data: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self.last_ckpt_update: int | None = None
+        if ckpt is not None:
+            self._load_state(ckpt)
+        self.run.write_config(cfg.to_dict())
+        self.run.record_session("resume" if resume else "start")
+        self._ep_ret = np.zeros(self.E)
+        self._ep_ret_live = np.zeros(self.E)
+        self._ep_len = np.zeros(self.E, dtype=np.int64)
+        obs, info = self.envs.reset(seed=rl_envs.env_seeds(cfg.seed, self.E, epoch=self.update))
+        self._obs = np.asarray(obs, dtype=np.float64).reshape(self.E, self.obs_dim)
+        self._state = _robot_state(info, self.E)
+
+    # ----------------------------------------------------------------------- state
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "model": self.model.state_dict(),
+            "obs_norm": self.obs_norm.state_dict(),
+            "obs_dim": self.obs_dim,
+            "config": self.cfg.to_dict(),
+            "update": self.update,
+            "global_step": self.global_step,
+            "rng": {
+                "torch": torch.get_rng_state(),
+                "numpy": np.random.get_state(),  # noqa: NPY002
+                "python": random.getstate(),
+            },
+            "dyne": {
+                "embedding": self.embedding.state_dict(),
+                "critic": self.critic.state_dict(),
+                "critic_target": self.critic_target.state_dict(),
+                "actor_target": self.actor_target.state_dict(),
+                "actor_opt": self.actor_opt.state_dict(),
+                "critic_opt": self.critic_opt.state_dict(),
+                "replay": self.replay.state_dict(),
+                "rng": self.rng.bit_generator.state,
+                "gen": self.gen.get_state(),
+                "rl_steps": self.rl_steps,
+                "grad_steps": self.grad_steps,
+                "update_debt": self.update_debt,
+                "embed_stats": dict(self.embed_stats),
+            },
+        }
+
+    def _load_state(self, ckpt: dict[str, Any]) -> None:
+        dy = ckpt["dyne"]
+        self.model.load_state_dict(ckpt["model"])
+        self.obs_norm.load_state_dict(ckpt["obs_norm"])
+        self.embedding.load_state_dict(dy["embedding"])
+        self.critic.load_state_dict(dy["critic"])
+        self.critic_target.load_state_dict(dy["critic_target"])
+        self.actor_target.load_state_dict(dy["actor_target"])
+        self.actor_opt.load_state_dict(dy["actor_opt"])
+        self.critic_opt.load_state_dict(dy["critic_opt"])
+        self.replay.load_state_dict(dy["replay"])
+        self.rng.bit_generator.state = dy["rng"]
+        self.gen.set_state(dy["gen"])
+        torch.set_rng_state(ckpt["rng"]["torch"])
+        np.random.set_state(ckpt["rng"]["numpy"])  # noqa: NPY002
+        random.setstate(ckpt["rng"]["python"])
+        self.rl_steps = int(dy["rl_steps"])
+        self.grad_steps = int(dy["grad_steps"])
+        self.update_debt = float(dy["update_debt"])
+        self.embed_stats = dict(dy["embed_stats"])
+        self.update = int(ckpt["update"])
+        self.global_step = int(ckpt["global_step"])
+        self.embedded = True
+        self._freeze_embedding()
+        self.last_ckpt_update = self.update
+
+    def _freeze_embedding(self) -> None:
+        self.embedding.eval()
+        self.embedding.requires_grad_(False)
+        self.head.requires_grad_(False)
+
+    def save(self) -> Path:
+        """Write the checkpoint atomically (only with finite parameters)."""
+        for name, prm in [
+            *self.model.actor.named_parameters(),
+            *self.critic.named_parameters(),
+        ]:
+            if not bool(torch.isfinite(prm).all()):
+                raise self._diverged(f"parameter {name} holds NaN/Inf before saving a checkpoint")
+        save_checkpoint(self.run.checkpoint, self.state_dict(), kind="rl")
+        self.last_ckpt_update = self.update
+        return self.run.checkpoint
+
+    def _diverged(self, what: str) -> TrainingDivergedError:
+        last = (
+            f"{self.run.checkpoint} (update {self.last_ckpt_update})"
+            if self.last_ckpt_update is not None
+            else "none written yet"
+        )
+        return TrainingDivergedError(
+            f"training stopped at update {self.update + 1}: {what}. The last good checkpoint is "
+            f"kept: {last}. Try smaller --actor-lr / --critic-lr or check the task's reward."
+        )
+
+    # ----------------------------------------------------------------------- acting
+    def _episodes(self, infos: dict[str, Any], done: np.ndarray, sub_r, live, mask, out) -> None:
+        self._ep_ret += (sub_r * mask).sum(1)
+        self._ep_ret_live += (live * mask).sum(1)
+        self._ep_len += mask.sum(1).astype(np.int64)
+        if done.any():
+            s_any = rl_envs.step_info(infos, done, "success_any")
+            s_fin = rl_envs.step_info(infos, done, "success")
+            for i in np.flatnonzero(done):
+                out.append(
+                    (
+                        float(s_any[i]),
+                        float(s_fin[i]),
+                        self._ep_ret[i],
+                        float(self._ep_len[i]),
+                        self._ep_ret_live[i],
+                    )
+                )
+            self._ep_ret[done] = 0.0
+            self._ep_ret_live[done] = 0.0
+            self._ep_len[done] = 0
+
+    def _step(self, act: np.ndarray, episodes: list) -> tuple[Any, ...]:
+        next_obs, _, term, trunc, infos = self.envs.step(act.astype(np.float32))
+        term = np.asarray(term, dtype=bool)
+        trunc = np.asarray(trunc, dtype=bool)
+        done = term | trunc
+        E, k = self.E, self.k
+        sub_r = rl_envs.step_info(infos, done, "sub_rewards").reshape(E, k)
+        mask = rl_envs.step_info(infos, done, "sub_mask").reshape(E, k)
+        if "sub_rewards_live" in infos or "final_info" in infos:
+            live = rl_envs.step_info(infos, done, "sub_rewards_live", np.nan).reshape(E, -1)
+            live = sub_r if live.shape != sub_r.shape or np.isnan(live).any() else live
+        else:
+            live = sub_r
+        self._episodes(infos, done, sub_r, live, mask, episodes)
+        nxt = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
+        final = nxt.copy()
+        if done.any() and "final_obs" in infos:
+            for i in np.flatnonzero(done):
+                final[i] = np.asarray(infos["final_obs"][i], dtype=np.float64).reshape(-1)
+        self._obs = nxt
+        self._state = _robot_state(infos, E)
+        return infos, done, term, sub_r, mask, final
+
+    def _explore_iteration(self) -> dict[str, Any]:
+        """T decisions of uniformly random k-action sequences; keeps the full chunks."""
+        E, k, A = self.E, self.k, self.spec.action_dim
+        episodes: list = []
+        executed = 0
+        for _ in range(self.T):
+            act = self.rng.uniform(self.low, self.high, size=(E, k, A))
+            s0 = self._state
+            infos, done, _, _, mask, _ = self._step(act, episodes)
+            # the measured robot state after the chunk (the finished episode's where one ended)
+            end = np.concatenate(
+                [
+                    np.asarray(rl_envs.step_info(infos, done, key), dtype=np.float64).reshape(E, -1)
+                    for key in ("dmp_y0", "dmp_dy0")
+                ],
+                axis=1,
+            )
+            full = mask.sum(1) == k
+            self._explore_data.append((s0[full], act[full], (end - s0)[full]))
+            executed += int(mask.sum())
+        return {"episodes": episodes, "executed": executed}
+
+    def _fit_embedding(self) -> dict[str, float]:
+        s0, act, delta = (
+            torch.as_tensor(np.concatenate(x), dtype=torch.float32)
+            for x in zip(*self._explore_data, strict=True)
+        )
+        stats = train_embedding(
+            self.embedding, self.head.decoder, s0, act, delta, self.cfg.dyne, self.gen
+        )
+        with torch.no_grad():
+            self.head.max_latent.fill_(stats["max_latent"])
+        self._explore_data = []
+        self.embedded = True
+        self._freeze_embedding()
+        self.embed_stats = stats
+        return stats
+
+    def _act(self, obs_n: np.ndarray) -> np.ndarray:
+        """Latents [E, L] for the next decision (random during start_steps, else actor +
+        exploration noise, clipped to the latent range)."""
+        m = float(self.head.max_latent)
+        if self.rl_steps < self.cfg.dyne.start_steps:
+            return self.rng.uniform(-m, m, size=(self.E, self.L)).astype(np.float32)
+        with torch.no_grad():
+            z = self.head.latent(self.model.actor(torch.from_numpy(obs_n))).numpy()
+        noise = self.rng.normal(0.0, self.cfg.dyne.expl_noise * m, size=z.shape)
+        return np.clip(z + noise, -m, m).astype(np.float32)
+
+    def _rl_iteration(self) -> dict[str, Any]:
+        episodes: list = []
+        executed = 0
+        losses: dict[str, list[float]] = {"critic": [], "actor": [], "q": []}
+        t_update = 0.0
+        d = self.cfg.dyne
+        for _ in range(self.T):
+            obs_n = self.obs_norm(self._obs)
+            z = self._act(obs_n)
+            with torch.no_grad():
+                act = self.head.decode(torch.from_numpy(z)).numpy().astype(np.float64)
+            act = np.clip(act, self.low, self.high)
+            if not np.isfinite(act).all():
+                raise self._diverged("non-finite actions (check the observations)")
+            _, _, term, sub_r, mask, final = self._step(act, episodes)
+            self.replay.add(
+                obs=obs_n,
+                z=z,
+                rew=sub_r,
+                mask=mask,
+                next_obs=self.obs_norm(final),
+                term=term.astype(np.float32),
+            )
+            n = int(mask.sum())
+            executed += n
+            self.rl_steps += n
+            if self.replay.size < d.batch_size:
+                continue
+            self.update_debt += d.updates_per_step * n
+            t0 = time.perf_counter()
+            while self.update_debt >= 1.0:
+                self.update_debt -= 1.0
+                self._td3_step(losses)
+            t_update += time.perf_counter() - t0
+        return {"episodes": episodes, "executed": executed, "losses": losses, "t_update": t_update}
+
+    # ----------------------------------------------------------------------- TD3
+    def _td3_step(self, losses: dict[str, list[float]]) -> None:
+        d, k = self.cfg.dyne, self.k
+        gamma = self.cfg.ppo.gamma
+        m = self.head.max_latent
+        b = self.replay.sample(d.batch_size, self.rng)
+        with torch.no_grad():
+            noise = (torch.randn_like(b["z"]) * (d.target_noise * m)).clamp(
+                -d.target_noise_clip * m, d.target_noise_clip * m
+            )
+            z2 = torch.maximum(
+                torch.minimum(self.head.latent(self.actor_target(b["next_obs"])) + noise, m), -m
+            )
+            q1t, q2t = self.critic_target(b["next_obs"], z2)
+            disc = gamma ** torch.arange(k, dtype=torch.float32)
+            ret = (b["rew"] * b["mask"] * disc).sum(1)
+            boot = (gamma ** b["mask"].sum(1)) * (1.0 - b["term"])
+            y = ret + boot * torch.minimum(q1t, q2t)
+        q1, q2 = self.critic(b["obs"], b["z"])
+        critic_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)
+        if not bool(torch.isfinite(critic_loss)):
+            raise self._diverged(f"non-finite critic loss ({float(critic_loss.detach())})")
+        self.critic_opt.zero_grad()
+        critic_loss.backward()
+        self.critic_opt.step()
+        self.grad_steps += 1
+        losses["critic"].append(float(critic_loss.detach()))
+        losses["q"].append(float(q1.detach().mean()))
+        if self.grad_steps % d.policy_delay == 0:
+            self.critic.requires_grad_(False)
+            actor_loss = -self.critic.first(
+                b["obs"], self.head.latent(self.model.actor(b["obs"]))
+            ).mean()
+            if not bool(torch.isfinite(actor_loss)):
+                raise self._diverged(f"non-finite actor loss ({float(actor_loss.detach())})")
+            self.actor_opt.zero_grad()
+            actor_loss.backward()
+            self.actor_opt.step()
+            self.critic.requires_grad_(True)
+            losses["actor"].append(float(actor_loss.detach()))
+            _soft_update(self.critic_target, self.critic, d.tau)
+            _soft_update(self.actor_target, self.model.actor, d.tau)
+
+    # ----------------------------------------------------------------------- loop
+    def train(self, max_updates: int | None = None) -> dict[str, float]:
+        """Train until ``cfg.steps`` (or ``max_updates`` more iterations); returns the last
+        metrics row.
+
+        Raises:
+            TrainingDivergedError: NaN / Inf in a loss or parameter (the last good checkpoint
+                is kept).
+        """
+        from tqdm import tqdm
+
+        cfg = self.cfg
+        resumed = self.last_ckpt_update is not None
+        logger = MetricsLogger(
+            self.run.path,
+            COLUMNS,
+            step="global_step",
+            tensorboard=cfg.tensorboard,
+            resume_index=self.update if resumed else None,
+            resume_step=self.global_step if resumed else None,
+        )
+        bar = tqdm(
+            total=cfg.steps,
+            initial=min(self.global_step, cfg.steps),
+            unit="step",
+            disable=not cfg.progress,
+            dynamic_ncols=True,
+            desc=f"{cfg.algo} {cfg.task}",
+        )
+        stop = (
+            cfg.num_updates
+            if max_updates is None
+            else min(cfg.num_updates, self.update + max_updates)
+        )
+        metrics: dict[str, float] = {}
+        try:
+            while self.update < stop:
+                t0 = time.perf_counter()
+                exploring = self.update < self.n_explore
+                if exploring:
+                    batch = self._explore_iteration()
+                    t_update = 0.0
+                else:
+                    batch = self._rl_iteration()
+                    t_update = batch["t_update"]
+                t1 = time.perf_counter()
+                embed: dict[str, float] = {}
+                if exploring and self.update + 1 == self.n_explore:
+                    embed = self._fit_embedding()
+                t2 = time.perf_counter()
+                self.update += 1
+                self.global_step += batch["executed"]
+                metrics = self._metrics(batch, embed, t1 - t0 - t_update, t_update + t2 - t1)
+                logger.log(metrics)
+                bar.update(min(self.global_step, cfg.steps) - bar.n)
+                bar.set_postfix(
+                    success=f"{metrics['charts/success_any']:.2f}",
+                    ret=f"{metrics['charts/episode_return']:.1f}",
+                )
+                if self.embedded and (
+                    self.update == self.n_explore
+                    or self.update % cfg.checkpoint_every == 0
+                    or self.update == cfg.num_updates
+                ):
+                    self.save()
+        finally:
+            bar.close()
+            logger.close()
+        return metrics
+
+    def _metrics(
+        self, batch: dict[str, Any], embed: dict[str, float], t_roll: float, t_upd: float
+    ) -> dict[str, float]:
+        eps = batch["episodes"]
+        col = np.array(eps) if eps else np.full((1, 5), math.nan)
+        losses = batch.get("losses", {})
+
+        def _mean(key: str) -> float:
+            v = losses.get(key, [])
+            return float(np.mean(v)) if v else math.nan
+
+        m = float(self.head.max_latent) if self.embedded else math.nan
+        in_rl = "losses" in batch
+        return {
+            "update": self.update,
+            "global_step": self.global_step,
+            "charts/episodes": len(eps),
+            "charts/success_any": float(col[:, 0].mean()),
+            "charts/success_final": float(col[:, 1].mean()),
+            "charts/episode_return": float(col[:, 2].mean()),
+            "charts/episode_return_live": float(col[:, 4].mean()),
+            "charts/episode_length": float(col[:, 3].mean()),
+            "charts/env_steps_per_s": batch["executed"] / max(t_roll + t_upd, 1e-9),
+            "charts/learning_rate": self.cfg.dyne.critic_lr if in_rl else math.nan,
+            "losses/policy": _mean("actor"),
+            "losses/value": _mean("critic"),
+            "policy/std": self.cfg.dyne.expl_noise * m if in_rl else math.nan,
+            "time/rollout_s": t_roll,
+            "time/update_s": t_upd,
+            "dyne/embed_loss": embed.get("embed_loss", math.nan),
+            "dyne/embed_kl": embed.get("embed_kl", math.nan),
+            "dyne/decoder_loss": embed.get("decoder_loss", math.nan),
+            "dyne/q": _mean("q"),
+            "dyne/replay": float(self.replay.size),
+            "dyne/gradient_steps": float(self.grad_steps),
+        }
+
+    def close(self) -> None:
+        """Close the environments."""
+        self.envs.close()

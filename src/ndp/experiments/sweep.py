@@ -197,6 +197,10 @@ class _RunLock:
     def fileno(self) -> int:
         return self.fh.fileno()
 
+    def note(self, line: str) -> None:
+        self.fh.write(line + "\n")
+        self.fh.flush()
+
     def close(self) -> None:
         self.fh.close()
 
@@ -281,6 +285,7 @@ def execute(job: Job) -> Outcome:
                     pass_fds=(lock.fileno(),),
                 )
                 _LIVE[proc.pid] = proc
+            lock.note(f"trainer pid {proc.pid}")
             try:
                 while True:
                     try:

@@ -292,6 +292,7 @@ def sweep_command(argv: list[str]) -> int:
         from ndp.experiments.report import report
 
         cmd = "ndp sweep " + shlex.join(argv)
+        unit = "epochs" if g["kind"] == "il" else "env steps"
         dirs = [j.run_dir for j in jobs if j.run_dir.is_dir()]
         out = report(
             dirs,
@@ -300,7 +301,7 @@ def sweep_command(argv: list[str]) -> int:
             seeds=g["seeds"],
             budgets=g["budgets"],
             allow_missing=True,
-            title=f"{g['name']} ({g['steps']:,} per run)",
+            title=f"{g['name']} ({g['steps']:,} {unit} per run)",
         )
         print(f"report: {out['markdown']}, {out['csv']}, {len(out['png'])} PNG")
     if result.interrupted:

@@ -9,6 +9,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -57,17 +58,48 @@ def test_local_grid_2x2_end_to_end(tmp_path, capsys):
     assert "4/4 finished (0 trained now, 4 already finished)" in capsys.readouterr().out
 
 
-def test_ray_grid_2x2_end_to_end(tmp_path, capsys):
+def test_ray_grid_2x2_end_to_end_with_ctrl_c_and_resume(tmp_path, capsys):
+    """Each run a Ray task on a local Ray started (and shut down) by the sweep, 2 CPUs; Ctrl-C
+    while the first seed trains: exit 130, Ray gone, those runs at their checkpoint; the same
+    command finishes the grid (the interrupted runs resumed, not restarted)."""
     ray = pytest.importorskip("ray")
     runs = tmp_path / "runs"
-    argv = ["sweep", *TINY, "--methods", "ppo", "ndp", "--seeds", "0", "1", "--backend", "ray",
-            "--jobs", "2", "--runs-dir", str(runs)]  # fmt: skip
+    argv = ["sweep", *TINY, "-o", "checkpoint_every=1", "--methods", "ppo", "ndp",
+            "--seeds", "0", "1", "--backend", "ray", "--jobs", "2",
+            "--runs-dir", str(runs)]  # fmt: skip
+    first = [runs / "point-mass-ppo-s0", runs / "point-mass-ndp-s0"]
+
+    def interrupt_when_checkpointed() -> None:
+        t0 = time.time()
+        while time.time() - t0 < 120:
+            if any((r / "checkpoint.pt").is_file() for r in first):
+                os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C of the sweep
+                return
+            time.sleep(0.05)
+
     try:
-        assert main(argv) == 0  # starts a local Ray with 2 CPUs, shuts it down at the end
+        watcher = threading.Thread(target=interrupt_when_checkpointed, daemon=True)
+        watcher.start()
+        assert main(argv) == 130
+        watcher.join()
         out = capsys.readouterr().out
-        _check_grid(runs, out)
-        assert "on ray (a local Ray instance), 2 at once" in out
+        assert "on ray (a local Ray instance), 2 at once" in out and "interrupted" in out
         assert not ray.is_initialized()
+        stopped = [r for r in first if len(_rows(r)) < 2]
+        assert stopped and all((r / "checkpoint.pt").is_file() for r in stopped)
+        assert main(argv) == 0
+        out = capsys.readouterr().out
+        assert not ray.is_initialized()
+        for algo in ("ppo", "ndp"):
+            for seed in (0, 1):
+                run = runs / f"point-mass-{algo}-s{seed}"
+                assert [int(r["update"]) for r in _rows(run)] == [1, 2]
+                arm = json.loads((run / "arm.json").read_text())
+                assert arm["task"] == "point-mass" and arm["seed"] == seed
+        for r in stopped:
+            events = [p["event"] for p in json.loads((r / "provenance.json").read_text())]
+            assert events == ["start", "resume"]
+        assert "4/4 finished" in out and "0 failed" in out
     finally:
         if ray.is_initialized():
             ray.shutdown()
@@ -95,7 +127,7 @@ def test_resume_skips_finished_and_continues_interrupted_and_killed_runs(tmp_pat
     other from its checkpoint; the result has every update exactly once."""
     runs = tmp_path / "runs"
     argv = ["sweep", "--tasks", "point-mass", "--methods", "ppo", "ndp", "--seeds", "0",
-            "--steps", "5200", "-o", "steps_per_update=1024", "-o", "checkpoint_every=1",
+            "--steps", "2600", "-o", "steps_per_update=512", "-o", "checkpoint_every=1",
             "--jobs", "1", "--vector", "sync", "--runs-dir", str(runs)]  # fmt: skip
     ppo, ndp = runs / "point-mass-ppo-s0", runs / "point-mass-ndp-s0"
     log = tmp_path / "sweep1.log"
@@ -105,9 +137,9 @@ def test_resume_skips_finished_and_continues_interrupted_and_killed_runs(tmp_pat
     assert proc.wait(timeout=60) == 130
     text = log.read_text()
     assert "interrupted" in text and "Run the same command again to continue" in text
-    assert len(_rows(ppo)) == 6  # ppo (1024 env steps per update): finished
+    assert len(_rows(ppo)) == 6  # ppo (512 env steps per update): finished
     n1 = len(_rows(ndp))
-    assert 1 <= n1 < 4  # ndp (1040 env steps per update, 5 updates): stopped part way
+    assert 1 <= n1 < 4  # ndp (520 env steps per update, 5 updates): stopped part way
 
     log2 = tmp_path / "sweep2.log"
     proc = _start(argv, log2)

@@ -244,6 +244,25 @@ def _stop_child(proc: subprocess.Popen, grace: float = STOP_GRACE_S) -> None:
         proc.wait()
 
 
+_UNBLOCK = (
+    "import os, signal, sys; "
+    "signal.pthread_sigmask(signal.SIG_UNBLOCK, (signal.SIGINT, signal.SIGTERM)); "
+    "os.execv(sys.argv[1], sys.argv[1:])"
+)
+
+
+def _stoppable(cmd: list[str]) -> list[str]:
+    """``cmd``, started through a launcher that unblocks SIGINT / SIGTERM where this thread
+    blocks them (a Ray worker does, and a child inherits its signal mask: its trainer would
+    never see the SIGINT that stops it)."""
+    if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
+        return cmd
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    if not {signal.SIGINT, signal.SIGTERM} & set(blocked):
+        return cmd
+    return [sys.executable, "-S", "-c", _UNBLOCK, *cmd]
+
+
 def execute(job: Job) -> Outcome:
     """Run one job to its end in a trainer process (one attempt): skip it when finished,
     resume it from its checkpoint when it has one, start it otherwise.
@@ -276,7 +295,7 @@ def execute(job: Job) -> Outcome:
                 if _STOP.is_set():
                     return Outcome(job, "interrupted", error="not started (interrupted)")
                 proc = subprocess.Popen(
-                    cmd,
+                    _stoppable(cmd),
                     stdout=fh,
                     stderr=subprocess.STDOUT,
                     stdin=subprocess.DEVNULL,
@@ -404,7 +423,8 @@ class RayBackend:
         return f"ray ({self.where}), {self.slots} at once"
 
     def submit(self, job: Job) -> Any:
-        return self.remote.remote(job)
+        # the task may run on another node, in another directory: an absolute run directory
+        return self.remote.remote(dataclasses.replace(job, run_dir=job.run_dir.absolute()))
 
     def _get(self, h: Any) -> Any:
         try:
@@ -607,7 +627,7 @@ def run_sweep(
                 "interrupted" if cancelled else "failed",
                 error="" if cancelled else f"{type(res).__name__}: {res}",
             )
-        res.attempts = attempt
+        res.job, res.attempts = job, attempt
         if res.status == "failed" and attempt <= retries and not interrupted:
             progress.retry(res, attempt + 1, retries + 1)
             queue.appendleft((job, attempt + 1))

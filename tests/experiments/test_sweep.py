@@ -290,3 +290,26 @@ def test_overrides_make_grid_axes():
     assert "--head" not in opts  # hidden: follows the method
     il = sw.train_options("il")
     assert {"--model", "--data", "--out", "--n-train", "--no-dtw"} <= set(il)
+
+
+def test_run_grid_of_the_benchmarks_runs_on_the_sweep(tmp_path, monkeypatch):
+    """ndp.experiments.study.run_grid (benchmarks/ndp_ablation.py, ppo_vs_sb3.py) goes through
+    the sweep: every run once, seed-major, a failure raised after the others finished."""
+    from ndp.experiments.study import run_grid
+
+    ran = []
+
+    def fake(self):
+        ran.append(self.name)
+        if self.arm.label == "bad":
+            return [sys.executable, "-c", "import sys; sys.exit(1)"]
+        code = "import pathlib, sys; pathlib.Path(sys.argv[1], 'done.json').write_text('{}')"
+        return [sys.executable, "-c", code, str(self.run_dir)]
+
+    monkeypatch.setattr(sw.Job, "command", fake)
+    arms = [Arm("a", "ndp"), Arm("b", "ppo")]
+    dirs = run_grid(["point-mass"], arms, [0, 1], 512, tmp_path, jobs=1, vector="sync")
+    assert ran == ["point-mass a s0", "point-mass b s0", "point-mass a s1", "point-mass b s1"]
+    assert all((d / "done.json").is_file() for d in dirs)
+    with pytest.raises(RuntimeError, match="point-mass bad s0"):
+        run_grid(["point-mass"], [Arm("bad", "ppo")], [0], 512, tmp_path, jobs=1)

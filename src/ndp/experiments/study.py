@@ -283,7 +283,7 @@ def run_grid(
     if vector is None:
         vector = default_vector(jobs)
     grid = make_jobs(tasks, arms, seeds, steps, runs_dir, num_envs=num_envs, vector=vector)
-    result = run_sweep(grid, jobs=max(1, jobs))
+    result = run_sweep(grid, workers=max(1, jobs))
     if result.interrupted:
         raise KeyboardInterrupt
     if result.failed:

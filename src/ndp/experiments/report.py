@@ -451,7 +451,7 @@ def _markdown(
     pngs: Sequence[Path],
     out: Path,
 ) -> list[str]:
-    runs_at = ", ".join(prov["run_commits"]) or "unknown"
+    runs_at = ", ".join(prov["run_commits"]) or "not recorded"
     md = [
         f"# {title}",
         "",

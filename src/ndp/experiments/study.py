@@ -153,13 +153,11 @@ def _check_arm(run: Path, arm: Arm, steps: int, task: str | None = None,
     if why is not None:
         raise ValueError(f"runs_dir: {run}: {why}. Use another --runs-dir or label.")
     rec = run / "arm.json"
-    want = arm_record(arm, steps, task, seed)
-    have = json.loads(rec.read_text()) if rec.is_file() else None
-    if have is None or any(k not in have for k in want):
+    if not rec.is_file():  # an existing record is never rewritten (older study code reads it)
         from ndp.io import atomic_write_text
 
         run.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(rec, json.dumps({**want, **(have or {})}, indent=1) + "\n")
+        atomic_write_text(rec, json.dumps(arm_record(arm, steps, task, seed), indent=1) + "\n")
 
 
 def is_finished(run: Path, arm: Arm | None = None, kind: str | None = None) -> bool:

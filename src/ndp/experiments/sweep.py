@@ -147,6 +147,8 @@ class SweepResult:
     outcomes: list[Outcome | None]
     interrupted: bool
     seconds: float
+    exit_code: int = 0
+    """130 after Ctrl-C, 143 after SIGTERM, 1 when runs failed, else 0."""
 
     def _with(self, *status: str) -> list[Outcome]:
         return [o for o in self.outcomes if o is not None and o.status in status]
@@ -608,7 +610,7 @@ def run_sweep(
     check_plan(jobs)
     out = out or sys.stdout
     t0 = time.time()
-    from ndp.runs.signals import stop_on_sigterm
+    from ndp.runs.signals import exit_code, stop_on_sigterm
 
     be = make_backend(backend, workers, address)
     progress = Progress(jobs, out, progress_every)
@@ -617,6 +619,7 @@ def run_sweep(
     queue: deque[tuple[Job, int]] = deque((j, 1) for j in jobs)
     inflight: dict[Any, tuple[Job, int]] = {}
     interrupted = False
+    stop_code = 0
 
     def settle(h: Any, res: Any) -> None:
         job, attempt = inflight.pop(h)
@@ -649,8 +652,8 @@ def run_sweep(
                 for h, res in be.wait(list(inflight), progress.timeout()):
                     settle(h, res)
                 progress.tick()
-    except KeyboardInterrupt:
-        interrupted = True
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (ndp.runs.signals.Terminated)
+        interrupted, stop_code = True, exit_code(exc)
         progress.note(
             f"interrupted: stopping {len(inflight)} running trainers at their last checkpoint"
         )
@@ -660,6 +663,7 @@ def run_sweep(
     finally:
         be.close()
     result = SweepResult(jobs, outcomes, interrupted, time.time() - t0)
+    result.exit_code = stop_code or (1 if result.failed else 0)
     _print_summary(result, progress)
     return result
 
@@ -699,8 +703,14 @@ def _print_summary(result: SweepResult, progress: Progress) -> None:
         )
     if result.interrupted:
         stopped = [o for o in result.outcomes if o is not None and o.status == "interrupted"]
+        kept = sum((o.job.run_dir / "checkpoint.pt").is_file() for o in stopped)
+        fresh = (
+            f", {len(stopped) - kept} before their first (they start again)"
+            if kept < len(stopped)
+            else ""
+        )
         lines.append(
-            f"sweep: interrupted; {len(stopped)} runs stopped at their last checkpoint. "
+            f"sweep: interrupted; {kept} runs stopped at their last checkpoint{fresh}. "
             "Run the same command again to continue (finished runs are skipped)."
         )
     print("\n".join(lines), file=progress.out, flush=True)
@@ -879,6 +889,16 @@ def _parse_arm(arm: Arm, task: str) -> None:
             from ndp.rl.config import resolve_config
 
             resolve_config(cfg)
+        elif cfg.config.data.source == "pendigits":
+            from ndp.il.train import DEFAULT_PENDIGITS
+
+            given = cfg.config.data.pendigits_path
+            path = Path(given) if given else DEFAULT_PENDIGITS / "pendigits-train"
+            if not path.is_file():
+                raise ValueError(
+                    f"data: the Pendigits file {path} does not exist (give its path with "
+                    "-o pendigits_path=FILE)"
+                )
     except SystemExit:
         rows = [ln.strip(" │╭╰─╮╯|-") for ln in err.getvalue().splitlines()]
         text = " ".join(r for r in rows if r and not r.startswith("For full helptext"))

@@ -304,9 +304,7 @@ def sweep_command(argv: list[str]) -> int:
             title=f"{g['name']} ({g['steps']:,} {unit} per run)",
         )
         print(f"report: {out['markdown']}, {out['csv']}, {len(out['png'])} PNG")
-    if result.interrupted:
-        return 130
-    return 1 if result.failed else 0
+    return result.exit_code
 
 
 def _list_studies() -> int:

@@ -471,7 +471,8 @@ def _markdown(
         heads = [f"success @ {b:,}" for b in budgets]
         md += [
             "Success: `charts/success_any` of the training episodes. Success @ b: mean over the "
-            "updates in the last 10% of [0, b]; area: the success curve averaged over the "
+            "updates in the last 10% of [0, b] (`-`: no update logged by b, or b past the "
+            "budget); area: the success curve averaged over the "
             "budget; final: last 10% of updates; live return: `charts/episode_return_live` over "
             "the last 10% of updates.",
             "",

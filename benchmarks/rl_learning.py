@@ -3,8 +3,10 @@
 The grid, its resumption, retries and the report are the sweep's (ndp.experiments.sweep,
 docs/experiments.md); this script keeps the benchmark's old command line:
 
-- ``--tasks`` / ``--algos`` choose tasks and arms of the ``paper-five`` study (labels ndp, ppo,
-  ppo-multi; the runs of earlier versions of this script are reused as they are);
+- ``--tasks`` / ``--algos`` choose tasks and arms of the ``paper-five`` study (default arms ndp,
+  ppo, ppo-multi as before; vices, vices-pos, vices-low-freq, dyne when named and registered;
+  the runs of earlier versions of this script are reused as they are; a plain
+  ``ndp sweep paper-five`` runs vices and dyne too);
 - ``--out STEM`` is the report (``STEM.md``, ``STEM.csv``, ``STEM-<task>.png``);
 - ``--plot-only`` only reports the existing runs (``ndp report``, cells with missing seeds
   marked);
@@ -32,7 +34,8 @@ def main(argv: list[str] | None = None) -> int:
     own, extra = argv[:cut], argv[cut:]
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--tasks", nargs="+")
-    p.add_argument("--algos", nargs="+", help="arms of paper-five (ndp, ppo, ppo-multi)")
+    p.add_argument("--algos", nargs="+", default=["ndp", "ppo", "ppo-multi"],
+                   help="arms of paper-five (default: ndp ppo ppo-multi)")  # fmt: skip
     p.add_argument("--runs-dir", default="runs/rl_learning")
     p.add_argument("--out", default="docs/results/rl_learning")
     p.add_argument("--plot-only", action="store_true", help="only report the existing runs")
@@ -40,12 +43,12 @@ def main(argv: list[str] | None = None) -> int:
     args, rest = p.parse_known_args(own)
     pick = [*(["--tasks", *args.tasks] if args.tasks else [])]
     if args.plot_only:
-        methods = ["--methods", *args.algos] if args.algos else []
+        methods = ["--methods", *args.algos]
         seeds = ["--seeds", *args.seeds] if args.seeds else []
         title = ["--title", "RL learning comparison (paper-five)"]
         return ndp(["report", args.runs_dir, "--out", args.out, "--allow-missing",
                     *pick, *methods, *seeds, *title])  # fmt: skip
-    arms = ["--arms", *args.algos] if args.algos else []
+    arms = ["--arms", *args.algos]
     seeds = ["--seeds", *args.seeds] if args.seeds else []
     return ndp(["sweep", "paper-five", "--runs-dir", args.runs_dir, "--report", args.out,
                 *pick, *arms, *seeds, *rest, *extra])  # fmt: skip

@@ -8,8 +8,10 @@ task lists are built when a sweep asks for them (:meth:`Study.arm_specs`, :meth:
 
 Arms that need something this version may lack:
 
-- ``method=`` arms (VICES, Dyn-E, and their ablations) join their study once their method is
-  registered (``ndp.rl.methods.METHODS``); until then the sweep leaves them out and says so;
+- ``pending_method`` arms (VICES, Dyn-E, and their ablations) join their study once their
+  method is registered (``ndp.rl.methods.METHODS``); until then the sweep leaves them out and
+  says so;
+- ``in_default=False`` arms run only when named with ``--arms``;
 - arms with ``requires`` use trainer options another change adds (``--learn-az``,
   ``--only-g``); while ``ndp rl train`` does not know them, the sweep refuses the study before
   anything starts, naming the arm and the option (``--skip-unavailable`` leaves them out).
@@ -35,6 +37,8 @@ class ArmSpec:
     """Trainer options the arm needs that may not exist yet (named when they are refused)."""
     pending_method: bool = False
     """The arm's method may not be registered yet: then the arm is left out (with a note)."""
+    in_default: bool = True
+    """Part of a plain ``ndp sweep STUDY``; False: only when named with ``--arms``."""
 
     def arm(self) -> Any:
         from ndp.experiments.study import Arm
@@ -99,6 +103,24 @@ def _paper_five_arms() -> tuple[ArmSpec, ...]:
         ArmSpec("vices", "vices", (), "VICES (impedance controller)", pending_method=True),
         ArmSpec(
             "dyne", "dyne", (), "Dyn-E (TD3 in a learned action embedding)", pending_method=True
+        ),
+        # the VICES ablations of the Throw study, here only when named (--arms), as in the
+        # earlier benchmarks/rl_learning.py
+        ArmSpec(
+            "vices-pos",
+            "vices-pos",
+            (),
+            "VICES in end-effector space (OSC) on every task",
+            pending_method=True,
+            in_default=False,
+        ),
+        ArmSpec(
+            "vices-low-freq",
+            "vices-low-freq",
+            (),
+            "VICES, one decision per k env steps",
+            pending_method=True,
+            in_default=False,
         ),
     )
 

@@ -177,6 +177,8 @@ def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
         keep, pending = study.available()
         specs = {a.label: a for a in study.arm_specs()}
         labels = _pick("arms", args.arms, list(specs))
+        if not args.arms:
+            labels = [lb for lb in labels if specs[lb].in_default]
         for a, why in pending:
             if args.arms and a.label in args.arms:
                 raise ValueError(f"{name}: arm {a.label!r} is not available: {why}")

@@ -1,29 +1,23 @@
-"""Learning comparison: NDP vs PPO vs PPO-multi vs Dyn-E vs VICES: success vs env steps.
+"""Learning comparison NDP vs PPO vs PPO-multi: a thin caller of ``ndp sweep paper-five``.
 
-Every (task, method, seed) run is an ordinary ``ndp rl train`` run in
-``<runs-dir>/<task>-<method>-s<seed>`` (ndp.experiments.study): an interrupted run is resumed,
-a finished one reused, so the command can be re-run to extend or re-plot. Every method gets the
-same budget, seeds, PPO settings and evaluation; extra ``ndp rl train`` options after ``--`` go
-to all arms alike (e.g. ``-- --init-log-std -0.7``; Dyn-E ignores the PPO and NDP ones). Dyn-E's
-budget includes the random exploration data its embedding is trained on (docs/dyne.md). Success
-is the training episodes' success at any step (stochastic policy, ``charts/success_any``).
-Writes ``<out>.json``, ``<out>.md`` (the tables: success area = the success curve averaged over
-the budget, and final success = the mean of the last 10% of updates, mean +- std over seeds,
-with the command, commit and date) and ``<out>.png`` (curves).
+The grid, its resumption, retries and the report are the sweep's (ndp.experiments.sweep,
+docs/experiments.md); this script keeps the benchmark's old command line:
 
-VICES (``vices``, ``vices-pos``, ``vices-low-freq``) trains on the torque-actuated variant of
-each task (``ndp.envs.TORQUE_TASKS``) with the same budget, seeds, PPO settings and success
-measure (the same task's success).
+- ``--tasks`` / ``--algos`` choose tasks and arms of the ``paper-five`` study (default arms ndp,
+  ppo, ppo-multi as before; vices, vices-pos, vices-low-freq, dyne when named and registered;
+  the runs of earlier versions of this script are reused as they are; a plain
+  ``ndp sweep paper-five`` runs vices and dyne too);
+- ``--out STEM`` is the report (``STEM.md``, ``STEM.csv``, ``STEM-<task>.png``);
+- ``--plot-only`` only reports the existing runs (``ndp report``, cells with missing seeds
+  marked);
+- every other option (``--seeds``, ``--steps``, ``--jobs``, ``--vector``, ``--backend``, ...)
+  and the trainer options after ``--`` go to ``ndp sweep`` unchanged.
 
 The issue's protocol (days of CPU on 2 cores; resumable)::
 
-    python benchmarks/rl_learning.py --steps 300000 --seeds 0 1 2 \
-        --tasks push-v3 soccer-v3 faucet-open-v3 throw pick reach-v3
-
-with the VICES rows (same runs directory: the finished NDP / PPO runs are reused)::
-
-    python benchmarks/rl_learning.py --steps 300000 --seeds 0 1 2 --tasks push-v3 throw \
-        --algos ndp ppo ppo-multi vices vices-pos vices-low-freq
+    python benchmarks/rl_learning.py --steps 300000 --seeds 0 1 2
+    # = ndp sweep paper-five --steps 300000 --seeds 0 1 2 --runs-dir runs/rl_learning \
+    #       --report docs/results/rl_learning
 """
 
 from __future__ import annotations
@@ -31,44 +25,33 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ndp.experiments.study import Arm, add_study_arguments, run_study
-
-ARMS = (
-    Arm("ndp", "ndp", (), "NDP (default head)"),
-    Arm("ppo", "ppo", (), "PPO"),
-    Arm("ppo-multi", "ppo-multi", (), "PPO-multi"),
-    Arm("vices", "vices", (), "VICES (torque-actuated task; OSC on Meta-World, joint on Jaco)"),
-    Arm("vices-pos", "vices-pos", (), "VICES in end-effector space (OSC) on every task"),
-    Arm("vices-low-freq", "vices-low-freq", (), "VICES, one decision per 5 env steps"),
-    Arm("dyne", "dyne", (), "Dyn-E (TD3 in a learned k-action embedding, exploration counted)"),
-)
-
-DEFAULT_ALGOS = ("ndp", "ppo", "ppo-multi")
-"""Arms of a plain run: the VICES arms are named with ``--algos`` (a study re-run with more arms
-reuses the finished runs of the others, so the VICES rows join the same table)."""
+from ndp.cli import main as ndp
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    cut = argv.index("--") if "--" in argv else len(argv)
+    own, extra = argv[:cut], argv[cut:]
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument(
-        "--tasks",
-        nargs="+",
-        default=["push-v3", "soccer-v3", "faucet-open-v3", "throw", "pick", "reach-v3"],
-    )
-    p.add_argument(
-        "--algos",
-        nargs="+",
-        default=list(DEFAULT_ALGOS),
-        choices=[a.label for a in ARMS],
-        help=f"arms to run and tabulate (default: {' '.join(DEFAULT_ALGOS)})",
-    )
-    add_study_arguments(p, "runs/rl_learning", "docs/results/rl_learning", 300_000)
-    args = p.parse_args(argv)
-    arms = [Arm(a.label, a.algo, tuple(args.extra), a.note) for a in ARMS if a.label in args.algos]
-    cmd = "python benchmarks/rl_learning.py " + " ".join(argv if argv is not None else sys.argv[1:])
-    intro = [f"Options for every method: `{' '.join(args.extra) or '(defaults)'}`.", ""]
-    run_study(args, args.tasks, arms, "RL learning comparison", intro, cmd)
-    return 0
+    p.add_argument("--tasks", nargs="+")
+    p.add_argument("--algos", nargs="+", default=["ndp", "ppo", "ppo-multi"],
+                   help="arms of paper-five (default: ndp ppo ppo-multi)")  # fmt: skip
+    p.add_argument("--runs-dir", default="runs/rl_learning")
+    p.add_argument("--out", default="docs/results/rl_learning")
+    p.add_argument("--plot-only", action="store_true", help="only report the existing runs")
+    p.add_argument("--seeds", nargs="+")
+    args, rest = p.parse_known_args(own)
+    pick = [*(["--tasks", *args.tasks] if args.tasks else [])]
+    if args.plot_only:
+        methods = ["--methods", *args.algos]
+        seeds = ["--seeds", *args.seeds] if args.seeds else []
+        title = ["--title", "RL learning comparison (paper-five)"]
+        return ndp(["report", args.runs_dir, "--out", args.out, "--allow-missing",
+                    *pick, *methods, *seeds, *title])  # fmt: skip
+    arms = ["--arms", *args.algos]
+    seeds = ["--seeds", *args.seeds] if args.seeds else []
+    return ndp(["sweep", "paper-five", "--runs-dir", args.runs_dir, "--report", args.out,
+                *pick, *arms, *seeds, *rest, *extra])  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -17,7 +17,13 @@ from typing import Any
 
 # Sub-command modules, each with ``add_subparser(subparsers) -> None`` that registers a parser
 # whose ``func(args) -> int`` runs the command.
-_COMMAND_MODULES = ("ndp.experiments.demo", "ndp.il.cli", "ndp.bc.cli", "ndp.rl.cli")
+_COMMAND_MODULES = (
+    "ndp.experiments.demo",
+    "ndp.il.cli",
+    "ndp.bc.cli",
+    "ndp.rl.cli",
+    "ndp.experiments.sweep_cli",
+)
 # The command and the extra of the modules that need one: without it installed, the command is
 # still listed and says what to install instead of failing the whole ``ndp`` command.
 _EXTRAS = {"ndp.il.cli": ("il", "il"), "ndp.bc.cli": ("il", "rl"), "ndp.rl.cli": ("rl", "rl")}

@@ -102,7 +102,8 @@ def test_atomic_write_gives_usual_file_mode(tmp_path):
 @pytest.mark.parametrize(
     "argv",
     [["--help"], ["rl", "train", "--help"], ["il", "train", "--help"], ["il", "eval", "--help"],
-     ["rl", "train", "--lr", "abc"], ["il", "train", "--bogus"], ["rl", "eval", "--help"]],
+     ["rl", "train", "--lr", "abc"], ["il", "train", "--bogus"], ["rl", "eval", "--help"],
+     ["sweep", "--help"], ["report", "--help"], ["sweep", "--bogus"], ["report"]],
 )  # fmt: skip
 def test_help_and_argument_errors_import_no_heavy_module(argv):
     """Help and argument errors never import torch, scipy or the simulators (they answer in a

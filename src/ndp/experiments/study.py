@@ -1,7 +1,9 @@
 """Learning studies: named arms x tasks x seeds, resumable, run in parallel, summarised.
 
 An :class:`Arm` is one configuration: a method (``ndp``, ``ppo``, ``ppo-multi``, or ``sb3-ppo``,
-Stable-Baselines3's PPO, see :mod:`ndp.experiments.sb3_ppo`) plus extra ``ndp rl train`` options.
+Stable-Baselines3's PPO, see :mod:`ndp.experiments.sb3_ppo`) plus extra ``ndp rl train`` options;
+or an imitation model (``il-ndp``, ``il-cnn``, ``il-cnn-dmp``: ``ndp il train --model ...`` on the
+data set the "task" names, see :data:`IL_METHODS` and :func:`il_data_args`).
 Every (task, arm, seed) is one ordinary run in ``<runs_dir>/<task>-<label>-s<seed>``:
 
 - a finished run is reused, an interrupted ``ndp rl train`` run is resumed from its checkpoint
@@ -9,7 +11,8 @@ Every (task, arm, seed) is one ordinary run in ``<runs_dir>/<task>-<label>-s<see
   later session extends it;
 - ``arm.json`` in each run directory records the arm; a directory that holds another arm's run
   is refused (no silent mixing);
-- ``jobs`` runs go at once (one torch thread each; at most one per core).
+- ``jobs`` runs go at once (one torch thread each; at most one per core); the runs themselves
+  are executed by :mod:`ndp.experiments.sweep` (local process pool or Ray, retries, progress).
 
 :func:`summarise` reads every run's ``metrics.csv`` (``charts/success_any`` per update: the
 training episodes' success at any step, stochastic policy) and computes per run the **success
@@ -22,13 +25,13 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 import sys
 import time
 import warnings
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +41,12 @@ from ndp.runs import metrics_path, read_metrics
 
 EXTERNAL_METHODS = ("sb3-ppo",)
 """Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``)."""
+IL_METHODS = {"il-ndp": "ndp", "il-cnn": "cnn", "il-cnn-dmp": "cnn-dmp"}
+"""Imitation arms (``ndp il train --model VALUE``); their "task" is a data set
+(:func:`il_data_args`) and their budget is in epochs."""
+IL_DATASETS = ("pendigits", "synthetic", "synthetic-N")
+"""Data sets an imitation arm trains on: Pendigits with the writer-disjoint split, the synthetic
+set with the paper's split (10,000 training digits), or its first N training digits."""
 
 
 @dataclass(frozen=True)
@@ -52,17 +61,46 @@ class Arm:
     """Extra ``ndp rl train`` options (not for 'sb3-ppo')."""
     note: str = ""
     """What the arm changes, for the tables."""
+    requires: str = ""
+    """What the arm needs that the trainer may not have yet (e.g. "the learned-a_z option of
+    the RL NDP head"): named when its options are refused (ndp.experiments.sweep.check_arms)."""
 
     def __post_init__(self) -> None:
         from ndp.rl.methods import METHODS as RL_METHODS
 
-        if self.algo not in EXTERNAL_METHODS and self.algo not in RL_METHODS:
-            known = ", ".join([*RL_METHODS, *EXTERNAL_METHODS])
-            raise ValueError(f"algo: expected one of {known}, got {self.algo!r}")
+        known = [*RL_METHODS, *EXTERNAL_METHODS, *IL_METHODS]
+        if self.algo not in known:
+            raise ValueError(f"algo: expected one of {', '.join(known)}, got {self.algo!r}")
         if not self.label or not all(c.isalnum() or c in "-_" for c in self.label):
             raise ValueError(f"label: expected letters, digits, '-' or '_', got {self.label!r}")
         if self.algo == "sb3-ppo" and self.args:
             raise ValueError("args: the 'sb3-ppo' arm takes no ndp options")
+
+    @property
+    def kind(self) -> str:
+        """'rl' (``ndp rl train``), 'sb3' (the SB3 reference) or 'il' (``ndp il train``)."""
+        if self.algo in IL_METHODS:
+            return "il"
+        return "sb3" if self.algo == "sb3-ppo" else "rl"
+
+
+def il_data_args(task: str) -> list[str]:
+    """The ``ndp il train`` data options of an imitation "task" (a data set, :data:`IL_DATASETS`).
+
+    Raises:
+        ValueError: not a known data set (the message names the known ones).
+    """
+    if task == "pendigits":
+        return ["--data", "pendigits", "--split", "writer"]
+    if task == "synthetic":
+        return ["--data", "synthetic", "--split", "paper"]
+    m = re.fullmatch(r"synthetic-([1-9][0-9]*)", task)
+    if m:
+        return ["--data", "synthetic", "--split", "paper", "--n-train", m.group(1)]
+    raise ValueError(
+        f"task: unknown imitation data set {task!r}; expected 'pendigits', 'synthetic' (all "
+        "training digits) or 'synthetic-N' (the first N training digits)"
+    )
 
 
 def run_dir(runs_dir: Path, task: str, arm: Arm, seed: int) -> Path:
@@ -70,32 +108,76 @@ def run_dir(runs_dir: Path, task: str, arm: Arm, seed: int) -> Path:
     return Path(runs_dir) / f"{task}-{arm.label}-s{seed}"
 
 
-def _check_arm(run: Path, arm: Arm, steps: int) -> None:
+_ARM_KEYS = ("label", "algo", "args", "steps")
+"""The arm.json keys that identify a run (``note`` is a description; ``task`` / ``seed`` are
+recorded for reports and compared when both records have them)."""
+
+
+def arm_record(arm: Arm, steps: int, task: str | None = None, seed: int | None = None) -> dict:
+    """What ``arm.json`` holds: the arm, its budget, and (newer records) the task and seed."""
+    rec: dict[str, Any] = {
+        "label": arm.label,
+        "algo": arm.algo,
+        "args": list(arm.args),
+        "note": arm.note,
+        "steps": steps,
+    }
+    if task is not None:
+        rec.update(task=task, seed=seed, kind=arm.kind)
+    return rec
+
+
+def arm_conflict(run: Path, arm: Arm, steps: int, task: str | None = None,
+                 seed: int | None = None) -> str | None:  # fmt: skip
+    """Why ``run`` cannot hold this arm's run (another arm, budget, task or seed), or None."""
     rec = run / "arm.json"
-    want = {**asdict(arm), "args": list(arm.args), "steps": steps}
-    if rec.is_file():
+    if not rec.is_file():
+        return None
+    try:
         have = json.loads(rec.read_text())
-        if have != want:
-            raise ValueError(
-                f"runs_dir: {run} holds another run ({have}); expected {want}. "
-                "Use another --runs-dir or label."
-            )
-    else:
+    except (OSError, json.JSONDecodeError) as exc:
+        return f"its arm.json is unreadable ({exc})"
+    want = arm_record(arm, steps, task, seed)
+    keys = [*_ARM_KEYS, *(k for k in ("task", "seed") if k in have and k in want)]
+    diff = {k: (have.get(k), want.get(k)) for k in keys if have.get(k) != want.get(k)}
+    if not diff:
+        return None
+    return "it holds another run (" + ", ".join(
+        f"{k} {a!r} where this sweep has {b!r}" for k, (a, b) in diff.items()
+    ) + ")"  # fmt: skip
+
+
+def _check_arm(run: Path, arm: Arm, steps: int, task: str | None = None,
+               seed: int | None = None) -> None:  # fmt: skip
+    why = arm_conflict(run, arm, steps, task, seed)
+    if why is not None:
+        raise ValueError(f"runs_dir: {run}: {why}. Use another --runs-dir or label.")
+    rec = run / "arm.json"
+    if not rec.is_file():  # an existing record is never rewritten (older study code reads it)
         from ndp.io import atomic_write_text
 
         run.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(rec, json.dumps(want, indent=1) + "\n")
+        atomic_write_text(rec, json.dumps(arm_record(arm, steps, task, seed), indent=1) + "\n")
 
 
-def is_finished(run: Path) -> bool:
-    """Whether a run completed its budget."""
+def is_finished(run: Path, arm: Arm | None = None, kind: str | None = None) -> bool:
+    """Whether a run completed its budget (an imitation run: trained and evaluated); ``kind``
+    ('rl', 'sb3', 'il') stands for the arm where only that is known."""
+    run = Path(run)
+    kind = kind or (arm.kind if arm is not None else "rl")
     if (run / "done.json").is_file():
         return True
     ckpt = run / "checkpoint.pt"
     if not ckpt.is_file() or not (run / "config.json").is_file():
         return False
-    from ndp.rl.config import TrainConfig
     from ndp.runs import load_checkpoint
+
+    if kind == "il":
+        if not (run / "eval.json").is_file():
+            return False
+        state = load_checkpoint(ckpt, kind="il")
+        return int(state["epoch"]) >= int(state["config"]["epochs"])
+    from ndp.rl.config import TrainConfig
 
     state = load_checkpoint(ckpt, kind="rl")
     return int(state["update"]) >= TrainConfig.from_dict(state["config"]).num_updates
@@ -104,7 +186,16 @@ def is_finished(run: Path) -> bool:
 def train_command(
     task: str, arm: Arm, seed: int, steps: int, run: Path, num_envs: int = 4, vector: str = "auto"
 ) -> list[str]:
-    """The command that trains (or resumes) one run (``vector``: its vector env kind)."""
+    """The command that trains (or resumes) one run (``vector``: its vector env kind).
+
+    An imitation arm's ``steps`` is its budget in epochs and ``task`` its data set."""
+    if arm.kind == "il":
+        il_train = [sys.executable, "-m", "ndp.cli", "il", "train"]
+        if (run / "checkpoint.pt").is_file():
+            return [*il_train, "--resume", str(run), "--no-progress"]
+        return [*il_train, *il_data_args(task), "--model", IL_METHODS[arm.algo],
+                "--seed", str(seed), "--epochs", str(steps), "--run-dir", str(run),
+                "--no-progress", "--no-tensorboard", "--threads", "1", *arm.args]  # fmt: skip
     if arm.algo == "sb3-ppo":
         return [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task,
                 "--steps", str(steps), "--seed", str(seed), "--num-envs", str(num_envs),
@@ -117,6 +208,14 @@ def train_command(
             "--no-progress", "--no-tensorboard", "--vector", vector, *arm.args]  # fmt: skip
 
 
+def prepare_run(run: Path, arm: Arm) -> None:
+    """Before (re)starting a run: remove a partial log that nothing can resume from (an SB3 run,
+    or a run killed before its first checkpoint), so the trainer starts it afresh."""
+    log_file = metrics_path(run)
+    if log_file.is_file() and (arm.kind == "sb3" or not (run / "checkpoint.pt").is_file()):
+        log_file.unlink()
+
+
 def run_one(
     task: str,
     arm: Arm,
@@ -126,16 +225,14 @@ def run_one(
     num_envs: int = 4,
     vector: str = "auto",
 ) -> Path:
-    """Train, resume or reuse one run; returns its directory."""
+    """Train, resume or reuse one run in this process's foreground; returns its directory.
+
+    (:func:`run_grid` and ``ndp sweep`` run many at once with retries: ndp.experiments.sweep.)"""
     run = run_dir(runs_dir, task, arm, seed)
-    _check_arm(run, arm, steps)
-    if is_finished(run):
+    _check_arm(run, arm, steps, task, seed)
+    if is_finished(run, arm):
         return run
-    log_file = metrics_path(run)
-    if log_file.is_file() and (arm.algo == "sb3-ppo" or not (run / "checkpoint.pt").is_file()):
-        # killed before anything resumable was written (an SB3 run, or a run before its first
-        # checkpoint): this study's own partial log, restarted from scratch
-        log_file.unlink()
+    prepare_run(run, arm)
     t0 = time.time()
     log = run / "train.log"
     with log.open("a") as fh:
@@ -149,6 +246,15 @@ def run_one(
     return run
 
 
+def default_vector(jobs: int) -> str:
+    """The vector env of each run when ``jobs`` run at once: with one job a run uses the env
+    workers (``auto``); with several, each run is a single process (``sync``) unless the machine
+    has cores to spare for workers too."""
+    from ndp.envs.vector import default_workers
+
+    return "auto" if jobs <= 1 or default_workers(64) >= 2 * jobs else "sync"
+
+
 def run_grid(
     tasks: Sequence[str],
     arms: Sequence[Arm],
@@ -159,22 +265,30 @@ def run_grid(
     num_envs: int = 4,
     vector: str | None = None,
 ) -> list[Path]:
-    """Every (task, arm, seed), seed-major (all arms of seed 0 first), ``jobs`` at a time.
+    """Every (task, arm, seed), seed-major (all arms of seed 0 first), ``jobs`` at a time, on
+    the sweep's local backend (:func:`ndp.experiments.sweep.run_sweep`: a failed run is retried
+    once; Ctrl-C stops every run at its last checkpoint).
 
-    ``vector`` (None: decided here): with one job a run uses the env workers (``auto``); with
-    several, each run is a single process (``sync``), which keeps the cores busy through the
-    updates too. Pass ``sync`` when other studies share the machine.
+    ``vector`` (None: :func:`default_vector`). Pass ``sync`` when other studies share the
+    machine.
+
+    Raises:
+        RuntimeError: some runs failed twice (after the others finished).
+        KeyboardInterrupt: the sweep was interrupted (everything stays resumable).
     """
-    from ndp.envs.vector import default_workers
+    from ndp.experiments.sweep import make_jobs, run_sweep
 
     if vector is None:
-        vector = "auto" if jobs <= 1 or default_workers(64) >= 2 * jobs else "sync"
-    grid = [(t, a, s) for s in seeds for t in tasks for a in arms]
-    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        futs = [
-            pool.submit(run_one, t, a, s, steps, runs_dir, num_envs, vector) for t, a, s in grid
-        ]
-        return [f.result() for f in futs]
+        vector = default_vector(jobs)
+    grid = make_jobs(tasks, arms, seeds, steps, runs_dir, num_envs=num_envs, vector=vector)
+    result = run_sweep(grid, workers=max(1, jobs))
+    if result.interrupted:
+        raise KeyboardInterrupt
+    if result.failed:
+        raise RuntimeError(
+            "runs failed: " + "; ".join(f"{o.job.name}: {o.error}" for o in result.failed)
+        )
+    return [j.run_dir for j in grid]
 
 
 def load_curve(run: Path, key: str = "charts/success_any") -> tuple[np.ndarray, np.ndarray]:
@@ -222,7 +336,7 @@ def summarise(
                 run = run_dir(runs_dir, task, arm, seed)
                 if not metrics_path(run).is_file():
                     continue
-                if not is_finished(run):
+                if not is_finished(run, arm):
                     running.append(seed)
                     continue
                 x, y = load_curve(run)

@@ -1,0 +1,605 @@
+"""``ndp report RUN_DIRS...``: tables and learning curves from run directories.
+
+Runs are found in the given directories (a run directory, or a directory of run directories,
+two levels down at most) and grouped into cells (task x method label) with one run per seed.
+The method label is the study arm's (``arm.json``) or, for a plain ``ndp rl train`` run, its
+``--algo``. Only finished runs count (the budget reached: ``done.json``, or the checkpoint's
+update count; an imitation run also evaluated).
+
+Per RL run (``metrics.csv``, docs/metrics.md):
+
+- **success at budget b**: the mean of ``charts/success_any`` over the updates in the last 10%
+  of [0, b] (NaN when the run's budget is below b);
+- **success area**: the success curve averaged over the run's budget (0 before the first
+  logged update): the area under the curve divided by the budget;
+- **final success**: the mean over the last 10% of the updates;
+- **final live return**: the mean of ``charts/episode_return_live`` (the env's own reward at
+  every sub-step; ``charts/episode_return`` for runs without it) over the last 10% of updates.
+
+Per imitation run: the test MSE (px^2) and DTW distance of ``eval.json`` (the last logged
+``test/mse_px2`` without it).
+
+Cells give mean +- std (population std, over seeds). Every cell must hold the same seeds (the
+``--seeds`` given, or every seed found in the report): a cell with seeds missing makes the
+report refuse (naming the cells and seeds), or, with ``allow_missing``, carry a loud
+``MISSING seeds ...`` marker in the tables, the CSV (``missing_seeds``) and the legend.
+
+Outputs (``out`` stem): ``<out>.md`` (tables per task x method, and a summary over tasks:
+the mean per method and on how many tasks NDP >= each other method), ``<out>.csv`` (one row per
+cell), ``<out>-<task>.png`` (one line per method, mean +- std band over seeds, x in env steps).
+Each carries the command, the commit and the date (and the commits the runs were trained at).
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import json
+import math
+import re
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ndp.experiments.study import final_success, is_finished, smooth, success_area
+from ndp.runs import metrics_path, read_metrics
+
+
+class MissingSeedsError(ValueError):
+    """Cells of the report lack seeds (the message names them)."""
+
+
+@dataclass
+class RunInfo:
+    """One run directory, identified."""
+
+    path: Path
+    task: str
+    label: str
+    algo: str
+    seed: int
+    steps: int
+    """Budget: env steps (RL), epochs (imitation)."""
+    kind: str
+    """'rl', 'sb3' or 'il'."""
+    finished: bool = False
+    commits: list[str] = field(default_factory=list)
+
+
+# ----------------------------------------------------------------------------- finding runs
+
+
+def _json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+
+
+def _is_run(path: Path) -> bool:
+    return (path / "arm.json").is_file() or metrics_path(path).is_file()
+
+
+def find_run_dirs(paths: Sequence[str | Path]) -> list[Path]:
+    """Run directories in ``paths`` (each a run, or holding runs up to two levels down).
+
+    Raises:
+        FileNotFoundError: a path does not exist.
+    """
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if not p.exists():
+            raise FileNotFoundError(f"report: no such directory {p}")
+        if _is_run(p):
+            out.append(p)
+            continue
+        for child in sorted(q for q in p.iterdir() if q.is_dir()):
+            if _is_run(child):
+                out.append(child)
+            else:
+                out += [g for g in sorted(q for q in child.iterdir() if q.is_dir()) if _is_run(g)]
+    seen, uniq = set(), []
+    for p in out:
+        if p.resolve() not in seen:
+            seen.add(p.resolve())
+            uniq.append(p)
+    return uniq
+
+
+def _il_task(data: dict[str, Any]) -> str:
+    src = data.get("source", "synthetic")
+    if src == "synthetic" and data.get("split") in ("paper", "auto"):
+        n = int(data.get("n_train", 10000))
+        return "synthetic" if n == 10000 else f"synthetic-{n}"
+    return str(src)
+
+
+def run_info(path: Path) -> RunInfo | None:
+    """Identify a run (None: not enough to say which task / method / seed it is)."""
+    arm = _json(path / "arm.json") or {}
+    cfg = _json(path / "config.json") or {}
+    algo = arm.get("algo") or cfg.get("algo")
+    label = arm.get("label") or algo
+    is_il = "model" in cfg and "data" in cfg
+    if is_il and not algo:
+        algo = "il-" + str(cfg["model"].get("kind", "ndp"))
+        label = str(cfg["model"].get("kind", "ndp"))
+    if not label or not algo:
+        return None
+    kind = arm.get("kind") or (
+        "il" if str(algo).startswith("il-") or is_il else "sb3" if algo == "sb3-ppo" else "rl"
+    )
+    task, seed = arm.get("task"), arm.get("seed")
+    if task is None or seed is None:
+        m = re.fullmatch(rf"(.+)-{re.escape(str(label))}-s(\d+)", path.name)
+        if m:
+            task, seed = m.group(1), int(m.group(2))
+        elif kind == "il" and cfg:
+            task, seed = _il_task(cfg.get("data", {})), cfg.get("seed")
+        elif cfg:
+            task, seed = cfg.get("task"), cfg.get("seed")
+    if task is None or seed is None:
+        return None
+    steps = arm.get("steps") or (cfg.get("epochs") if kind == "il" else cfg.get("steps"))
+    if not steps:
+        return None
+    info = RunInfo(path, str(task), str(label), str(algo), int(seed), int(steps), kind)
+    info.finished = _finished(info)
+    prov = _json(path / "provenance.json")
+    if isinstance(prov, list):
+        info.commits = sorted({str(e.get("commit", ""))[:7] for e in prov if e.get("commit")})
+    return info
+
+
+def _finished(info: RunInfo) -> bool:
+    path = info.path
+    if (path / "done.json").is_file():
+        return True
+    if (path / "checkpoint.pt").is_file():
+        try:
+            return is_finished(path, kind=info.kind)
+        except Exception:  # an unreadable checkpoint: not a finished run
+            return False
+    if not metrics_path(path).is_file():
+        return False
+    if info.kind == "il" and not (path / "eval.json").is_file():
+        return False
+    rows = read_metrics(path)
+    col = "epoch" if info.kind == "il" else "global_step"
+    return bool(rows) and rows[-1].get(col, 0) >= info.steps
+
+
+# ----------------------------------------------------------------------------- numbers
+
+
+def _last_tenth(v: np.ndarray) -> float:
+    v = v[~np.isnan(v)]
+    if len(v) == 0:
+        return math.nan
+    return float(np.mean(v[int(len(v) * 0.9) :])) if len(v) >= 10 else float(v[-1])
+
+
+def success_at(x: np.ndarray, y: np.ndarray, b: float, budget: int) -> float:
+    """Mean success over the updates in the last 10% of [0, b] (NaN past the run's budget)."""
+    if b > budget * (1 + 1e-9) or len(x) == 0:
+        return math.nan
+    hi = b if b < budget else math.inf
+    sel = (x > 0.9 * b) & (x <= hi)
+    if sel.any():
+        return float(np.mean(y[sel]))
+    before = x <= hi
+    return float(y[before][-1]) if before.any() else math.nan
+
+
+def rl_numbers(info: RunInfo, budgets: Sequence[float]) -> dict[str, Any]:
+    """One RL run's numbers and its curve."""
+    rows = read_metrics(info.path)
+    x = np.array([r.get("global_step", math.nan) for r in rows], dtype=np.float64)
+    y = np.array([r.get("charts/success_any", math.nan) for r in rows], dtype=np.float64)
+    key = "charts/episode_return_live"
+    if not rows or key not in rows[0]:
+        key = "charts/episode_return"
+    ret = np.array([r.get(key, math.nan) for r in rows], dtype=np.float64)
+    keep = ~np.isnan(y)
+    xs, ys = x[keep], y[keep]
+    out: dict[str, Any] = {
+        "area": success_area(xs, ys, info.steps) if len(xs) else math.nan,
+        "final": final_success(ys) if len(ys) else math.nan,
+        "return": _last_tenth(ret),
+        "curve": (xs, smooth(ys, max(1, len(ys) // 20)) if len(ys) else ys),
+    }
+    for b in budgets:
+        out[f"at:{int(b)}"] = success_at(xs, ys, b, info.steps)
+    return out
+
+
+def il_numbers(info: RunInfo) -> dict[str, Any]:
+    """One imitation run's test MSE / DTW and its test-MSE curve (x: epochs)."""
+    rows = read_metrics(info.path)
+    x = np.array([r.get("epoch", math.nan) for r in rows], dtype=np.float64)
+    y = np.array([r.get("test/mse_px2", math.nan) for r in rows], dtype=np.float64)
+    keep = ~np.isnan(y)
+    ev = _json(info.path / "eval.json") or {}
+    last = float(y[keep][-1]) if keep.any() else math.nan
+    mse = (ev.get("test_mse_px2") or {}).get("mean", last)
+    dtw = (ev.get("test_dtw_px") or {}).get("mean", math.nan)
+    return {"mse": float(mse), "dtw": float(dtw), "curve": (x[keep], y[keep])}
+
+
+# ----------------------------------------------------------------------------- the report
+
+
+@dataclass
+class Cell:
+    task: str
+    label: str
+    kind: str
+    algo: str
+    runs: dict[int, RunInfo] = field(default_factory=dict)
+    unfinished: dict[int, RunInfo] = field(default_factory=dict)
+    missing: list[int] = field(default_factory=list)
+    numbers: dict[int, dict[str, Any]] = field(default_factory=dict)
+
+    def stat(self, key: str) -> tuple[float, float, int]:
+        v = np.array([n[key] for n in self.numbers.values() if not math.isnan(n[key])])
+        if len(v) == 0:
+            return math.nan, math.nan, 0
+        return float(v.mean()), float(v.std()), len(v)
+
+    def marker(self) -> str:
+        return f"MISSING seeds {' '.join(map(str, self.missing))}" if self.missing else ""
+
+
+def _fmt(m: float, s: float, n: int, digits: int = 2) -> str:
+    return "-" if n == 0 or math.isnan(m) else f"{m:.{digits}f} +- {s:.{digits}f}"
+
+
+def build_cells(
+    infos: Sequence[RunInfo],
+    seeds: Sequence[int] | None,
+    tasks: Sequence[str] | None = None,
+    methods: Sequence[str] | None = None,
+) -> tuple[list[Cell], list[int]]:
+    """Cells (task x label, every task with every label of its kind), the expected seeds."""
+    infos = [
+        i for i in infos if (not tasks or i.task in tasks) and (not methods or i.label in methods)
+    ]
+    if tasks:
+        unknown = sorted(set(tasks) - {i.task for i in infos})
+        if unknown:
+            raise ValueError(f"report: no runs of the tasks {unknown} in these directories")
+    if methods:
+        unknown = sorted(set(methods) - {i.label for i in infos})
+        if unknown:
+            raise ValueError(f"report: no runs of the methods {unknown} in these directories")
+    expected = sorted(set(seeds) if seeds else {i.seed for i in infos})
+    cells: dict[tuple[str, str], Cell] = {}
+    by_kind: dict[str, list[RunInfo]] = {}
+    for i in infos:
+        by_kind.setdefault("il" if i.kind == "il" else "rl", []).append(i)
+    for group in by_kind.values():
+        task_order = list(dict.fromkeys(i.task for i in group))
+        label_order = list(dict.fromkeys(i.label for i in group))
+        algo_of = {i.label: i.algo for i in group}
+        kind_of = {i.label: i.kind for i in group}
+        for t in task_order:
+            for lb in label_order:
+                cells[(t, lb)] = Cell(t, lb, kind_of[lb], algo_of[lb])
+        for i in group:
+            c = cells[(i.task, i.label)]
+            if i.seed not in expected:
+                continue
+            if i.seed in c.runs or i.seed in c.unfinished:
+                other = (c.runs.get(i.seed) or c.unfinished[i.seed]).path
+                raise ValueError(
+                    f"report: two runs of {i.task} x {i.label} seed {i.seed}: {other} and {i.path}"
+                )
+            (c.runs if i.finished else c.unfinished)[i.seed] = i
+    for c in cells.values():
+        c.missing = [s for s in expected if s not in c.runs]
+    return list(cells.values()), expected
+
+
+def _missing_message(cells: Sequence[Cell], expected: Sequence[int]) -> str:
+    bad = [c for c in cells if c.missing]
+    parts = []
+    for c in bad[:10]:
+        unf = [s for s in c.missing if s in c.unfinished]
+        extra = f" ({len(unf)} unfinished: seeds {unf})" if unf else ""
+        parts.append(f"{c.task} x {c.label}: seeds {c.missing} missing{extra}")
+    more = f"; and {len(bad) - 10} more cells" if len(bad) > 10 else ""
+    return (
+        f"report: seeds missing from {len(bad)} of {len(cells)} cells (every cell needs seeds "
+        f"{list(expected)}): "
+        + "; ".join(parts)
+        + more
+        + ". Refused: finish those runs (ndp sweep continues them), narrow --seeds / --tasks / "
+        "--methods, or pass --allow-missing to mark the cells instead."
+    )
+
+
+def report(
+    run_dirs: Sequence[str | Path],
+    out: str | Path,
+    command: str,
+    seeds: Sequence[int] | None = None,
+    budgets: Sequence[float] | None = None,
+    tasks: Sequence[str] | None = None,
+    methods: Sequence[str] | None = None,
+    allow_missing: bool = False,
+    title: str = "Report",
+    plots: bool = True,
+) -> dict[str, Any]:
+    """Write ``<out>.md``, ``<out>.csv`` and ``<out>-<task>.png`` (see the module doc).
+
+    ``budgets``: env steps at which to give the success (default: a quarter, half and all of
+    the largest budget). Returns the numbers (and the paths written).
+
+    Raises:
+        MissingSeedsError: cells lack seeds and not ``allow_missing`` (nothing written).
+        ValueError: no runs, or two runs of one cell and seed.
+    """
+    from ndp.provenance import git_commit
+
+    dirs = find_run_dirs(run_dirs)
+    infos = [i for i in (run_info(d) for d in dirs) if i is not None]
+    if not infos:
+        raise ValueError(f"report: no runs found in {', '.join(map(str, run_dirs))}")
+    cells, expected = build_cells(infos, seeds, tasks, methods)
+    if any(c.missing for c in cells) and not allow_missing:
+        raise MissingSeedsError(_missing_message(cells, expected))
+    rl_cells = [c for c in cells if c.kind != "il"]
+    il_cells = [c for c in cells if c.kind == "il"]
+    top = max((i.steps for c in rl_cells for i in c.runs.values()), default=0)
+    budgets = sorted({int(b) for b in (budgets or [top / 4, top / 2, top]) if b > 0})
+    for c in rl_cells:
+        c.numbers = {s: rl_numbers(i, budgets) for s, i in c.runs.items()}
+    for c in il_cells:
+        c.numbers = {s: il_numbers(i) for s, i in c.runs.items()}
+    prov = {
+        "command": command,
+        "commit": git_commit(),
+        "date": dt.datetime.now().strftime("%Y-%m-%d %H:%M"),
+        "run_commits": sorted({x for c in cells for i in c.runs.values() for x in i.commits}),
+    }
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    pngs = _plot_all(rl_cells, il_cells, out, prov) if plots else []
+    rows = _csv_rows(rl_cells, il_cells, budgets, expected, prov)
+    _write_csv(out.with_suffix(".csv"), rows)
+    md = _markdown(title, rl_cells, il_cells, budgets, expected, prov, pngs, out)
+    out.with_suffix(".md").write_text("\n".join(md) + "\n")
+    return {
+        **prov,
+        "seeds": expected,
+        "budgets": budgets,
+        "rows": rows,
+        "markdown": str(out.with_suffix(".md")),
+        "csv": str(out.with_suffix(".csv")),
+        "png": [str(p) for p in pngs],
+        "missing": [(c.task, c.label, c.missing) for c in cells if c.missing],
+    }
+
+
+def _csv_rows(
+    rl_cells: Sequence[Cell],
+    il_cells: Sequence[Cell],
+    budgets: Sequence[int],
+    expected: Sequence[int],
+    prov: dict[str, Any],
+) -> list[dict[str, Any]]:
+    rows = []
+    for c in [*rl_cells, *il_cells]:
+        r: dict[str, Any] = {
+            "task": c.task,
+            "method": c.label,
+            "algo": c.algo,
+            "kind": c.kind,
+            "n_seeds": len(c.runs),
+            "seeds": " ".join(map(str, sorted(c.runs))),
+            "missing_seeds": " ".join(map(str, c.missing)),
+            "budget": " ".join(sorted({str(i.steps) for i in c.runs.values()})),
+        }
+        if c.kind == "il":
+            keys = [("test_mse_px2", "mse"), ("test_dtw_px", "dtw")]
+        else:
+            keys = [(f"success_at_{b}", f"at:{b}") for b in budgets]
+            keys += [
+                ("success_area", "area"),
+                ("final_success", "final"),
+                ("final_return_live", "return"),
+            ]
+        for name, key in keys:
+            m, s, _ = c.stat(key)
+            r[f"{name}_mean"], r[f"{name}_std"] = m, s
+        rows.append(
+            {**r, "command": prov["command"], "commit": prov["commit"], "date": prov["date"]}
+        )
+    return rows
+
+
+def _write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    # provenance last, in every row
+    cols = [c for c in cols if c not in ("command", "commit", "date")] + [
+        "command",
+        "commit",
+        "date",
+    ]
+    with path.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=cols)
+        w.writeheader()
+        for r in rows:
+            w.writerow(
+                {k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in r.items()}
+            )
+
+
+def _markdown(
+    title: str,
+    rl_cells: Sequence[Cell],
+    il_cells: Sequence[Cell],
+    budgets: Sequence[int],
+    expected: Sequence[int],
+    prov: dict[str, Any],
+    pngs: Sequence[Path],
+    out: Path,
+) -> list[str]:
+    runs_at = ", ".join(prov["run_commits"]) or "not recorded"
+    md = [
+        f"# {title}",
+        "",
+        f"Command: `{prov['command']}`  ",
+        f"Commit: {prov['commit']}, date: {prov['date']}; runs trained at commits: {runs_at}.  ",
+        f"Seeds per cell: {list(expected)}; mean +- std over seeds (population std).",
+        "",
+    ]
+    missing = [c for c in [*rl_cells, *il_cells] if c.missing]
+    if missing:
+        md += [
+            f"**WARNING: seeds are missing from {len(missing)} cells (marked MISSING below); "
+            "their numbers are over fewer seeds.**",
+            "",
+        ]
+    if rl_cells:
+        heads = [f"success @ {b:,}" for b in budgets]
+        md += [
+            "Success: `charts/success_any` of the training episodes. Success @ b: mean over the "
+            "updates in the last 10% of [0, b] (`-`: no update logged by b, or b past the "
+            "budget); area: the success curve averaged over the "
+            "budget; final: last 10% of updates; live return: `charts/episode_return_live` over "
+            "the last 10% of updates.",
+            "",
+            "| task | method | n | "
+            + " | ".join(heads)
+            + " | success area | final success | final live return |",
+            "|---" * (6 + len(heads)) + "|",
+        ]
+        for c in rl_cells:
+            vals = [_fmt(*c.stat(f"at:{b}")) for b in budgets]
+            vals += [_fmt(*c.stat("area")), _fmt(*c.stat("final")), _fmt(*c.stat("return"), 1)]
+            n = f"{len(c.runs)}" + (f" **{c.marker()}**" if c.missing else "")
+            md.append(f"| {c.task} | {c.label} | {n} | " + " | ".join(vals) + " |")
+        md.append("")
+        md += _over_tasks(rl_cells)
+    if il_cells:
+        md += [
+            "Imitation: test MSE (px^2) and DTW distance (px) of each run's evaluation.",
+            "",
+            "| data | model | n | test MSE px^2 | test DTW px |",
+            "|---|---|---|---|---|",
+        ]
+        for c in il_cells:
+            n = f"{len(c.runs)}" + (f" **{c.marker()}**" if c.missing else "")
+            md.append(
+                f"| {c.task} | {c.label} | {n} | {_fmt(*c.stat('mse'))} | {_fmt(*c.stat('dtw'))} |"
+            )
+        md.append("")
+    md += [f"![{p.stem}]({p.name})" for p in pngs]
+    md += ["", f"CSV: `{out.with_suffix('.csv').name}`."]
+    return md
+
+
+def _over_tasks(cells: Sequence[Cell]) -> list[str]:
+    """Mean over tasks per method (tasks where every method has a value) and how many tasks
+    NDP >= each other method (final success), the paper's MT50 summary."""
+    tasks = list(dict.fromkeys(c.task for c in cells))
+    labels = list(dict.fromkeys(c.label for c in cells))
+    if len(tasks) < 2:
+        return []
+    by = {(c.task, c.label): c for c in cells}
+    full = [t for t in tasks if all(by[(t, lb)].stat("final")[2] > 0 for lb in labels)]
+    md = [
+        f"Over tasks ({len(full)} of {len(tasks)} tasks where every method has runs):",
+        "",
+        "| method | mean final success | mean success area |",
+        "|---|---|---|",
+    ]
+    for lb in labels:
+        f = [by[(t, lb)].stat("final")[0] for t in full]
+        a = [by[(t, lb)].stat("area")[0] for t in full]
+        fm = f"{np.mean(f):.3f}" if f else "-"
+        am = f"{np.mean(a):.3f}" if a else "-"
+        md.append(f"| {lb} | {fm} | {am} |")
+    md.append("")
+    if "ndp" in labels and full:
+        for lb in labels:
+            if lb == "ndp":
+                continue
+            wins = sum(
+                by[(t, "ndp")].stat("final")[0] >= by[(t, lb)].stat("final")[0] for t in full
+            )
+            md.append(f"NDP >= {lb} (mean final success) on {wins} of {len(full)} tasks.  ")
+        md.append("")
+    return md
+
+
+def _plot_all(
+    rl_cells: Sequence[Cell], il_cells: Sequence[Cell], out: Path, prov: dict[str, Any]
+) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import textwrap
+
+    import matplotlib.pyplot as plt
+
+    foot = f"{prov['command']}  |  commit {prov['commit']}  |  {prov['date']}"
+    foot_lines = textwrap.wrap(foot, 150) or [""]
+    meta = {"Description": foot, "Software": "ndp report"}
+    paths = []
+    for cells, xlabel, ylabel in (
+        (rl_cells, "env steps", "success (any step, training)"),
+        (il_cells, "epoch", "test MSE (px^2)"),
+    ):
+        for task in dict.fromkeys(c.task for c in cells):
+            fig, ax = plt.subplots(figsize=(6.4, 4.2 + 0.1 * len(foot_lines)))
+            tcells = [c for c in cells if c.task == task]
+            top = max((i.steps for c in tcells for i in c.runs.values()), default=1)
+            grid = np.linspace(0, top, 101)
+            for c in tcells:
+                curves = []
+                for n in c.numbers.values():
+                    x, y = n["curve"]
+                    if len(x):
+                        curves.append(np.interp(grid, x, y, left=np.nan, right=np.nan))
+                if not curves:
+                    continue
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    m, s = np.nanmean(curves, 0), np.nanstd(curves, 0)
+                name = f"{c.label} (n={len(curves)})" + (f" {c.marker()}" if c.missing else "")
+                (line,) = ax.plot(
+                    grid,
+                    m,
+                    label=name,
+                    lw=1.6 if not c.missing else 1.0,
+                    ls="-" if not c.missing else "--",
+                )
+                ax.fill_between(grid, m - s, m + s, alpha=0.18, color=line.get_color(), lw=0)
+            ax.set_title(task + ("  [MISSING SEEDS]" if any(c.missing for c in tcells) else ""))
+            ax.set_xlim(0, top)
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(ylabel)
+            if cells is rl_cells:
+                ax.set_ylim(-0.02, 1.02)
+            else:
+                ax.set_yscale("log")
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7, loc="best")
+            fig.text(
+                0.01, 0.005, "\n".join(foot_lines), fontsize=5, color="0.35", ha="left", va="bottom"
+            )
+            fig.tight_layout(rect=(0, 0.01 + 0.022 * len(foot_lines), 1, 1))
+            safe = re.sub(r"[^A-Za-z0-9_.-]", "_", task)
+            path = out.with_name(f"{out.name}-{safe}.png")
+            fig.savefig(path, dpi=80, metadata=meta)
+            plt.close(fig)
+            paths.append(path)
+    return paths

@@ -1,0 +1,277 @@
+"""The named studies of ``ndp sweep STUDY`` (docs/experiments.md describes each).
+
+A :class:`Study` names its tasks, its arms (:class:`ndp.experiments.study.Arm`: a method and
+``ndp rl train`` / ``ndp il train`` options), its seeds and its budget; ``ndp sweep`` runs the
+grid (``--tasks``, ``--arms``, ``--seeds``, ``--steps`` narrow or change it) and ``ndp report``
+tabulates it. Importing this module imports neither torch nor a simulator: the arms and the
+task lists are built when a sweep asks for them (:meth:`Study.arm_specs`, :meth:`Study.task_list`).
+
+Arms that need something this version may lack:
+
+- ``pending_method`` arms (VICES, Dyn-E, and their ablations) join their study once their
+  method is registered (``ndp.rl.methods.METHODS``); until then the sweep leaves them out and
+  says so;
+- ``in_default=False`` arms run only when named with ``--arms``;
+- arms with ``requires`` use trainer options another change adds (``--learn-az``,
+  ``--only-g``); while ``ndp rl train`` does not know them, the sweep refuses the study before
+  anything starts, naming the arm and the option (``--skip-unavailable`` leaves them out).
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+
+@dataclass(frozen=True)
+class ArmSpec:
+    """An arm as data (the :class:`~ndp.experiments.study.Arm` is built on demand)."""
+
+    label: str
+    algo: str
+    args: tuple[str, ...] = ()
+    note: str = ""
+    requires: str = ""
+    """Trainer options the arm needs that may not exist yet (named when they are refused)."""
+    pending_method: bool = False
+    """The arm's method may not be registered yet: then the arm is left out (with a note)."""
+    in_default: bool = True
+    """Part of a plain ``ndp sweep STUDY``; False: only when named with ``--arms``."""
+
+    def arm(self) -> Any:
+        from ndp.experiments.study import Arm
+
+        return Arm(self.label, self.algo, self.args, self.note, self.requires)
+
+
+@dataclass(frozen=True)
+class Study:
+    """A named grid: tasks x arms x seeds at one budget."""
+
+    name: str
+    title: str
+    doc: str
+    """What the study measures and how to read it (docs/experiments.md has the same)."""
+    tasks: Callable[[], tuple[str, ...]]
+    arms: Callable[[], tuple[ArmSpec, ...]]
+    seeds: tuple[int, ...] = (0, 1, 2)
+    steps: int = 300_000
+    """Budget per run: env steps (RL), epochs (imitation)."""
+    kind: str = "rl"
+    """'rl' (``ndp rl train`` runs) or 'il' (``ndp il train`` runs)."""
+    budgets: tuple[float, ...] = (0.25, 0.5, 1.0)
+    """Fractions of the budget at which the report gives the success."""
+    summary: tuple[str, ...] = field(default=())
+    """Extra report sections: 'over-tasks' (mean over tasks, NDP >= PPO count)."""
+
+    def task_list(self) -> tuple[str, ...]:
+        return tuple(self.tasks())
+
+    def arm_specs(self) -> tuple[ArmSpec, ...]:
+        return tuple(self.arms())
+
+    def available(self) -> tuple[list[ArmSpec], list[tuple[ArmSpec, str]]]:
+        """(the arms whose method is registered, [(arm, why it is left out)])."""
+        from ndp.experiments.sweep import known_methods
+
+        known = set(known_methods())
+        keep, out = [], []
+        for a in self.arm_specs():
+            if a.algo in known:
+                keep.append(a)
+            elif a.pending_method:
+                out.append((a, f"method {a.algo!r} is not registered in this version yet"))
+            else:
+                raise ValueError(
+                    f"study {self.name}: arm {a.label!r} names unknown method {a.algo!r}"
+                )
+        return keep, out
+
+
+# ----------------------------------------------------------------------------- the studies
+
+PAPER_FIVE_TASKS = ("throw", "pick", "push-v3", "soccer-v3", "faucet-open-v3")
+
+
+def _paper_five_arms() -> tuple[ArmSpec, ...]:
+    return (
+        ArmSpec("ndp", "ndp", (), "NDP (default head)"),
+        ArmSpec("ppo", "ppo", (), "PPO"),
+        ArmSpec("ppo-multi", "ppo-multi", (), "PPO-multi"),
+        ArmSpec("vices", "vices", (), "VICES (impedance controller)", pending_method=True),
+        ArmSpec(
+            "dyne", "dyne", (), "Dyn-E (TD3 in a learned action embedding)", pending_method=True
+        ),
+        # the VICES ablations of the Throw study, here only when named (--arms), as in the
+        # earlier benchmarks/rl_learning.py
+        ArmSpec(
+            "vices-pos",
+            "vices-pos",
+            (),
+            "VICES in end-effector space (OSC) on every task",
+            pending_method=True,
+            in_default=False,
+        ),
+        ArmSpec(
+            "vices-low-freq",
+            "vices-low-freq",
+            (),
+            "VICES, one decision per k env steps",
+            pending_method=True,
+            in_default=False,
+        ),
+    )
+
+
+def _mt50_tasks() -> tuple[str, ...]:
+    from ndp.envs.metaworld_env import metaworld_env_names
+
+    return tuple(metaworld_env_names())
+
+
+def _mt50_arms() -> tuple[ArmSpec, ...]:
+    return (ArmSpec("ndp", "ndp", (), "NDP (default head)"), ArmSpec("ppo", "ppo", (), "PPO"))
+
+
+THROW_DEFAULTS = {"n_basis": 5, "k": 5, "dmp_steps": 35}
+"""Throw's reference NDP (its preset: N 5, a_z 5; k 5, 35 integration steps per decision): the
+``ndp`` arm; an ablation value equal to it is that arm, not a second run."""
+
+
+def _ablation_arms() -> tuple[ArmSpec, ...]:
+    from ndp.dmp.basis import RBF_FUNCTIONS  # one entry per kind: new kinds join the study
+
+    arms = [ArmSpec("ndp", "ndp", (), "reference: Throw preset (gaussian RBF, N 5, k 5, 35 steps)")]
+    arms += [
+        ArmSpec(f"rbf-{kind.replace('_', '-')}", "ndp", ("--rbf", kind), f"RBF kind {kind}")
+        for kind in RBF_FUNCTIONS
+        if kind != "gaussian"
+    ]
+    arms += [
+        ArmSpec(f"n{n}", "ndp", ("--n-basis", str(n)), f"N = {n} basis functions")
+        for n in (2, 6, 10, 15, 20)
+        if n != THROW_DEFAULTS["n_basis"]
+    ]
+    arms += [
+        ArmSpec(f"steps{s}", "ndp", ("--dmp-steps", str(s)), f"{s} integration steps per decision")
+        for s in (15, 25, 35, 45)
+        if s != THROW_DEFAULTS["dmp_steps"]
+    ]
+    arms += [
+        ArmSpec(f"k{k}", "ndp", ("--k", str(k)), f"k = {k} env steps per decision")
+        for k in (3, 5, 7, 10, 15)
+        if k != THROW_DEFAULTS["k"]
+    ]
+    arms += [
+        ArmSpec(
+            "learn-az",
+            "ndp",
+            ("--learn-az",),
+            "learned a_z per sample, clamped to [0.5, 30], b_z = a_z / 4",
+            requires="the RL NDP head's learned-a_z option (--learn-az)",
+        ),
+        ArmSpec(
+            "only-g",
+            "ndp",
+            ("--only-g",),
+            "only the goal is learned (no forcing term)",
+            requires="the RL NDP head's goal-only option (--only-g)",
+        ),
+        ArmSpec("vices-pos", "vices-pos", (), "VICES, position-only gains", pending_method=True),
+        ArmSpec(
+            "vices-low-freq",
+            "vices-low-freq",
+            (),
+            "VICES at the policy's decision rate",
+            pending_method=True,
+        ),
+    ]
+    return tuple(arms)
+
+
+DIGITS_TASKS = ("pendigits", "synthetic-300", "synthetic-1000", "synthetic-3000", "synthetic")
+
+
+def _digits_arms() -> tuple[ArmSpec, ...]:
+    return (
+        ArmSpec("ndp", "il-ndp", (), "NDP: CNN -> (g, w) -> DMP layer"),
+        ArmSpec("cnn", "il-cnn", (), "CNN: 301 x 2 points directly"),
+        ArmSpec("cnn-dmp", "il-cnn-dmp", (), "CNN-DMP: regress fitted DMP parameters"),
+    )
+
+
+STUDIES: dict[str, Study] = {
+    s.name: s
+    for s in (
+        Study(
+            name="paper-five",
+            title="The paper's five tasks: NDP vs PPO vs PPO-multi",
+            doc=(
+                "Throw, Pick (Jaco), Push, Soccer, Faucet-open (Meta-World v3) x NDP, PPO and "
+                "PPO-multi (VICES and Dyn-E join once their methods are registered); same PPO "
+                "settings, seeds and budget for every method. Success = charts/success_any of "
+                "the training episodes (stochastic policy)."
+            ),
+            tasks=lambda: PAPER_FIVE_TASKS,
+            arms=_paper_five_arms,
+            steps=300_000,
+        ),
+        Study(
+            name="mt50",
+            title="All 50 Meta-World tasks: NDP vs PPO",
+            doc=(
+                "The 50 Meta-World v3 tasks (metaworld's order) x NDP and PPO. The report adds "
+                "the paper's summary: the mean success over tasks per method and on how many "
+                "tasks NDP >= PPO (final success)."
+            ),
+            tasks=_mt50_tasks,
+            arms=_mt50_arms,
+            steps=300_000,
+            summary=("over-tasks",),
+        ),
+        Study(
+            name="ablations",
+            title="NDP ablations on Throw",
+            doc=(
+                "Throw x the NDP head with one setting changed from the task's preset (the "
+                "reference arm 'ndp': gaussian RBF, N 5, a_z 5, k 5, 35 integration steps per "
+                "decision): RBF kind (every other kind of ndp.dmp.basis.RBF_FUNCTIONS), N in "
+                "{2, 6, 10, 15, 20}, integration steps in {15, 25, 35, 45}, k in "
+                "{3, 5, 7, 10, 15}, a learned a_z (--learn-az: per sample, clamped to [0.5, 30], "
+                "b_z = a_z / 4) and a goal-only NDP (--only-g); VICES-pos and VICES-low-freq "
+                "once VICES is registered. Values equal to the reference are the 'ndp' arm."
+            ),
+            tasks=lambda: ("throw",),
+            arms=_ablation_arms,
+            steps=300_000,
+        ),
+        Study(
+            name="digits-data",
+            title="Digit writing: NDP vs CNN vs CNN-DMP, by training-set size",
+            doc=(
+                "ndp il train runs (budget in epochs, the paper's 71): Pendigits with the "
+                "writer-disjoint split, and the synthetic set (paper split) at 300, 1000, 3000 "
+                "and all (10,000) training digits; 3 seeds. The synthetic test set is 2,000 "
+                "digits drawn with the training digits from the first n_train + 2,000 samples "
+                "(the paper split), so it differs between sizes (same distribution). The "
+                "report gives the test MSE (px^2) per data set and model."
+            ),
+            tasks=lambda: DIGITS_TASKS,
+            arms=_digits_arms,
+            steps=71,
+            kind="il",
+        ),
+    )
+}
+"""Name -> :class:`Study`."""
+
+
+def get_study(name: str) -> Study:
+    """The named study (unknown: ValueError naming it and the close names)."""
+    if name in STUDIES:
+        return STUDIES[name]
+    close = difflib.get_close_matches(name, list(STUDIES), n=3, cutoff=0.4)
+    hint = f"; close names: {', '.join(close)}" if close else ""
+    raise ValueError(f"study: unknown study {name!r}{hint} (known: {', '.join(STUDIES)})")

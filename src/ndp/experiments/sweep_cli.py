@@ -1,0 +1,362 @@
+"""``ndp sweep`` and ``ndp report``: thin entry points over :mod:`ndp.experiments.sweep`,
+:mod:`ndp.experiments.studies` and :mod:`ndp.experiments.report` (docs/experiments.md).
+
+Examples::
+
+    ndp sweep paper-five --seeds 0 --steps 20000              # a named study, local pool
+    ndp sweep paper-five --backend ray                        # the same grid on a local Ray
+    ndp sweep paper-five --backend ray --address HOST:6379    # ... on an existing cluster
+    ndp sweep --tasks point-mass --methods ndp ppo --seeds 0 1 --steps 4096 -o lr=3e-4,1e-3
+    ndp sweep ablations --skip-unavailable --dry-run          # what would run, and how
+    ndp report runs/sweep/paper-five --out docs/results/paper-five
+
+Nothing heavy is imported before the options are parsed (``--help`` answers at once).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+from typing import Any
+
+SWEEP_DESCRIPTION = (
+    "Run a grid of training runs: a named STUDY, or --tasks x --methods x --seeds x overrides "
+    "(-o KEY=V1,V2: several values make a grid axis). Every run is an ordinary run directory "
+    "RUNS_DIR/<task>-<label>-s<seed>; finished runs are skipped, interrupted ones continue from "
+    "their checkpoint, a failed run is retried once and then reported. Ctrl-C stops every run "
+    "at its last checkpoint; the same command continues. Options after -- go to every run's "
+    "trainer."
+)
+REPORT_DESCRIPTION = (
+    "Tables (Markdown, CSV) and learning curves (PNG per task) from run directories: success at "
+    "budgets, success area, final success and final live return per task x method, mean +- std "
+    "over seeds; imitation runs: test MSE and DTW. Refuses when seeds are missing from a cell "
+    "(--allow-missing marks them instead). Every output carries the command, commit and date."
+)
+
+
+def _study_epilog() -> str:
+    from ndp.experiments.studies import STUDIES
+
+    lines = ["studies (docs/experiments.md):"]
+    for s in STUDIES.values():
+        unit = "epochs" if s.kind == "il" else "env steps"
+        lines.append(
+            f"  {s.name:<12} {s.title} (default {s.steps:,} {unit}, seeds "
+            f"{' '.join(map(str, s.seeds))})"
+        )
+    return "\n".join(lines)
+
+
+def sweep_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="ndp sweep",
+        description=SWEEP_DESCRIPTION,
+        epilog=_study_epilog(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("study", nargs="?", metavar="STUDY", help="a named study (see below)")
+    p.add_argument("--tasks", nargs="+", help="tasks (a study: instead of its own)")
+    p.add_argument("--methods", nargs="+", help="methods (grid); a study: only its arms of these")
+    p.add_argument("--arms", nargs="+", help="a study: only these arms (labels)")
+    p.add_argument("--seeds", nargs="+", type=int, help="seeds (default: the study's, or 0)")
+    p.add_argument(
+        "--steps",
+        "--epochs",
+        dest="steps",
+        type=int,
+        help="budget per run: env steps (RL), epochs (imitation); default: the study's",
+    )
+    p.add_argument(
+        "-o",
+        "--override",
+        action="append",
+        default=[],
+        metavar="KEY=V[,V...]",
+        help="a trainer option for every run (one value) or a grid axis (several), e.g. "
+        "lr=1e-3, k=3,5,7, param_noise=true",
+    )
+    p.add_argument(
+        "--runs-dir", type=Path, help="default runs/sweep/<study> (grid: runs/sweep/grid)"
+    )
+    p.add_argument("--backend", choices=("local", "ray"), default="local")
+    p.add_argument(
+        "--address", help="--backend ray: join this cluster (default: start a local Ray)"
+    )
+    p.add_argument("--jobs", type=int, help="runs at once (default: the cores; ray: its CPUs)")
+    p.add_argument("--num-envs", type=int, default=4, help="parallel envs per RL run (default 4)")
+    p.add_argument(
+        "--vector",
+        choices=("auto", "sync"),
+        help="vector env of each RL run (default: sync with several jobs, auto with one)",
+    )
+    p.add_argument("--retries", type=int, default=1, help="retries of a failed run (default 1)")
+    p.add_argument(
+        "--progress-every", type=float, default=30.0, help="seconds between progress lines"
+    )
+    p.add_argument(
+        "--skip-unavailable",
+        action="store_true",
+        help="leave out arms whose trainer options this version lacks",
+    )
+    p.add_argument("--dry-run", action="store_true", help="list the runs and their state; run none")
+    p.add_argument(
+        "--report",
+        type=Path,
+        metavar="OUT",
+        help="at the end, write the report OUT.md / OUT.csv / OUT-<task>.png",
+    )
+    p.add_argument("--list", action="store_true", help="list the studies with their arms")
+    return p
+
+
+def report_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="ndp report", description=REPORT_DESCRIPTION)
+    p.add_argument(
+        "run_dirs",
+        nargs="+",
+        metavar="RUN_DIRS",
+        help="run directories, or directories holding them",
+    )
+    p.add_argument("--out", type=Path, help="output stem (default FIRST_RUN_DIR/report)")
+    p.add_argument(
+        "--seeds", nargs="+", type=int, help="seeds every cell needs (default: all found)"
+    )
+    p.add_argument("--budgets", nargs="+", type=float, help="env steps for 'success @ b'")
+    p.add_argument("--tasks", nargs="+", help="only these tasks")
+    p.add_argument("--methods", nargs="+", help="only these method labels")
+    p.add_argument(
+        "--allow-missing",
+        action="store_true",
+        help="mark cells with missing seeds instead of refusing",
+    )
+    p.add_argument("--title", default="Report")
+    p.add_argument("--no-plots", action="store_true", help="tables only")
+    return p
+
+
+def _split_extra(argv: list[str]) -> tuple[list[str], list[str]]:
+    if "--" in argv:
+        i = argv.index("--")
+        return argv[:i], argv[i + 1 :]
+    return argv, []
+
+
+def _pick(kind: str, requested: list[str] | None, known: list[str]) -> list[str]:
+    from ndp.experiments.sweep import close_hint
+
+    if not requested:
+        return known
+    for r in requested:
+        if r not in known:
+            raise ValueError(
+                f"{kind}: {r!r} is not one of this study's {kind}{close_hint(r, known)}"
+            )
+    return list(requested)
+
+
+def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
+    """The sweep the options describe, validated (ValueError before anything starts)."""
+    from ndp.experiments.studies import get_study
+    from ndp.experiments.study import Arm
+    from ndp.experiments.sweep import (
+        UnknownOptionError,
+        apply_overrides,
+        check_arms,
+        check_methods,
+        check_tasks,
+        parse_overrides,
+    )
+
+    notes: list[str] = []
+    if args.study:
+        study = get_study(args.study)
+        kind, name = study.kind, study.name
+        keep, pending = study.available()
+        specs = {a.label: a for a in study.arm_specs()}
+        labels = _pick("arms", args.arms, list(specs))
+        if not args.arms:
+            labels = [lb for lb in labels if specs[lb].in_default]
+        for a, why in pending:
+            if args.arms and a.label in args.arms:
+                raise ValueError(f"{name}: arm {a.label!r} is not available: {why}")
+            if a.label in labels:
+                notes.append(f"{name}: arm {a.label!r} left out: {why}")
+        have = {a.label for a in keep}
+        arms = [specs[lb].arm() for lb in labels if lb in have]
+        if args.methods:
+            check_methods(args.methods)
+            arms = [a for a in arms if a.algo in args.methods]
+        tasks = list(args.tasks) if args.tasks else list(study.task_list())
+        seeds = args.seeds if args.seeds is not None else list(study.seeds)
+        steps = args.steps if args.steps is not None else study.steps
+        budgets = [f * steps for f in study.budgets]
+    else:
+        if args.arms:
+            raise ValueError("--arms: only with a STUDY (a grid takes --methods)")
+        if not args.tasks or not args.methods:
+            raise ValueError(
+                "sweep: name a STUDY, or give --tasks and --methods for a grid "
+                "(ndp sweep --list shows the studies)"
+            )
+        methods = check_methods(args.methods)
+        il = [m.startswith("il-") for m in methods]
+        if any(il) and not all(il):
+            raise ValueError("--methods: imitation (il-*) and RL methods cannot share one grid")
+        kind, name = ("il" if all(il) else "rl"), "grid"
+        arms = [Arm(m, m) for m in methods]
+        tasks = list(args.tasks)
+        seeds = args.seeds if args.seeds is not None else [0]
+        steps = args.steps if args.steps is not None else (71 if kind == "il" else 300_000)
+        budgets = None
+    if steps < 1:
+        raise ValueError(f"--steps: expected a budget >= 1, got {steps}")
+    if any(s < 0 for s in seeds):
+        raise ValueError(f"--seeds: expected seeds >= 0, got {seeds}")
+    tasks = check_tasks(tasks, kind)
+    overrides = parse_overrides(args.override, kind)
+    arms = apply_overrides(arms, overrides, extra)
+    kept = []
+    for arm in arms:
+        try:
+            check_arms([arm], tasks, name)
+        except UnknownOptionError as exc:
+            if not args.skip_unavailable:
+                raise
+            notes.append(
+                f"{name}: arm {arm.label!r} left out: {exc.option} is unknown to the "
+                f"trainer" + (f" (needs {arm.requires})" if arm.requires else "")
+            )
+            continue
+        kept.append(arm)
+    if not kept:
+        raise ValueError(f"{name}: no arms left to run")
+    return {
+        "name": name,
+        "kind": kind,
+        "tasks": tasks,
+        "arms": kept,
+        "seeds": list(seeds),
+        "steps": steps,
+        "budgets": budgets,
+        "notes": notes,
+    }
+
+
+def sweep_command(argv: list[str]) -> int:
+    """``ndp sweep [STUDY] [options] [-- trainer options]``."""
+    own, extra = _split_extra(list(argv))
+    args = sweep_parser().parse_args(own)
+    if args.list:
+        return _list_studies()
+    if args.jobs is not None and args.jobs < 1:
+        raise ValueError(f"--jobs: expected an integer >= 1, got {args.jobs}")
+    if args.retries < 0:
+        raise ValueError(f"--retries: expected an integer >= 0, got {args.retries}")
+    if args.address and args.backend != "ray":
+        raise ValueError("--address: only with --backend ray")
+    g = build_grid(args, extra)
+    from ndp.experiments.study import default_vector
+    from ndp.experiments.sweep import default_workers, make_jobs, plan_lines, run_sweep
+
+    for n in g["notes"]:
+        print(n, flush=True)
+    runs_dir = args.runs_dir or Path("runs") / "sweep" / g["name"]
+    jobs_at_once = args.jobs or default_workers()
+    vector = args.vector or default_vector(jobs_at_once)
+    jobs = make_jobs(
+        g["tasks"],
+        g["arms"],
+        g["seeds"],
+        g["steps"],
+        runs_dir,
+        num_envs=args.num_envs,
+        vector=vector,
+    )
+    from ndp.experiments.sweep import check_plan
+
+    check_plan(jobs)
+    if args.dry_run:
+        print(f"{g['name']}: {len(jobs)} runs in {runs_dir} (dry run: nothing started)")
+        print("\n".join(plan_lines(jobs)))
+        return 0
+    result = run_sweep(
+        jobs,
+        backend=args.backend,
+        workers=args.jobs,
+        address=args.address,
+        retries=args.retries,
+        progress_every=args.progress_every,
+    )
+    if args.report is not None and not result.interrupted:
+        from ndp.experiments.report import report
+
+        cmd = "ndp sweep " + shlex.join(argv)
+        unit = "epochs" if g["kind"] == "il" else "env steps"
+        dirs = [j.run_dir for j in jobs if j.run_dir.is_dir()]
+        out = report(
+            dirs,
+            args.report,
+            cmd,
+            seeds=g["seeds"],
+            budgets=g["budgets"],
+            allow_missing=True,
+            title=f"{g['name']} ({g['steps']:,} {unit} per run)",
+        )
+        print(f"report: {out['markdown']}, {out['csv']}, {len(out['png'])} PNG")
+    return result.exit_code
+
+
+def _list_studies() -> int:
+    from ndp.experiments.studies import STUDIES
+
+    for s in STUDIES.values():
+        keep, pending = s.available()
+        print(f"{s.name}: {s.title}\n  {s.doc}")
+        print(f"  tasks: {' '.join(s.task_list())}")
+        print("  arms: " + ", ".join(f"{a.label} ({' '.join(a.args) or a.algo})" for a in keep))
+        if pending:
+            print("  not yet available: " + ", ".join(f"{a.label} ({why})" for a, why in pending))
+        unit = "epochs" if s.kind == "il" else "env steps"
+        print(f"  seeds {' '.join(map(str, s.seeds))}, {s.steps:,} {unit} per run\n")
+    return 0
+
+
+def report_command(argv: list[str]) -> int:
+    """``ndp report RUN_DIRS... [options]``."""
+    args = report_parser().parse_args(argv)
+    from ndp.experiments.report import report
+
+    out = args.out or Path(args.run_dirs[0]) / "report"
+    res = report(
+        args.run_dirs,
+        out,
+        "ndp report " + shlex.join(argv),
+        seeds=args.seeds,
+        budgets=args.budgets,
+        tasks=args.tasks,
+        methods=args.methods,
+        allow_missing=args.allow_missing,
+        title=args.title,
+        plots=not args.no_plots,
+    )
+    print(Path(res["markdown"]).read_text())
+    print(f"wrote {res['markdown']}, {res['csv']}" + "".join(f", {p}" for p in res["png"]))
+    if res["missing"]:
+        print(
+            f"ndp report: WARNING: seeds missing from {len(res['missing'])} cells (marked)",
+            file=sys.stderr,
+        )
+    return 0
+
+
+CONFIG_COMMANDS = {"sweep": sweep_command, "report": report_command}
+"""Commands that parse their own options (see ndp.cli)."""
+
+
+def add_subparser(sub: Any) -> None:
+    """Register ``sweep`` and ``report`` for ``ndp --help`` (parsed by CONFIG_COMMANDS)."""
+    sub.add_parser("sweep", help="run a study or a grid of runs (local pool or Ray), resumable")
+    sub.add_parser("report", help="tables and learning curves from run directories")

@@ -1,0 +1,152 @@
+"""ndp report from fixture run directories: numbers, tables, CSV, curves, provenance, and the
+refusal (or the loud marker) when a cell lacks seeds."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from ndp.cli import main
+from ndp.experiments.report import MissingSeedsError, report, success_at
+
+BUDGET = 1000
+
+
+def _rl_run(root, task, label, seed, success, ret=-10.0, done=True, algo=None, arm=True):
+    """An RL run of 10 updates of 100 env steps (unfinished: 5), success ``success`` (a number,
+    or a function of the update index), live return ``ret``."""
+    run = root / f"{task}-{label}-s{seed}"
+    run.mkdir(parents=True)
+    cols = ["update", "global_step", "charts/success_any", "charts/episode_return",
+            "charts/episode_return_live"]  # fmt: skip
+    with (run / "metrics.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(cols)
+        for i in range(10 if done else 5):
+            y = success(i) if callable(success) else success
+            w.writerow([i + 1, (i + 1) * 100, y, ret - 5, ret])
+    if arm:
+        (run / "arm.json").write_text(json.dumps({
+            "label": label, "algo": algo or label, "args": [], "note": "", "steps": BUDGET,
+            "task": task, "seed": seed, "kind": "rl"}))  # fmt: skip
+    else:
+        (run / "config.json").write_text(
+            json.dumps({"task": task, "algo": algo or label, "seed": seed, "steps": BUDGET})
+        )
+    (run / "provenance.json").write_text(json.dumps([{"event": "start", "commit": "abcdef0123"}]))
+    if done:
+        (run / "done.json").write_text("{}")
+    return run
+
+
+def _grid(root, seeds=(0, 1)):
+    for seed in seeds:
+        _rl_run(root, "push-v3", "ndp", seed, 0.8 + 0.1 * seed, ret=100.0 + seed)
+        _rl_run(root, "push-v3", "ppo", seed, 0.5)
+        _rl_run(root, "soccer-v3", "ndp", seed, 0.2)
+        _rl_run(root, "soccer-v3", "ppo", seed, lambda i: 1.0 if i >= 5 else 0.0)
+
+
+def test_report_tables_csv_and_curves(tmp_path):
+    runs = tmp_path / "runs"
+    _grid(runs)
+    res = report([runs], tmp_path / "out" / "rep", "ndp report runs", title="Fixture")
+    assert res["seeds"] == [0, 1] and res["budgets"] == [250, 500, 1000]
+    md = (tmp_path / "out" / "rep.md").read_text()
+    assert md.startswith("# Fixture") and "Command: `ndp report runs`" in md
+    assert f"Commit: {res['commit']}, date: {res['date']}" in md and "abcdef0" in md
+    # push ndp: success 0.8 and 0.9 (seeds 0, 1): mean 0.85, std 0.05; live return 100.5 +- 0.5
+    assert "| push-v3 | ndp | 2 | 0.85 +- 0.05 | 0.85 +- 0.05 | 0.85 +- 0.05 |" in md
+    assert "| 100.5 +- 0.5 |" in md
+    # soccer ppo: success 0 for updates 1-5 (steps 100-500), 1 after: at 500 -> 0, at 1000 -> 1
+    row = next(r for r in res["rows"] if r["task"] == "soccer-v3" and r["method"] == "ppo")
+    assert row["success_at_500_mean"] == 0.0 and row["success_at_1000_mean"] == 1.0
+    assert row["final_success_mean"] == 1.0
+    assert row["success_area_mean"] == pytest.approx(0.5, abs=0.05)
+    assert "NDP >= ppo (mean final success) on 1 of 2 tasks." in md
+    assert "| ndp | 0.525 |" in md  # mean over tasks of (0.85, 0.2)
+    with (tmp_path / "out" / "rep.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 4 and {r["commit"] for r in rows} == {res["commit"]}
+    assert all(r["command"] == "ndp report runs" and r["date"] == res["date"] for r in rows)
+    assert rows[0]["missing_seeds"] == "" and rows[0]["seeds"] == "0 1"
+    for task in ("push-v3", "soccer-v3"):
+        png = tmp_path / "out" / f"rep-{task}.png"
+        data = png.read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+        assert b"ndp report runs" in data  # the command, commit and date in the PNG's text
+
+
+def test_report_refuses_a_cell_with_missing_seeds(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    _grid(runs)
+    _rl_run(runs, "push-v3", "ndp", 2, 0.9)  # seed 2 only in one cell
+    _rl_run(runs, "push-v3", "ppo", 2, 0.1, done=False)  # unfinished: a missing seed too
+    with pytest.raises(MissingSeedsError) as err:
+        report([runs], tmp_path / "rep", "cmd")
+    msg = str(err.value)
+    assert "seeds missing from 3 of 4 cells" in msg and "soccer-v3 x ndp: seeds [2] missing" in msg
+    assert "push-v3 x ppo: seeds [2] missing (1 unfinished: seeds [2])" in msg
+    assert "--allow-missing" in msg and not (tmp_path / "rep.md").exists()
+    # the command: exit 2, the same message, nothing written
+    assert main(["report", str(runs), "--out", str(tmp_path / "rep")]) == 2
+    assert "soccer-v3 x ndp: seeds [2] missing" in capsys.readouterr().err
+    # --seeds 0 1: complete; --allow-missing: loud markers in every output
+    assert main(["report", str(runs), "--out", str(tmp_path / "ok"), "--seeds", "0", "1"]) == 0
+    res = report([runs], tmp_path / "marked", "cmd", allow_missing=True)
+    md = (tmp_path / "marked.md").read_text()
+    assert "**WARNING: seeds are missing from 3 cells" in md
+    assert "| soccer-v3 | ndp | 2 **MISSING seeds 2** |" in md
+    assert {(t, m): s for t, m, s in res["missing"]}[("push-v3", "ppo")] == [2]
+    with (tmp_path / "marked.csv").open() as fh:
+        rows = {(r["task"], r["method"]): r for r in csv.DictReader(fh)}
+    assert rows[("soccer-v3", "ndp")]["missing_seeds"] == "2"
+    assert rows[("push-v3", "ndp")]["missing_seeds"] == ""
+
+
+def test_report_reads_plain_runs_and_filters(tmp_path):
+    runs = tmp_path / "runs"
+    for s in (0, 1):
+        _rl_run(runs, "reach-v3", "ppo", s, 1.0, arm=False)  # a plain `ndp rl train` run
+        _rl_run(runs, "reach-v3", "ndp", s, 0.5, arm=False)
+    _rl_run(runs, "pick", "ndp", 0, 0.5)  # filtered out below (its seeds would be missing)
+    res = report([runs], tmp_path / "r", "cmd", tasks=["reach-v3"], methods=["ppo"], plots=False)
+    assert [(r["task"], r["method"], r["n_seeds"]) for r in res["rows"]] == [("reach-v3", "ppo", 2)]
+    with pytest.raises(ValueError, match="no runs of the methods"):
+        report([runs], tmp_path / "r", "cmd", methods=["dyne"])
+    with pytest.raises(FileNotFoundError):
+        report([tmp_path / "nope"], tmp_path / "r", "cmd")
+
+
+def test_report_of_imitation_runs(tmp_path):
+    runs = tmp_path / "runs"
+    for model in ("ndp", "cnn"):
+        for seed in (0, 1):
+            run = runs / f"synthetic-300-{model}-s{seed}"
+            run.mkdir(parents=True)
+            (run / "metrics.csv").write_text("epoch,train/loss,test/mse_px2\n1,5,9\n2,4,8\n")
+            mse = {"ndp": 2.0, "cnn": 4.0}[model] + seed
+            (run / "eval.json").write_text(json.dumps(
+                {"test_mse_px2": {"mean": mse}, "test_dtw_px": {"mean": 1.0}}))  # fmt: skip
+            (run / "arm.json").write_text(json.dumps({
+                "label": model, "algo": f"il-{model}", "args": [], "steps": 2,
+                "task": "synthetic-300", "seed": seed, "kind": "il"}))  # fmt: skip
+            (run / "done.json").write_text("{}")
+    res = report([runs], tmp_path / "il", "cmd")
+    md = (tmp_path / "il.md").read_text()
+    assert "| synthetic-300 | ndp | 2 | 2.50 +- 0.50 | 1.00 +- 0.00 |" in md
+    assert "| synthetic-300 | cnn | 2 | 4.50 +- 0.50 |" in md
+    assert res["png"] and all(p.endswith(".png") for p in res["png"])
+
+
+def test_success_at_budget():
+    x = np.arange(1, 11) * 100.0
+    y = np.r_[np.zeros(5), np.ones(5)]
+    assert success_at(x, y, 1000, 1000) == 1.0  # updates at 1000 (the last 10% of [0, 1000])
+    assert success_at(x, y, 500, 1000) == 0.0
+    assert success_at(x, y, 250, 1000) == 0.0  # no update in (225, 250]: the last before it
+    assert math.isnan(success_at(x, y, 2000, 1000))  # past the run's budget

@@ -1,0 +1,340 @@
+"""ndp sweep: tiny toy grids end to end (local pool, Ray), resume after Ctrl-C and kill -9,
+retry then report of a failing run, refusal of bad input, the named studies."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from ndp.cli import main
+from ndp.experiments import sweep as sw
+from ndp.experiments.studies import STUDIES, get_study
+from ndp.experiments.study import Arm, il_data_args
+
+# two updates of 512 env steps per run (NDP: 520, k = 5): a few seconds each, mostly start-up
+TINY = ["--tasks", "point-mass", "--steps", "1024", "-o", "steps_per_update=512"]
+
+
+def _rows(run: Path) -> list[dict[str, str]]:
+    with (run / "metrics.csv").open() as fh:
+        return list(csv.DictReader(fh))
+
+
+def _check_grid(runs: Path, out: str) -> None:
+    for algo in ("ppo", "ndp"):
+        for seed in (0, 1):
+            run = runs / f"point-mass-{algo}-s{seed}"
+            arm = json.loads((run / "arm.json").read_text())
+            assert arm["task"] == "point-mass" and arm["seed"] == seed and arm["algo"] == algo
+            assert [int(r["update"]) for r in _rows(run)] == [1, 2]
+            assert not (run / sw.FAILED_NAME).exists()
+    assert "4/4 finished (4 trained now, 0 already finished), 0 failed" in out
+    assert "ETA" in out and "running" in out
+
+
+def test_local_grid_2x2_end_to_end(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    argv = ["sweep", *TINY, "--methods", "ppo", "ndp", "--seeds", "0", "1", "--jobs", "2",
+            "--vector", "sync", "--runs-dir", str(runs),
+            "--report", str(tmp_path / "r")]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    _check_grid(runs, out)
+    assert "on local, 2 at once" in out
+    md = (tmp_path / "r.md").read_text()
+    assert "| point-mass | ppo | 2 |" in md and "| point-mass | ndp | 2 |" in md
+    assert (tmp_path / "r-point-mass.png").stat().st_size > 5_000
+    # a second sweep skips every finished run
+    assert main(argv[:-2]) == 0
+    assert "4/4 finished (0 trained now, 4 already finished)" in capsys.readouterr().out
+
+
+def test_ray_grid_2x2_end_to_end_with_ctrl_c_and_resume(tmp_path, capsys):
+    """Each run a Ray task on a local Ray started (and shut down) by the sweep, 2 CPUs; Ctrl-C
+    while the first seed trains: exit 130, Ray gone, those runs at their checkpoint; the same
+    command finishes the grid (the interrupted runs resumed, not restarted)."""
+    ray = pytest.importorskip("ray")
+    runs = tmp_path / "runs"
+    argv = ["sweep", *TINY, "-o", "checkpoint_every=1", "--methods", "ppo", "ndp",
+            "--seeds", "0", "1", "--backend", "ray", "--jobs", "2",
+            "--runs-dir", str(runs)]  # fmt: skip
+    first = [runs / "point-mass-ppo-s0", runs / "point-mass-ndp-s0"]
+
+    def interrupt_when_checkpointed() -> None:
+        t0 = time.time()
+        while time.time() - t0 < 120:
+            if any((r / "checkpoint.pt").is_file() for r in first):
+                os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C of the sweep
+                return
+            time.sleep(0.05)
+
+    try:
+        watcher = threading.Thread(target=interrupt_when_checkpointed, daemon=True)
+        watcher.start()
+        assert main(argv) == 130
+        watcher.join()
+        out = capsys.readouterr().out
+        assert "on ray (a local Ray instance), 2 at once" in out and "interrupted" in out
+        assert not ray.is_initialized()
+        stopped = [r for r in first if len(_rows(r)) < 2]
+        assert stopped and all((r / "checkpoint.pt").is_file() for r in stopped)
+        assert main(argv) == 0
+        out = capsys.readouterr().out
+        assert not ray.is_initialized()
+        for algo in ("ppo", "ndp"):
+            for seed in (0, 1):
+                run = runs / f"point-mass-{algo}-s{seed}"
+                assert [int(r["update"]) for r in _rows(run)] == [1, 2]
+                arm = json.loads((run / "arm.json").read_text())
+                assert arm["task"] == "point-mass" and arm["seed"] == seed
+        for r in stopped:
+            events = [p["event"] for p in json.loads((r / "provenance.json").read_text())]
+            assert events == ["start", "resume"]
+        assert "4/4 finished" in out and "0 failed" in out
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+
+
+def _start(argv: list[str], log: Path) -> subprocess.Popen:
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    fh = log.open("w")
+    return subprocess.Popen([sys.executable, "-m", "ndp.cli", *argv], stdout=fh,
+                            stderr=subprocess.STDOUT, env=env)  # fmt: skip
+
+
+def _wait_for(cond, proc: subprocess.Popen, log: Path, timeout: float = 60.0) -> None:
+    t0 = time.time()
+    while not cond():
+        if proc.poll() is not None or time.time() - t0 > timeout:
+            proc.kill()
+            pytest.fail(f"condition not reached (rc {proc.poll()}): {log.read_text()[-2000:]}")
+        time.sleep(0.1)
+
+
+def test_resume_skips_finished_and_continues_interrupted_and_killed_runs(tmp_path, capsys):
+    """Ctrl-C: exit 130, every run at its last checkpoint; kill -9 of the sweep and its
+    trainer: the lock goes with them; each next sweep skips the finished run and continues the
+    other from its checkpoint; the result has every update exactly once."""
+    runs = tmp_path / "runs"
+    argv = ["sweep", "--tasks", "point-mass", "--methods", "ppo", "ndp", "--seeds", "0",
+            "--steps", "2600", "-o", "steps_per_update=512", "-o", "checkpoint_every=1",
+            "--jobs", "1", "--vector", "sync", "--runs-dir", str(runs)]  # fmt: skip
+    ppo, ndp = runs / "point-mass-ppo-s0", runs / "point-mass-ndp-s0"
+    log = tmp_path / "sweep1.log"
+    proc = _start(argv, log)  # jobs 1, seed-major: ppo trains first, then ndp
+    _wait_for(lambda: (ndp / "checkpoint.pt").is_file(), proc, log)
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=60) == 130
+    text = log.read_text()
+    assert "interrupted" in text and "Run the same command again to continue" in text
+    assert len(_rows(ppo)) == 6  # ppo (512 env steps per update): finished
+    n1 = len(_rows(ndp))
+    assert 1 <= n1 < 4  # ndp (520 env steps per update, 5 updates): stopped part way
+
+    log2 = tmp_path / "sweep2.log"
+    proc = _start(argv, log2)
+    _wait_for(lambda: len(_rows(ndp)) > n1 and "trainer pid" in (ndp / sw.LOCK_NAME).read_text(),
+              proc, log2)  # fmt: skip
+    trainer = int((ndp / sw.LOCK_NAME).read_text().split("trainer pid")[-1].split()[0])
+    proc.kill()  # kill -9 of the sweep, then of its trainer (they are in separate sessions)
+    proc.wait()
+    os.kill(trainer, signal.SIGKILL)
+    for _ in range(100):
+        if sw.is_busy(ndp) is None:
+            break
+        time.sleep(0.1)
+    assert sw.is_busy(ndp) is None
+    assert "skipped     point-mass ppo s0" in log2.read_text()
+
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "skipped     point-mass ppo s0" in out and "done        point-mass ndp s0" in out
+    assert [int(r["update"]) for r in _rows(ndp)] == [1, 2, 3, 4, 5]
+    prov = json.loads((ndp / "provenance.json").read_text())
+    events = [p["event"] for p in prov]
+    assert events[0] == "start" and "resume" in events
+
+
+def test_failed_run_is_retried_once_then_reported(tmp_path, monkeypatch, capsys):
+    calls = []
+
+    def failing(self):
+        calls.append(self.name)
+        return [sys.executable, "-c", "import sys; print('ndp: error: boom'); sys.exit(3)"]
+
+    monkeypatch.setattr(sw.Job, "command", failing)
+    jobs = sw.make_jobs(["point-mass"], [Arm("ppo", "ppo")], [0], 512, tmp_path)
+    res = sw.run_sweep(jobs, workers=1, progress_every=60)
+    assert len(calls) == 2 and not res.interrupted
+    (o,) = res.failed
+    assert o.attempts == 2 and o.returncode == 3 and "ndp: error: boom" in o.error
+    rec = json.loads((jobs[0].run_dir / sw.FAILED_NAME).read_text())
+    assert rec["attempts"] == 2 and "boom" in rec["error"]
+    out = capsys.readouterr().out
+    assert "retrying   point-mass ppo s0 (attempt 2/2)" in out
+    assert "FAILED point-mass ppo s0 after 2 attempt(s): exit 3: ndp: error: boom" in out
+    # through the command: exit 1, and the error is named
+    assert main(["sweep", "--tasks", "point-mass", "--methods", "ppo", "--steps", "512",
+                 "--runs-dir", str(tmp_path), "--jobs", "1"]) == 1  # fmt: skip
+    assert "FAILED point-mass ppo s0" in capsys.readouterr().out
+
+
+def test_a_locked_run_is_not_trained_twice(tmp_path):
+    (job,) = sw.make_jobs(["point-mass"], [Arm("ppo", "ppo")], [0], 512, tmp_path)
+    held = sw._RunLock.take(job.run_dir)
+    try:
+        assert isinstance(held, sw._RunLock)
+        out = sw.execute(job)
+        assert out.status == "busy" and "being trained by pid" in out.error
+        assert sw.job_state(job) == "running"
+    finally:
+        held.close()
+    assert sw.is_busy(job.run_dir) is None
+
+
+@pytest.mark.parametrize(
+    ("argv", "bad", "close"),
+    [
+        (["paper-fiv"], "'paper-fiv'", "paper-five"),
+        (["--tasks", "pusj-v3", "--methods", "ndp"], "'pusj-v3'", "push-v3"),
+        (["--tasks", "point-mass", "--methods", "ndq"], "'ndq'", "ndp"),
+        (["--tasks", "point-mass", "--methods", "ndp", "-o", "n_basiss=3"], "'n-basiss'",
+         "n-basis"),
+        (["paper-five", "--tasks", "throw", "sokcer-v3"], "'sokcer-v3'", "soccer-v3"),
+        (["ablations", "--arms", "ndp", "n66"], "'n66'", "n6"),
+        (["--tasks", "point-mass", "--methods", "ppo", "-o", "lr=abc"], "--lr abc", "float"),
+        (["--tasks", "point-mass", "--methods", "ppo", "-o", "seed=3"], "'seed'", "--seeds"),
+        (["--tasks", "pendigits", "--methods", "il-cnn", "-o", "pendigits_path=/nope"],
+         "/nope does not exist", "pendigits_path"),
+        (["--tasks", "mnist", "--methods", "il-cnn"], "'mnist'", "synthetic-N"),
+    ],
+)  # fmt: skip
+def test_bad_input_is_refused_before_anything_starts(tmp_path, capsys, argv, bad, close):
+    runs = tmp_path / "runs"
+    assert main(["sweep", *argv, "--runs-dir", str(runs)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ndp: error:") and bad in err and close in err, err
+    assert not runs.exists()
+
+
+def test_an_arm_with_an_option_the_trainer_lacks_is_refused_up_front(tmp_path, capsys):
+    future = Arm("future", "ndp", ("--not-yet", "3"), "an arm ahead of the trainer",
+                 requires="the not-yet option of a later change")  # fmt: skip
+    with pytest.raises(sw.UnknownOptionError) as err:
+        sw.check_arms([Arm("ndp", "ndp"), future], ["throw"], "study")
+    msg = str(err.value)
+    assert "study: arm 'future' uses --not-yet, which `ndp rl train` does not know" in msg
+    assert "needs the not-yet option of a later change" in msg and "--skip-unavailable" in msg
+    # the ablations study names --learn-az and --only-g, which another change adds to the trainer
+    runs = tmp_path / "runs"
+    has = "--learn-az" in sw.train_options() and "--only-g" in sw.train_options()
+    rc = main(["sweep", "ablations", "--runs-dir", str(runs), "--dry-run", "--seeds", "0"])
+    out, err_text = capsys.readouterr()
+    if has:
+        assert rc == 0 and "throw learn-az s0" in out and "throw only-g s0" in out
+    else:
+        assert rc == 2 and not runs.exists()
+        assert "arm 'learn-az' uses --learn-az, which `ndp rl train` does not know" in err_text
+        assert "learned-a_z option" in err_text
+    assert main(["sweep", "ablations", "--runs-dir", str(runs), "--dry-run", "--seeds", "0",
+                 "--skip-unavailable"]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert ("arm 'learn-az' left out: --learn-az is unknown" in out) != has
+    assert "throw k3 s0" in out and "--k 3" in out and "throw rbf-linear s0" in out
+    # a run directory holding another arm's run refuses the sweep before it starts
+    (runs / "throw-ndp-s0").mkdir(parents=True)
+    (runs / "throw-ndp-s0" / "arm.json").write_text(
+        json.dumps({"label": "ndp", "algo": "ppo", "args": [], "steps": 300000})
+    )
+    assert main(["sweep", "ablations", "--runs-dir", str(runs), "--seeds", "0",
+                 "--arms", "ndp"]) == 2  # fmt: skip
+    assert "holds another run (algo 'ppo' where this sweep has 'ndp')" in capsys.readouterr().err
+
+
+def test_studies_are_defined_and_their_arms_accepted(capsys):
+    assert set(STUDIES) == {"paper-five", "mt50", "ablations", "digits-data"}
+    pf = get_study("paper-five")
+    assert pf.task_list() == ("throw", "pick", "push-v3", "soccer-v3", "faucet-open-v3")
+    keep, pending = pf.available()
+    assert [a.label for a in keep][:3] == ["ndp", "ppo", "ppo-multi"]
+    assert {a.label for a, _ in pending} | {a.label for a in keep} >= {"vices", "dyne"}
+    assert [a.label for a in pf.arm_specs() if not a.in_default] == ["vices-pos", "vices-low-freq"]
+    arms = [a.arm() for a in keep]
+    sw.check_arms(arms, sw.check_tasks(pf.task_list()), "paper-five")  # every run would start
+    mt = get_study("mt50")
+    assert len(mt.task_list()) == 50 and [a.algo for a in mt.arm_specs()] == ["ndp", "ppo"]
+    ab = {a.label: a for a in get_study("ablations").arm_specs()}
+    assert {f"n{n}" for n in (2, 6, 10, 15, 20)} <= set(ab)
+    assert {f"steps{s}" for s in (15, 25, 45)} <= set(ab) and "steps35" not in ab  # = ndp
+    assert {f"k{k}" for k in (3, 7, 10, 15)} <= set(ab) and "k5" not in ab  # = ndp
+    assert ab["learn-az"].args == ("--learn-az",) and ab["only-g"].args == ("--only-g",)
+    assert ab["learn-az"].requires and ab["only-g"].requires
+    assert {"vices-pos", "vices-low-freq"} <= set(ab) and "rbf-multiquadric" in ab
+    opts, methods = sw.train_options(), sw.known_methods()
+    ready = [
+        a.arm()
+        for a in ab.values()
+        if all(o in opts for o in a.args if o.startswith("--")) and a.algo in methods
+    ]
+    sw.check_arms(ready, ["throw"], "ablations")
+    dd = get_study("digits-data")
+    assert dd.kind == "il" and dd.seeds == (0, 1, 2)
+    assert [il_data_args(t)[1] for t in dd.task_list()] == ["pendigits", *["synthetic"] * 4]
+    assert il_data_args("synthetic-300")[-2:] == ["--n-train", "300"]
+    from ndp.il.train import DEFAULT_PENDIGITS
+
+    have_pd = (DEFAULT_PENDIGITS / "pendigits-train").is_file()
+    tasks = [t for t in dd.task_list() if t != "pendigits" or have_pd]
+    sw.check_arms([a.arm() for a in dd.arm_specs()], tasks, "digits-data")
+    assert main(["sweep", "--list"]) == 0
+    assert "mt50: All 50 Meta-World tasks" in capsys.readouterr().out
+
+
+def test_overrides_make_grid_axes():
+    ov = sw.parse_overrides(["k=3,7", "param_noise=true", "lr=1e-3"])
+    assert ov[0] == ("--k", [["--k", "3"], ["--k", "7"]])
+    assert ov[1] == ("--param-noise", [["--param-noise"]])
+    arms = sw.apply_overrides([Arm("ndp", "ndp"), Arm("sb3-ppo", "sb3-ppo")], ov, ["--no-norm-obs"])
+    assert [a.label for a in arms] == ["ndp-k3", "ndp-k7", "sb3-ppo"]
+    assert arms[0].args == ("--k", "3", "--param-noise", "--lr", "1e-3", "--no-norm-obs")
+    assert arms[2].args == ()
+    with pytest.raises(ValueError, match="boolean"):
+        sw.parse_overrides(["param_noise=maybe"])
+    opts = sw.train_options("rl")
+    assert {"--n-basis", "--no-param-noise", "--steps-per-update", "--k"} <= set(opts)
+    assert "--head" not in opts  # hidden: follows the method
+    il = sw.train_options("il")
+    assert {"--model", "--data", "--out", "--n-train", "--no-dtw"} <= set(il)
+
+
+def test_run_grid_of_the_benchmarks_runs_on_the_sweep(tmp_path, monkeypatch):
+    """ndp.experiments.study.run_grid (benchmarks/ndp_ablation.py, ppo_vs_sb3.py) goes through
+    the sweep: every run once, seed-major, a failure raised after the others finished."""
+    from ndp.experiments.study import run_grid
+
+    ran = []
+
+    def fake(self):
+        ran.append(self.name)
+        if self.arm.label == "bad":
+            return [sys.executable, "-c", "import sys; sys.exit(1)"]
+        code = "import pathlib, sys; pathlib.Path(sys.argv[1], 'done.json').write_text('{}')"
+        return [sys.executable, "-c", code, str(self.run_dir)]
+
+    monkeypatch.setattr(sw.Job, "command", fake)
+    arms = [Arm("a", "ndp"), Arm("b", "ppo")]
+    dirs = run_grid(["point-mass"], arms, [0, 1], 512, tmp_path, jobs=1, vector="sync")
+    assert ran == ["point-mass a s0", "point-mass b s0", "point-mass a s1", "point-mass b s1"]
+    assert all((d / "done.json").is_file() for d in dirs)
+    with pytest.raises(RuntimeError, match="point-mass bad s0"):
+        run_grid(["point-mass"], [Arm("bad", "ppo")], [0], 512, tmp_path, jobs=1)

@@ -346,3 +346,13 @@ def test_sigkill_then_resume(tmp_path):
     assert ckpt["update"] == n and ckpt["global_step"] == 200 * n
     # every TD3 iteration's 40 decisions are in the buffer exactly once
     assert ckpt["dyne"]["replay"]["size"] == 40 * (n - 2)
+
+
+def test_exploration_preset_is_at_most_a_sixth_of_the_budget():
+    from ndp.rl.config import TrainConfig
+    from ndp.rl.dyne import resolve_dyne_config
+
+    short = resolve_dyne_config(TrainConfig(task="push-v3", algo="dyne", steps=20_000))
+    assert short.dyne.explore_steps == 3333  # the 50k preset would leave no TD3 iteration
+    full = resolve_dyne_config(TrainConfig(task="push-v3", algo="dyne", steps=300_000))
+    assert full.dyne.explore_steps == 50_000

@@ -73,10 +73,11 @@ COLUMNS = (*METRICS, *DYNE_METRICS)
 
 
 def resolve_dyne_config(cfg: TrainConfig) -> TrainConfig:
-    """Fill ``dyne.explore_steps`` from the task's preset where None."""
+    """Fill ``dyne.explore_steps`` where None: the task's preset, at most a sixth of the budget
+    (the preset's share of the 300k study budget), so that short budgets keep TD3 iterations."""
     if cfg.dyne.explore_steps is not None:
         return cfg
-    n = DYNE_EXPLORE_STEPS.get(cfg.task, DEFAULT_EXPLORE_STEPS)
+    n = min(DYNE_EXPLORE_STEPS.get(cfg.task, DEFAULT_EXPLORE_STEPS), max(cfg.steps // 6, 1))
     return dataclasses.replace(cfg, dyne=dataclasses.replace(cfg.dyne, explore_steps=n))
 
 

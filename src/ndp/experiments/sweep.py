@@ -249,6 +249,7 @@ def _stop_child(proc: subprocess.Popen, grace: float = STOP_GRACE_S) -> None:
 _UNBLOCK = (
     "import os, signal, sys; "
     "signal.pthread_sigmask(signal.SIG_UNBLOCK, (signal.SIGINT, signal.SIGTERM)); "
+    "signal.signal(signal.SIGINT, signal.SIG_DFL); signal.signal(signal.SIGTERM, signal.SIG_DFL); "
     "os.execv(sys.argv[1], sys.argv[1:])"
 )
 
@@ -260,7 +261,9 @@ def _stoppable(cmd: list[str]) -> list[str]:
     if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
         return cmd
     blocked = signal.pthread_sigmask(signal.SIG_BLOCK, [])
-    if not {signal.SIGINT, signal.SIGTERM} & set(blocked):
+    # an ignored SIGINT (a shell's background job, nohup'ed CI) is inherited across exec too
+    ignored = signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    if not {signal.SIGINT, signal.SIGTERM} & set(blocked) and not ignored:
         return cmd
     return [sys.executable, "-S", "-c", _UNBLOCK, *cmd]
 
@@ -273,6 +276,10 @@ def execute(job: Job) -> Outcome:
     forwards exactly one SIGINT); its output goes to ``<run>/train.log``. A KeyboardInterrupt
     here (Ray's cancel) stops the trainer the same way.
     """
+    if threading.current_thread() is threading.main_thread():
+        # a Ray worker started where SIGINT was ignored would never see Ray's cancel
+        if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
     run = job.run_dir
     lock = _RunLock.take(run)
     if isinstance(lock, str):

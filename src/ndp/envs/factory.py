@@ -117,16 +117,16 @@ def register_torque_envs() -> list[str]:
     Returns:
         The registered ids, e.g. ``"ndp/push-v3-osc"``, ``"ndp/throw-joint"``.
     """
-    ids = []
-    for name, spec in TORQUE_TASKS.items():
-        if spec.env_id not in gym.registry:
-            gym.register(
-                id=spec.env_id,
-                entry_point="ndp.envs.factory:_make_registered",
-                kwargs={"name": name},
-            )
-        ids.append(spec.env_id)
-    return ids
+    return [_register(spec.env_id, name) for name, spec in TORQUE_TASKS.items()]
+
+
+def _register(env_id: str, name: str) -> str:
+    """Register the per-step env of task ``name`` as ``env_id`` (if not yet); returns the id."""
+    if env_id not in gym.registry:
+        gym.register(
+            id=env_id, entry_point="ndp.envs.factory:_make_registered", kwargs={"name": name}
+        )
+    return env_id
 
 
 def register_envs() -> list[str]:
@@ -137,13 +137,7 @@ def register_envs() -> list[str]:
     """
     ids = []
     for name, spec in TASKS.items():
-        if spec.env_id not in gym.registry:
-            gym.register(
-                id=spec.env_id,
-                entry_point="ndp.envs.factory:_make_registered",
-                kwargs={"name": name},
-            )
-        ids.append(spec.env_id)
+        ids.append(_register(spec.env_id, name))
         for k in CHUNKED_KS:
             cid = f"ndp/{name}-k{k}"
             if cid not in gym.registry:

@@ -357,9 +357,7 @@ class DyneLearner:
             self._load_state(ckpt)
         self.run.write_config(cfg.to_dict())
         self.run.record_session("resume" if resume else "start")
-        self._ep_ret = np.zeros(self.E)
-        self._ep_ret_live = np.zeros(self.E)
-        self._ep_len = np.zeros(self.E, dtype=np.int64)
+        self._tracker = rl_envs.EpisodeTracker(self.E)
         obs, info = self.envs.reset(seed=rl_envs.env_seeds(cfg.seed, self.E, epoch=self.update))
         self._obs = np.asarray(obs, dtype=np.float64).reshape(self.E, self.obs_dim)
         self._state = _robot_state(info, self.E)
@@ -450,26 +448,6 @@ class DyneLearner:
         )
 
     # ----------------------------------------------------------------------- acting
-    def _episodes(self, infos: dict[str, Any], done: np.ndarray, sub_r, live, mask, out) -> None:
-        self._ep_ret += (sub_r * mask).sum(1)
-        self._ep_ret_live += (live * mask).sum(1)
-        self._ep_len += mask.sum(1).astype(np.int64)
-        if done.any():
-            s_any = rl_envs.step_info(infos, done, "success_any")
-            s_fin = rl_envs.step_info(infos, done, "success")
-            for i in np.flatnonzero(done):
-                out.append(
-                    (
-                        float(s_any[i]),
-                        float(s_fin[i]),
-                        self._ep_ret[i],
-                        float(self._ep_len[i]),
-                        self._ep_ret_live[i],
-                    )
-                )
-            self._ep_ret[done] = 0.0
-            self._ep_ret_live[done] = 0.0
-            self._ep_len[done] = 0
 
     def _step(self, act: np.ndarray, episodes: list) -> tuple[Any, ...]:
         next_obs, _, term, trunc, infos = self.envs.step(act.astype(np.float32))
@@ -477,14 +455,8 @@ class DyneLearner:
         trunc = np.asarray(trunc, dtype=bool)
         done = term | trunc
         E, k = self.E, self.k
-        sub_r = rl_envs.step_info(infos, done, "sub_rewards").reshape(E, k)
-        mask = rl_envs.step_info(infos, done, "sub_mask").reshape(E, k)
-        if "sub_rewards_live" in infos or "final_info" in infos:
-            live = rl_envs.step_info(infos, done, "sub_rewards_live", np.nan).reshape(E, -1)
-            live = sub_r if live.shape != sub_r.shape or np.isnan(live).any() else live
-        else:
-            live = sub_r
-        self._episodes(infos, done, sub_r, live, mask, episodes)
+        sub_r, live, mask = rl_envs.decision_rewards(infos, done, E, k)
+        self._tracker.add(infos, done, sub_r, live, mask, episodes)
         nxt = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
         final = nxt.copy()
         if done.any() and "final_obs" in infos:

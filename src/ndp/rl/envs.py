@@ -140,6 +140,60 @@ def step_info(infos: dict[str, Any], done: np.ndarray, key: str, default: Any = 
     return vals
 
 
+def decision_rewards(
+    infos: dict[str, Any], done: np.ndarray, num_envs: int, k: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(sub-rewards as trained [E, k], live sub-rewards [E, k], executed mask [E, k]) of one
+    decision of a chunked vector env (the live ones equal the trained ones where the env does
+    not report them)."""
+    sub_r = step_info(infos, done, "sub_rewards").reshape(num_envs, k)
+    mask = step_info(infos, done, "sub_mask").reshape(num_envs, k)
+    live = sub_r
+    if "sub_rewards_live" in infos or "final_info" in infos:
+        rep = step_info(infos, done, "sub_rewards_live", np.nan).reshape(num_envs, -1)
+        if rep.shape == sub_r.shape and not np.isnan(rep).any():
+            live = rep
+    return sub_r, live, mask
+
+
+class EpisodeTracker:
+    """Running return (as trained and live), length per env, and the rows of finished episodes.
+
+    Each finished episode appends ``(success_any, success_final, return, length, return_live)``
+    to the given list (the trainers' ``charts/*`` metrics are means over these rows).
+    """
+
+    def __init__(self, num_envs: int) -> None:
+        self.ret = np.zeros(num_envs)
+        self.ret_live = np.zeros(num_envs)
+        self.length = np.zeros(num_envs, dtype=np.int64)
+
+    def add(
+        self,
+        infos: dict[str, Any],
+        done: np.ndarray,
+        sub_r: np.ndarray,
+        live: np.ndarray,
+        mask: np.ndarray,
+        out: list[tuple[float, float, float, float, float]],
+    ) -> None:
+        """Add one decision's sub-rewards [E, k] (trained and live) and mask [E, k]; episodes
+        that ended (``done`` [E]) are appended to ``out`` and their counters reset."""
+        self.ret += (sub_r * mask).sum(1)
+        self.ret_live += (live * mask).sum(1)
+        self.length += mask.sum(1).astype(np.int64)
+        if not done.any():
+            return
+        s_any = step_info(infos, done, "success_any")
+        s_fin = step_info(infos, done, "success")
+        for i in np.flatnonzero(done):
+            out.append((float(s_any[i]), float(s_fin[i]), float(self.ret[i]),
+                        float(self.length[i]), float(self.ret_live[i])))  # fmt: skip
+        self.ret[done] = 0.0
+        self.ret_live[done] = 0.0
+        self.length[done] = 0
+
+
 class FrameRecorder(gym.Wrapper):
     """Append ``env.render()`` to ``frames`` after every reset and env step (for mp4s)."""
 

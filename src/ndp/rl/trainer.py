@@ -32,7 +32,14 @@ from ndp.envs.base import CTRL_INFO
 from ndp.policies import build_actor_critic
 from ndp.policies.distributions import SubActionGaussian
 from ndp.rl.config import SAFE_ON_RESUME, TrainConfig, load_config, resolve_config
-from ndp.rl.envs import env_seeds, make_vector_env, resolve_task, step_info
+from ndp.rl.envs import (
+    EpisodeTracker,
+    decision_rewards,
+    env_seeds,
+    make_vector_env,
+    resolve_task,
+    step_info,
+)
 from ndp.rl.gae import bootstrap_truncated, gae_substeps
 from ndp.rl.logger import METRICS
 from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
@@ -120,9 +127,7 @@ class Trainer:
         self.run.write_config(cfg.to_dict())
         self.run.record_session("resume" if resume else "start")
         # Episode bookkeeping.
-        self._ep_ret = np.zeros(cfg.num_envs)
-        self._ep_ret_live = np.zeros(cfg.num_envs)
-        self._ep_len = np.zeros(cfg.num_envs, dtype=np.int64)
+        self._episodes = EpisodeTracker(cfg.num_envs)
         obs, info = self.envs.reset(seed=env_seeds(cfg.seed, cfg.num_envs, epoch=self.update))
         self._obs = np.asarray(obs, dtype=np.float64).reshape(cfg.num_envs, obs_dim)
         self._y0, self._dy0 = _robot_state(info, cfg.num_envs, cfg.policy.dmp_state)
@@ -234,13 +239,7 @@ class Trainer:
             term = np.asarray(term, dtype=bool)
             trunc = np.asarray(trunc, dtype=bool)
             done = term | trunc
-            sub_r = step_info(infos, done, "sub_rewards").reshape(E, k)
-            mask = step_info(infos, done, "sub_mask").reshape(E, k)
-            if "sub_rewards_live" in infos or "final_info" in infos:
-                live = step_info(infos, done, "sub_rewards_live", np.nan).reshape(E, -1)
-                live = sub_r if live.shape != sub_r.shape or np.isnan(live).any() else live
-            else:
-                live = sub_r
+            sub_r, live, mask = decision_rewards(infos, done, E, k)
             r_n = self.ret_norm(sub_r, mask, done)
             boot = trunc & ~term
             if boot.any():  # bootstrap truncated episodes from their final observation
@@ -255,25 +254,7 @@ class Trainer:
                 if key in infos or "final_info" in infos:
                     ctrl[key] += float(step_info(infos, done, key).sum())
 
-            self._ep_ret += (sub_r * mask).sum(1)
-            self._ep_ret_live += (live * mask).sum(1)
-            self._ep_len += mask.sum(1).astype(np.int64)
-            if done.any():
-                s_any = step_info(infos, done, "success_any")
-                s_fin = step_info(infos, done, "success")
-                for i in np.flatnonzero(done):
-                    episodes.append(
-                        (
-                            float(s_any[i]),
-                            float(s_fin[i]),
-                            self._ep_ret[i],
-                            float(self._ep_len[i]),
-                            self._ep_ret_live[i],
-                        )
-                    )
-                self._ep_ret[done] = 0.0
-                self._ep_ret_live[done] = 0.0
-                self._ep_len[done] = 0
+            self._episodes.add(infos, done, sub_r, live, mask, episodes)
             self._obs = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
             self._y0, self._dy0 = _robot_state(infos, E, self.cfg.policy.dmp_state)
 

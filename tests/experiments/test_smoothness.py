@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -81,3 +83,47 @@ def test_side_by_side_render_of_two_runs(tmp_path):
 
     frame = iio.imread(tmp_path / "both.mp4", index=0)
     assert frame.shape[1] >= 2 * 96  # two 96-pixel views next to each other
+
+
+def test_smoothness_study_over_runs_caches_filters_and_writes_the_table(tmp_path, monkeypatch):
+    import importlib.util
+    import json
+
+    from ndp.cli import main
+    from ndp.experiments import smoothness
+
+    runs = tmp_path / "runs"
+    for algo in ("ndp", "ppo-multi"):
+        assert main(["rl", "train", "--task", "point-mass", "--algo", algo, "--steps", "520",
+                     "--steps-per-update", "512", "--vector", "sync",
+                     "--run-dir", str(runs / f"point-mass-{algo}-s0"),
+                     "--no-progress", "--no-tensorboard"]) == 0  # fmt: skip
+    rows = smoothness.smoothness_of_runs([runs], episodes=2)
+    assert [(r["task"], r["method"], r["seed"]) for r in rows] == [
+        ("point-mass", "ndp", 0),
+        ("point-mass", "ppo-multi", 0),
+    ]
+    cache = runs / "point-mass-ndp-s0" / "smoothness-e2-s10000.json"
+    assert json.loads(cache.read_text())["jerk"] == rows[0]["jerk"]
+    # a second pass reads the cache: no rollout happens
+    monkeypatch.setattr(smoothness, "run_smoothness", lambda *a: pytest.fail("not cached"))
+    again = smoothness.smoothness_of_runs([runs], episodes=2, methods=["ndp"])
+    assert [r["method"] for r in again] == ["ndp"] and again[0]["jerk"] == rows[0]["jerk"]
+    summary = smoothness.summarise(rows + [{**rows[0], "seed": 1, "jerk": 3 * rows[0]["jerk"]}])
+    ndp_row = next(r for r in summary if r["method"] == "ndp")
+    assert ndp_row["n_seeds"] == 2 and ndp_row["seeds"] == "0 1"
+    assert ndp_row["jerk_mean"] == pytest.approx(2 * rows[0]["jerk"])
+    with pytest.raises(ValueError, match="episodes"):
+        smoothness.smoothness_of_runs([runs], episodes=0)
+
+    spec = importlib.util.spec_from_file_location(
+        "bench_smoothness", Path(__file__).parents[2] / "benchmarks" / "smoothness.py"
+    )
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    out = tmp_path / "res" / "smooth"
+    assert bench.main([str(runs), "--episodes", "2", "--out", str(out)]) == 0
+    md = out.with_suffix(".md").read_text()
+    assert "| point-mass | ndp | 0 |" in md and "Commit:" in md
+    assert out.with_suffix(".png").stat().st_size > 1000
+    assert "ppo-multi" in out.with_suffix(".csv").read_text()

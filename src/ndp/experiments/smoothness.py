@@ -19,6 +19,7 @@ at every env step: end-effector position for Meta-World, joint angles for the Ja
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -150,3 +151,81 @@ def run_smoothness(
         "sparc": float(np.mean([r["sparc"] for r in rows])),
         "dt": dt,
     }
+
+
+# ----------------------------------------------------------------------------- study over runs
+
+SMOOTHNESS_FILE = "smoothness-e{episodes}-s{seed}.json"
+"""Per-run cache of :func:`run_smoothness` (in the run directory; reused when present)."""
+
+
+def smoothness_of_runs(
+    paths: Sequence[str | Path],
+    episodes: int = 20,
+    seed: int = 10_000,
+    tasks: Sequence[str] | None = None,
+    methods: Sequence[str] | None = None,
+    seeds: Sequence[int] | None = None,
+    log: Callable[[str], None] | None = None,
+) -> list[dict[str, Any]]:
+    """:func:`run_smoothness` of every finished RL run found in ``paths`` (filters optional).
+
+    Each run's result is cached in ``<run>/smoothness-e<episodes>-s<seed>.json`` (atomic write),
+    so an interrupted study resumes and a rerun only measures new runs. Unfinished runs are
+    skipped (and named through ``log``).
+
+    Returns:
+        One row per run: ``{"task", "method", "seed", "run", "success", "jerk", "sparc",
+        "dt", "episodes"}``, ordered by task, method, seed.
+    """
+    import json
+
+    from ndp.experiments.report import find_run_dirs, run_info
+    from ndp.io import atomic_write_text
+
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
+    rows = []
+    for path in find_run_dirs(paths):
+        info = run_info(path)
+        if info is None or info.kind != "rl":
+            continue
+        if tasks is not None and info.task not in tasks:
+            continue
+        if methods is not None and info.label not in methods:
+            continue
+        if seeds is not None and info.seed not in seeds:
+            continue
+        if not info.finished:
+            if log:
+                log(f"[smoothness] {path.name}: not finished, skipped")
+            continue
+        cache = path / SMOOTHNESS_FILE.format(episodes=episodes, seed=seed)
+        if cache.is_file():
+            res = json.loads(cache.read_text())
+        else:
+            res = run_smoothness(path, episodes, seed)
+            atomic_write_text(cache, json.dumps(res) + "\n")
+            if log:
+                log(f"[smoothness] {path.name}: {res}")
+        rows.append(
+            {"task": info.task, "method": info.label, "seed": info.seed, "run": str(path), **res}
+        )
+    rows.sort(key=lambda r: (r["task"], r["method"], r["seed"]))
+    return rows
+
+
+def summarise(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per (task, method): mean and std over seeds of success, jerk and SPARC, and the seeds."""
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["task"], r["method"]), []).append(r)
+    out = []
+    for (task, method), rs in groups.items():
+        row: dict[str, Any] = {"task": task, "method": method, "n_seeds": len(rs)}
+        row["seeds"] = " ".join(str(r["seed"]) for r in rs)
+        for key in ("success", "jerk", "sparc"):
+            v = np.array([r[key] for r in rs], dtype=np.float64)
+            row[f"{key}_mean"], row[f"{key}_std"] = float(np.nanmean(v)), float(np.nanstd(v))
+        out.append(row)
+    return out

@@ -40,14 +40,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", default="docs/results/rl_learning")
     p.add_argument("--plot-only", action="store_true", help="only report the existing runs")
     p.add_argument("--seeds", nargs="+")
+    p.add_argument("--eval-episodes", default="0", help="with --plot-only: ndp report's option")
     args, rest = p.parse_known_args(own)
     pick = [*(["--tasks", *args.tasks] if args.tasks else [])]
     if args.plot_only:
         methods = ["--methods", *args.algos]
         seeds = ["--seeds", *args.seeds] if args.seeds else []
         title = ["--title", "RL learning comparison (paper-five)"]
+        ev = ["--eval-episodes", args.eval_episodes]
         return ndp(["report", args.runs_dir, "--out", args.out, "--allow-missing",
-                    *pick, *methods, *seeds, *title])  # fmt: skip
+                    *pick, *methods, *seeds, *title, *ev])  # fmt: skip
     arms = ["--arms", *args.algos]
     seeds = ["--seeds", *args.seeds] if args.seeds else []
     return ndp(["sweep", "paper-five", "--runs-dir", args.runs_dir, "--report", args.out,

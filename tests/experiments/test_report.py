@@ -150,3 +150,39 @@ def test_success_at_budget():
     assert success_at(x, y, 500, 1000) == 0.0
     assert success_at(x, y, 250, 1000) == 0.0  # no update in (225, 250]: the last before it
     assert math.isnan(success_at(x, y, 2000, 1000))  # past the run's budget
+
+
+def test_report_deterministic_success_column_reads_and_writes_the_per_run_cache(
+    tmp_path, monkeypatch
+):
+
+    runs = tmp_path / "runs"
+    _grid(runs, seeds=(0,))
+    calls = []
+
+    def fake_evaluate(path, episodes, deterministic):
+        calls.append((path.name, episodes, deterministic))
+        return {"success_any": 0.25 if "ndp" in path.name else 0.75}
+
+    monkeypatch.setattr("ndp.rl.evaluate.evaluate", fake_evaluate)
+    # a cache already there is read, not recomputed
+    (runs / "push-v3-ndp-s0" / "eval-det-e5.json").write_text(json.dumps({"success_any": 1.0}))
+    res = report([runs], tmp_path / "rep", "cmd", eval_episodes=5)
+    assert sorted(calls) == [("push-v3-ppo-s0", 5, True), ("soccer-v3-ndp-s0", 5, True),
+                             ("soccer-v3-ppo-s0", 5, True)]  # fmt: skip
+    by = {(r["task"], r["method"]): r for r in res["rows"]}
+    assert by[("push-v3", "ndp")]["det_success_mean"] == 1.0
+    assert by[("soccer-v3", "ndp")]["det_success_mean"] == 0.25
+    md = (tmp_path / "rep.md").read_text()
+    assert "deterministic success |" in md and "over 5 fresh episodes" in md
+    assert json.loads((runs / "push-v3-ppo-s0" / "eval-det-e5.json").read_text()) == {
+        "success_any": 0.75
+    }
+    calls.clear()
+    report([runs], tmp_path / "rep2", "cmd", eval_episodes=5)
+    assert calls == []  # every run cached now
+    assert "deterministic" not in (
+        report([runs], tmp_path / "rep3", "cmd")["markdown"] and (tmp_path / "rep3.md").read_text()
+    )
+    with pytest.raises(ValueError, match="eval_episodes"):
+        report([runs], tmp_path / "rep4", "cmd", eval_episodes=-1)

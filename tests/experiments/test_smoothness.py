@@ -109,7 +109,7 @@ def test_smoothness_study_over_runs_caches_filters_and_writes_the_table(tmp_path
     monkeypatch.setattr(smoothness, "run_smoothness", lambda *a: pytest.fail("not cached"))
     again = smoothness.smoothness_of_runs([runs], episodes=2, methods=["ndp"])
     assert [r["method"] for r in again] == ["ndp"] and again[0]["jerk"] == rows[0]["jerk"]
-    summary = smoothness.summarise(rows + [{**rows[0], "seed": 1, "jerk": 3 * rows[0]["jerk"]}])
+    summary = smoothness.summarise([*rows, {**rows[0], "seed": 1, "jerk": 3 * rows[0]["jerk"]}])
     ndp_row = next(r for r in summary if r["method"] == "ndp")
     assert ndp_row["n_seeds"] == 2 and ndp_row["seeds"] == "0 1"
     assert ndp_row["jerk_mean"] == pytest.approx(2 * rows[0]["jerk"])

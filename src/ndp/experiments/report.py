@@ -230,6 +230,26 @@ def il_numbers(info: RunInfo) -> dict[str, Any]:
     return {"mse": float(mse), "dtw": float(dtw), "curve": (x[keep], y[keep])}
 
 
+DET_EVAL_FILE = "eval-det-e{episodes}.json"
+"""Per-run cache of the report's deterministic evaluation (``ndp rl eval``, seeds 10,000 on)."""
+
+
+def det_success(path: Path, episodes: int) -> float:
+    """Success (any step) of the run's deterministic policy over ``episodes`` fresh episodes.
+
+    Cached in ``<run>/eval-det-e<episodes>.json`` (atomic), so a report is cheap to redo.
+    """
+    cache = path / DET_EVAL_FILE.format(episodes=episodes)
+    data = _json(cache)
+    if data is None:
+        from ndp.io import atomic_write_text
+        from ndp.rl.evaluate import evaluate
+
+        data = evaluate(path, episodes=episodes, deterministic=True)
+        atomic_write_text(cache, json.dumps(data) + "\n")
+    return float(data["success_any"])
+
+
 # ----------------------------------------------------------------------------- the report
 
 
@@ -333,11 +353,14 @@ def report(
     allow_missing: bool = False,
     title: str = "Report",
     plots: bool = True,
+    eval_episodes: int = 0,
 ) -> dict[str, Any]:
     """Write ``<out>.md``, ``<out>.csv`` and ``<out>-<task>.png`` (see the module doc).
 
     ``budgets``: env steps at which to give the success (default: a quarter, half and all of
-    the largest budget). Returns the numbers (and the paths written).
+    the largest budget). ``eval_episodes`` > 0 adds the success of each finished RL run's
+    deterministic policy over that many fresh episodes (:func:`det_success`, cached per run).
+    Returns the numbers (and the paths written).
 
     Raises:
         MissingSeedsError: cells lack seeds and not ``allow_missing`` (nothing written).
@@ -356,8 +379,13 @@ def report(
     il_cells = [c for c in cells if c.kind == "il"]
     top = max((i.steps for c in rl_cells for i in c.runs.values()), default=0)
     budgets = sorted({int(b) for b in (budgets or [top / 4, top / 2, top]) if b > 0})
+    if isinstance(eval_episodes, bool) or not isinstance(eval_episodes, int) or eval_episodes < 0:
+        raise ValueError(f"eval_episodes: expected an integer >= 0, got {eval_episodes!r}")
     for c in rl_cells:
         c.numbers = {s: rl_numbers(i, budgets) for s, i in c.runs.items()}
+        for s_, i in c.runs.items():
+            ok = eval_episodes and i.kind == "rl"
+            c.numbers[s_]["det"] = det_success(i.path, eval_episodes) if ok else math.nan
     for c in il_cells:
         c.numbers = {s: il_numbers(i) for s, i in c.runs.items()}
     prov = {
@@ -371,7 +399,7 @@ def report(
     pngs = _plot_all(rl_cells, il_cells, out, prov) if plots else []
     rows = _csv_rows(rl_cells, il_cells, budgets, expected, prov)
     _write_csv(out.with_suffix(".csv"), rows)
-    md = _markdown(title, rl_cells, il_cells, budgets, expected, prov, pngs, out)
+    md = _markdown(title, rl_cells, il_cells, budgets, expected, prov, pngs, out, eval_episodes)
     out.with_suffix(".md").write_text("\n".join(md) + "\n")
     return {
         **prov,
@@ -412,6 +440,7 @@ def _csv_rows(
                 ("success_area", "area"),
                 ("final_success", "final"),
                 ("final_return_live", "return"),
+                ("det_success", "det"),
             ]
         for name, key in keys:
             m, s, _ = c.stat(key)
@@ -450,6 +479,7 @@ def _markdown(
     prov: dict[str, Any],
     pngs: Sequence[Path],
     out: Path,
+    eval_episodes: int = 0,
 ) -> list[str]:
     runs_at = ", ".join(prov["run_commits"]) or "not recorded"
     md = [
@@ -474,16 +504,24 @@ def _markdown(
             "updates in the last 10% of [0, b] (`-`: no update logged by b, or b past the "
             "budget); area: the success curve averaged over the "
             "budget; final: last 10% of updates; live return: `charts/episode_return_live` over "
-            "the last 10% of updates.",
+            "the last 10% of updates."
+            + (
+                f" Deterministic: success (any step) of the trained policy's mode over "
+                f"{eval_episodes} fresh episodes per run (`ndp rl eval`, seeds from 10,000)."
+                if eval_episodes
+                else ""
+            ),
             "",
             "| task | method | n | "
             + " | ".join(heads)
-            + " | success area | final success | final live return |",
-            "|---" * (6 + len(heads)) + "|",
+            + " | success area | final success | final live return |"
+            + (" deterministic success |" if eval_episodes else ""),
+            "|---" * (6 + len(heads) + bool(eval_episodes)) + "|",
         ]
         for c in rl_cells:
             vals = [_fmt(*c.stat(f"at:{b}")) for b in budgets]
             vals += [_fmt(*c.stat("area")), _fmt(*c.stat("final")), _fmt(*c.stat("return"), 1)]
+            vals += [_fmt(*c.stat("det"))] if eval_episodes else []
             n = f"{len(c.runs)}" + (f" **{c.marker()}**" if c.missing else "")
             md.append(f"| {c.task} | {c.label} | {n} | " + " | ".join(vals) + " |")
         md.append("")

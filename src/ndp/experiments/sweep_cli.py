@@ -133,6 +133,14 @@ def report_parser() -> argparse.ArgumentParser:
         help="mark cells with missing seeds instead of refusing",
     )
     p.add_argument("--title", default="Report")
+    p.add_argument(
+        "--eval-episodes",
+        type=int,
+        default=0,
+        metavar="N",
+        help="add each finished RL run's deterministic success over N fresh episodes "
+        "(ndp rl eval; cached in the run as eval-det-eN.json; default 0: off)",
+    )
     p.add_argument("--no-plots", action="store_true", help="tables only")
     return p
 
@@ -341,6 +349,7 @@ def report_command(argv: list[str]) -> int:
         allow_missing=args.allow_missing,
         title=args.title,
         plots=not args.no_plots,
+        eval_episodes=args.eval_episodes,
     )
     print(Path(res["markdown"]).read_text())
     print(f"wrote {res['markdown']}, {res['csv']}" + "".join(f", {p}" for p in res["png"]))

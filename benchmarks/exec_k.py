@@ -2,9 +2,9 @@
 
 Each run is evaluated (deterministic, the same episode seeds for every K2) at its trained k and
 at the finest rate its task allows, K2 = k * m_max (Meta-World m_max 5, Jaco 10; see
-``ndp.rl.exec_k``), or at the K2 given with ``--exec-k``. Success compares across K2; the
-return does not (m times as many env-step rewards are summed), so the table reports it only
-for reference. The runs are only read.
+``ndp.rl.exec_k``), at every K2 it allows (``--every``) or at the K2 given with ``--exec-k``.
+Success compares across K2; the return does not (m times as many env-step rewards are summed),
+so the table reports it only for reference. The runs are only read.
 
     python benchmarks/exec_k.py /work/runs/ndp_study/push-v3-ndp-s0 \\
         /work/runs/ndp_study/push-v3-ppo-multi-s0 --episodes 20 --out docs/results/exec_k
@@ -47,16 +47,19 @@ def write_table(rows: list[dict[str, Any]], out: Path, prov: dict[str, str]) -> 
         "same for every K2). K2 = k * m sub-steps per decision of the same duration, each env "
         "step m times shorter (docs/rl.md, 'Inference at a higher rate'). Success (any step / "
         "final step) is the metric; the return sums m times as many env-step rewards and does "
-        "not compare across m. Episode seconds: the same for every m.",
+        "not compare across m. Episode seconds: the same for every m. Execution: `trained` "
+        "(m = 1, plain eval), `dmp` (NDP: the same DMP reported at K2 + 1 points), `hold` (each "
+        "trained sub-action held for m env steps: PPO, PPO-multi, Dyn-E; for NDP the diagnostic "
+        "`--ndp-hold`).",
         "",
-        "| run | task | algo | k | K2 | m | success any | success final | return (not "
-        "comparable across m) | episode s | eval wall s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| run | task | algo | k | K2 | m | execution | success any | success final | return "
+        "(not comparable across m) | episode s | eval wall s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         md.append(
             f"| {Path(r['run']).name} | {r['task']} | {r['algo']} | {r['k']} | {r['exec_k']} | "
-            f"{r['m']} | {r['success_any']:.2f} | {r['success_final']:.2f} | "
+            f"{r['m']} | {r['execution']} | {r['success_any']:.2f} | {r['success_final']:.2f} | "
             f"{r['episode_return']:.1f} | {r['episode_seconds']:.3f} | {r['seconds']:.0f} |"
         )
     atomic_write_text(out.with_suffix(".md"), "\n".join(md) + "\n")
@@ -74,6 +77,14 @@ def main(argv: list[str] | None = None) -> int:
         metavar="K2",
         help="K2 for every run (default: per run, its k and k * m_max)",
     )
+    p.add_argument(
+        "--every", action="store_true", help="without --exec-k: every K2 each run allows"
+    )
+    p.add_argument(
+        "--ndp-hold",
+        action="store_true",
+        help="NDP runs: also a row with the trained k sub-actions held for m env steps",
+    )
     p.add_argument("--episodes", type=int, default=20)
     p.add_argument("--seed", type=int, default=10_000)
     p.add_argument("--out", default="docs/results/exec_k")
@@ -85,7 +96,9 @@ def main(argv: list[str] | None = None) -> int:
     from ndp.provenance import git_commit
     from ndp.rl.exec_k import exec_k_table
 
-    rows = exec_k_table(args.runs, args.exec_k, args.episodes, args.seed)
+    rows = exec_k_table(
+        args.runs, args.exec_k, args.episodes, args.seed, every=args.every, ndp_hold=args.ndp_hold
+    )
     given = argv if argv is not None else sys.argv[1:]
     prov = {
         "command": "python benchmarks/exec_k.py " + shlex.join(given),

@@ -237,6 +237,19 @@ def test_split_moves_the_same_displacement_per_decision(task, algo, m):
     np.testing.assert_allclose(np.diff(fc, axis=0), np.diff(cc, axis=0), atol=1e-9)
 
 
+def test_ndp_hold_diagnostic_holds_the_trained_sub_actions():
+    pol = constant_policy("throw", "ndp")
+    held = pol.at_exec_k(50, hold=True)
+    assert held.model is pol.model and held.substeps == 10
+    env = pol.make_env()
+    obs, info = env.reset(seed=0)
+    np.testing.assert_array_equal(held.act(obs, info), np.repeat(pol.act(obs, info), 10, axis=0))
+    env.close()
+    _, cc = rollout(pol, 3)
+    _, fc = rollout(held, 3)
+    np.testing.assert_allclose(np.diff(fc, axis=0), np.diff(cc, axis=0), atol=1e-9)
+
+
 # ------------------------------------------------------------------ refusals
 def test_bad_exec_k_is_refused_with_the_allowed_values(toy_run, capsys, tmp_path):
     pol = constant_policy("push-v3", "ndp")
@@ -282,9 +295,11 @@ def test_cli_list_and_benchmark_table(tmp_path, capsys):
     lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
     got = [(r["exec_k"], r["m"], r["episode_length"]) for r in lines]
     assert got == [(5, 1, 150), (25, 5, 750)]
-    rows = exec_k_table([run], episodes=1)
-    assert [(r["exec_k"], r["m"]) for r in rows] == [(5, 1), (25, 5)]
+    rows = exec_k_table([run], episodes=1, ndp_hold=True)
+    got = [(r["exec_k"], r["m"], r["execution"]) for r in rows]
+    assert got == [(5, 1, "trained"), (25, 5, "dmp"), (25, 5, "hold")]
     assert rows[0]["success_any"] == lines[0]["success_any"]
+    assert len(exec_k_table([run], episodes=1, every=True)) == 2  # Meta-World: k, 5k
     path = Path(__file__).parents[2] / "benchmarks" / "exec_k.py"
     spec = importlib.util.spec_from_file_location("bench_exec_k", path)
     assert spec is not None and spec.loader is not None
@@ -295,4 +310,4 @@ def test_cli_list_and_benchmark_table(tmp_path, capsys):
     assert md[2].startswith("Command: `python benchmarks/exec_k.py x`")
     assert "abc1234" in (tmp_path / "t.md").read_text()
     csv_lines = (tmp_path / "t.csv").read_text().splitlines()
-    assert len(csv_lines) == 3 and csv_lines[0].endswith("command,commit,date")
+    assert len(csv_lines) == 4 and csv_lines[0].endswith("command,commit,date")

@@ -129,7 +129,7 @@ def ndp_head_at(policy: Policy, exec_k: int, spec: Any) -> Any:
     return head.eval()
 
 
-def at_exec_k(policy: Policy, exec_k: int) -> Policy:
+def at_exec_k(policy: Policy, exec_k: int, hold: bool = False) -> Policy:
     """An evaluation copy of ``policy`` executing each decision as ``exec_k`` sub-steps.
 
     The copy's ``spec`` is the finer row, ``substeps`` is m and ``make_env()`` builds the finer
@@ -142,6 +142,8 @@ def at_exec_k(policy: Policy, exec_k: int) -> Policy:
     Args:
         policy: a trained policy (``substeps == 1``).
         exec_k: K2, one of :func:`exec_k_values`.
+        hold: every method, NDP included, holds its k trained sub-actions for m env steps (a
+            diagnostic: for NDP it separates the finer env from the DMP's finer sampling).
 
     Raises:
         ValueError: see :func:`substeps_for`; or ``policy`` is already an exec-k copy.
@@ -153,7 +155,7 @@ def at_exec_k(policy: Policy, exec_k: int) -> Policy:
     m = substeps_for(policy, exec_k)
     spec = finer_spec(policy.spec, m)
     model = policy.model
-    if policy.cfg.policy.head == "ndp":
+    if policy.cfg.policy.head == "ndp" and not hold:
         model = copy.deepcopy(policy.model)
         model.head = ndp_head_at(policy, exec_k, spec)
         model.eval()
@@ -167,6 +169,7 @@ TABLE_KEYS = (
     "k",
     "exec_k",
     "m",
+    "execution",
     "episodes",
     "deterministic",
     "success_any",
@@ -185,20 +188,27 @@ def exec_k_table(
     episodes: int = 20,
     seed: int = 10_000,
     deterministic: bool = True,
+    every: bool = False,
+    ndp_hold: bool = False,
 ) -> list[dict[str, Any]]:
     """Success vs K2 for trained runs: one :func:`ndp.rl.evaluate.evaluate` per run and K2.
 
     Args:
         run_dirs: training run (or export) directories.
         values: K2 values evaluated for every run (each must be allowed for each run); None:
-            per run, the trained k and the finest ``k * m_max`` (:func:`exec_k_values`).
+            per run, the trained k and the finest ``k * m_max`` (:func:`exec_k_values`), or
+            every allowed K2 with ``every``.
         episodes: episodes per run and K2 (the same seeds ``seed ..`` for every K2).
         seed: first episode seed.
         deterministic: act with the mode (else sample).
+        every: with ``values`` None, every K2 of :func:`exec_k_values` (Jaco: k, 2k, 5k, 10k).
+        ndp_hold: for NDP runs at K2 > k, also a row with the trained k sub-actions held for m
+            env steps (``at_exec_k(..., hold=True)``).
 
     Returns:
-        One dict per (run, K2) with the keys of :data:`TABLE_KEYS` (means over episodes;
-        ``seconds``: wall time of that evaluation).
+        One dict per (run, K2, execution) with the keys of :data:`TABLE_KEYS` (means over
+        episodes; ``execution``: ``"trained"`` at m = 1, ``"dmp"`` for NDP's DMP sampled at K2,
+        ``"hold"`` for held sub-actions; ``seconds``: wall time of that evaluation).
     """
     from ndp.rl.evaluate import evaluate_policy
 
@@ -206,18 +216,29 @@ def exec_k_table(
     for run in run_dirs:
         trained = load_policy(run)
         allowed = exec_k_values(trained)
-        ks = list(values) if values is not None else sorted({allowed[0], allowed[-1]})
+        if values is not None:
+            ks = list(values)
+        else:
+            ks = list(allowed) if every else sorted({allowed[0], allowed[-1]})
+        is_ndp = trained.cfg.policy.head == "ndp"
         for k2 in ks:
-            pol = trained.at_exec_k(k2)
-            t0 = time.perf_counter()
-            ev = evaluate_policy(pol, episodes, deterministic, seed)
-            row = {
-                "run": str(run),
-                "task": trained.cfg.task,
-                "algo": trained.cfg.algo,
-                "k": trained.cfg.k,
-                **ev,
-                "seconds": time.perf_counter() - t0,
-            }
-            rows.append({key: row[key] for key in TABLE_KEYS})
+            variants = [False, True] if (is_ndp and ndp_hold and k2 != trained.cfg.k) else [False]
+            for hold in variants:
+                pol = trained.at_exec_k(k2, hold=hold)
+                t0 = time.perf_counter()
+                ev = evaluate_policy(pol, episodes, deterministic, seed)
+                if pol.substeps == 1:
+                    execution = "trained"
+                else:
+                    execution = "dmp" if (is_ndp and not hold) else "hold"
+                row = {
+                    "run": str(run),
+                    "task": trained.cfg.task,
+                    "algo": trained.cfg.algo,
+                    "k": trained.cfg.k,
+                    "execution": execution,
+                    **ev,
+                    "seconds": time.perf_counter() - t0,
+                }
+                rows.append({key: row[key] for key in TABLE_KEYS})
     return rows

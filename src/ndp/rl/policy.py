@@ -68,13 +68,13 @@ class Policy:
         """Sub-steps (env steps) per decision as executed: ``k * substeps``."""
         return self.cfg.k * self.substeps
 
-    def at_exec_k(self, exec_k: int) -> Policy:
+    def at_exec_k(self, exec_k: int, hold: bool = False) -> Policy:
         """An evaluation copy running each decision as ``exec_k`` sub-steps of the same total
-        duration (``ndp.rl.exec_k.at_exec_k``: allowed values, what each method does); the
-        trained policy and its weights are left as they are."""
+        duration (``ndp.rl.exec_k.at_exec_k``: allowed values, what each method does, ``hold``);
+        the trained policy and its weights are left as they are."""
         from ndp.rl.exec_k import at_exec_k
 
-        return at_exec_k(self, exec_k)
+        return at_exec_k(self, exec_k, hold)
 
     @property
     def state_keys(self) -> tuple[str, str]:

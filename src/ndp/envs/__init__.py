@@ -16,7 +16,15 @@ from ndp.envs.factory import make_env, register_envs, register_torque_envs
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import MetaWorldEnv
 from ndp.envs.render import write_mp4
-from ndp.envs.spec import TASKS, TORQUE_TASKS, TaskSpec, get_task_spec, torque_variant
+from ndp.envs.spec import (
+    TASKS,
+    TORQUE_TASKS,
+    TaskSpec,
+    finer_spec,
+    get_task_spec,
+    substep_factors,
+    torque_variant,
+)
 
 register_envs()
 register_torque_envs()
@@ -28,10 +36,12 @@ __all__ = [
     "JacoEnv",
     "MetaWorldEnv",
     "TaskSpec",
+    "finer_spec",
     "get_task_spec",
     "make_env",
     "register_envs",
     "register_torque_envs",
+    "substep_factors",
     "torque_variant",
     "write_mp4",
 ]

@@ -61,6 +61,33 @@ def check_horizon(horizon: Any) -> int:
     return value
 
 
+def divisors(n: int) -> tuple[int, ...]:
+    """The positive divisors of ``n`` >= 1, ascending (``divisors(10) == (1, 2, 5, 10)``)."""
+    return tuple(d for d in range(1, int(n) + 1) if n % d == 0)
+
+
+def check_substeps(substeps: Any, frame_skip: int) -> int:
+    """``int(substeps)`` if it divides ``frame_skip`` (the simulator steps of one env step).
+
+    An env built with ``substeps = m`` cuts each of its env steps into m shorter ones of
+    ``frame_skip / m`` simulator steps each (``ndp rl eval --exec-k``; docs/rl.md).
+
+    Raises:
+        ValueError: ``substeps: expected a divisor of the frame skip 5 (1, 5), got 2``.
+    """
+    allowed = divisors(frame_skip)
+    if (
+        isinstance(substeps, bool)
+        or not isinstance(substeps, (int, np.integer))
+        or int(substeps) not in allowed
+    ):
+        raise ValueError(
+            f"substeps: expected a divisor of the frame skip {frame_skip} "
+            f"({', '.join(map(str, allowed))}), got {substeps!r}"
+        )
+    return int(substeps)
+
+
 def defer_seed(env: gym.Env, seed: int | None) -> None:
     """Seed the first ``reset()`` that is not given a seed, and the action space's sampler
     (the ``seed`` argument of the factories); None leaves both unseeded."""

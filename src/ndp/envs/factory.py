@@ -16,7 +16,7 @@ from ndp.envs.base import defer_seed
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import MetaWorldEnv
 from ndp.envs.point_mass import PointMassEnv
-from ndp.envs.spec import TASKS, TORQUE_TASKS, get_task_spec
+from ndp.envs.spec import TASKS, TORQUE_TASKS, finer_spec, get_task_spec
 
 FAMILIES: dict[str, Callable[..., gym.Env]] = {
     "metaworld": lambda spec, horizon, render_mode, **kw: MetaWorldEnv(
@@ -60,6 +60,7 @@ def make_env(
     seed: int | None = None,
     horizon: int | None = None,
     render_mode: str | None = None,
+    substeps: int = 1,
     **kw: Any,
 ) -> gym.Env:
     """Create the plain per-step env of a task.
@@ -71,9 +72,12 @@ def make_env(
         name: Task name or alias (see :data:`ndp.envs.TASKS`).
         seed: Seed used by the first ``reset()`` that is not given one (object/goal sampling)
             and for the action space's sampler; None leaves both unseeded.
-        horizon: Episode length in env steps; default ``spec.horizon`` (150). Meta-World's own
-            is 500.
+        horizon: Episode length in env steps; default ``spec.horizon`` (150) times
+            ``substeps``. Meta-World's own is 500.
         render_mode: None or ``"rgb_array"``.
+        substeps: m: each env step is ``1 / m`` of the task's (``ndp.envs.spec.finer_spec``:
+            ``frame_skip / m`` simulator steps, ``action_scale / m`` per delta action); one of
+            ``ndp.envs.spec.substep_factors(spec)`` (1 for the toy and torque-actuated rows).
         **kw: Passed to the env class (``width``, ``height``, ``camera_name`` for Meta-World,
             ``camera`` for Jaco).
 
@@ -81,9 +85,12 @@ def make_env(
         A :class:`~ndp.envs.metaworld_env.MetaWorldEnv` or :class:`~ndp.envs.jaco.JacoEnv`.
 
     Raises:
-        ValueError: unknown name (with close names), bad horizon or render mode.
+        ValueError: unknown name (with close names), bad horizon, render mode or substeps.
     """
     spec = get_task_spec(name)
+    if substeps != 1:
+        spec = finer_spec(spec, substeps)  # checks substeps against the task's factors
+        kw["substeps"] = substeps
     if horizon is None:
         horizon = spec.horizon
     if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:

@@ -13,7 +13,9 @@ actuators' control ranges. Gravity is compensated on the robot bodies (``gravcom
 real arm's controller.
 
 Clocks: simulator step ``SIM_DT`` = 0.002 s; one env step = ``FRAME_SKIP`` = 10 simulator steps =
-``CONTROL_DT`` = 0.02 s (50 Hz).
+``CONTROL_DT`` = 0.02 s (50 Hz). ``substeps=m`` (m in 1, 2, 5, 10; ``ndp rl eval --exec-k``)
+makes one env step ``10 / m`` simulator steps (0.02 / m s) in which an action of 1 moves the joint
+targets ``ARM_DELTA / m`` / ``FINGER_DELTA / m`` rad (the same speed per second).
 
 DMP-driven robot state (D = 7): the six arm joint angles and the mean finger angle, in rad, and
 their velocities in rad/s.
@@ -31,7 +33,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils.ezpickle import EzPickle
 
-from ndp.envs.base import NDPEnv, sim_unstable, warning_count
+from ndp.envs.base import NDPEnv, check_substeps, sim_unstable, warning_count
 
 SIM_DT = 0.002
 """MuJoCo timestep (s)."""
@@ -219,18 +221,25 @@ class JacoEnv(NDPEnv, EzPickle):
         width: int = 480,
         height: int = 480,
         camera: str = "side",
+        substeps: int = 1,
     ) -> None:
         """Create the env.
 
         Args:
             task: ``"throw"`` or ``"pick"``.
-            horizon: Env steps per episode (each ``CONTROL_DT`` s).
+            horizon: Env steps per episode (each ``CONTROL_DT / substeps`` s).
             render_mode: ``None`` or ``"rgb_array"``.
             width: Rendered frame width (px).
             height: Rendered frame height (px).
             camera: Camera name in the scene (``"side"`` or ``"front"``).
+            substeps: m, a divisor of ``FRAME_SKIP``: one env step is ``FRAME_SKIP / m``
+                simulator steps and an action moves the targets ``1 / m`` as far (see the
+                module docstring).
         """
-        EzPickle.__init__(self, task, horizon, render_mode, width, height, camera)
+        EzPickle.__init__(self, task, horizon, render_mode, width, height, camera, substeps)
+        self.substeps = check_substeps(substeps, FRAME_SKIP)
+        self._frame_skip = FRAME_SKIP // self.substeps
+        self.control_dt = CONTROL_DT / self.substeps
         if task not in ("throw", "pick"):
             raise ValueError(f"task: expected 'throw' or 'pick', got {task!r}")
         self._setup(horizon, render_mode, action_dim=self._action_dim())
@@ -415,11 +424,11 @@ class JacoEnv(NDPEnv, EzPickle):
         return self._obs(), self._state_info(success, pos, vel)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        """One env step (``FRAME_SKIP`` simulator steps).
+        """One env step (``FRAME_SKIP / substeps`` simulator steps).
 
         Args:
             action: [7] in ``[-1, 1]`` (clipped): arm joint-target deltas / ``ARM_DELTA`` and the
-                tied finger-target delta / ``FINGER_DELTA``.
+                tied finger-target delta / ``FINGER_DELTA`` (each divided by ``substeps``).
 
         Returns:
             ``(obs [34], reward, terminated (always False), truncated, info)``; info has
@@ -432,15 +441,17 @@ class JacoEnv(NDPEnv, EzPickle):
         self._check_running(self._steps)
         a = np.clip(a, -1.0, 1.0)
         delta = np.concatenate([a[:6] * ARM_DELTA, np.full(3, a[6] * FINGER_DELTA)])
+        if self.substeps > 1:
+            delta = delta / self.substeps
         prev = self._target
         self._target = np.clip(self._target + delta, self._ctrl_lo, self._ctrl_hi)
         moved = self._target - prev
-        self._target_rate = np.concatenate([moved[:6], [moved[6:].mean()]]) / CONTROL_DT
+        self._target_rate = np.concatenate([moved[:6], [moved[6:].mean()]]) / self.control_dt
         d = self.data
         d.ctrl[self._act] = self._target
         warn_before = warning_count(d)
         last_obs = self._obs()
-        mujoco.mj_step(self.model, d, nstep=FRAME_SKIP)
+        mujoco.mj_step(self.model, d, nstep=self._frame_skip)
         self._steps += 1
         unstable = sim_unstable(d, warn_before)
         pos, vel = self.robot_state()

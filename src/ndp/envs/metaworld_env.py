@@ -7,6 +7,10 @@ with the env's own rejection loops, using a generator seeded by ``reset(seed=...
 off, as in Meta-World's MT benchmarks). Same seed, same sequence of tasks for every method.
 
 Clocks: MuJoCo timestep 0.0025 s, ``frame_skip`` 5, so one env step = 0.0125 s (80 Hz).
+``substeps=m`` (m in 1, 5; ``ndp rl eval --exec-k``) makes one env step ``5 / m`` simulator
+steps (0.0125 / m s) in which an xyz action of 1 moves the hand target ``0.01 / m`` m; the
+gripper command stays absolute. The observation keeps its meaning: its previous-frame block
+[18:36] is the frame 0.0125 s (m env steps) earlier, as at ``substeps=1``.
 
 Observation (39, float64): hand xyz [0:3], gripper opening [3], object block [4:18] (positions
 and quaternions of up to two objects), the previous frame's 18 values [18:36], goal xyz [36:39].
@@ -14,13 +18,14 @@ and quaternions of up to two objects), the previous frame's 18 values [18:36], g
 
 from __future__ import annotations
 
+from collections import deque
 from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
 from gymnasium.utils.ezpickle import EzPickle
 
-from ndp.envs.base import NDPEnv, sim_unstable, warning_count
+from ndp.envs.base import NDPEnv, check_substeps, sim_unstable, warning_count
 
 METAWORLD_POS_SCALE = 0.01
 """Metres the hand target (mocap) moves per env step for an xyz action of 1 (metaworld default)."""
@@ -105,6 +110,7 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         width: int = 480,
         height: int = 480,
         camera_name: str = "corner",
+        substeps: int = 1,
     ) -> None:
         """Create the env.
 
@@ -116,10 +122,14 @@ class MetaWorldEnv(NDPEnv, EzPickle):
             height: Rendered frame height (px).
             camera_name: A Meta-World camera (``corner``, ``corner2``, ``corner3``,
                 ``topview``, ``behindGripper``, ``gripperPOV``).
+            substeps: m, a divisor of metaworld's frame skip 5: one env step is ``5 / m``
+                simulator steps and an xyz action moves the hand target ``0.01 / m`` m per unit
+                (the same speed per second; see the module docstring). ``horizon`` counts these
+                shorter steps.
         """
         from metaworld.env_dict import ALL_V3_ENVIRONMENTS
 
-        EzPickle.__init__(self, task, horizon, render_mode, width, height, camera_name)
+        EzPickle.__init__(self, task, horizon, render_mode, width, height, camera_name, substeps)
         if task not in ALL_V3_ENVIRONMENTS:
             raise ValueError(f"task: expected a Meta-World v3 name, got {task!r}")
         self._setup(horizon, render_mode, action_dim=self._action_dim())
@@ -157,7 +167,10 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         self._obs: np.ndarray | None = None
         self._vel6 = np.zeros(6)
         self._mocap_vel = np.zeros(3)
-        self.control_dt = float(m.opt.timestep * env.frame_skip)
+        self.substeps = check_substeps(substeps, int(env.frame_skip))
+        self.control_dt = float(m.opt.timestep * env.frame_skip) / self.substeps
+        # the current-frame blocks (obs[:18]) of the last `substeps` env steps (substeps > 1)
+        self._frames: deque[np.ndarray] = deque(maxlen=self.substeps)
 
     def _action_dim(self) -> int:
         """Size of one action (4; the torque-actuated variant overrides it)."""
@@ -274,6 +287,8 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         self._mocap_vel = np.zeros(3)
         self._unstable = False
         self._obs = np.asarray(obs, dtype=np.float64)
+        self._frames.clear()
+        self._frames.extend([self._obs[:18].copy()] * self.substeps)
         pos, vel = self.robot_state()
         return self._obs.copy(), self._state_info(False, pos, vel)
 
@@ -297,8 +312,9 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         self._check_running(self.mw.curr_path_length)
         a = np.clip(a, -1.0, 1.0).astype(np.float32)
         warn_before = warning_count(self.data)
+        prev_frame = self._frames[0]  # substeps > 1: the frame `substeps` env steps back
         mocap_before = self.data.mocap_pos[0].copy()
-        obs, reward, _, truncated, mw_info = self.mw.step(a)
+        obs, reward, _, truncated, mw_info = self._mw_step(a)
         self._mocap_vel = (self.data.mocap_pos[0] - mocap_before) / self.control_dt
         self._gripper_rate = (float(a[3]) - self._gripper) / self.control_dt
         self._gripper = float(a[3])
@@ -308,8 +324,29 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         if unstable:
             return self._unstable_step(self._obs.copy(), pos, vel, info)
         self._obs = np.asarray(obs, dtype=np.float64)
+        if self.substeps > 1:  # previous frame: `substeps` env steps (0.0125 s) ago
+            self._frames.append(self._obs[:18].copy())
+            self._obs[18:36] = prev_frame
         info.update(self._state_info(bool(mw_info["success"] > 0.5), pos, vel))
         return self._obs.copy(), float(reward), False, bool(truncated), info
+
+    def _mw_step(self, a: np.ndarray) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        """metaworld's step; with ``substeps`` m > 1 it runs ``frame_skip / m`` simulator steps
+        and moves the hand target ``action_scale / m`` per unit xyz action (both restored after,
+        so that resets, which step the simulator ``frame_skip`` times, are unchanged). metaworld
+        computes the reward on its own observation, whose previous frame is one env step back."""
+        mw = self.mw
+        out: tuple[Any, Any, bool, bool, dict[str, Any]]
+        if self.substeps == 1:
+            out = mw.step(a)
+            return out
+        skip, scale = mw.frame_skip, mw.action_scale
+        mw.frame_skip, mw.action_scale = skip // self.substeps, scale / self.substeps
+        try:
+            out = mw.step(a)
+            return out
+        finally:
+            mw.frame_skip, mw.action_scale = skip, scale
 
     def render(self) -> np.ndarray | None:
         """Upright RGB frame [H, W, 3] uint8 (``render_mode="rgb_array"``)."""

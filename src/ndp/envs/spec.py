@@ -36,6 +36,7 @@ from typing import Literal
 import torch
 
 from ndp.envs import jaco, point_mass
+from ndp.envs.base import divisors
 from ndp.envs.controllers import DeltaController
 from ndp.envs.impedance import ImpedanceController
 from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metaworld_env_names
@@ -210,6 +211,63 @@ def toy_spec(dim: int = 2, horizon: int | None = None) -> TaskSpec:
         obs_dim=3 * dim,
         metaworld_name=None,
         aliases=(name.replace("-", "_"),),
+    )
+
+
+def frame_skip(spec: TaskSpec) -> int:
+    """Simulator steps per env step, ``control_dt / sim_dt``: Meta-World 5, Jaco 10, the toy
+    point mass 1 (it has no finer simulator step).
+
+    Raises:
+        ValueError: ``control_dt`` is not a whole multiple of ``sim_dt``.
+    """
+    ratio = float(spec.control_dt) / float(spec.sim_dt)
+    n = round(ratio)
+    if n < 1 or abs(ratio - n) > 1e-6 * n:
+        raise ValueError(
+            f"spec: control_dt={spec.control_dt} is not a whole multiple of sim_dt={spec.sim_dt}"
+        )
+    return n
+
+
+def substep_factors(spec: TaskSpec) -> tuple[int, ...]:
+    """The m a task's env step can be cut into (``finer_spec``, ``make_env(substeps=m)``): the
+    divisors of its :func:`frame_skip` (Meta-World (1, 5), Jaco (1, 2, 5, 10), toy (1,)), so
+    that every shorter env step is still a whole number of simulator steps; (1,) for
+    torque-actuated rows, whose controller already acts at every simulator step."""
+    if spec.actuation != "position":
+        return (1,)
+    return divisors(frame_skip(spec))
+
+
+def finer_spec(spec: TaskSpec, m: int) -> TaskSpec:
+    """The row of the same task with each env step cut into ``m`` shorter ones.
+
+    One env step lasts ``control_dt / m`` s (``frame_skip / m`` simulator steps), the default
+    horizon is ``horizon * m`` env steps (the same seconds), a delta DoF moves
+    ``action_scale / m`` per unit action and env step (the same speed per second) and an
+    absolute DoF (the Meta-World gripper) is unchanged; the inverse controller is rebuilt from
+    these fields. ``m = 1`` gives a row equal to ``spec``.
+
+    Args:
+        spec: a position-controlled row.
+        m: one of :func:`substep_factors` ``(spec)``.
+
+    Raises:
+        ValueError: ``m`` is not one of the task's factors (the message lists them).
+    """
+    allowed = substep_factors(spec)
+    if isinstance(m, bool) or not isinstance(m, int) or m not in allowed:
+        raise ValueError(
+            f"m (substeps): expected one of {', '.join(map(str, allowed))} for {spec.name!r} "
+            f"(divisors of its {frame_skip(spec)} simulator steps per env step), got {m!r}"
+        )
+    return dataclasses.replace(
+        spec,
+        control_dt=float(spec.control_dt) / m,
+        horizon=int(spec.horizon) * m,
+        action_scale=tuple(float(s) / m for s in spec.action_scale),
+        controller=None,  # rebuilt from the action_* fields in __post_init__
     )
 
 

@@ -5,6 +5,7 @@ Examples::
     ndp rl train --task push-v3 --algo ndp --steps 500000 --seed 0
     ndp rl train --resume runs/push-v3-ndp-s0
     ndp rl eval runs/push-v3-ndp-s0 --episodes 20
+    ndp rl eval runs/push-v3-ndp-s0 --exec-k 5 25 --mode deterministic
     ndp rl render runs/push-v3-ndp-s0 --out push.mp4
 """
 
@@ -47,6 +48,17 @@ def add_subparser(sub: Any) -> None:
         choices=("both", "deterministic", "stochastic"),
         default="both",
         help="act with the mean, by sampling, or both (default both)",
+    )
+    ev.add_argument(
+        "--exec-k",
+        type=int,
+        nargs="+",
+        default=None,
+        metavar="K2",
+        help="run each decision (same duration) as K2 = k * m sub-steps of an env step m times "
+        "shorter, m a divisor of the simulator steps per env step (Meta-World: K2 in k, 5k; "
+        "Jaco: k, 2k, 5k, 10k); several values: one JSON line each. Success compares across "
+        "K2, the return does not (docs/rl.md, 'Inference at a higher rate')",
     )
     ev.set_defaults(func=_cmd_eval)
 
@@ -136,8 +148,17 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     from ndp.rl.evaluate import evaluate
 
     modes = {"both": (True, False), "deterministic": (True,), "stochastic": (False,)}[args.mode]
+    values = args.exec_k if args.exec_k is not None else [None]
+    if args.exec_k is not None:  # every value checked before the first evaluation runs
+        from ndp.rl.exec_k import substeps_for
+        from ndp.rl.policy import load_policy
+
+        trained = load_policy(args.run_dir)
+        for k2 in values:
+            substeps_for(trained, k2)
     for det in modes:
-        print(json.dumps(evaluate(args.run_dir, args.episodes, det, args.seed)))
+        for k2 in values:
+            print(json.dumps(evaluate(args.run_dir, args.episodes, det, args.seed, k2)), flush=True)
     return 0
 
 

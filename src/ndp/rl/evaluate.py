@@ -10,7 +10,7 @@ import numpy as np
 from ndp.rl.envs import FrameRecorder, resolve_task
 from ndp.rl.policy import Policy, load_policy
 
-__all__ = ["Policy", "evaluate", "load_policy", "render"]
+__all__ = ["Policy", "evaluate", "evaluate_policy", "load_policy", "render"]
 
 
 def _episode(pol: Policy, env: Any, seed: int, deterministic: bool) -> dict[str, float]:
@@ -35,6 +35,7 @@ def evaluate(
     episodes: int = 10,
     deterministic: bool = True,
     seed: int = 10_000,
+    exec_k: int | None = None,
 ) -> dict[str, Any]:
     """Success of a trained policy over ``episodes`` fresh episodes.
 
@@ -43,15 +44,30 @@ def evaluate(
         episodes: number of episodes (seeds ``seed .. seed + episodes - 1``).
         deterministic: act with the distribution's mode (else sample).
         seed: first episode seed (distinct from training's seeds by default).
+        exec_k: K2 sub-steps per decision at a proportionally shorter env step
+            (``Policy.at_exec_k``, :mod:`ndp.rl.exec_k`); None: the trained k.
 
     Returns:
         ``{"episodes", "deterministic", "success_any", "success_final", "episode_return",
-        "episode_length"}`` (means over episodes).
+        "episode_length", "episode_seconds", "exec_k", "m"}`` (means over episodes; the length
+        in env steps of the env that ran, ``episode_seconds`` = length * its env step). Success
+        compares across ``exec_k``; the return does not (m times as many env-step rewards are
+        summed at m = exec_k / k).
     """
-
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
     pol = load_policy(run_dir)
+    if exec_k is not None:
+        pol = pol.at_exec_k(exec_k)
+    return evaluate_policy(pol, episodes, deterministic, seed)
+
+
+def evaluate_policy(
+    pol: Policy, episodes: int = 10, deterministic: bool = True, seed: int = 10_000
+) -> dict[str, Any]:
+    """:func:`evaluate` of a loaded policy (or its ``at_exec_k`` copy) in ``pol.make_env()``."""
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
     env = pol.make_env()
     try:
         rows = [_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
@@ -60,6 +76,9 @@ def evaluate(
     out: dict[str, Any] = {"episodes": episodes, "deterministic": deterministic}
     for key in rows[0]:
         out[key] = float(np.mean([r[key] for r in rows]))
+    out["episode_seconds"] = out["episode_length"] * float(pol.spec.control_dt)
+    out["exec_k"] = pol.exec_k
+    out["m"] = pol.substeps
     return out
 
 

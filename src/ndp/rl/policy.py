@@ -4,6 +4,8 @@
 normaliser and task. ``act(obs, info)`` reads the robot state the head needs (the DMP start)
 from the chunked env's ``info`` itself, so it cannot be passed wrong; ``make_env()`` builds the
 chunked env the policy was trained for (its k, stale-world rule and horizon).
+``policy.at_exec_k(K2)`` is an evaluation copy that runs each decision as K2 = k * m sub-steps of
+a finer env (:mod:`ndp.rl.exec_k`, ``ndp rl eval --exec-k``).
 
 An export (:func:`export_policy`) is a directory with ``policy.safetensors`` (the network's
 weights) and ``policy.json`` (format version, resolved config, observation dimension and
@@ -57,6 +59,22 @@ class Policy:
     """The actor-critic, in eval mode."""
     obs_norm: ObsNormalizer
     """The observation normaliser (statistics frozen at export / checkpoint time)."""
+    substeps: int = 1
+    """m: each env step of the trained env runs as m shorter ones (:meth:`at_exec_k`); 1 for
+    the policy as trained. ``spec`` is then the finer row (``ndp.envs.spec.finer_spec``)."""
+
+    @property
+    def exec_k(self) -> int:
+        """Sub-steps (env steps) per decision as executed: ``k * substeps``."""
+        return self.cfg.k * self.substeps
+
+    def at_exec_k(self, exec_k: int, hold: bool = False) -> Policy:
+        """An evaluation copy running each decision as ``exec_k`` sub-steps of the same total
+        duration (``ndp.rl.exec_k.at_exec_k``: allowed values, what each method does, ``hold``);
+        the trained policy and its weights are left as they are."""
+        from ndp.rl.exec_k import at_exec_k
+
+        return at_exec_k(self, exec_k, hold)
 
     @property
     def state_keys(self) -> tuple[str, str]:
@@ -70,7 +88,8 @@ class Policy:
         callers need not know)."""
 
     def act(self, obs: np.ndarray, info: dict[str, Any], deterministic: bool = True) -> np.ndarray:
-        """The k sub-actions of one decision, within the task's action bounds.
+        """The k sub-actions of one decision (``exec_k`` of them for an :meth:`at_exec_k` copy),
+        within the task's action bounds.
 
         Args:
             obs: [O] observation (or [E, O] for E envs).
@@ -79,7 +98,10 @@ class Policy:
             deterministic: the distribution's mode (else a sample).
 
         Returns:
-            [k, A] (or [E, k, A]) float32 actions.
+            [K, A] (or [E, K, A]) float32 actions, K = ``exec_k`` (= k as trained). A head with
+            fewer sub-actions per decision than K (every head but NDP's at ``at_exec_k``) has
+            each of its sub-actions held for K / k env steps of the finer env, whose per-step
+            action scale is 1 / m of the trained one: the same displacement per decision.
         """
         ky, kdy = self.state_keys
         if ky not in info or kdy not in info:
@@ -105,16 +127,28 @@ class Policy:
         low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
         high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
         out = torch.maximum(torch.minimum(act, high), low).numpy()
+        reps = self.exec_k // int(out.shape[-2])
+        if reps > 1:  # a sub-action per trained env step, each held for m finer env steps
+            out = np.repeat(out, reps, axis=-2)
         return out[0] if single else out
 
     def make_env(self, render_mode: str | None = None, horizon: int | None = None) -> Any:
-        """The chunked env this policy was trained for (its k, stale-world rule, horizon)."""
+        """The chunked env this policy was trained for (its k, stale-world rule, horizon).
+
+        For an :meth:`at_exec_k` copy: the finer env (``substeps`` env steps per trained one,
+        ``exec_k`` per decision) with ``horizon * substeps`` env steps (``horizon`` and the
+        run's horizon count trained env steps), the same episode duration in seconds.
+        """
         from ndp.envs.chunked import ChunkedEnv
         from ndp.rl.envs import resolve_task
 
         h = horizon if horizon is not None else self.cfg.horizon
-        base = resolve_task(self.cfg.task).make(horizon=h, render_mode=render_mode)
-        return ChunkedEnv(base, self.cfg.k, stale_world=self.cfg.stale_world)
+        m = self.substeps
+        kw: dict[str, Any] = {} if m == 1 else {"substeps": m}
+        base = resolve_task(self.cfg.task).make(
+            horizon=None if h is None else h * m, render_mode=render_mode, **kw
+        )
+        return ChunkedEnv(base, self.exec_k, stale_world=self.cfg.stale_world)
 
     def export(self, out_dir: str | Path) -> Path:
         """Write ``policy.safetensors`` + ``policy.json`` to ``out_dir`` (see the module)."""
@@ -207,6 +241,10 @@ def _write_export(policy: Policy, out_dir: Path) -> Path:
     from ndp.io import atomic_write_bytes, atomic_write_text
     from ndp.provenance import git_commit
 
+    if policy.substeps != 1:
+        raise ValueError(
+            "policy: an exec-k evaluation copy cannot be exported; export the trained policy"
+        )
     if (out_dir / "policy.json").exists():
         raise FileExistsError(f"out_dir: {out_dir} already holds an export; choose another")
     out_dir.mkdir(parents=True, exist_ok=True)

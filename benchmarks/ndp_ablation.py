@@ -1,19 +1,24 @@
-"""NDP head ablation: each handicap fix switched off from the new default, with PPO and PPO-multi.
+"""NDP head ablation: each handicap fix switched off, with PPO and PPO-multi.
 
 Arms (every one an ordinary ``ndp rl train`` run; ndp.experiments.study runs, resumes and
-summarises them):
+summarises them). The fixes are switched off one at a time from the commanded frame at rest
+(``ndp-commanded``), the head these runs were designed against; every arm names its frame
+explicitly, so a label means the same head whatever the task's default frame is:
 
-- ``ndp``: the default NDP head (unclipped means, amplitude forcing, goal bound 2x the k-step
-  reach, gripper command emitted per decision, DMP from the commanded target at rest);
-- ``ndp-meanclip``: the sub-action means clipped before the noise (``--mean-clip``);
-- ``ndp-goalforcing``: the paper's forcing term proportional to (g - y0) (``--forcing goal``);
-- ``ndp-gs1``: the goal bound equal to the k-step reach (``--goal-scale 1``);
-- ``ndp-gripdmp``: the gripper DMP from the last sampled command (``--absolute-mode dmp``);
-- ``ndp-measured``: the DMP from the measured hand with its velocity (``--dmp-state measured
-  --dmp-velocity state``; with a start at rest the frame alone changes nothing for delta DoF:
-  the trajectory relative to y0 does not depend on y0);
-- ``ndp-velstate``: the DMP starts with the state's velocity (``--dmp-velocity state``);
-- ``ndp-paramnoise``: parameter-space exploration (``--param-noise``), on from the default;
+- ``ndp``: the default NDP head of the task (unclipped means, amplitude forcing, goal bound 2x
+  the k-step reach, gripper command emitted per decision, the task preset's DMP frame: the
+  measured hand with its velocity on Meta-World, the commanded joint targets at rest on Jaco);
+- ``ndp-commanded``: the commanded frame at rest (``--dmp-state commanded --dmp-velocity zero``;
+  the default on every task before the per-task frame, and still Jaco's and the toy's);
+- ``ndp-meanclip``: ndp-commanded with the means clipped before the noise (``--mean-clip``);
+- ``ndp-goalforcing``: ndp-commanded with the paper's forcing f proportional to (g - y0);
+- ``ndp-gs1``: ndp-commanded with the goal bound equal to the k-step reach (``--goal-scale 1``);
+- ``ndp-gripdmp``: ndp-commanded with the gripper DMP from the last sampled command;
+- ``ndp-paramnoise``: ndp-commanded with parameter-space exploration (``--param-noise``);
+- ``ndp-velstate``: the commanded frame starting with its velocity;
+- ``ndp-measured``: the measured frame with its velocity (``--dmp-state measured --dmp-velocity
+  state``): the ``ndp`` arm itself on Meta-World, so only run when named (``--arms``), for the
+  Jaco tasks;
 - ``ndp-v0``: every fix off at once (the first release's head, value clip off);
 - ``ppo``, ``ppo-multi``: the baselines with the same PPO settings.
 
@@ -33,22 +38,30 @@ import sys
 
 from ndp.experiments.study import Arm, add_study_arguments, run_study
 
+COMMANDED = ("--dmp-state", "commanded", "--dmp-velocity", "zero")
+"""The frame the handicap fixes were measured from (the default before the per-task frame)."""
+
 ARMS = [
     Arm("ndp", "ndp", (), "default NDP head"),
     Arm("ppo", "ppo", (), "PPO, one action per step"),
     Arm("ppo-multi", "ppo-multi", (), "PPO-multi, k raw actions per decision"),
-    Arm("ndp-meanclip", "ndp", ("--mean-clip",), "means clipped before the noise"),
-    Arm("ndp-goalforcing", "ndp", ("--forcing", "goal"), "f proportional to (g - y0)"),
-    Arm("ndp-gs1", "ndp", ("--goal-scale", "1"), "goal bound = k-step reach"),
-    Arm("ndp-gripdmp", "ndp", ("--absolute-mode", "dmp"), "gripper DMP from the sampled command"),
+    Arm("ndp-commanded", "ndp", COMMANDED, "commanded frame at rest"),
+    Arm("ndp-meanclip", "ndp", (*COMMANDED, "--mean-clip"), "means clipped before the noise"),
+    Arm("ndp-goalforcing", "ndp", (*COMMANDED, "--forcing", "goal"), "f proportional to (g - y0)"),
+    Arm("ndp-gs1", "ndp", (*COMMANDED, "--goal-scale", "1"), "goal bound = k-step reach"),
     Arm(
-        "ndp-measured",
+        "ndp-gripdmp",
         "ndp",
-        ("--dmp-state", "measured", "--dmp-velocity", "state"),
-        "DMP from the measured hand and its velocity",
+        (*COMMANDED, "--absolute-mode", "dmp"),
+        "gripper DMP from the sampled command",
     ),
-    Arm("ndp-velstate", "ndp", ("--dmp-velocity", "state"), "DMP starts with the state velocity"),
-    Arm("ndp-paramnoise", "ndp", ("--param-noise",), "parameter-space exploration"),
+    Arm(
+        "ndp-velstate",
+        "ndp",
+        ("--dmp-state", "commanded", "--dmp-velocity", "state"),
+        "commanded frame starting with its velocity",
+    ),
+    Arm("ndp-paramnoise", "ndp", (*COMMANDED, "--param-noise"), "parameter-space exploration"),
     Arm(
         "ndp-v0",
         "ndp",
@@ -68,19 +81,33 @@ ARMS = [
         "every fix off (first release's head)",
     ),
 ]
+"""The default arms (in this order)."""
+
+EXTRA_ARMS = [
+    Arm(
+        "ndp-measured",
+        "ndp",
+        ("--dmp-state", "measured", "--dmp-velocity", "state"),
+        "DMP from the measured robot and its velocity (= ndp on Meta-World)",
+    ),
+]
+"""Arms run only when named with --arms."""
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--tasks", nargs="+", default=["push-v3", "point-mass"])
     p.add_argument(
-        "--arms", nargs="+", default=[a.label for a in ARMS], choices=[a.label for a in ARMS]
+        "--arms",
+        nargs="+",
+        default=[a.label for a in ARMS],
+        choices=[a.label for a in (*ARMS, *EXTRA_ARMS)],
     )
     add_study_arguments(p, "runs/ndp_study", "docs/results/ndp_ablation", 300_000)
     args = p.parse_args(argv)
     arms = [
         Arm(a.label, a.algo, a.args + tuple(args.extra), a.note)
-        for a in ARMS
+        for a in (*ARMS, *EXTRA_ARMS)
         if a.label in args.arms
     ]
     cmd = "python benchmarks/ndp_ablation.py " + " ".join(

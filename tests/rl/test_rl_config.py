@@ -153,13 +153,50 @@ def test_docs_preset_table_matches_the_task_table():
     rows = rows[: next(i for i, r in enumerate(rows) if r.startswith("| any other")) + 1]
     seen = 0
     for row in rows:
-        name, n, a_z, steps, gs = (c.strip() for c in row.strip("|").split("|"))
+        name, n, a_z, steps, gs, frame = (c.strip() for c in row.strip("|").split("|"))
         pre = DEFAULT if name == "any other task" else TASKS[name.split(" ")[0]].ndp
-        assert (int(n), float(a_z), 5 * pre.steps_per_substep, float(gs)) == (
+        assert (int(n), float(a_z), 5 * pre.steps_per_substep, float(gs), frame) == (
             pre.n_basis,
             pre.a_z,
             int(steps),
             pre.goal_scale,
+            f"{pre.dmp_state}, {pre.dmp_velocity}",
         ), name
         seen += 1
     assert seen >= 8
+
+
+@pytest.mark.parametrize(
+    ("task", "algo", "frame"),
+    [
+        ("push-v3", "ndp", ("measured", "state")),
+        ("soccer-v3", "ndp", ("measured", "state")),
+        ("button-press-v3", "ndp", ("measured", "state")),  # a task without its own row
+        ("throw", "ndp", ("commanded", "zero")),
+        ("pick", "ndp", ("commanded", "zero")),
+        ("point-mass", "ndp", ("commanded", "zero")),
+        ("push-v3", "ppo", ("measured", "state")),  # every method records the same frame
+        ("throw", "ppo-multi", ("commanded", "zero")),
+    ],
+)
+def test_the_dmp_frame_comes_from_the_task_preset(task, algo, frame):
+    from ndp.rl.config import resolve_config
+
+    cfg = resolve_config(TrainConfig(task=task, algo=algo))
+    assert (cfg.policy.dmp_state, cfg.policy.dmp_velocity) == frame
+
+
+def test_an_explicit_dmp_frame_wins_and_old_configs_keep_theirs():
+    from ndp.policies.config import PolicyConfig
+    from ndp.rl.config import resolve_config
+
+    mine = PolicyConfig(dmp_state="commanded", dmp_velocity="zero")
+    cfg = resolve_config(TrainConfig(task="push-v3", policy=mine))
+    assert (cfg.policy.dmp_state, cfg.policy.dmp_velocity) == ("commanded", "zero")
+    # a config.json written before the two keys existed ran the commanded frame at rest
+    old = cfg.to_dict()
+    del old["policy"]["dmp_state"], old["policy"]["dmp_velocity"]
+    back = TrainConfig.from_dict(old)
+    assert (back.policy.dmp_state, back.policy.dmp_velocity) == ("commanded", "zero")
+    with pytest.raises(ValueError, match="dmp_state"):
+        PolicyConfig(dmp_state="mocap")

@@ -37,7 +37,7 @@ def push_run(tmp_path_factory):
 
 def test_load_policy_acts_from_the_env_info(push_run):
     policy = ndp.load_policy(push_run)
-    assert policy.state_keys == ("cmd_y0", "cmd_dy0")
+    assert policy.state_keys == ("dmp_y0", "dmp_dy0")  # push-v3: the measured frame (preset)
     env = policy.make_env()
     obs, info = env.reset(seed=0)
     policy.reset()
@@ -50,7 +50,7 @@ def test_load_policy_acts_from_the_env_info(push_run):
         {k: np.stack([v, v]) for k, v in info.items() if k in policy.state_keys},
     )
     np.testing.assert_allclose(batch[0], batch[1])
-    with pytest.raises(ValueError, match="cmd_y0"):
+    with pytest.raises(ValueError, match="dmp_y0"):
         policy.act(obs, {"success": False})
     with pytest.raises(ValueError, match="obs"):
         policy.act(obs[:10], info)

@@ -84,14 +84,16 @@ class PolicyConfig:
     """NDP, absolute-command DoF (Meta-World gripper): 'direct' emits the decision's goal as the
     command of all k sub-steps (no dependence on the previous decision's noise); 'dmp' integrates
     a DMP from the last sampled command (the first release's form)."""
-    dmp_state: str = "commanded"
+    dmp_state: str | None = None
     """NDP: the DMP starts from the commanded state (Meta-World mocap target and its commanded
     velocity; Jaco joint targets), which is what the actions move, or from the 'measured' robot
-    (hand / joints), which lags the command."""
-    dmp_velocity: str = "zero"
+    (hand / joints), which lags the command; None: the task's preset (measured on Meta-World,
+    commanded on Jaco and the toy task; ndp.envs.presets)."""
+    dmp_velocity: str | None = None
     """NDP: the DMP starts at rest ('zero') or with the state's velocity ('state': the commanded
     velocity is the previous decision's last *sampled* sub-action, i.e. its exploration noise;
-    the measured one double-counts the momentum stored in the target's lead)."""
+    the measured one double-counts the momentum stored in the target's lead); None: the task's
+    preset ('state' on Meta-World, 'zero' on Jaco and the toy task)."""
 
     def __post_init__(self) -> None:
         from ndp.policies.heads import HEAD_BUILDERS, SINGLE_STEP_HEADS
@@ -125,6 +127,8 @@ class PolicyConfig:
             ("dmp_state", DMP_STATES),
             ("dmp_velocity", DMP_VELOCITIES),
         ):
+            if name.startswith("dmp_") and getattr(self, name) is None:
+                continue  # the task's preset (resolve_config)
             if getattr(self, name) not in allowed:
                 raise ValueError(
                     f"{name}: expected one of {', '.join(allowed)}, got {getattr(self, name)!r}"

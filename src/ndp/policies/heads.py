@@ -421,9 +421,18 @@ def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
         goal_center=torch.as_tensor(centre, dtype=torch.float32),
         mean_clip=cfg.mean_clip,
         direct=torch.as_tensor(direct),
-        start_at_rest=cfg.dmp_velocity == "zero",
+        start_at_rest=_dmp_velocity(cfg, spec) == "zero",
         linear_controller=_linear_controller(spec),
     )
+
+
+def _dmp_velocity(cfg: Any, spec: Any) -> str:
+    """The config's DMP start velocity, or the task preset's where the config leaves it None."""
+    if cfg.dmp_velocity is not None:
+        return str(cfg.dmp_velocity)
+    from ndp.envs.presets import DEFAULT
+
+    return str((getattr(spec, "ndp", None) or DEFAULT).dmp_velocity)
 
 
 @register_head("dyne")

@@ -285,6 +285,10 @@ class TrainConfig:
         """Inverse of :meth:`to_dict` (unknown keys raise ValueError)."""
         d = dict(d)
         pol = dict(d.pop("policy", {}))
+        # configs written before the per-task frame preset always hold these two keys; older
+        # ones (without them) ran the fixed default of their time, the commanded frame at rest
+        pol.setdefault("dmp_state", "commanded")
+        pol.setdefault("dmp_velocity", "zero")
         if "hidden" in pol:
             pol["hidden"] = tuple(pol["hidden"])
         try:
@@ -301,6 +305,8 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     - ``task``: the method's task-table row (``Method.task_variant``: VICES runs the
       torque-actuated variant of the requested task), by its canonical name.
     - ``policy.head`` follows ``algo``; ``policy.k`` is 1 for PPO.
+    - ``policy.dmp_state`` / ``dmp_velocity`` (the DMP's frame) from the task's preset where
+      None (every method: the trainer records the robot state in that frame);
     - NDP: ``n_basis``, ``a_z``, ``goal_scale`` from the task's preset where None;
       ``dmp_steps`` = preset steps per sub-step * k; ``weight_scale`` = a_z^2 / 4 where None.
     - ``run_dir`` defaults to ``runs/<task>-<algo>-s<seed>``.
@@ -324,8 +330,21 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
         spec = method.task_variant(spec)
     pol = cfg.policy
     k = 1 if method.head in SINGLE_STEP_HEADS else pol.k
-    with_k = dataclasses.replace(pol, head=method.head, k=k)
-    changes: dict[str, Any] = {"head": method.head, "k": k, **method.resolve(with_k, spec)}
+    # the DMP frame is read by the trainer for every method (the robot state it records)
+    from ndp.envs.presets import DEFAULT
+
+    preset = getattr(spec, "ndp", None) or DEFAULT
+    frame = {
+        name: getattr(pol, name) if getattr(pol, name) is not None else getattr(preset, name)
+        for name in ("dmp_state", "dmp_velocity")
+    }
+    with_k = dataclasses.replace(pol, head=method.head, k=k, **frame)
+    changes: dict[str, Any] = {
+        "head": method.head,
+        "k": k,
+        **frame,
+        **method.resolve(with_k, spec),
+    }
     policy = dataclasses.replace(pol, **changes)
     run_dir = cfg.run_dir or str(Path("runs") / f"{spec.name}-{cfg.algo}-s{cfg.seed}")
     return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir)

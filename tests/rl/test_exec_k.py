@@ -311,3 +311,35 @@ def test_cli_list_and_benchmark_table(tmp_path, capsys):
     assert "abc1234" in (tmp_path / "t.md").read_text()
     csv_lines = (tmp_path / "t.csv").read_text().splitlines()
     assert len(csv_lines) == 4 and csv_lines[0].endswith("command,commit,date")
+
+
+def test_video_rate_plays_in_real_time_at_most_60_fps():
+    from ndp.rl.evaluate import video_rate
+
+    assert video_rate(0.05) == (1, 20)  # toy: every frame
+    assert video_rate(0.0125) == (2, 40)  # Meta-World: 80 Hz -> every 2nd frame
+    assert video_rate(0.0125 / 5) == (7, 57)  # Meta-World at m = 5 (400 Hz)
+    assert video_rate(0.01) == (2, 50)  # Jaco at m = 2
+
+
+def test_render_at_exec_k_records_the_finer_steps(tmp_path, capsys):
+    import imageio.v3 as iio
+
+    from ndp.cli import main
+
+    run = tmp_path / "throw"
+    assert main(["rl", "train", "--task", "throw", "--steps", "520", "--steps-per-update", "512",
+                 "--horizon", "20", "--vector", "sync", "--run-dir", str(run), "--no-progress",
+                 "--no-tensorboard"]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main(["rl", "render", str(run), "--out", str(tmp_path / "a.mp4")]) == 0
+    coarse = json.loads(capsys.readouterr().out)
+    assert main(["rl", "render", str(run), "--out", str(tmp_path / "b.mp4"), "--exec-k", "50"]) == 0
+    fine = json.loads(capsys.readouterr().out)
+    # 20 trained env steps of 0.02 s (50 Hz: every frame) vs 200 steps of 0.002 s (500 Hz:
+    # every 9th frame at 56 fps): the same 0.4 s of motion in both videos
+    assert (coarse["exec_k"], coarse["fps"], fine["exec_k"], fine["fps"]) == (5, 50, 50, 56)
+    assert abs(coarse["frames"] / coarse["fps"] - fine["frames"] / fine["fps"]) < 0.05
+    assert len(iio.imread(tmp_path / "b.mp4")) == fine["frames"]
+    assert main(["rl", "render", str(run), "--out", str(tmp_path / "c.mp4"), "--exec-k", "7"]) == 2
+    assert "exec_k" in capsys.readouterr().err and not (tmp_path / "c.mp4").exists()

@@ -81,6 +81,14 @@ def add_subparser(sub: Any) -> None:
         default=None,
         help="a second run of the same task, shown to the right on the same seeds",
     )
+    rd.add_argument(
+        "--exec-k",
+        type=int,
+        default=None,
+        metavar="K2",
+        help="render each decision as K2 sub-steps of the same duration (as ndp rl eval "
+        "--exec-k; with --compare, both runs); default: as trained",
+    )
     rd.set_defaults(func=_cmd_render)
 
 
@@ -173,7 +181,13 @@ def _cmd_render(args: argparse.Namespace) -> int:
     from ndp.rl.evaluate import render
 
     out = render(
-        args.run_dir, args.out, args.episodes, not args.stochastic, args.seed, args.compare
+        args.run_dir,
+        args.out,
+        args.episodes,
+        not args.stochastic,
+        args.seed,
+        args.compare,
+        args.exec_k,
     )
     print(json.dumps(out))
     return 0

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ndp.rl.envs import FrameRecorder, resolve_task
+from ndp.rl.envs import FrameRecorder
 from ndp.rl.policy import Policy, load_policy
 
 __all__ = ["Policy", "evaluate", "evaluate_policy", "load_policy", "render"]
@@ -83,21 +84,37 @@ def evaluate_policy(
 
 
 def _record(
-    run_dir: str | Path, episodes: int, deterministic: bool, seed: int
+    run_dir: str | Path,
+    episodes: int,
+    deterministic: bool,
+    seed: int,
+    exec_k: int | None = None,
 ) -> tuple[list[np.ndarray], list[dict[str, Any]], Any]:
-    """Frames (every env step) and episode rows of a run's policy, and the policy."""
-    from ndp.envs.chunked import ChunkedEnv
-
+    """Frames (every env step) and episode rows of a run's policy (at ``exec_k`` sub-steps per
+    decision where given: ``Policy.at_exec_k``), and the policy."""
     pol = load_policy(run_dir)
-    cfg = pol.cfg
-    base = resolve_task(cfg.task).make(horizon=cfg.horizon, render_mode="rgb_array")
-    rec = FrameRecorder(base)
-    env = ChunkedEnv(rec, cfg.k, stale_world=cfg.stale_world)
+    if exec_k is not None:
+        pol = pol.at_exec_k(exec_k)
+    recorders: list[FrameRecorder] = []
+
+    def record(base: Any) -> FrameRecorder:
+        recorders.append(FrameRecorder(base))
+        return recorders[-1]
+
+    env = pol.make_env(render_mode="rgb_array", wrap=record)
     try:
         rows = [_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
     finally:
         env.close()
-    return rec.frames, rows, pol
+    return recorders[0].frames, rows, pol
+
+
+def video_rate(control_dt: float, max_fps: int = 60) -> tuple[int, int]:
+    """``(stride, fps)``: keep every ``stride``-th frame of a recording made every
+    ``control_dt`` s so that the video plays in real time at ``fps`` <= ``max_fps``."""
+    rate = 1.0 / float(control_dt)
+    stride = max(1, math.ceil(rate / max_fps - 1e-9))
+    return stride, max(1, round(rate / stride))
 
 
 def side_by_side(a: list[np.ndarray], b: list[np.ndarray]) -> list[np.ndarray]:
@@ -119,8 +136,10 @@ def render(
     deterministic: bool = True,
     seed: int = 10_000,
     compare: str | Path | None = None,
+    exec_k: int | None = None,
 ) -> dict[str, Any]:
-    """Render ``episodes`` episodes of a trained policy to one mp4 (every env step is a frame).
+    """Render ``episodes`` episodes of a trained policy to one mp4 (every env step is a frame;
+    in real time, at most 60 frames per second: finer steps are subsampled).
 
     Args:
         run_dir: a training run directory.
@@ -130,6 +149,8 @@ def render(
         seed: first episode seed.
         compare: a second run of the same task, rendered on the same seeds to the right of the
             first (e.g. NDP vs PPO-multi, the supplement's videos).
+        exec_k: run each decision as this many sub-steps of the same duration (``ndp rl eval
+            --exec-k``; both runs with ``compare``); None: as trained.
 
     Returns:
         ``{"path", "frames", "success_any", ...}`` (``success_any_compare`` with ``compare``).
@@ -141,22 +162,32 @@ def render(
 
     target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
     check_output_path(target)  # before rendering anything
-    frames, rows, pol = _record(run_dir, episodes, deterministic, seed)
-    result: dict[str, Any] = {}
     if compare is not None:
         other = load_policy(compare)
-        if other.cfg.task != pol.cfg.task:
+        mine = load_policy(run_dir)
+        if other.cfg.task != mine.cfg.task:
             raise ValueError(
-                f"compare: {compare} is a {other.cfg.task} run, {run_dir} a {pol.cfg.task} run"
+                f"compare: {compare} is a {other.cfg.task} run, {run_dir} a {mine.cfg.task} run"
             )
-        frames_b, rows_b, _ = _record(compare, episodes, deterministic, seed)
+    frames, rows, pol = _record(run_dir, episodes, deterministic, seed, exec_k)
+    result: dict[str, Any] = {}
+    if compare is not None:
+        frames_b, rows_b, pol_b = _record(compare, episodes, deterministic, seed, exec_k)
+        if pol_b.substeps != pol.substeps:
+            raise ValueError(
+                f"compare: exec_k={exec_k} runs {compare} at {pol_b.substeps} env steps per "
+                f"trained one and {run_dir} at {pol.substeps}; the videos would not line up"
+            )
         frames = side_by_side(frames, frames_b)
         result["success_any_compare"] = float(np.mean([r["success_any"] for r in rows_b]))
-    fps = max(1, min(60, round(1.0 / float(pol.spec.control_dt))))
+    stride, fps = video_rate(float(pol.spec.control_dt))  # the finer row at exec_k
+    frames = frames[::stride]
     write_mp4(frames, target, fps=fps)
     return {
         "path": str(target),
         "frames": len(frames),
         "success_any": float(np.mean([r["success_any"] for r in rows])),
+        "exec_k": pol.exec_k,
+        "fps": fps,
         **result,
     }

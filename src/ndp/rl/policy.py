@@ -30,6 +30,7 @@ Example::
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -132,8 +133,16 @@ class Policy:
             out = np.repeat(out, reps, axis=-2)
         return out[0] if single else out
 
-    def make_env(self, render_mode: str | None = None, horizon: int | None = None) -> Any:
+    def make_env(
+        self,
+        render_mode: str | None = None,
+        horizon: int | None = None,
+        wrap: Callable[[Any], Any] | None = None,
+    ) -> Any:
         """The chunked env this policy was trained for (its k, stale-world rule, horizon).
+
+        ``wrap``: applied to the task env before it is chunked (e.g. a frame recorder that sees
+        every env step).
 
         For an :meth:`at_exec_k` copy: the finer env (``substeps`` env steps per trained one,
         ``exec_k`` per decision) with ``horizon * substeps`` env steps (``horizon`` and the
@@ -148,6 +157,8 @@ class Policy:
         base = resolve_task(self.cfg.task).make(
             horizon=None if h is None else h * m, render_mode=render_mode, **kw
         )
+        if wrap is not None:
+            base = wrap(base)
         return ChunkedEnv(base, self.exec_k, stale_world=self.cfg.stale_world)
 
     def export(self, out_dir: str | Path) -> Path:

@@ -58,8 +58,9 @@ from ndp.rl.config import SAFE_ON_RESUME, DyneConfig, TrainConfig
 from ndp.rl.logger import METRICS
 from ndp.rl.methods import DYNE_METRICS
 from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.progress import TrainProgress, episode_charts, last_update
 from ndp.rl.trainer import TrainingDivergedError
-from ndp.runs import MetricsLogger, RunDir, load_checkpoint, save_checkpoint
+from ndp.runs import RunDir, load_checkpoint, save_checkpoint
 
 DEFAULT_EXPLORE_STEPS = 50_000
 """Exploration env steps of the embedding where a task has no preset: 10k sequences of k = 5,
@@ -603,33 +604,13 @@ class DyneLearner:
             TrainingDivergedError: NaN / Inf in a loss or parameter (the last good checkpoint
                 is kept).
         """
-        from tqdm import tqdm
-
         cfg = self.cfg
         resumed = self.last_ckpt_update is not None
-        logger = MetricsLogger(
-            self.run.path,
-            COLUMNS,
-            step="global_step",
-            tensorboard=cfg.tensorboard,
-            resume_index=self.update if resumed else None,
-            resume_step=self.global_step if resumed else None,
-        )
-        bar = tqdm(
-            total=cfg.steps,
-            initial=min(self.global_step, cfg.steps),
-            unit="step",
-            disable=not cfg.progress,
-            dynamic_ncols=True,
-            desc=f"{cfg.algo} {cfg.task}",
-        )
-        stop = (
-            cfg.num_updates
-            if max_updates is None
-            else min(cfg.num_updates, self.update + max_updates)
-        )
+        stop = last_update(cfg.num_updates, self.update, max_updates)
         metrics: dict[str, float] = {}
-        try:
+        with TrainProgress(
+            self.run.path, COLUMNS, cfg, self.update, self.global_step, resumed
+        ) as progress:
             while self.update < stop:
                 t0 = time.perf_counter()
                 exploring = self.update < self.n_explore
@@ -647,28 +628,18 @@ class DyneLearner:
                 self.update += 1
                 self.global_step += batch["executed"]
                 metrics = self._metrics(batch, embed, t1 - t0 - t_update, t_update + t2 - t1)
-                logger.log(metrics)
-                bar.update(min(self.global_step, cfg.steps) - bar.n)
-                bar.set_postfix(
-                    success=f"{metrics['charts/success_any']:.2f}",
-                    ret=f"{metrics['charts/episode_return']:.1f}",
-                )
+                progress.log(metrics)
                 if self.embedded and (
                     self.update == self.n_explore
                     or self.update % cfg.checkpoint_every == 0
                     or self.update == cfg.num_updates
                 ):
                     self.save()
-        finally:
-            bar.close()
-            logger.close()
         return metrics
 
     def _metrics(
         self, batch: dict[str, Any], embed: dict[str, float], t_roll: float, t_upd: float
     ) -> dict[str, float]:
-        eps = batch["episodes"]
-        col = np.array(eps) if eps else np.full((1, 5), math.nan)
         losses = batch.get("losses", {})
 
         def _mean(key: str) -> float:
@@ -680,12 +651,7 @@ class DyneLearner:
         return {
             "update": self.update,
             "global_step": self.global_step,
-            "charts/episodes": len(eps),
-            "charts/success_any": float(col[:, 0].mean()),
-            "charts/success_final": float(col[:, 1].mean()),
-            "charts/episode_return": float(col[:, 2].mean()),
-            "charts/episode_return_live": float(col[:, 4].mean()),
-            "charts/episode_length": float(col[:, 3].mean()),
+            **episode_charts(batch["episodes"]),
             "charts/env_steps_per_s": batch["executed"] / max(t_roll + t_upd, 1e-9),
             "charts/learning_rate": self.cfg.dyne.critic_lr if in_rl else math.nan,
             "losses/policy": _mean("actor"),

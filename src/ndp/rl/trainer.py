@@ -51,7 +51,8 @@ from ndp.rl.ppo import (
     policy_loss,
     value_loss,
 )
-from ndp.runs import MetricsLogger, RunDir, load_checkpoint, save_checkpoint
+from ndp.rl.progress import TrainProgress, episode_charts, last_update
+from ndp.runs import RunDir, load_checkpoint, save_checkpoint
 
 
 class TrainingDivergedError(FloatingPointError):
@@ -377,33 +378,13 @@ class Trainer:
         Raises:
             TrainingDivergedError: NaN / Inf in a loss, gradient or parameter.
         """
-        from tqdm import tqdm
-
         cfg = self.cfg
         resumed = self.last_ckpt_update is not None
-        logger = MetricsLogger(
-            self.run_dir,
-            METRICS,
-            step="global_step",
-            tensorboard=cfg.tensorboard,
-            resume_index=self.update if resumed else None,
-            resume_step=self.global_step if resumed else None,
-        )
-        bar = tqdm(
-            total=cfg.steps,
-            initial=min(self.global_step, cfg.steps),
-            unit="step",
-            disable=not cfg.progress,
-            dynamic_ncols=True,
-            desc=f"{cfg.algo} {cfg.task}",
-        )
         metrics: dict[str, float] = {}
-        stop = (
-            cfg.num_updates
-            if max_updates is None
-            else min(cfg.num_updates, self.update + max_updates)
-        )
-        try:
+        stop = last_update(cfg.num_updates, self.update, max_updates)
+        with TrainProgress(
+            self.run_dir, METRICS, cfg, self.update, self.global_step, resumed
+        ) as progress:
             while self.update < stop:
                 t0 = time.perf_counter()
                 batch = self.collect()
@@ -412,19 +393,12 @@ class Trainer:
                 t2 = time.perf_counter()
                 self.update += 1
                 self.global_step += batch["executed"]
-                eps = batch["episodes"]
-                col = np.array(eps) if eps else np.full((1, 5), math.nan)
                 with torch.no_grad():
                     std = float(self.model.head.log_std.exp().mean())
                 metrics = {
                     "update": self.update,
                     "global_step": self.global_step,
-                    "charts/episodes": len(eps),
-                    "charts/success_any": float(col[:, 0].mean()),
-                    "charts/success_final": float(col[:, 1].mean()),
-                    "charts/episode_return": float(col[:, 2].mean()),
-                    "charts/episode_return_live": float(col[:, 4].mean()),
-                    "charts/episode_length": float(col[:, 3].mean()),
+                    **episode_charts(batch["episodes"]),
                     "charts/env_steps_per_s": batch["executed"] / max(t2 - t0, 1e-9),
                     "charts/learning_rate": float(self.opt.param_groups[0]["lr"]),
                     "losses/policy": stats["policy"],
@@ -441,17 +415,9 @@ class Trainer:
                     "time/rollout_s": t1 - t0,
                     "time/update_s": t2 - t1,
                 }
-                logger.log(metrics)
-                bar.update(min(self.global_step, cfg.steps) - bar.n)
-                bar.set_postfix(
-                    success=f"{metrics['charts/success_any']:.2f}",
-                    ret=f"{metrics['charts/episode_return']:.1f}",
-                )
+                progress.log(metrics)
                 if self.update % cfg.checkpoint_every == 0 or self.update == cfg.num_updates:
                     self.save()
-        finally:
-            bar.close()
-            logger.close()
         return metrics
 
     def _ctrl_metrics(self, batch: dict[str, Any]) -> dict[str, float]:

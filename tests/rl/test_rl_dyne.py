@@ -256,21 +256,14 @@ def test_nan_stops_training_and_keeps_the_last_good_checkpoint(tmp_path):
 
 
 @pytest.mark.parametrize("task", ["push-v3", "throw"])
-def test_smoke_real_tasks(tmp_path, task):
+def test_smoke_real_tasks(tmp_path, task, record_actions):
     dyne = DyneConfig(explore_steps=100, embed_updates=20, decoder_updates=20,
                       updates_per_step=0.2, batch_size=16)  # fmt: skip
     cfg = _cfg(tmp_path, task=task, steps=300, dyne=dyne, num_envs=2, horizon=25,
                ppo=PPOConfig(steps_per_update=100))  # fmt: skip
     lr = _learner(cfg)
     try:
-        seen: list[np.ndarray] = []
-        step = lr.envs.step
-
-        def spy(actions):
-            seen.append(np.asarray(actions).copy())
-            return step(actions)
-
-        lr.envs.step = spy
+        seen = record_actions(lr.envs)
         metrics = lr.train()
     finally:
         lr.close()
@@ -308,35 +301,12 @@ def test_two_runs_with_one_seed_are_identical(tmp_path):
     _same(load_checkpoint(tmp_path / "a")["model"], load_checkpoint(tmp_path / "b")["model"])
 
 
-def test_sigkill_then_resume(tmp_path):
-    import os
+def test_sigkill_then_resume(tmp_path, kill_after_rows):
     import signal
-    import subprocess
     import sys
-    import time
 
     run, n = tmp_path / "run", 20
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "ndp.cli", *_cli_args(run, 200 * n)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
-    deadline = time.time() + 120
-    try:
-        while time.time() < deadline:
-            if proc.poll() is not None:
-                pytest.fail(f"training exited early: {proc.stderr.read().decode()[-2000:]}")
-            if (run / "metrics.csv").is_file() and len(read_metrics(run)) >= 5:
-                break
-            time.sleep(0.05)
-        else:
-            pytest.fail("training produced no progress in time")
-        os.kill(proc.pid, signal.SIGKILL)
-        proc.wait(timeout=30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    proc = kill_after_rows([sys.executable, "-m", "ndp.cli", *_cli_args(run, 200 * n)], run)
     assert proc.returncode == -signal.SIGKILL
     assert len(read_metrics(run)) < n
     assert ndp_main(["rl", "train", "--resume", str(run), "--no-progress"]) == 0

@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import os
 import signal
-import subprocess
 import sys
-import time
 
 import pytest
 import torch
@@ -32,7 +29,7 @@ def test_atomic_save_keeps_previous_file_on_crash(tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["c.pt"]  # no temporary file left
 
 
-def test_sigkill_then_resume(tmp_path):
+def test_sigkill_then_resume(tmp_path, kill_after_rows):
     run = tmp_path / "run"
     n_updates = 30
     cmd = [
@@ -57,24 +54,8 @@ def test_sigkill_then_resume(tmp_path):
         str(run),
         "--no-progress",
     ]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     csv_path = run / "metrics.csv"
-    deadline = time.time() + 120
-    try:
-        while time.time() < deadline:
-            if proc.poll() is not None:
-                pytest.fail(f"training exited early: {proc.stderr.read().decode()[-2000:]}")
-            if csv_path.is_file() and len(read_metrics(csv_path)) >= 5:
-                break
-            time.sleep(0.05)
-        else:
-            pytest.fail("training produced no progress in time")
-        os.kill(proc.pid, signal.SIGKILL)
-        proc.wait(timeout=30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    proc = kill_after_rows(cmd, run)
     assert proc.returncode == -signal.SIGKILL
     killed_rows = len(read_metrics(csv_path))
     assert killed_rows < n_updates

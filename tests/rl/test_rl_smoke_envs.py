@@ -14,7 +14,7 @@ from ndp.runs import read_metrics
 
 @pytest.mark.parametrize("task", ["push-v3", "throw"])
 @pytest.mark.parametrize("algo", ["ndp", "ppo", "ppo-multi"])
-def test_smoke_real_tasks(tmp_path, task, algo):
+def test_smoke_real_tasks(tmp_path, task, algo, record_actions):
     cfg = TrainConfig(
         task=task,
         algo=algo,
@@ -28,14 +28,7 @@ def test_smoke_real_tasks(tmp_path, task, algo):
     )
     tr = Trainer(cfg)
     try:
-        seen: list[np.ndarray] = []
-        step = tr.envs.step
-
-        def spy(actions):
-            seen.append(np.asarray(actions).copy())
-            return step(actions)
-
-        tr.envs.step = spy
+        seen = record_actions(tr.envs)
         metrics = tr.train()
     finally:
         tr.close()

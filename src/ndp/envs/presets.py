@@ -71,3 +71,12 @@ def ndp_preset(task: str) -> NDPPreset:
     preset = get_task_spec(task).ndp
     assert preset is not None  # every row gets one in TaskSpec.__post_init__
     return preset
+
+
+def preset_of(spec: object) -> NDPPreset:
+    """The preset of a task spec: its ``ndp`` field, else its name's row (or ``DEFAULT``), for
+    spec-like objects without one."""
+    pre = getattr(spec, "ndp", None)
+    if isinstance(pre, NDPPreset):
+        return pre
+    return NDP_PRESETS.get(str(getattr(spec, "name", "")), DEFAULT)

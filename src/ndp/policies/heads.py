@@ -430,9 +430,9 @@ def _dmp_velocity(cfg: Any, spec: Any) -> str:
     """The config's DMP start velocity, or the task preset's where the config leaves it None."""
     if cfg.dmp_velocity is not None:
         return str(cfg.dmp_velocity)
-    from ndp.envs.presets import DEFAULT
+    from ndp.envs.presets import preset_of
 
-    return str((getattr(spec, "ndp", None) or DEFAULT).dmp_velocity)
+    return preset_of(spec).dmp_velocity
 
 
 @register_head("dyne")

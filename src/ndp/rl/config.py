@@ -331,9 +331,9 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     pol = cfg.policy
     k = 1 if method.head in SINGLE_STEP_HEADS else pol.k
     # the DMP frame is read by the trainer for every method (the robot state it records)
-    from ndp.envs.presets import DEFAULT
+    from ndp.envs.presets import preset_of
 
-    preset = getattr(spec, "ndp", None) or DEFAULT
+    preset = preset_of(spec)
     frame = {
         name: getattr(pol, name) if getattr(pol, name) is not None else getattr(preset, name)
         for name in ("dmp_state", "dmp_velocity")

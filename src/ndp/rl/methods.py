@@ -29,9 +29,9 @@ def no_dmp(policy: Any, spec: Any) -> dict[str, Any]:
 def resolve_ndp(policy: Any, spec: Any) -> dict[str, Any]:
     """NDP: ``n_basis``, ``a_z``, ``goal_scale`` from the task's preset where None;
     ``dmp_steps`` = preset steps per sub-step * k; ``weight_scale`` = a_z^2 / 4 where None."""
-    from ndp.envs.presets import ndp_preset
+    from ndp.envs.presets import preset_of
 
-    pre = spec.ndp if getattr(spec, "ndp", None) is not None else ndp_preset(spec.name)
+    pre = preset_of(spec)
     a_z = float(policy.a_z if policy.a_z is not None else pre.a_z)
     return {
         "n_basis": policy.n_basis if policy.n_basis is not None else pre.n_basis,

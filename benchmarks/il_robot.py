@@ -8,7 +8,9 @@ stale-world rule, deterministic) over ``--eval-episodes`` episodes with seeds di
 demonstrations'. Reported per task, model and n: success (any step) mean +- std over seeds, and
 the smoothness of the executed arm path (``ndp.experiments.smoothness``: mean squared jerk, lower
 is smoother, and SPARC, closer to 0 is smoother; hand xyz on Meta-World, arm joints on Jaco).
-Everything is resumable: finished runs and evaluations are reused.
+Everything is resumable: finished runs and evaluations are reused. ``--models`` also takes
+``nn-step`` (the PPO actor, one action per step) and ``ndp-vstate`` (NDP whose DMP starts with the
+commanded velocity; see ``VARIANTS``).
 
     python benchmarks/il_robot.py --tasks throw pick push-v3 soccer-v3 faucet-open-v3 \\
         --demos 25 100 400 --seeds 0 1 2 --eval-episodes 50 --runs-dir RUNS \\
@@ -29,6 +31,18 @@ from typing import Any
 import numpy as np
 
 MODELS = ("nn", "ndp")
+"""The default models: the PPO-multi actor (k raw actions per decision) and NDP."""
+
+VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "nn": ("nn", {}),
+    "nn-step": ("nn-step", {}),
+    "ndp": ("ndp", {}),
+    "ndp-vstate": ("ndp", {"dmp_velocity": "state"}),
+}
+"""Model label -> (``ndp il bc --model``, policy settings). ``ndp-vstate``: NDP whose DMP starts
+with the commanded velocity (the previous decision's last sub-action) instead of the preset's;
+on Meta-World that is the preset already (the same runs as ``ndp``), on Jaco the preset starts at
+rest."""
 
 
 def evaluate_smooth(run: Path, episodes: int, seed: int) -> dict[str, float]:
@@ -51,13 +65,22 @@ def final_val_loss(run: Path) -> float:
         return float("nan")
 
 
+def run_commits(run: Path) -> set[str]:
+    """The commits (7 hex digits) a run was trained at, from its provenance.json."""
+    try:
+        prov = json.loads((run / "provenance.json").read_text())
+    except (OSError, ValueError):
+        return set()
+    return {str(e["commit"])[:7] for e in prov if isinstance(e, dict) and e.get("commit")}
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--tasks", nargs="+", default=["throw", "pick", "push-v3", "soccer-v3",
                                                   "faucet-open-v3"])  # fmt: skip
     p.add_argument("--demos", nargs="+", type=int, default=[25, 100, 400])
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
-    p.add_argument("--models", nargs="+", default=list(MODELS), choices=["nn", "nn-step", "ndp"])
+    p.add_argument("--models", nargs="+", default=list(MODELS), choices=list(VARIANTS))
     p.add_argument("--eval-episodes", type=int, default=50)
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--runs-dir", default="runs/il_robot")
@@ -71,11 +94,13 @@ def main(argv: list[str] | None = None) -> int:
     from ndp.bc.demos import collect, load_demos, save_demos
     from ndp.bc.train import BCConfig, train_bc
     from ndp.io import atomic_write_text
+    from ndp.policies import PolicyConfig
     from ndp.provenance import git_commit
 
     runs = Path(args.runs_dir)
     runs.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {}
+    trained_at: set[str] = set()
     for task in args.tasks:
         demos_path = runs / f"{task}-demos.npz"
         if not demos_path.is_file() and not args.plot_only:
@@ -97,7 +122,9 @@ def main(argv: list[str] | None = None) -> int:
                             continue
                         if not (run / "checkpoint.pt").is_file():
                             train_bc(
-                                BCConfig(demos=str(demos_path), model=model, run_dir=str(run),
+                                BCConfig(demos=str(demos_path), model=VARIANTS[model][0],
+                                         policy=PolicyConfig(**VARIANTS[model][1]),
+                                         run_dir=str(run),
                                          episodes=n, seed=seed, epochs=args.epochs,
                                          progress=False, tensorboard=False),
                                 overwrite=run.exists(),
@@ -105,6 +132,7 @@ def main(argv: list[str] | None = None) -> int:
                         ev = evaluate_smooth(run, args.eval_episodes, eval_seed)
                         atomic_write_text(res_file, json.dumps(ev) + "\n")
                         print(f"[il_robot] {key} s{seed}: {ev}", flush=True)
+                    trained_at |= run_commits(run)
                     per_seed.append(
                         {**json.loads(res_file.read_text()), "val_loss": final_val_loss(run)}
                     )
@@ -121,13 +149,16 @@ def main(argv: list[str] | None = None) -> int:
                                     "per_seed": per_seed}  # fmt: skip
     cmd = "python benchmarks/il_robot.py " + " ".join(argv if argv is not None else sys.argv[1:])
     out = {"command": cmd, "commit": git_commit(), "date": time.strftime("%Y-%m-%d"),
-           "eval_episodes": args.eval_episodes, "results": results}  # fmt: skip
+           "runs_trained_at": sorted(trained_at), "eval_episodes": args.eval_episodes,
+           "results": results}  # fmt: skip
     atomic_write_text(Path(args.out).with_suffix(".json"), json.dumps(out, indent=2) + "\n")
     lines = [
         "# Behaviour cloning on the robot tasks: NDP vs NN",
         "",
         f"Command: `{cmd}`  ",
-        f"Commit: {out['commit']}, date: {out['date']}; runs in `{args.runs_dir}`.",
+        f"Commit: {out['commit']}, date: {out['date']}; runs in `{args.runs_dir}`, trained at "
+        f"commits: {', '.join(out['runs_trained_at']) or 'not recorded'}; "
+        f"{args.eval_episodes} evaluation episodes per run.",
         "",
         "Success (any step) over the evaluation episodes, mean +- std over seeds (n = seeds "
         "that ran; fewer than asked is a missing cell, not a result); fit = the BC validation "
@@ -148,7 +179,8 @@ def main(argv: list[str] | None = None) -> int:
                 r = results.get(f"{task}/{m}/n{n}")
                 cells += (
                     [f"{r['success_mean']:.2f} +- {r['success_std']:.2f} (n={r['n_seeds']})",
-                     f"{r['val_loss_mean']:.2g}", f"{r['jerk_mean']:.3g}",
+                     f"{r['val_loss_mean']:.2g}".replace("nan", "-"),
+                     f"{r['jerk_mean']:.3g}",
                      f"{r['sparc_mean']:.2f}"] if r else ["-"] * 4
                 )  # fmt: skip
             lines.append(f"| {task} | {n} | " + " | ".join(cells) + " |")

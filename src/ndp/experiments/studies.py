@@ -179,12 +179,18 @@ def _ablation_arms() -> tuple[ArmSpec, ...]:
             "only the goal is learned (no forcing term)",
             requires="the RL NDP head's goal-only option (--only-g)",
         ),
-        ArmSpec("vices-pos", "vices-pos", (), "VICES, position-only gains", pending_method=True),
+        ArmSpec(
+            "vices-pos",
+            "vices-pos",
+            (),
+            "VICES in end-effector space (OSC), the paper's vices-pos",
+            pending_method=True,
+        ),
         ArmSpec(
             "vices-low-freq",
             "vices-low-freq",
             (),
-            "VICES at the policy's decision rate",
+            "VICES, one decision per k env steps (NDP's rate)",
             pending_method=True,
         ),
     ]

@@ -122,3 +122,20 @@ def test_throw_end_to_end_from_the_command_line(tmp_path, capsys):
     capsys.readouterr()
     assert ndp_main(["rl", "eval", str(run), "--episodes", "1", "--mode", "deterministic"]) == 0
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["episodes"] == 1
+
+
+def test_obs_normalisation_has_a_std_floor(tmp_path, toy_demos):
+    """A feature that barely varies over the demonstrations is not divided by its tiny std: the
+    normaliser's std is at least obs_std_floor (0: the demonstrations' own std)."""
+    d = load_demos(toy_demos)
+    raw = d.obs.astype(np.float64).var(0)
+    runs = {}
+    for floor in (0.0, 3.0):
+        run = tmp_path / f"floor{floor}"
+        train_bc(BCConfig(demos=str(toy_demos), model="nn", run_dir=str(run), epochs=1,
+                          obs_std_floor=floor, progress=False, tensorboard=False))  # fmt: skip
+        runs[floor] = torch.load(run / "checkpoint.pt", weights_only=False)["obs_norm"]["var"]
+    assert np.allclose(runs[0.0], raw, rtol=1e-3)
+    assert (raw < 9.0).any() and np.allclose(runs[3.0], np.maximum(raw, 9.0), rtol=1e-3)
+    with pytest.raises(ValueError, match="obs_std_floor"):
+        BCConfig(demos=str(toy_demos), obs_std_floor=-1.0)

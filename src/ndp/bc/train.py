@@ -59,6 +59,11 @@ class BCConfig:
     """Adam learning rate."""
     val_fraction: float = 0.1
     """Fraction of the episodes held out for the validation loss (0: none)."""
+    obs_std_floor: float = 0.01
+    """Smallest per-feature std of the observation normalisation (observation units: m, rad,
+    m/s). A feature that barely varies over the demonstrations (a joint the expert never moves)
+    would otherwise be divided by a tiny std, so that physically negligible closed-loop deviations
+    reach the network as inputs many std out of the training range (0: no floor)."""
     seed: int = 0
     """Seed of initialisation, split and batch order."""
     threads: int = 1
@@ -80,6 +85,8 @@ class BCConfig:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
         if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr: expected a finite number > 0, got {self.lr!r}")
+        if not (isinstance(self.obs_std_floor, (int, float)) and self.obs_std_floor >= 0):
+            raise ValueError(f"obs_std_floor: expected a number >= 0, got {self.obs_std_floor!r}")
         if not 0.0 <= self.val_fraction < 1.0:
             raise ValueError(
                 f"val_fraction: expected a number in [0, 1), got {self.val_fraction!r}"
@@ -163,7 +170,9 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
     k = rl_cfg.k
     p = rl_cfg.ppo
     obs_norm = ObsNormalizer(obs_dim, p.clip_obs, p.norm_obs)
-    obs_n = torch.from_numpy(obs_norm(demos.obs, update=True))
+    obs_norm.rms.update(demos.obs)
+    obs_norm.rms.var = np.maximum(obs_norm.rms.var, cfg.obs_std_floor**2)
+    obs_n = torch.from_numpy(obs_norm(demos.obs))
     commanded = rl_cfg.policy.dmp_state == "commanded"
     y0 = torch.as_tensor(demos.cmd_pos if commanded else demos.robot_pos, dtype=torch.float32)
     dy0 = torch.as_tensor(demos.cmd_vel if commanded else demos.robot_vel, dtype=torch.float32)

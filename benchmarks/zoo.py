@@ -1,0 +1,156 @@
+"""Publish trained policies (``zoo/``): for each task x method, the best seed of a finished study.
+
+For every task and method the finished runs ``RUNS/<task>-<method>-s<seed>`` of the given seeds
+are ranked by their deterministic success over ``--select-episodes`` episodes (the report's
+cached ``eval-det-e<N>.json``, episode seeds 10,000 on); the best one (ties: the lower seed) is
+exported (``ndp.export_policy``: safetensors + JSON, no pickle) to ``OUT/<task>-<method>`` and
+evaluated again, from the export, over ``--episodes`` fresh episodes (seeds 20,000 on, disjoint
+from the selection's, so the published number is not the maximum over seeds it was picked by).
+``OUT/README.md`` and ``OUT/zoo.json`` list every policy with its source run, training commit,
+selection and published success, and the command, commit and date. An existing export is
+replaced only after the new one is complete.
+
+    python benchmarks/zoo.py --runs-dir RUNS --out zoo
+
+Load one with ``ndp.load_policy("zoo/push-v3-ndp")`` (docs/rl.md, "Trained policies").
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+TASKS = ("push-v3", "soccer-v3", "faucet-open-v3", "throw", "pick", "reach-v3")
+METHODS = ("ndp", "ppo", "ppo-multi", "vices", "dyne")
+SELECT_SEED = 10_000
+"""First episode seed of the selection (the report's ``--eval-episodes`` seeds)."""
+PUBLISH_SEED = 20_000
+"""First episode seed of the published evaluation (disjoint from the selection's)."""
+
+
+def _commits(run: Path) -> list[str]:
+    try:
+        prov = json.loads((run / "provenance.json").read_text())
+    except (OSError, ValueError):
+        return []
+    return sorted({str(e["commit"])[:7] for e in prov if isinstance(e, dict) and e.get("commit")})
+
+
+def pick_best(runs: Path, task: str, method: str, seeds: list[int], episodes: int) -> Any:
+    """(seed, run, selection success) of the best finished run, or None when none finished."""
+    from ndp.experiments.report import det_success
+    from ndp.experiments.study import is_finished
+
+    best = None
+    for seed in seeds:
+        run = runs / f"{task}-{method}-s{seed}"
+        if not run.is_dir() or not is_finished(run, kind="rl"):
+            continue
+        s = det_success(run, episodes)
+        if best is None or s > best[2]:
+            best = (seed, run, s)
+    return best
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--runs-dir", required=True)
+    p.add_argument("--tasks", nargs="+", default=list(TASKS))
+    p.add_argument("--methods", nargs="+", default=list(METHODS))
+    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    p.add_argument("--select-episodes", type=int, default=20)
+    p.add_argument("--episodes", type=int, default=50)
+    p.add_argument(
+        "--min-success", type=float, default=0.5, help="publish only a selection success >= this"
+    )
+    p.add_argument("--out", default="zoo")
+    args = p.parse_args(argv)
+
+    import torch
+
+    torch.set_num_threads(1)
+    from ndp.io import atomic_write_text
+    from ndp.provenance import git_commit
+    from ndp.rl.evaluate import evaluate_policy
+    from ndp.rl.policy import export_policy, load_policy
+
+    runs, out = Path(args.runs_dir), Path(args.out)
+    if not runs.is_dir():
+        raise SystemExit(f"zoo: --runs-dir {runs} is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    rows: list[dict[str, Any]] = []
+    left_out: list[str] = []
+    for task in args.tasks:
+        for method in args.methods:
+            best = pick_best(runs, task, method, args.seeds, args.select_episodes)
+            if best is None:
+                continue
+            seed, run, sel = best
+            if sel < args.min_success:
+                left_out.append(f"{task} x {method} (best: {sel:.2f}, seed {seed})")
+                continue
+            name = f"{task}-{method}"
+            tmp = out / f".{name}.tmp"
+            shutil.rmtree(tmp, ignore_errors=True)
+            export_policy(run, tmp)
+            ev = evaluate_policy(load_policy(tmp), args.episodes, True, PUBLISH_SEED)
+            final = out / name
+            old = out / f".{name}.old"
+            if final.exists():
+                final.rename(old)
+            tmp.rename(final)
+            shutil.rmtree(old, ignore_errors=True)
+            cfg = json.loads((run / "config.json").read_text())
+            row = {"policy": name, "task": task, "method": method, "seed": seed,
+                   "source_run": str(run), "trained_at": _commits(run),
+                   "steps": cfg.get("steps"), "k": cfg.get("policy", {}).get("k"),
+                   "selection_success": sel, "success": ev["success_any"],
+                   "success_final": ev["success_final"],
+                   "episode_return": ev["episode_return"]}  # fmt: skip
+            rows.append(row)
+            print(f"[zoo] {name}: seed {seed}, selection {sel:.2f}, published "
+                  f"{ev['success_any']:.2f}", flush=True)  # fmt: skip
+    cmd = "python benchmarks/zoo.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    meta = {"command": cmd, "commit": git_commit(), "date": time.strftime("%Y-%m-%d"),
+            "select_episodes": args.select_episodes, "episodes": args.episodes,
+            "min_success": args.min_success, "policies": rows,
+            "not_published": left_out}  # fmt: skip
+    atomic_write_text(out / "zoo.json", json.dumps(meta, indent=2) + "\n")
+    md = [
+        "# Trained policies",
+        "",
+        f"Generated by `{cmd}` at commit {meta['commit']}, {meta['date']} (from run directories "
+        "on the development machine; each row names its source run and training commit).",
+        "",
+        'Load one with `ndp.load_policy("zoo/<policy>")` (or `ndp rl eval zoo/<policy>`, '
+        '`ndp rl render zoo/<policy>`); the format is in docs/rl.md, "Trained policies". '
+        f"Each is the seed with the best deterministic success over {args.select_episodes} "
+        f"episodes (seeds {SELECT_SEED:,} on) of its task x method; **success** is measured "
+        f"again from the export over {args.episodes} other episodes (seeds {PUBLISH_SEED:,} on),"
+        " deterministic, success at any step.",
+        "",
+        "| policy | task | method | seed | env steps | trained at | selection success | "
+        "success | final success | return |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        md.append(
+            f"| `{r['policy']}` | {r['task']} | {r['method']} | {r['seed']} | {r['steps']:,} | "
+            f"{', '.join(r['trained_at']) or 'not recorded'} | {r['selection_success']:.2f} | "
+            f"{r['success']:.2f} | {r['success_final']:.2f} | {r['episode_return']:.1f} |"
+        )
+    if left_out:
+        md += ["", f"Not published (no seed reached {args.min_success:.2f} in the selection): "
+               + "; ".join(left_out) + "."]  # fmt: skip
+    atomic_write_text(out / "README.md", "\n".join(md) + "\n")
+    print("\n".join(md))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -92,7 +92,8 @@ def test_ray_grid_2x2_end_to_end_with_ctrl_c_and_resume(tmp_path, capsys):
         # at least the run that triggered the Ctrl-C stopped mid-budget at a checkpoint; the
         # other may have been stopped before its first one (it then restarts)
         stopped = [r for r in first if not (r / "metrics.csv").is_file() or len(_rows(r)) < n]
-        assert stopped and any((r / "checkpoint.pt").is_file() for r in stopped)
+        resumable = [r for r in stopped if (r / "checkpoint.pt").is_file()]
+        assert resumable
         assert main(argv) == 0
         out = capsys.readouterr().out
         assert not ray.is_initialized()
@@ -104,7 +105,13 @@ def test_ray_grid_2x2_end_to_end_with_ctrl_c_and_resume(tmp_path, capsys):
                 assert arm["task"] == "point-mass" and arm["seed"] == seed
         for r in stopped:
             events = [p["event"] for p in json.loads((r / "provenance.json").read_text())]
-            assert events[0] == "start" and events[-1] in ("resume", "start") and len(events) >= 2
+            # a run stopped at a checkpoint resumed; one stopped before it (possibly before its
+            # trainer wrote anything) started afresh
+            assert events[0] == "start"
+            if r in resumable:
+                assert events[-1] == "resume" and len(events) >= 2, events
+            else:
+                assert events[-1] == "start", events
         assert "4/4 finished" in out and "0 failed" in out
     finally:
         if ray.is_initialized():

@@ -55,23 +55,13 @@ def evaluate_smooth(run: Path, episodes: int, seed: int) -> dict[str, float]:
 
 def final_val_loss(run: Path) -> float:
     """The BC fit: validation loss (MSE of the actions) of the last epoch, NaN if not logged."""
-    import csv
+    from ndp.runs import read_metrics
 
     try:
-        with (run / "bc_metrics.csv").open() as fh:
-            rows = list(csv.DictReader(fh))
-        return float(rows[-1]["val/loss"]) if rows else float("nan")
-    except (OSError, KeyError, ValueError):
-        return float("nan")
-
-
-def run_commits(run: Path) -> set[str]:
-    """The commits (7 hex digits) a run was trained at, from its provenance.json."""
-    try:
-        prov = json.loads((run / "provenance.json").read_text())
+        rows = read_metrics(run / "bc_metrics.csv")
     except (OSError, ValueError):
-        return set()
-    return {str(e["commit"])[:7] for e in prov if isinstance(e, dict) and e.get("commit")}
+        return float("nan")
+    return float(rows[-1].get("val/loss", float("nan"))) if rows else float("nan")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -96,6 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     from ndp.io import atomic_write_text
     from ndp.policies import PolicyConfig
     from ndp.provenance import git_commit
+    from ndp.runs import run_commits
 
     runs = Path(args.runs_dir)
     runs.mkdir(parents=True, exist_ok=True)
@@ -132,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
                         ev = evaluate_smooth(run, args.eval_episodes, eval_seed)
                         atomic_write_text(res_file, json.dumps(ev) + "\n")
                         print(f"[il_robot] {key} s{seed}: {ev}", flush=True)
-                    trained_at |= run_commits(run)
+                    trained_at.update(run_commits(run))
                     per_seed.append(
                         {**json.loads(res_file.read_text()), "val_loss": final_val_loss(run)}
                     )

@@ -33,14 +33,6 @@ PUBLISH_SEED = 20_000
 """First episode seed of the published evaluation (disjoint from the selection's)."""
 
 
-def _commits(run: Path) -> list[str]:
-    try:
-        prov = json.loads((run / "provenance.json").read_text())
-    except (OSError, ValueError):
-        return []
-    return sorted({str(e["commit"])[:7] for e in prov if isinstance(e, dict) and e.get("commit")})
-
-
 def pick_best(runs: Path, task: str, method: str, seeds: list[int], episodes: int) -> Any:
     """(seed, run, selection success) of the best finished run, or None when none finished."""
     from ndp.experiments.report import det_success
@@ -78,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     from ndp.provenance import git_commit
     from ndp.rl.evaluate import evaluate_policy
     from ndp.rl.policy import export_policy, load_policy
+    from ndp.runs import run_commits
 
     runs, out = Path(args.runs_dir), Path(args.out)
     if not runs.is_dir():
@@ -107,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
             shutil.rmtree(old, ignore_errors=True)
             cfg = json.loads((run / "config.json").read_text())
             row = {"policy": name, "task": task, "method": method, "seed": seed,
-                   "source_run": str(run), "trained_at": _commits(run),
+                   "source_run": str(run), "trained_at": run_commits(run),
                    "steps": cfg.get("steps"), "k": cfg.get("policy", {}).get("k"),
                    "selection_success": sel, "success": ev["success_any"],
                    "success_final": ev["success_final"],

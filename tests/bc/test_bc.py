@@ -139,3 +139,5 @@ def test_obs_normalisation_has_a_std_floor(tmp_path, toy_demos):
     assert (raw < 9.0).any() and np.allclose(runs[3.0], np.maximum(raw, 9.0), rtol=1e-3)
     with pytest.raises(ValueError, match="obs_std_floor"):
         BCConfig(demos=str(toy_demos), obs_std_floor=-1.0)
+    with pytest.raises(ValueError, match="obs_std_floor"):
+        BCConfig(demos=str(toy_demos), obs_std_floor=float("inf"))

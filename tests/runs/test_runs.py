@@ -140,3 +140,24 @@ def test_pop_option():
         pop_option(["--resume"], "--resume")
     with pytest.raises(ValueError, match="more than once"):
         pop_option(["--resume", "a", "--resume", "b"], "--resume")
+
+
+def test_run_commits_reads_the_provenance_record(tmp_path):
+    """run_commits: the commits of a run's recorded sessions; nothing for a run without a
+    readable provenance.json."""
+    from ndp.runs import RunDir, run_commits
+
+    run = RunDir(tmp_path / "r")
+    run.create()
+    assert run_commits(run.path) == []
+    run.record_session("start")
+    run.record_session("resume")
+    commits = run_commits(run.path)
+    assert len(commits) <= 1 and all(len(c) == 7 for c in commits)
+    (run.path / "provenance.json").write_text(
+        '[{"event": "start", "commit": "0123456789abcdef"}, {"event": "resume", '
+        '"commit": "fedcba9876543210"}, {"event": "resume"}]'
+    )
+    assert run_commits(run.path) == ["0123456", "fedcba9"]
+    (run.path / "provenance.json").write_text("not json")
+    assert run_commits(run.path) == []

@@ -85,8 +85,9 @@ class BCConfig:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
         if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr: expected a finite number > 0, got {self.lr!r}")
-        if not (isinstance(self.obs_std_floor, (int, float)) and self.obs_std_floor >= 0):
-            raise ValueError(f"obs_std_floor: expected a number >= 0, got {self.obs_std_floor!r}")
+        floor = self.obs_std_floor
+        if not (isinstance(floor, (int, float)) and math.isfinite(floor) and floor >= 0):
+            raise ValueError(f"obs_std_floor: expected a finite number >= 0, got {floor!r}")
         if not 0.0 <= self.val_fraction < 1.0:
             raise ValueError(
                 f"val_fraction: expected a number in [0, 1), got {self.val_fraction!r}"

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.study import final_success, is_finished, smooth, success_area
-from ndp.runs import metrics_path, read_metrics
+from ndp.runs import metrics_path, read_metrics, run_commits
 
 
 class MissingSeedsError(ValueError):
@@ -149,9 +149,7 @@ def run_info(path: Path) -> RunInfo | None:
         return None
     info = RunInfo(path, str(task), str(label), str(algo), int(seed), int(steps), kind)
     info.finished = _finished(info)
-    prov = _json(path / "provenance.json")
-    if isinstance(prov, list):
-        info.commits = sorted({str(e.get("commit", ""))[:7] for e in prov if e.get("commit")})
+    info.commits = run_commits(path)
     return info
 
 

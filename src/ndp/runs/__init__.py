@@ -23,6 +23,7 @@ from ndp.runs.layout import (
     PROVENANCE_NAME,
     TB_DIR,
     RunDir,
+    run_commits,
 )
 from ndp.runs.metrics import MetricsLogger, metrics_path, read_metrics
 
@@ -38,5 +39,6 @@ __all__ = [
     "load_checkpoint",
     "metrics_path",
     "read_metrics",
+    "run_commits",
     "save_checkpoint",
 ]

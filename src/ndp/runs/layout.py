@@ -182,3 +182,17 @@ class RunDir:
         sessions.append(entry)
         atomic_write_text(path, json.dumps(sessions, indent=2) + "\n")
         return entry
+
+
+def run_commits(run_dir: str | Path) -> list[str]:
+    """The commits (7 hex digits, sorted) a run's sessions were trained at, from its
+    provenance.json; empty when the file is missing or unreadable (runs older than it)."""
+    try:
+        sessions = json.loads((Path(run_dir) / PROVENANCE_NAME).read_text())
+    except (OSError, json.JSONDecodeError):
+        return []
+    if not isinstance(sessions, list):
+        return []
+    return sorted(
+        {str(e["commit"])[:7] for e in sessions if isinstance(e, dict) and e.get("commit")}
+    )

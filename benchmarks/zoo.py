@@ -62,6 +62,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--out", default="zoo")
     args = p.parse_args(argv)
+    for name in ("select_episodes", "episodes"):
+        if getattr(args, name) < 1:
+            p.error(
+                f"--{name.replace('_', '-')}: expected an integer >= 1, got {getattr(args, name)}"
+            )
+    if not 0.0 <= args.min_success <= 1.0:
+        p.error(f"--min-success: expected a number in [0, 1], got {args.min_success}")
 
     import torch
 

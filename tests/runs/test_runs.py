@@ -161,3 +161,39 @@ def test_run_commits_reads_the_provenance_record(tmp_path):
     assert run_commits(run.path) == ["0123456", "fedcba9"]
     (run.path / "provenance.json").write_text("not json")
     assert run_commits(run.path) == []
+
+
+def test_a_stop_during_a_checkpoint_write_waits_for_the_write(tmp_path, monkeypatch):
+    """SIGTERM delivered while the checkpoint is being written: the write completes (the file
+    loads) and Terminated is raised afterwards, not the zip writer's error from inside
+    torch.save (which turned a clean stop into exit 1 once)."""
+    import os
+    import signal
+
+    from ndp.runs import checkpoint as ckpt_mod
+    from ndp.runs.signals import Terminated, deferred_stops, stop_on_sigterm
+
+    real = ckpt_mod.atomic_torch_save
+
+    def signalled(obj, path):
+        os.kill(os.getpid(), signal.SIGTERM)  # handled at the next bytecode: mid-write
+        real(obj, path)
+
+    monkeypatch.setattr(ckpt_mod, "atomic_torch_save", signalled)
+    path = tmp_path / "checkpoint.pt"
+    with stop_on_sigterm(), pytest.raises(Terminated):
+        ckpt_mod.save_checkpoint(path, {"update": 3, "w": torch.ones(1000)}, kind="rl")
+    assert ckpt_mod.load_checkpoint(path, kind="rl")["update"] == 3
+    # outside a deferred block a stop is raised at once; an error inside one wins
+    with stop_on_sigterm():
+        with pytest.raises(Terminated):
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(1000):
+                pass
+        with pytest.raises(Terminated):  # the pending stop is raised by the next block
+            with pytest.raises(OSError, match="disk"):
+                with deferred_stops():
+                    os.kill(os.getpid(), signal.SIGTERM)
+                    raise OSError("disk full")
+            with deferred_stops():
+                pass

@@ -7,6 +7,7 @@ from typing import Any
 
 from ndp.io import atomic_torch_save
 from ndp.runs.layout import CHECKPOINT_NAME
+from ndp.runs.signals import deferred_stops
 
 __all__ = ["load_checkpoint", "save_checkpoint"]
 
@@ -14,14 +15,16 @@ __all__ = ["load_checkpoint", "save_checkpoint"]
 def save_checkpoint(path: str | Path, state: dict[str, Any], kind: str) -> None:
     """``torch.save({**state, 'kind': kind})`` to ``path`` atomically.
 
-    A crash (even SIGKILL) mid-write leaves the previous checkpoint intact.
+    A crash (even SIGKILL) mid-write leaves the previous checkpoint intact; a SIGTERM or Ctrl-C
+    under ``stop_on_sigterm`` is held until the write is complete (``deferred_stops``).
 
     Args:
         path: file to write (``<run_dir>/checkpoint.pt``).
         state: the trainer's state (tensors, numbers, plain containers).
         kind: the trainer, 'rl' or 'il'; :func:`load_checkpoint` checks it.
     """
-    atomic_torch_save({**state, "kind": kind}, Path(path))
+    with deferred_stops():
+        atomic_torch_save({**state, "kind": kind}, Path(path))
 
 
 def _legacy_kind(state: dict[str, Any]) -> str | None:

@@ -2,7 +2,9 @@
 
 Both unwind the trainer (the last good checkpoint stays: checkpoint writes are atomic and a
 killed write removes its temporary file), and the command prints one line with the command that
-resumes and exits 130 (SIGINT) or 143 (SIGTERM).
+resumes and exits 130 (SIGINT) or 143 (SIGTERM). Inside :func:`deferred_stops` (every checkpoint
+write) a stop waits until the block ends: raised in the middle of ``torch.save``, it would be
+replaced by the zip writer's own error on unwinding.
 """
 
 from __future__ import annotations
@@ -18,6 +20,34 @@ class Terminated(KeyboardInterrupt):
     """Raised in the main thread when the process receives SIGTERM."""
 
 
+_deferring = 0
+_pending: KeyboardInterrupt | None = None
+
+
+@contextlib.contextmanager
+def deferred_stops() -> Iterator[None]:
+    """Hold a stop (SIGTERM, SIGINT under :func:`stop_on_sigterm`) that arrives in the block
+    and raise it when the block ends; an error raised by the block itself propagates unchanged
+    and the stop stays pending until the next such block ends."""
+    global _deferring, _pending
+    _deferring += 1
+    try:
+        yield
+    finally:
+        _deferring -= 1
+    if _deferring == 0 and _pending is not None:
+        exc, _pending = _pending, None
+        raise exc
+
+
+def _stop(exc: KeyboardInterrupt) -> None:
+    global _pending
+    if _deferring:
+        _pending = _pending or exc
+        return
+    raise exc
+
+
 def exit_code(exc: KeyboardInterrupt) -> int:
     """130 for Ctrl-C (SIGINT), 143 for SIGTERM: 128 + the signal number, as shells report."""
     return 143 if isinstance(exc, Terminated) else 130
@@ -30,10 +60,10 @@ def stop_on_sigterm() -> Iterator[None]:
     stopped by ``kill -INT`` as by Ctrl-C); the previous handlers are restored afterwards."""
 
     def on_term(signum: int, frame: Any) -> None:
-        raise Terminated(signum)
+        _stop(Terminated(signum))
 
     def on_int(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
+        _stop(KeyboardInterrupt())
 
     try:
         old_term = signal.signal(signal.SIGTERM, on_term)

@@ -67,7 +67,10 @@ def test_report_tables_csv_and_curves(tmp_path):
     assert row["success_at_500_mean"] == 0.0 and row["success_at_1000_mean"] == 1.0
     assert row["final_success_mean"] == 1.0
     assert row["success_area_mean"] == pytest.approx(0.5, abs=0.05)
-    assert "NDP >= ppo (mean final success) on 1 of 2 tasks." in md
+    assert (
+        "NDP >= ppo (mean final success) on 1 of 2 tasks: higher on 1, equal on 0 "
+        "(0 with both at 0), lower on 1." in md
+    )
     assert "| ndp | 0.525 |" in md  # mean over tasks of (0.85, 0.2)
     with (tmp_path / "out" / "rep.csv").open() as fh:
         rows = list(csv.DictReader(fh))
@@ -79,6 +82,26 @@ def test_report_tables_csv_and_curves(tmp_path):
         data = png.read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
         assert b"ndp report runs" in data  # the command, commit and date in the PNG's text
+
+
+def test_over_tasks_summary_splits_ties_and_counts_both_at_zero(tmp_path):
+    """MT50's "NDP >= PPO on n tasks" counts ties; the summary says how many are both at 0."""
+    runs = tmp_path / "runs"
+    for task, ndp, ppo in [
+        ("reach-v3", 0.9, 0.5),
+        ("push-v3", 0.0, 0.0),
+        ("pick-place-v3", 0.0, 0.3),
+    ]:
+        _rl_run(runs, task, "ndp", 0, ndp)
+        _rl_run(runs, task, "ppo", 0, ppo)
+    report([runs], tmp_path / "rep", "ndp report runs")
+    md = (tmp_path / "rep.md").read_text()
+    assert "Over tasks (3 of 3 tasks where every method has runs):" in md
+    assert (
+        "NDP >= ppo (mean final success) on 2 of 3 tasks: higher on 1, equal on 1 "
+        "(1 with both at 0), lower on 1." in md
+    )
+    assert "| ndp | 0.300 |" in md and "| ppo | 0.267 |" in md
 
 
 def test_report_refuses_a_cell_with_missing_seeds(tmp_path, capsys):

@@ -544,7 +544,8 @@ def _markdown(
 
 def _over_tasks(cells: Sequence[Cell]) -> list[str]:
     """Mean over tasks per method (tasks where every method has a value) and how many tasks
-    NDP >= each other method (final success), the paper's MT50 summary."""
+    NDP >= each other method (final success), the paper's MT50 summary, split into higher, equal
+    (and how many of those are both at 0, where the count says nothing) and lower."""
     tasks = list(dict.fromkeys(c.task for c in cells))
     labels = list(dict.fromkeys(c.label for c in cells))
     if len(tasks) < 2:
@@ -568,10 +569,15 @@ def _over_tasks(cells: Sequence[Cell]) -> list[str]:
         for lb in labels:
             if lb == "ndp":
                 continue
-            wins = sum(
-                by[(t, "ndp")].stat("final")[0] >= by[(t, lb)].stat("final")[0] for t in full
+            pairs = [(by[(t, "ndp")].stat("final")[0], by[(t, lb)].stat("final")[0]) for t in full]
+            higher = sum(a > b for a, b in pairs)
+            equal = sum(a == b for a, b in pairs)
+            zero = sum(a == b == 0 for a, b in pairs)
+            md.append(
+                f"NDP >= {lb} (mean final success) on {higher + equal} of {len(full)} tasks: "
+                f"higher on {higher}, equal on {equal} ({zero} with both at 0), "
+                f"lower on {len(full) - higher - equal}.  "
             )
-            md.append(f"NDP >= {lb} (mean final success) on {wins} of {len(full)} tasks.  ")
         md.append("")
     return md
 

@@ -215,6 +215,47 @@ def test_a_locked_run_is_not_trained_twice(tmp_path):
     assert sw.is_busy(job.run_dir) is None
 
 
+def test_a_sweep_waits_for_a_run_another_process_trains_then_takes_it_over(
+    tmp_path, monkeypatch, capsys
+):
+    """Two sweeps over one directory: a run held by another process is polled after this
+    sweep's own runs; when that process goes away unfinished, this sweep continues it."""
+    monkeypatch.setattr(sw, "BUSY_POLL_S", 0.2)
+    held_job, free_job = sw.make_jobs(
+        ["point-mass"], [Arm("ppo", "ppo")], [0, 1], 512, tmp_path, vector="sync"
+    )
+    held = sw._RunLock.take(held_job.run_dir)
+    assert isinstance(held, sw._RunLock)
+    released = threading.Timer(3.0, held.close)  # "the other sweep" dies after 3 s
+    released.start()
+    try:
+        res = sw.run_sweep([held_job, free_job], workers=1, progress_every=1.0)
+    finally:
+        released.cancel()
+        held.close()
+    out = capsys.readouterr().out
+    assert [o.status for o in res.outcomes] == ["done", "done"] and res.exit_code == 0
+    assert not res.failed and not res.busy
+    assert out.count("busy        point-mass ppo s0") == 1  # noted once, however often polled
+    assert "waiting for it after this sweep's other runs" in out and "busy elsewhere" in out
+    assert out.index("done        point-mass ppo s1") < out.index("done        point-mass ppo s0")
+    assert "2/2 finished (2 trained now, 0 already finished), 0 failed" in out
+
+
+def test_no_wait_busy_reports_the_run_as_busy_not_failed(tmp_path, capsys):
+    (job,) = sw.make_jobs(["point-mass"], [Arm("ppo", "ppo")], [0], 512, tmp_path)
+    held = sw._RunLock.take(job.run_dir)
+    try:
+        res = sw.run_sweep([job], workers=1, wait_busy=False)
+    finally:
+        held.close()
+    out = capsys.readouterr().out
+    assert [o.status for o in res.outcomes] == ["busy"] and res.exit_code == 1
+    assert res.failed == [] and len(res.busy) == 1
+    assert "0 failed, 1 busy elsewhere" in out and "BUSY point-mass ppo s0" in out
+    assert "FAILED" not in out and not (job.run_dir / sw.FAILED_NAME).exists()
+
+
 @pytest.mark.parametrize(
     ("argv", "bad", "close"),
     [

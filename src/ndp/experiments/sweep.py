@@ -14,11 +14,15 @@ executes a list of jobs:
 
 Resumable: a finished run is skipped, an interrupted run continues from its checkpoint, a run
 directory is locked (``.sweep.lock``, held by the trainer process too) so two sweeps never train
-one run at once. A failed run is retried once (from its checkpoint where it has one) and then
-reported with its error (the last lines of its ``train.log``; ``failed.json`` in its directory).
+one run at once: a run another process is training is left to it and, once this sweep's own work
+is done, polled until that process ends (then it is skipped as finished, or, when that process
+died, continued here), so several sweeps over one directory share its runs and each returns when
+all are finished (``wait_busy=False``: report them as busy instead). A failed run is retried
+once (from its checkpoint where it has one) and then reported with its error (the last lines of
+its ``train.log``; ``failed.json`` in its directory).
 Ctrl-C (or SIGTERM) stops every running trainer at its last checkpoint (each gets one SIGINT)
 and leaves everything resumable: the same command continues. Progress lines show the runs done /
-running / failed and an ETA from the env steps (epochs) done so far.
+running / failed / busy and an ETA from the env steps (epochs) done so far.
 
 Bad input is refused before anything starts (:func:`check_tasks`, :func:`check_methods`,
 :func:`parse_overrides`, :func:`check_arms`, :func:`check_plan`): the message names the bad
@@ -68,6 +72,8 @@ FAILED_NAME = "failed.json"
 RUN_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 """Environment of every trainer process: one thread per math library (the trainers also set
 torch to one thread: ``--torch-threads 1`` / ``--threads 1``)."""
+BUSY_POLL_S = 15.0
+"""Seconds between checks of a run that another process is training (see :func:`run_sweep`)."""
 STOP_GRACE_S = 120.0
 """Seconds a trainer gets to stop after its SIGINT before it is killed (a second Ctrl-C kills at
 once); either way the run resumes from its last checkpoint."""
@@ -148,14 +154,19 @@ class SweepResult:
     interrupted: bool
     seconds: float
     exit_code: int = 0
-    """130 after Ctrl-C, 143 after SIGTERM, 1 when runs failed, else 0."""
+    """130 after Ctrl-C, 143 after SIGTERM, 1 when runs failed or were left busy, else 0."""
 
     def _with(self, *status: str) -> list[Outcome]:
         return [o for o in self.outcomes if o is not None and o.status in status]
 
     @property
     def failed(self) -> list[Outcome]:
-        return self._with("failed", "busy")
+        return self._with("failed")
+
+    @property
+    def busy(self) -> list[Outcome]:
+        """Runs another process was training when this sweep ended (not finished here)."""
+        return self._with("busy")
 
     @property
     def finished(self) -> list[Outcome]:
@@ -533,6 +544,19 @@ class Progress:
 
     def started(self, job: Job) -> None:
         self.running.add(job.run_dir)
+        if self.status.get(job.run_dir) == "busy":  # polled again: it is queued work, not busy
+            del self.status[job.run_dir]
+
+    def waiting(self, outcome: Outcome, first: bool) -> None:
+        """A run another process is training: noted once, counted as busy while it waits."""
+        self.running.discard(outcome.job.run_dir)
+        self.status[outcome.job.run_dir] = "busy"
+        if first:
+            self.note(
+                f"busy        {outcome.job.name}: {outcome.error}; waiting for it after this "
+                "sweep's other runs",
+                with_counts=True,
+            )
 
     def finished(self, outcome: Outcome) -> None:
         self.running.discard(outcome.job.run_dir)
@@ -555,7 +579,7 @@ class Progress:
             st = self.status.get(j.run_dir)
             if st in ("done", "skipped"):
                 total += 1.0
-            elif j.run_dir in self.running:
+            elif j.run_dir in self.running or st == "busy":
                 total += run_fraction(j)
             else:
                 total += self.start_frac[j.run_dir]
@@ -564,7 +588,8 @@ class Progress:
     def counts(self) -> str:
         vals = list(self.status.values())
         done = sum(v in ("done", "skipped") for v in vals)
-        failed = sum(v in ("failed", "busy") for v in vals)
+        failed = sum(v == "failed" for v in vals)
+        busy = sum(v == "busy" for v in vals)
         queued = len(self.jobs) - len(vals) - len(self.running)
         work = self.work()
         elapsed = time.time() - self.t0
@@ -577,7 +602,8 @@ class Progress:
             eta = "?"
         return (
             f"{done}/{len(self.jobs)} done, {len(self.running)} running, {failed} failed, "
-            f"{queued} queued; {100 * work / max(1, len(self.jobs)):.0f}% of the budget; "
+            + (f"{busy} busy elsewhere, " if busy else "")
+            + f"{queued} queued; {100 * work / max(1, len(self.jobs)):.0f}% of the budget; "
             f"elapsed {_hms(elapsed)}, ETA {eta}"
         )
 
@@ -606,9 +632,15 @@ def run_sweep(
     retries: int = 1,
     progress_every: float = 30.0,
     out: TextIO | None = None,
+    wait_busy: bool = True,
 ) -> SweepResult:
     """Execute ``jobs`` (see the module doc); returns when every job has an outcome or the sweep
     was interrupted (``result.interrupted``; every run resumable).
+
+    A run that another process is training (its lock is held) is put aside; once nothing else
+    is queued it is tried again every :data:`BUSY_POLL_S` seconds, so it ends 'skipped' when
+    that process finished it, or is continued here from its checkpoint when that process
+    stopped. ``wait_busy=False``: its outcome is 'busy' at once (exit code 1).
 
     Raises:
         ValueError: a run directory holds another run, or two jobs share one (nothing started).
@@ -625,6 +657,8 @@ def run_sweep(
     outcomes: list[Outcome | None] = [None] * len(jobs)
     queue: deque[tuple[Job, int]] = deque((j, 1) for j in jobs)
     inflight: dict[Any, tuple[Job, int]] = {}
+    aside: dict[Path, tuple[float, Job, int, Outcome]] = {}  # busy elsewhere: next poll time
+    seen_busy: set[Path] = set()
     interrupted = False
     stop_code = 0
 
@@ -638,6 +672,11 @@ def run_sweep(
                 error="" if cancelled else f"{type(res).__name__}: {res}",
             )
         res.job, res.attempts = job, attempt
+        if res.status == "busy" and wait_busy and not interrupted:
+            aside[job.run_dir] = (time.time() + BUSY_POLL_S, job, attempt, res)
+            progress.waiting(res, first=job.run_dir not in seen_busy)
+            seen_busy.add(job.run_dir)
+            return
         if res.status == "failed" and attempt <= retries and not interrupted:
             progress.retry(res, attempt + 1, retries + 1)
             queue.appendleft((job, attempt + 1))
@@ -650,14 +689,24 @@ def run_sweep(
     try:
         with stop_on_sigterm():
             progress.note(f"sweep: {len(jobs)} runs on {be.describe()}; {progress.counts()}")
-            while queue or inflight:
+            while queue or inflight or aside:
+                if not queue:  # this sweep's own work is out: poll the runs others train
+                    now = time.time()
+                    for key, (due, job, attempt, _) in list(aside.items()):
+                        if due <= now:
+                            del aside[key]
+                            queue.append((job, attempt))
                 while queue and len(inflight) < be.slots:
                     job, attempt = queue.popleft()
                     h = be.submit(job)
                     inflight[h] = (job, attempt)
                     progress.started(job)
-                for h, res in be.wait(list(inflight), progress.timeout()):
-                    settle(h, res)
+                if inflight:
+                    for h, res in be.wait(list(inflight), progress.timeout()):
+                        settle(h, res)
+                elif aside:
+                    next_due = min(due for due, *_ in aside.values())
+                    time.sleep(max(0.05, min(progress.timeout(), next_due - time.time())))
                 progress.tick()
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (ndp.runs.signals.Terminated)
         interrupted, stop_code = True, exit_code(exc)
@@ -667,10 +716,12 @@ def run_sweep(
         for h, res in be.interrupt(list(inflight)):
             if h in inflight:
                 settle(h, res)
+        for _, job, _attempt, res in aside.values():  # still busy elsewhere: not ours to stop
+            outcomes[index[job.run_dir]] = res
     finally:
         be.close()
     result = SweepResult(jobs, outcomes, interrupted, time.time() - t0)
-    result.exit_code = stop_code or (1 if result.failed else 0)
+    result.exit_code = stop_code or (1 if result.failed or result.busy else 0)
     _print_summary(result, progress)
     return result
 
@@ -701,13 +752,17 @@ def _print_summary(result: SweepResult, progress: Progress) -> None:
     skipped = sum(o is not None and o.status == "skipped" for o in result.outcomes)
     lines = [
         f"sweep: {done + skipped}/{n} finished ({done} trained now, {skipped} already finished), "
-        f"{len(result.failed)} failed, {_hms(result.seconds)}"
+        f"{len(result.failed)} failed, "
+        + (f"{len(result.busy)} busy elsewhere, " if result.busy else "")
+        + _hms(result.seconds)
     ]
     for o in result.failed:
         lines.append(
             f"  FAILED {o.job.name} after {o.attempts} attempt(s): {o.error} "
             f"(log: {o.job.run_dir / 'train.log'})"
         )
+    for o in result.busy:
+        lines.append(f"  BUSY {o.job.name}: {o.error} (not trained by this sweep)")
     if result.interrupted:
         stopped = [o for o in result.outcomes if o is not None and o.status == "interrupted"]
         kept = sum((o.job.run_dir / "checkpoint.pt").is_file() for o in stopped)

@@ -94,6 +94,13 @@ def sweep_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--retries", type=int, default=1, help="retries of a failed run (default 1)")
     p.add_argument(
+        "--no-wait-busy",
+        dest="wait_busy",
+        action="store_false",
+        help="report runs that another sweep is training as busy (exit 1) instead of waiting "
+        "for them after this sweep's own runs",
+    )
+    p.add_argument(
         "--progress-every", type=float, default=30.0, help="seconds between progress lines"
     )
     p.add_argument(
@@ -296,6 +303,7 @@ def sweep_command(argv: list[str]) -> int:
         workers=args.jobs,
         address=args.address,
         retries=args.retries,
+        wait_busy=args.wait_busy,
         progress_every=args.progress_every,
     )
     if args.report is not None and not result.interrupted:

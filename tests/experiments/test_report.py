@@ -102,6 +102,11 @@ def test_over_tasks_summary_splits_ties_and_counts_both_at_zero(tmp_path):
         "(1 with both at 0), lower on 1." in md
     )
     assert "| ndp | 0.300 |" in md and "| ppo | 0.267 |" in md
+    # 3 or more tasks: one bar chart of final success per task and method, first in the page
+    png = tmp_path / "rep-over-tasks.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    figs = [line for line in md.splitlines() if line.startswith("![")]
+    assert figs[0] == "![rep-over-tasks](rep-over-tasks.png)" and len(figs) == 4
 
 
 def test_report_refuses_a_cell_with_missing_seeds(tmp_path, capsys):

@@ -644,4 +644,55 @@ def _plot_all(
             fig.savefig(path, dpi=80, metadata=meta)
             plt.close(fig)
             paths.append(path)
+    rl_tasks = list(dict.fromkeys(c.task for c in rl_cells))
+    if len(rl_tasks) >= 3:
+        paths.insert(0, _plot_over_tasks(rl_cells, rl_tasks, out, foot_lines, meta))
     return paths
+
+
+def _plot_over_tasks(
+    cells: Sequence[Cell],
+    tasks: list[str],
+    out: Path,
+    foot_lines: list[str],
+    meta: dict[str, str],
+) -> Path:
+    """``<out>-over-tasks.png``: final success (mean +- std over seeds) per task, one bar per
+    method, tasks top to bottom in the table's order (MT50's one-figure summary)."""
+    import matplotlib.pyplot as plt
+
+    labels = list(dict.fromkeys(c.label for c in cells))
+    by = {(c.task, c.label): c for c in cells}
+    height = 0.8 / len(labels)
+    fig, ax = plt.subplots(figsize=(6.4, 1.2 + 0.22 * len(tasks) * max(1, len(labels) / 2)))
+    y0 = np.arange(len(tasks))[::-1]
+    full = np.array(
+        [all(by.get((t, lb)) and by[(t, lb)].stat("final")[2] for lb in labels) for t in tasks]
+    )
+    for i, lb in enumerate(labels):
+        stats = [by[(t, lb)].stat("final") if (t, lb) in by else (np.nan, 0.0, 0) for t in tasks]
+        m = np.array([st[0] for st in stats], float)
+        sd = np.nan_to_num(np.array([st[1] for st in stats], float))
+        n = max((st[2] for st in stats), default=0)
+        ax.barh(
+            y0 + (len(labels) / 2 - i - 0.5) * height,
+            m,
+            height=height,
+            xerr=sd,
+            error_kw={"lw": 0.6},
+            label=f"{lb} (mean over tasks {np.mean(m[full]) if full.any() else np.nan:.3f}; "
+            f"{n} seed{'s' if n != 1 else ''})",
+        )
+    ax.set_yticks(y0, tasks, fontsize=6)
+    ax.set_ylim(-0.6, len(tasks) - 0.4)
+    ax.set_xlim(0, 1.02)
+    ax.set_xlabel("final success (last 10% of training updates)")
+    ax.grid(alpha=0.3, axis="x")
+    ax.legend(fontsize=7, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=min(2, len(labels)))
+    fig.suptitle(f"final success over {len(tasks)} tasks", fontsize=10)
+    fig.text(0.01, 0.002, "\n".join(foot_lines), fontsize=5, color="0.35", ha="left", va="bottom")
+    fig.tight_layout(rect=(0, 0.004 + 0.012 * len(foot_lines), 1, 1))
+    path = out.with_name(f"{out.name}-over-tasks.png")
+    fig.savefig(path, dpi=80, metadata=meta)
+    plt.close(fig)
+    return path

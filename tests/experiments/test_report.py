@@ -144,6 +144,11 @@ def test_report_reads_plain_runs_and_filters(tmp_path):
     _rl_run(runs, "pick", "ndp", 0, 0.5)  # filtered out below (its seeds would be missing)
     res = report([runs], tmp_path / "r", "cmd", tasks=["reach-v3"], methods=["ppo"], plots=False)
     assert [(r["task"], r["method"], r["n_seeds"]) for r in res["rows"]] == [("reach-v3", "ppo", 2)]
+    # rows follow the order of --methods (found: ndp before ppo)
+    res = report([runs], tmp_path / "r", "cmd", tasks=["reach-v3"], methods=["ppo", "ndp"])
+    assert [r["method"] for r in res["rows"]] == ["ppo", "ndp"]
+    md = (tmp_path / "r.md").read_text()
+    assert md.index("| reach-v3 | ppo |") < md.index("| reach-v3 | ndp |")
     with pytest.raises(ValueError, match="no runs of the methods"):
         report([runs], tmp_path / "r", "cmd", methods=["dyne"])
     with pytest.raises(FileNotFoundError):

@@ -282,7 +282,8 @@ def build_cells(
     tasks: Sequence[str] | None = None,
     methods: Sequence[str] | None = None,
 ) -> tuple[list[Cell], list[int]]:
-    """Cells (task x label, every task with every label of its kind), the expected seeds."""
+    """Cells (task x label, every task with every label of its kind; in the order of ``tasks``
+    and ``methods`` when given), the expected seeds."""
     infos = [
         i for i in infos if (not tasks or i.task in tasks) and (not methods or i.label in methods)
     ]
@@ -300,8 +301,13 @@ def build_cells(
     for i in infos:
         by_kind.setdefault("il" if i.kind == "il" else "rl", []).append(i)
     for group in by_kind.values():
+        # the order given (--tasks, --methods), else the order the runs were found in
         task_order = list(dict.fromkeys(i.task for i in group))
         label_order = list(dict.fromkeys(i.label for i in group))
+        if tasks:
+            task_order = [t for t in tasks if t in task_order]
+        if methods:
+            label_order = [m for m in methods if m in label_order]
         algo_of = {i.label: i.algo for i in group}
         kind_of = {i.label: i.kind for i in group}
         for t in task_order:

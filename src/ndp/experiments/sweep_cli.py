@@ -132,8 +132,8 @@ def report_parser() -> argparse.ArgumentParser:
         "--seeds", nargs="+", type=int, help="seeds every cell needs (default: all found)"
     )
     p.add_argument("--budgets", nargs="+", type=float, help="env steps for 'success @ b'")
-    p.add_argument("--tasks", nargs="+", help="only these tasks")
-    p.add_argument("--methods", nargs="+", help="only these method labels")
+    p.add_argument("--tasks", nargs="+", help="only these tasks, in this order")
+    p.add_argument("--methods", nargs="+", help="only these method labels, in this order")
     p.add_argument(
         "--allow-missing",
         action="store_true",

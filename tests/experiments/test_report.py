@@ -208,6 +208,10 @@ def test_report_deterministic_success_column_reads_and_writes_the_per_run_cache(
     assert by[("soccer-v3", "ndp")]["det_success_mean"] == 0.25
     md = (tmp_path / "rep.md").read_text()
     assert "deterministic success |" in md and "over 5 fresh episodes" in md
+    # the summary over tasks gains the mean deterministic success: ndp (1.0 + 0.25) / 2
+    assert "| method | mean final success | mean success area | mean deterministic success |" in md
+    assert next(r for r in md.splitlines() if r.startswith("| ndp |")).endswith(" 0.625 |")
+    assert next(r for r in md.splitlines() if r.startswith("| ppo |")).endswith(" 0.750 |")
     assert json.loads((runs / "push-v3-ppo-s0" / "eval-det-e5.json").read_text()) == {
         "success_any": 0.75
     }

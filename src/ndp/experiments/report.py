@@ -558,18 +558,24 @@ def _over_tasks(cells: Sequence[Cell]) -> list[str]:
         return []
     by = {(c.task, c.label): c for c in cells}
     full = [t for t in tasks if all(by[(t, lb)].stat("final")[2] > 0 for lb in labels)]
+    det = any(not math.isnan(n.get("det", math.nan)) for c in cells for n in c.numbers.values())
     md = [
         f"Over tasks ({len(full)} of {len(tasks)} tasks where every method has runs):",
         "",
-        "| method | mean final success | mean success area |",
-        "|---|---|---|",
+        "| method | mean final success | mean success area |"
+        + (" mean deterministic success |" if det else ""),
+        "|---|---|---|" + ("---|" if det else ""),
     ]
     for lb in labels:
         f = [by[(t, lb)].stat("final")[0] for t in full]
         a = [by[(t, lb)].stat("area")[0] for t in full]
         fm = f"{np.mean(f):.3f}" if f else "-"
         am = f"{np.mean(a):.3f}" if a else "-"
-        md.append(f"| {lb} | {fm} | {am} |")
+        row = f"| {lb} | {fm} | {am} |"
+        if det:
+            d = [v for v in (by[(t, lb)].stat("det")[0] for t in full) if not math.isnan(v)]
+            row += f" {np.mean(d):.3f} |" if len(d) == len(full) and d else " - |"
+        md.append(row)
     md.append("")
     if "ndp" in labels and full:
         for lb in labels:

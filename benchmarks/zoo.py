@@ -8,7 +8,8 @@ evaluated again, from the export, over ``--episodes`` fresh episodes (seeds 20,0
 from the selection's, so the published number is not the maximum over seeds it was picked by).
 ``OUT/README.md`` and ``OUT/zoo.json`` list every policy with its source run, training commit,
 selection and published success, and the command, commit and date. An existing export is
-replaced only after the new one is complete.
+replaced only after the new one is complete. A grid that does not cover every policy the
+index already lists is refused (``--replace-index`` drops those), as is one without any runs.
 
     python benchmarks/zoo.py --runs-dir RUNS --out zoo
 
@@ -61,6 +62,12 @@ def main(argv: list[str] | None = None) -> int:
         "--min-success", type=float, default=0.5, help="publish only a selection success >= this"
     )
     p.add_argument("--out", default="zoo")
+    p.add_argument(
+        "--replace-index",
+        action="store_true",
+        help="let this grid's index drop the published policies it does not cover (their "
+        "directories are removed); without it such a grid is refused",
+    )
     args = p.parse_args(argv)
     for name in ("select_episodes", "episodes"):
         if getattr(args, name) < 1:
@@ -69,6 +76,31 @@ def main(argv: list[str] | None = None) -> int:
             )
     if not 0.0 <= args.min_success <= 1.0:
         p.error(f"--min-success: expected a number in [0, 1], got {args.min_success}")
+    from ndp.experiments.sweep import check_tasks
+
+    try:
+        args.tasks = check_tasks(args.tasks)
+    except ValueError as exc:
+        p.error(f"--tasks: {exc}")
+    runs, out = Path(args.runs_dir), Path(args.out)
+    if not runs.is_dir():
+        p.error(f"--runs-dir: {runs} is not a directory")
+    index = out / "zoo.json"
+    earlier = json.loads(index.read_text())["policies"] if index.is_file() else []
+    grid = {(t, m) for t in args.tasks for m in args.methods}
+    outside = [r["policy"] for r in earlier if (r["task"], r["method"]) not in grid]
+    if outside and not args.replace_index:
+        p.error(
+            f"--tasks / --methods: {index} lists policies this grid does not cover "
+            f"({', '.join(outside)}); name their tasks and methods too, or pass --replace-index "
+            "to drop them"
+        )
+    found = [(t, m) for t, m in sorted(grid) if any(runs.glob(f"{t}-{m}-s*/metrics.csv"))]
+    if not found:
+        p.error(
+            f"--runs-dir: no runs of {' / '.join(args.tasks)} x {' / '.join(args.methods)} in "
+            f"{runs} (expected RUNS/<task>-<method>-s<seed>); nothing written"
+        )
 
     import torch
 
@@ -79,9 +111,6 @@ def main(argv: list[str] | None = None) -> int:
     from ndp.rl.policy import export_policy, load_policy
     from ndp.runs import run_commits
 
-    runs, out = Path(args.runs_dir), Path(args.out)
-    if not runs.is_dir():
-        raise SystemExit(f"zoo: --runs-dir {runs} is not a directory")
     out.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
     left_out: list[str] = []
@@ -89,6 +118,11 @@ def main(argv: list[str] | None = None) -> int:
         for method in args.methods:
             best = pick_best(runs, task, method, args.seeds, args.select_episodes)
             if best is None:
+                kept = [r for r in earlier if (r["task"], r["method"]) == (task, method)]
+                kept = [r for r in kept if (out / r["policy"]).is_dir()]
+                rows += [{**r, "carried_over": True} for r in kept]
+                print(f"[zoo] {task} x {method}: no finished run of seeds {args.seeds}"
+                      + ("; the published policy stays" if kept else ""), flush=True)  # fmt: skip
                 continue
             seed, run, sel = best
             if sel < args.min_success:
@@ -115,6 +149,8 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(row)
             print(f"[zoo] {name}: seed {seed}, selection {sel:.2f}, published "
                   f"{ev['success_any']:.2f}", flush=True)  # fmt: skip
+    if not any(not r.get("carried_over") for r in rows) and not left_out:
+        raise SystemExit(f"zoo: no finished runs of this grid in {runs}; nothing written")
     cmd = "python benchmarks/zoo.py " + " ".join(argv if argv is not None else sys.argv[1:])
     meta = {"command": cmd, "commit": git_commit(), "date": time.strftime("%Y-%m-%d"),
             "select_episodes": args.select_episodes, "episodes": args.episodes,
@@ -139,8 +175,10 @@ def main(argv: list[str] | None = None) -> int:
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
+        note = " (from an earlier run of this script)" if r.get("carried_over") else ""
         md.append(
-            f"| `{r['policy']}` | {r['task']} | {r['method']} | {r['seed']} | {r['steps']:,} | "
+            f"| `{r['policy']}`{note} | {r['task']} | {r['method']} | {r['seed']} | "
+            f"{r['steps']:,} | "
             f"{', '.join(r['trained_at']) or 'not recorded'} | {r['selection_success']:.2f} | "
             f"{r['success']:.2f} | {r['success_final']:.2f} | {r['episode_return']:.1f} |"
         )
@@ -148,6 +186,8 @@ def main(argv: list[str] | None = None) -> int:
         md += ["", f"Not published (no seed reached {args.min_success:.2f} in the selection): "
                + "; ".join(left_out) + "."]  # fmt: skip
     atomic_write_text(out / "README.md", "\n".join(md) + "\n")
+    for name in outside:  # --replace-index: dropped from the index just written
+        shutil.rmtree(out / name, ignore_errors=True)
     print("\n".join(md))
     return 0
 

@@ -53,3 +53,46 @@ def test_a_published_policy_reaches_its_published_success(name):
     row = next(r for r in META["policies"] if r["policy"] == name)
     ev = evaluate_policy(load_policy(ZOO / name), META["episodes"], True, 20_000)
     assert abs(ev["success_any"] - row["success"]) <= 0.1, (ev, row)
+
+
+def _zoo_script():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "bench_zoo", Path(__file__).resolve().parents[1] / "benchmarks" / "zoo.py"
+    )
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_zoo_script_refuses_bad_grids_before_writing_anything(tmp_path, capsys):
+    zoo = _zoo_script()
+    runs, out = tmp_path / "runs", tmp_path / "zoo"
+    runs.mkdir()
+    (runs / "push-v3-ndp-s0").mkdir()
+    (runs / "push-v3-ndp-s0" / "metrics.csv").write_text("update\n")
+    cases = [
+        (["--tasks", "psh-v3"], "--tasks: task: unknown"),  # with the close match
+        (["--tasks", "soccer-v3"], "--runs-dir: no runs of soccer-v3 x"),
+    ]
+    for extra, msg in cases:
+        with pytest.raises(SystemExit) as exc:
+            zoo.main(["--runs-dir", str(runs), "--out", str(out), *extra])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert msg in err, err
+    # an index listing a policy outside the grid: refused unless --replace-index
+    out.mkdir()
+    (out / "throw-ppo").mkdir()
+    row = {"policy": "throw-ppo", "task": "throw", "method": "ppo"}
+    (out / "zoo.json").write_text(json.dumps({"policies": [row]}))
+    with pytest.raises(SystemExit) as exc:
+        zoo.main(["--runs-dir", str(runs), "--out", str(out), "--tasks", "push-v3"])
+    assert exc.value.code == 2
+    assert "lists policies this grid does not cover (throw-ppo)" in capsys.readouterr().err
+    # a grid whose runs are all unfinished writes nothing (the index and policy stay)
+    with pytest.raises(SystemExit, match="no finished runs of this grid"):
+        zoo.main(["--runs-dir", str(runs), "--out", str(out), "--tasks", "push-v3", "throw"])
+    assert json.loads((out / "zoo.json").read_text()) == {"policies": [row]}
+    assert (out / "throw-ppo").is_dir()

@@ -8,13 +8,13 @@ task lists are built when a sweep asks for them (:meth:`Study.arm_specs`, :meth:
 
 Arms that need something this version may lack:
 
-- ``pending_method`` arms (VICES, Dyn-E, and their ablations) join their study once their
-  method is registered (``ndp.rl.methods.METHODS``); until then the sweep leaves them out and
-  says so;
+- ``pending_method`` arms (VICES, Dyn-E and their ablations, registered now) join their study
+  only where their method is registered (``ndp.rl.methods.METHODS``); elsewhere the sweep
+  leaves them out and says so;
 - ``in_default=False`` arms run only when named with ``--arms``;
-- arms with ``requires`` use trainer options another change adds (``--learn-az``,
-  ``--only-g``); while ``ndp rl train`` does not know them, the sweep refuses the study before
-  anything starts, naming the arm and the option (``--skip-unavailable`` leaves them out).
+- arms with ``requires`` use trainer options (``--learn-az``, ``--only-g``); where
+  ``ndp rl train`` does not know them, the sweep refuses the study before anything starts,
+  naming the arm and the option (``--skip-unavailable`` leaves them out).
 """
 
 from __future__ import annotations
@@ -213,12 +213,13 @@ STUDIES: dict[str, Study] = {
     for s in (
         Study(
             name="paper-five",
-            title="The paper's five tasks: NDP vs PPO vs PPO-multi",
+            title="The paper's five tasks: NDP vs PPO, PPO-multi, VICES and Dyn-E",
             doc=(
-                "Throw, Pick (Jaco), Push, Soccer, Faucet-open (Meta-World v3) x NDP, PPO and "
-                "PPO-multi (VICES and Dyn-E join once their methods are registered); same PPO "
-                "settings, seeds and budget for every method. Success = charts/success_any of "
-                "the training episodes (stochastic policy)."
+                "Throw, Pick (Jaco), Push, Soccer, Faucet-open (Meta-World v3) x NDP, PPO, "
+                "PPO-multi, VICES and Dyn-E (vices-pos and vices-low-freq when named with "
+                "--arms); same budget, seeds and evaluation for every method, same PPO settings "
+                "for the PPO-trained ones. Success = charts/success_any of the training episodes "
+                "(stochastic policy)."
             ),
             tasks=lambda: PAPER_FIVE_TASKS,
             arms=_paper_five_arms,
@@ -230,7 +231,7 @@ STUDIES: dict[str, Study] = {
             doc=(
                 "The 50 Meta-World v3 tasks (metaworld's order) x NDP and PPO. The report adds "
                 "the paper's summary: the mean success over tasks per method and on how many "
-                "tasks NDP >= PPO (final success)."
+                "tasks NDP >= PPO (final success; higher, equal, of those both at 0, lower)."
             ),
             tasks=_mt50_tasks,
             arms=_mt50_arms,
@@ -246,8 +247,9 @@ STUDIES: dict[str, Study] = {
                 "decision): RBF kind (every other kind of ndp.dmp.basis.RBF_FUNCTIONS), N in "
                 "{2, 6, 10, 15, 20}, integration steps in {15, 25, 35, 45}, k in "
                 "{3, 5, 7, 10, 15}, a learned a_z (--learn-az: per sample, clamped to [0.5, 30], "
-                "b_z = a_z / 4) and a goal-only NDP (--only-g); VICES-pos and VICES-low-freq "
-                "once VICES is registered. Values equal to the reference are the 'ndp' arm."
+                "b_z = a_z / 4), a goal-only NDP (--only-g), and VICES in end-effector space "
+                "(vices-pos) and at NDP's decision rate (vices-low-freq). Values equal to the "
+                "reference are the 'ndp' arm."
             ),
             tasks=lambda: ("throw",),
             arms=_ablation_arms,

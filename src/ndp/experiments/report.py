@@ -548,16 +548,25 @@ def _markdown(
     return md
 
 
+def _task_grid(
+    cells: Sequence[Cell],
+) -> tuple[list[str], list[str], dict[tuple[str, str], Cell], list[str]]:
+    """Tasks and labels in table order, the cell of each (task, label), and the tasks where
+    every label has a final success (the ones the summaries over tasks average)."""
+    tasks = list(dict.fromkeys(c.task for c in cells))
+    labels = list(dict.fromkeys(c.label for c in cells))
+    by = {(c.task, c.label): c for c in cells}
+    full = [t for t in tasks if all(by[(t, lb)].stat("final")[2] > 0 for lb in labels)]
+    return tasks, labels, by, full
+
+
 def _over_tasks(cells: Sequence[Cell]) -> list[str]:
     """Mean over tasks per method (tasks where every method has a value) and how many tasks
     NDP >= each other method (final success), the paper's MT50 summary, split into higher, equal
     (and how many of those are both at 0, where the count says nothing) and lower."""
-    tasks = list(dict.fromkeys(c.task for c in cells))
-    labels = list(dict.fromkeys(c.label for c in cells))
+    tasks, labels, by, full = _task_grid(cells)
     if len(tasks) < 2:
         return []
-    by = {(c.task, c.label): c for c in cells}
-    full = [t for t in tasks if all(by[(t, lb)].stat("final")[2] > 0 for lb in labels)]
     det = any(not math.isnan(n.get("det", math.nan)) for c in cells for n in c.numbers.values())
     md = [
         f"Over tasks ({len(full)} of {len(tasks)} tasks where every method has runs):",
@@ -656,15 +665,13 @@ def _plot_all(
             fig.savefig(path, dpi=80, metadata=meta)
             plt.close(fig)
             paths.append(path)
-    rl_tasks = list(dict.fromkeys(c.task for c in rl_cells))
-    if len(rl_tasks) >= 3:
-        paths.insert(0, _plot_over_tasks(rl_cells, rl_tasks, out, foot_lines, meta))
+    if len({c.task for c in rl_cells}) >= 3:
+        paths.insert(0, _plot_over_tasks(rl_cells, out, foot_lines, meta))
     return paths
 
 
 def _plot_over_tasks(
     cells: Sequence[Cell],
-    tasks: list[str],
     out: Path,
     foot_lines: list[str],
     meta: dict[str, str],
@@ -673,16 +680,13 @@ def _plot_over_tasks(
     method, tasks top to bottom in the table's order (MT50's one-figure summary)."""
     import matplotlib.pyplot as plt
 
-    labels = list(dict.fromkeys(c.label for c in cells))
-    by = {(c.task, c.label): c for c in cells}
+    tasks, labels, by, complete = _task_grid(cells)
+    full = np.array([t in complete for t in tasks])
     height = 0.8 / len(labels)
     fig, ax = plt.subplots(figsize=(6.4, 1.2 + 0.22 * len(tasks) * max(1, len(labels) / 2)))
     y0 = np.arange(len(tasks))[::-1]
-    full = np.array(
-        [all(by.get((t, lb)) and by[(t, lb)].stat("final")[2] for lb in labels) for t in tasks]
-    )
     for i, lb in enumerate(labels):
-        stats = [by[(t, lb)].stat("final") if (t, lb) in by else (np.nan, 0.0, 0) for t in tasks]
+        stats = [by[(t, lb)].stat("final") for t in tasks]
         m = np.array([st[0] for st in stats], float)
         sd = np.nan_to_num(np.array([st[1] for st in stats], float))
         n = max((st[2] for st in stats), default=0)

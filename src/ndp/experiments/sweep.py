@@ -541,17 +541,20 @@ class Progress:
         self.work0 = sum(self.start_frac.values())
         self.status: dict[Path, str] = {}
         self.running: set[Path] = set()
+        self.noted_busy: set[Path] = set()
 
     def started(self, job: Job) -> None:
         self.running.add(job.run_dir)
         if self.status.get(job.run_dir) == "busy":  # polled again: it is queued work, not busy
             del self.status[job.run_dir]
 
-    def waiting(self, outcome: Outcome, first: bool) -> None:
+    def waiting(self, outcome: Outcome) -> None:
         """A run another process is training: noted once, counted as busy while it waits."""
-        self.running.discard(outcome.job.run_dir)
-        self.status[outcome.job.run_dir] = "busy"
-        if first:
+        run = outcome.job.run_dir
+        self.running.discard(run)
+        self.status[run] = "busy"
+        if run not in self.noted_busy:
+            self.noted_busy.add(run)
             self.note(
                 f"busy        {outcome.job.name}: {outcome.error}; waiting for it after this "
                 "sweep's other runs",
@@ -658,7 +661,6 @@ def run_sweep(
     queue: deque[tuple[Job, int]] = deque((j, 1) for j in jobs)
     inflight: dict[Any, tuple[Job, int]] = {}
     aside: dict[Path, tuple[float, Job, int, Outcome]] = {}  # busy elsewhere: next poll time
-    seen_busy: set[Path] = set()
     interrupted = False
     stop_code = 0
 
@@ -674,8 +676,7 @@ def run_sweep(
         res.job, res.attempts = job, attempt
         if res.status == "busy" and wait_busy and not interrupted:
             aside[job.run_dir] = (time.time() + BUSY_POLL_S, job, attempt, res)
-            progress.waiting(res, first=job.run_dir not in seen_busy)
-            seen_busy.add(job.run_dir)
+            progress.waiting(res)
             return
         if res.status == "failed" and attempt <= retries and not interrupted:
             progress.retry(res, attempt + 1, retries + 1)

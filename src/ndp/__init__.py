@@ -54,6 +54,8 @@ def make_env(
     horizon: int | None = None,
     seed: int | None = None,
     render_mode: str | None = None,
+    reward_version: str = "v2",
+    fixed_goal: int | None = None,
 ) -> Any:
     """The chunked env of a task: k sub-steps per decision (``k = 1``: plain per-step).
 
@@ -64,6 +66,11 @@ def make_env(
         horizon: episode length in env steps (None: the task's default).
         seed: seed of the first reset (later resets continue its generator).
         render_mode: None or ``"rgb_array"``.
+        reward_version: Meta-World's reward function, ``"v2"`` (default) or ``"v1"`` (the 2021
+            release's shaped rewards; success is the v2 evaluation under both).
+        fixed_goal: None (a fresh seeded goal every reset) or the seed of the one task
+            configuration every reset uses (a run with ``goals="fixed"`` uses
+            ``ndp.envs.fixed_goal_seed(run_seed)``).
 
     Returns:
         An :class:`ndp.envs.ChunkedEnv` (actions [k, A]; info with the robot and commanded
@@ -78,7 +85,14 @@ def make_env(
             raise
         raise hint from exc
 
-    base = make_step_env(task, horizon=horizon, seed=seed, render_mode=render_mode)
+    base = make_step_env(
+        task,
+        horizon=horizon,
+        seed=seed,
+        render_mode=render_mode,
+        reward_version=reward_version,
+        fixed_goal=fixed_goal,
+    )
     return ChunkedEnv(base, k, stale_world=stale_world)
 
 

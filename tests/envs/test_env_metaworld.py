@@ -7,7 +7,7 @@ import pytest
 from metaworld.policies import ENV_POLICY_MAP
 
 from ndp.envs import ChunkedEnv, make_env
-from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, metaworld_env_names
+from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, V1_REWARD_BROKEN, metaworld_env_names
 
 # Tasks whose expert is run in the default suite (the full 50 run under -m slow).
 EXPERT_TASKS = ["reach-v3", "push-v3", "faucet-open-v3", "drawer-close-v3", "button-press-v3"]
@@ -123,9 +123,10 @@ def _assert_same(a: dict, b: dict) -> None:
             assert a[key] == b[key], key
 
 
-def check_reward_has_no_side_effects(name: str) -> None:
+def check_reward_has_no_side_effects(name: str, reward_version: str = "v2") -> None:
     """stale_reward leaves the env untouched, and a twin env that never called it agrees."""
-    env, twin = make_env(name), make_env(name)
+    env = make_env(name, reward_version=reward_version)
+    twin = make_env(name, reward_version=reward_version)
     env.reset(seed=2)
     twin.reset(seed=2)
     rng = np.random.default_rng(0)
@@ -148,9 +149,15 @@ def check_reward_has_no_side_effects(name: str) -> None:
 
 
 @pytest.mark.parametrize("name", metaworld_env_names())
-def test_reward_function_has_no_side_effects_all_tasks(name):
-    # All 50 in the default suite (about 25 s): the stale-world rule relies on it.
-    check_reward_has_no_side_effects(name)
+@pytest.mark.parametrize("version", ["v2", "v1"])
+def test_reward_function_has_no_side_effects_all_tasks(name, version):
+    # All 50 x both reward versions in the default suite (about 50 s): the stale-world rule
+    # relies on it (v1 rewards read site positions and attributes set at reset, such as push's
+    # maxPushDist). assembly-v3's v1 reward does not run in metaworld 3.1.1: refused at
+    # construction (test_v1_reward_refused_where_metaworld_cannot_run_it).
+    if version == "v1" and name in V1_REWARD_BROKEN:
+        pytest.skip("v1 reward refused")
+    check_reward_has_no_side_effects(name, version)
 
 
 def test_command_state_is_the_mocap_target_that_leads_the_hand():
@@ -172,12 +179,14 @@ def test_command_state_is_the_mocap_target_that_leads_the_hand():
     env.close()
 
 
-def _reward_forms(name: str, decisions: int = 30, k: int = 5) -> tuple[float, int]:
+def _reward_forms(
+    name: str, decisions: int = 30, k: int = 5, reward_version: str = "v2"
+) -> tuple[float, int]:
     """(max |full - observation-only| stale reward, states where the world had moved) on a
     noisy-expert episode (world snapshot after each decision's first sub-step)."""
     from ndp.envs.metaworld_env import WORLD_OBS
 
-    env = make_env(name, horizon=150)
+    env = make_env(name, horizon=150, reward_version=reward_version)
     mw = env.unwrapped
     policy = ENV_POLICY_MAP[name]()
     rng = np.random.default_rng(0)
@@ -199,13 +208,20 @@ def _reward_forms(name: str, decisions: int = 30, k: int = 5) -> tuple[float, in
 
 @pytest.mark.filterwarnings("ignore:Constant")
 @pytest.mark.parametrize("name", metaworld_env_names())
-def test_reward_from_obs_flag_is_measured(name):
-    """The task table's reward_from_obs flag: both stale-reward forms agree exactly on recorded
-    states where it is set (while the world moved), and differ where it is not."""
+@pytest.mark.parametrize("version", ["v2", "v1"])
+def test_reward_from_obs_flag_is_measured(name, version):
+    """The reward_from_obs flag of each reward version (the task table's for v2): both
+    stale-reward forms agree exactly on recorded states where it is set (while the world
+    moved), and differ where it is not."""
     from ndp.envs import TASKS
+    from ndp.envs.metaworld_env import reward_from_obs
 
-    diff, moved = _reward_forms(name)
-    if TASKS[name].reward_from_obs:
+    if version == "v1" and name in V1_REWARD_BROKEN:
+        pytest.skip("v1 reward refused")
+    diff, moved = _reward_forms(name, reward_version=version)
+    if version == "v2":
+        assert TASKS[name].reward_from_obs == reward_from_obs(name, "v2")
+    if reward_from_obs(name, version):
         assert moved > 0 and diff == 0.0
     else:
         assert diff > 1e-6

@@ -126,6 +126,10 @@ def _no_env(*a, **k):
         ({"policy": {"n_basis": 0}}, "n_basis"),
         ({"ppo": {"clip": 0.0}}, "clip"),
         ({"ppo": {"gamma": 1.5}}, "gamma"),
+        ({"reward_version": "v3"}, "reward_version: expected 'v1' or 'v2'"),
+        ({"task": "throw", "reward_version": "v1"}, "reward_version: 'v1' exists for Meta-World"),
+        ({"task": "assembly-v3", "reward_version": "v1"}, "reward_version: assembly-v3's v1"),
+        ({"goals": "one"}, "goals: expected 'random' or 'fixed'"),
     ],
 )
 def test_bad_input_fails_before_any_env(monkeypatch, tmp_path, kwargs, match):
@@ -200,3 +204,36 @@ def test_an_explicit_dmp_frame_wins_and_old_configs_keep_theirs():
     assert (back.policy.dmp_state, back.policy.dmp_velocity) == ("commanded", "zero")
     with pytest.raises(ValueError, match="dmp_state"):
         PolicyConfig(dmp_state="mocap")
+
+
+def test_task_options_reach_every_env_of_the_run_and_its_evaluation(tmp_path):
+    """goals='fixed' and reward_version are recorded in config.json, every training env gets the
+    run's fixed goal (drawn from its seed), and the trained policy's env is the same task."""
+    from ndp.envs import fixed_goal_seed
+    from ndp.rl.evaluate import load_policy
+
+    run = tmp_path / "r"
+    cfg = TrainConfig(
+        task="push-v3", algo="ppo-multi", goals="fixed", reward_version="v1", seed=3,
+        steps=200, num_envs=2, vector="sync", run_dir=str(run), progress=False,
+        tensorboard=False,
+    )  # fmt: skip
+    tr = Trainer(cfg)
+    try:
+        for env in tr.envs.envs:
+            base = env.unwrapped
+            assert base.fixed_goal == fixed_goal_seed(3) and base.reward_version == "v1"
+        tr.train()
+    finally:
+        tr.close()
+    saved = json.loads((run / "config.json").read_text())
+    assert saved["goals"] == "fixed" and saved["reward_version"] == "v1"
+    env = load_policy(run).make_env()
+    assert env.unwrapped.fixed_goal == fixed_goal_seed(3)
+    assert env.unwrapped.reward_version == "v1"
+    env.close()
+    # a config written before the options existed runs the defaults
+    old = {k: v for k, v in saved.items() if k not in ("goals", "reward_version")}
+    back = TrainConfig.from_dict(old)
+    assert (back.goals, back.reward_version) == ("random", "v2")
+    assert back.env_options() == {"reward_version": "v2"}

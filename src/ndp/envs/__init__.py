@@ -12,7 +12,13 @@ All tasks are registered with gymnasium as ``ndp/<name>`` (``ndp/push-v3``,
 """
 
 from ndp.envs.chunked import ChunkedEnv
-from ndp.envs.factory import make_env, register_envs, register_torque_envs
+from ndp.envs.factory import (
+    fixed_goal_seed,
+    make_env,
+    register_envs,
+    register_torque_envs,
+    task_options,
+)
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import MetaWorldEnv
 from ndp.envs.render import write_mp4
@@ -37,11 +43,13 @@ __all__ = [
     "MetaWorldEnv",
     "TaskSpec",
     "finer_spec",
+    "fixed_goal_seed",
     "get_task_spec",
     "make_env",
     "register_envs",
     "register_torque_envs",
     "substep_factors",
+    "task_options",
     "torque_variant",
     "write_mp4",
 ]

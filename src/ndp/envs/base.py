@@ -106,6 +106,19 @@ def warning_count(data: mujoco.MjData) -> int:
     )
 
 
+def check_fixed_goal(value: Any) -> int | None:
+    """``fixed_goal`` checked: None or an integer >= 0 (numpy integers accepted).
+
+    Raises:
+        ValueError: anything else (named in the message).
+    """
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ValueError(f"fixed_goal: expected None or an integer >= 0, got {value!r}")
+    return int(value)
+
+
 def sim_unstable(data: mujoco.MjData, warnings_before: int) -> bool:
     """True if MuJoCo warned since ``warnings_before`` (:func:`warning_count`) or qpos / qvel
     hold a NaN or inf."""
@@ -129,6 +142,11 @@ class NDPEnv(gym.Env):
     """The simulator went unstable this episode (MuJoCo envs; cleared by reset)."""
     _pending_seed: int | None = None
     """Seed for the next ``reset()`` that is not given one."""
+    fixed_goal: int | None = None
+    """None: every reset draws a fresh task configuration (objects, goal) from the seeded
+    ``np_random``; an int: every reset draws it from a fresh generator seeded with this value,
+    so every episode has the same configuration (the release's fixed goal; ``goals="fixed"``
+    of a run)."""
 
     def _setup(self, horizon: Any, render_mode: str | None, action_dim: int) -> None:
         """Check and store ``horizon`` and ``render_mode``; set the ``[-1, 1]^action_dim``
@@ -157,6 +175,17 @@ class NDPEnv(gym.Env):
         if seed is None and self._pending_seed is not None:
             seed, self._pending_seed = self._pending_seed, None
         super().reset(seed=seed)
+
+    def _set_fixed_goal(self, fixed_goal: Any) -> None:
+        """Check and store ``fixed_goal`` (None, or an int >= 0)."""
+        self.fixed_goal = check_fixed_goal(fixed_goal)
+
+    def _task_rng(self) -> np.random.Generator:
+        """The generator this reset's task configuration is drawn from: ``np_random`` (fresh
+        goals), or a new generator seeded with ``fixed_goal`` (the same goal every reset)."""
+        if self.fixed_goal is None:
+            return self.np_random
+        return np.random.default_rng(self.fixed_goal)
 
     # ------------------------------------------------------------------ step helpers
     def _check_action(self, action: Any) -> np.ndarray:

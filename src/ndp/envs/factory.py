@@ -61,6 +61,8 @@ def make_env(
     horizon: int | None = None,
     render_mode: str | None = None,
     substeps: int = 1,
+    reward_version: str = "v2",
+    fixed_goal: int | None = None,
     **kw: Any,
 ) -> gym.Env:
     """Create the plain per-step env of a task.
@@ -78,6 +80,12 @@ def make_env(
         substeps: m: each env step is ``1 / m`` of the task's (``ndp.envs.spec.finer_spec``:
             ``frame_skip / m`` simulator steps, ``action_scale / m`` per delta action); one of
             ``ndp.envs.spec.substep_factors(spec)`` (1 for the toy and torque-actuated rows).
+        reward_version: ``"v2"`` (default) or ``"v1"``: Meta-World's reward function (v1: the
+            shaped rewards the 2021 release trained on; success stays the v2 evaluation).
+            Meta-World tasks only.
+        fixed_goal: None (a fresh seeded task configuration every reset) or the seed of the
+            one configuration (objects, goal) every reset uses; :func:`fixed_goal_seed` derives
+            it from a run's seed.
         **kw: Passed to the env class (``width``, ``height``, ``camera_name`` for Meta-World,
             ``camera`` for Jaco).
 
@@ -95,6 +103,7 @@ def make_env(
         horizon = spec.horizon
     if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
         raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
+    kw.update(task_options(spec, reward_version, fixed_goal))
     families = TORQUE_FAMILIES if spec.actuation == "torque" else FAMILIES
     if spec.family not in families:
         raise ValueError(
@@ -104,6 +113,43 @@ def make_env(
     env = families[spec.family](spec, horizon, render_mode, **kw)
     defer_seed(env, seed)
     return env
+
+
+def task_options(spec: Any, reward_version: str = "v2", fixed_goal: Any = None) -> dict[str, Any]:
+    """The env-class keywords of the task options, checked against the task's row.
+
+    Raises:
+        ValueError: a bad value, v1 rewards for a task that is not Meta-World's, or a Meta-World
+            task whose v1 reward metaworld cannot run (named in the message).
+    """
+    from ndp.envs.base import check_fixed_goal
+    from ndp.envs.metaworld_env import V1_REWARD_BROKEN, check_reward_version
+
+    reward_version = check_reward_version(reward_version)
+    out: dict[str, Any] = {}
+    if spec.family == "metaworld":
+        if reward_version == "v1" and (spec.metaworld_name or spec.name) in V1_REWARD_BROKEN:
+            raise ValueError(
+                f"reward_version: {spec.name}'s v1 reward does not run in metaworld 3.1.1; use 'v2'"
+            )
+        out["reward_version"] = reward_version
+    elif reward_version != "v2":
+        raise ValueError(
+            f"reward_version: 'v1' exists for Meta-World tasks only, got task {spec.name!r}"
+        )
+    goal = check_fixed_goal(fixed_goal)
+    if goal is not None:
+        out["fixed_goal"] = goal
+    return out
+
+
+def fixed_goal_seed(run_seed: int) -> int:
+    """The ``fixed_goal`` of a run with ``goals="fixed"``: derived from the run's seed (distinct
+    from its env reset seeds), so every env of the run, and its evaluation, share one goal and
+    runs of other seeds have other goals."""
+    import numpy as np
+
+    return int(np.random.SeedSequence([int(run_seed), 0x6F41]).generate_state(1)[0])
 
 
 def _make_registered(name: str, **kw: Any) -> gym.Env:

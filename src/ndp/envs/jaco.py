@@ -222,6 +222,7 @@ class JacoEnv(NDPEnv, EzPickle):
         height: int = 480,
         camera: str = "side",
         substeps: int = 1,
+        fixed_goal: int | None = None,
     ) -> None:
         """Create the env.
 
@@ -235,14 +236,19 @@ class JacoEnv(NDPEnv, EzPickle):
             substeps: m, a divisor of ``FRAME_SKIP``: one env step is ``FRAME_SKIP / m``
                 simulator steps and an action moves the targets ``1 / m`` as far (see the
                 module docstring).
+            fixed_goal: None (a fresh seeded cube / basket jitter every reset) or the seed of
+                the one jitter every reset uses (the release's fixed goal).
         """
-        EzPickle.__init__(self, task, horizon, render_mode, width, height, camera, substeps)
+        EzPickle.__init__(
+            self, task, horizon, render_mode, width, height, camera, substeps, fixed_goal
+        )
         self.substeps = check_substeps(substeps, FRAME_SKIP)
         self._frame_skip = FRAME_SKIP // self.substeps
         self.control_dt = CONTROL_DT / self.substeps
         if task not in ("throw", "pick"):
             raise ValueError(f"task: expected 'throw' or 'pick', got {task!r}")
         self._setup(horizon, render_mode, action_dim=self._action_dim())
+        self._set_fixed_goal(fixed_goal)
         self.task = task
         self.width, self.height, self.camera = int(width), int(height), camera
         self.model = self._build_model()
@@ -375,7 +381,7 @@ class JacoEnv(NDPEnv, EzPickle):
         self._reset_rng(seed)
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        jitter = self.np_random.uniform(-0.05, 0.05, size=2)
+        jitter = self._task_rng().uniform(-0.05, 0.05, size=2)
         if self.task == "pick":
             home, fingers = PICK_HOME, FINGER_OPEN
             cube = np.array([jitter[0], 0.5 + jitter[1], CUBE_HALF])

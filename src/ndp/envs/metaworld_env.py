@@ -27,6 +27,11 @@ from gymnasium.utils.ezpickle import EzPickle
 
 from ndp.envs.base import NDPEnv, check_substeps, sim_unstable, warning_count
 
+REWARD_VERSIONS = ("v1", "v2")
+"""Meta-World's reward functions: ``"v2"`` (metaworld's default, the one every study uses by
+default) and ``"v1"`` (the pre-v2 shaped rewards the 2021 release trained on; metaworld 3.1.1
+keeps both in each task's ``compute_reward``)."""
+
 METAWORLD_POS_SCALE = 0.01
 """Metres the hand target (mocap) moves per env step for an xyz action of 1 (metaworld default)."""
 ROBOT_JOINTS = frozenset([f"right_j{i}" for i in range(7)] + ["r_close", "l_close"])
@@ -77,11 +82,89 @@ REWARD_FROM_OBS: frozenset[str] = frozenset(
         "sweep-v3",
     }
 )
-"""Meta-World tasks whose reward reads the world only through the observation: their stale-world
-reward needs no kinematics pass (``stale_reward``). Established by measurement, not by reading
-code: on recorded noisy-expert states the observation-only and the full form agree exactly for
-these 40 tasks and differ for the other 10 (tests/envs/test_env_metaworld.py checks both ways
-on every task; the 10 read object or joint positions from the simulator)."""
+"""Meta-World tasks whose v2 reward reads the world only through the observation: their
+stale-world reward needs no kinematics pass (``stale_reward``). Established by measurement, not
+by reading code: on recorded noisy-expert states the observation-only and the full form agree
+exactly for these 40 tasks and differ for the other 10 (tests/envs/test_env_metaworld.py checks
+both ways on every task; the 10 read object or joint positions from the simulator)."""
+REWARD_FROM_OBS_V1: frozenset[str] = frozenset(
+    {
+        "basketball-v3",
+        "bin-picking-v3",
+        "box-close-v3",
+        "button-press-topdown-v3",
+        "button-press-topdown-wall-v3",
+        "button-press-v3",
+        "button-press-wall-v3",
+        "coffee-button-v3",
+        "coffee-pull-v3",
+        "coffee-push-v3",
+        "dial-turn-v3",
+        "disassemble-v3",
+        "door-close-v3",
+        "door-lock-v3",
+        "door-open-v3",
+        "door-unlock-v3",
+        "drawer-close-v3",
+        "drawer-open-v3",
+        "faucet-close-v3",
+        "faucet-open-v3",
+        "hand-insert-v3",
+        "handle-press-side-v3",
+        "handle-press-v3",
+        "handle-pull-side-v3",
+        "handle-pull-v3",
+        "lever-pull-v3",
+        "peg-unplug-side-v3",
+        "pick-out-of-hole-v3",
+        "pick-place-v3",
+        "pick-place-wall-v3",
+        "plate-slide-back-side-v3",
+        "plate-slide-back-v3",
+        "plate-slide-side-v3",
+        "plate-slide-v3",
+        "push-back-v3",
+        "push-v3",
+        "push-wall-v3",
+        "reach-v3",
+        "reach-wall-v3",
+        "shelf-place-v3",
+        "soccer-v3",
+        "stick-pull-v3",
+        "stick-push-v3",
+        "sweep-into-v3",
+        "sweep-v3",
+        "window-close-v3",
+        "window-open-v3",
+    }
+)
+"""The same measurement for the v1 rewards (``reward_version="v1"``): 47 of the 49 tasks whose
+v1 reward runs. v1 rewards read site and body positions besides the observation, but on these
+tasks only robot sites (fingers, end effector: live in both forms) and sites fixed at reset
+(the goal); hammer-v3 and peg-insert-side-v3 read world bodies (tests/envs/test_env_metaworld.py
+checks both ways on every task)."""
+V1_REWARD_BROKEN: frozenset[str] = frozenset({"assembly-v3"})
+"""Tasks whose v1 reward does not run in metaworld 3.1.1 (assembly-v3: ``compute_reward``
+reads ``heightTarget``, which nothing sets): ``reward_version="v1"`` is refused for them at
+construction (tested)."""
+
+
+def reward_from_obs(task: str, reward_version: str = "v2") -> bool:
+    """Whether ``task``'s reward of ``reward_version`` reads the world only through the
+    observation (measured: :data:`REWARD_FROM_OBS`, :data:`REWARD_FROM_OBS_V1`)."""
+    check_reward_version(reward_version)
+    return task in (REWARD_FROM_OBS if reward_version == "v2" else REWARD_FROM_OBS_V1)
+
+
+def check_reward_version(value: Any) -> str:
+    """``reward_version`` checked (one of :data:`REWARD_VERSIONS`).
+
+    Raises:
+        ValueError: anything else (named in the message).
+    """
+    if value not in REWARD_VERSIONS:
+        raise ValueError(f"reward_version: expected 'v1' or 'v2', got {value!r}")
+    return str(value)
 
 
 def metaworld_env_names() -> list[str]:
@@ -93,6 +176,11 @@ def metaworld_env_names() -> list[str]:
 
 class MetaWorldEnv(NDPEnv, EzPickle):
     """One Meta-World v3 task with random goals on every reset and a configurable horizon.
+
+    Options of the 2021 release's conditions (defaults: the fair ones): ``reward_version="v1"``
+    trains on the v1 shaped reward (the reward only: ``success`` and metaworld's other info
+    keys stay the v2 evaluation, so success means the same under both rewards), and
+    ``fixed_goal=SEED`` gives every episode the same object + goal configuration.
 
     Actions [4] in ``[-1, 1]`` (clipped): hand-target displacement / ``METAWORLD_POS_SCALE`` for
     xyz and the absolute gripper command (-1 open, +1 closed). The DMP-driven robot state (D = 4)
@@ -111,6 +199,8 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         height: int = 480,
         camera_name: str = "corner",
         substeps: int = 1,
+        reward_version: str = "v2",
+        fixed_goal: int | None = None,
     ) -> None:
         """Create the env.
 
@@ -126,13 +216,27 @@ class MetaWorldEnv(NDPEnv, EzPickle):
                 simulator steps and an xyz action moves the hand target ``0.01 / m`` m per unit
                 (the same speed per second; see the module docstring). ``horizon`` counts these
                 shorter steps.
+            reward_version: ``"v2"`` (metaworld's default) or ``"v1"`` (the release's shaped
+                rewards; success stays the v2 evaluation).
+            fixed_goal: None (a fresh seeded configuration every reset) or the seed of the one
+                configuration every reset uses.
         """
         from metaworld.env_dict import ALL_V3_ENVIRONMENTS
 
-        EzPickle.__init__(self, task, horizon, render_mode, width, height, camera_name, substeps)
+        EzPickle.__init__(
+            self, task, horizon, render_mode, width, height, camera_name, substeps,
+            reward_version, fixed_goal,
+        )  # fmt: skip
         if task not in ALL_V3_ENVIRONMENTS:
             raise ValueError(f"task: expected a Meta-World v3 name, got {task!r}")
+        self.reward_version = check_reward_version(reward_version)
+        if self.reward_version == "v1" and task in V1_REWARD_BROKEN:
+            raise ValueError(
+                f"reward_version: {task}'s v1 reward does not run in metaworld 3.1.1 (it reads "
+                "an attribute nothing sets); use 'v2'"
+            )
         self._setup(horizon, render_mode, action_dim=self._action_dim())
+        self._set_fixed_goal(fixed_goal)
         self.task = task
         env = self._task_class(ALL_V3_ENVIRONMENTS[task])(
             render_mode=render_mode, camera_name=camera_name, width=width, height=height
@@ -251,11 +355,11 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         assert self._obs is not None
         qw, vw, obs_w = snapshot
         if from_obs is None:
-            from_obs = self.task in REWARD_FROM_OBS
+            from_obs = reward_from_obs(self.task, self.reward_version)
         if from_obs:
             obs = self._obs.copy()
             obs[WORLD_OBS] = obs_w[WORLD_OBS]
-            return float(self.mw.compute_reward(np.asarray(action, dtype=np.float64), obs)[0])
+            return self.task_reward(action, obs)
         m, d = self.model, self.data
         live_q = d.qpos[self._world_q].copy()
         live_v = d.qvel[self._world_v].copy()
@@ -266,7 +370,7 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         try:
-            reward = float(self.mw.compute_reward(np.asarray(action, dtype=np.float64), obs)[0])
+            reward = self.task_reward(action, obs)
         finally:
             d.qpos[self._world_q] = live_q
             d.qvel[self._world_v] = live_v
@@ -274,13 +378,29 @@ class MetaWorldEnv(NDPEnv, EzPickle):
             mujoco.mj_comPos(m, d)
         return reward
 
+    def task_reward(self, action: np.ndarray, obs: np.ndarray) -> float:
+        """The task's reward of ``reward_version`` for ``action`` [4] and ``obs`` [39] in the
+        simulator's current state (metaworld's ``compute_reward``; the v1 branch runs with the
+        task's version switched for the call, so metaworld's own step keeps the v2 evaluation).
+        """
+        mw = self.mw
+        a = np.asarray(action, dtype=np.float64)
+        if self.reward_version == "v2":
+            return float(mw.compute_reward(a, obs)[0])
+        mw.reward_function_version = "v1"
+        try:
+            return float(mw.compute_reward(a, obs)[0])
+        finally:
+            mw.reward_function_version = "v2"
+
     # ------------------------------------------------------------------ gym API
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset with a new random object + goal configuration (seeded)."""
         self._reset_rng(seed)
-        self.mw.np_random = self.np_random  # metaworld draws its reset vector from this
+        # metaworld draws its reset vector (objects, goal) from this, and nothing else
+        self.mw.np_random = self._task_rng()
         obs, _ = self.mw.reset()
         self._gripper = -1.0  # metaworld's hand reset leaves the gripper open (command -1)
         self._gripper_rate = 0.0
@@ -323,6 +443,8 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         info: dict[str, Any] = {k: float(v) for k, v in mw_info.items()}
         if unstable:
             return self._unstable_step(self._obs.copy(), pos, vel, info)
+        if self.reward_version != "v2":  # on metaworld's observation, as its own reward
+            reward = self.task_reward(a, np.asarray(obs, dtype=np.float64))
         self._obs = np.asarray(obs, dtype=np.float64)
         if self.substeps > 1:  # previous frame: `substeps` env steps (0.0125 s) ago
             self._frames.append(self._obs[:18].copy())

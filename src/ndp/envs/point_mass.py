@@ -82,6 +82,7 @@ class PointMassEnv(NDPEnv):
         horizon: int = DEFAULT_HORIZON,
         terminate_on_success: bool = False,
         render_mode: str | None = None,
+        fixed_goal: int | None = None,
     ) -> None:
         """Create the env.
 
@@ -90,10 +91,13 @@ class PointMassEnv(NDPEnv):
             horizon: env steps per episode (truncation).
             terminate_on_success: end the episode (terminated) when the goal is reached.
             render_mode: ``None`` or ``"rgb_array"`` (a 96 x 96 top view).
+            fixed_goal: None (a fresh seeded start and goal every reset) or the seed of the one
+                start and goal every reset uses.
         """
         if dim not in (2, 3):
             raise ValueError(f"dim: expected 2 or 3, got {dim!r}")
         self._setup(horizon, render_mode, action_dim=int(dim))
+        self._set_fixed_goal(fixed_goal)
         self.dim = int(dim)
         self.terminate_on_success = bool(terminate_on_success)
         # position in the box [-1, 1], velocity at most ACTION_SCALE / CONTROL_DT, goal in
@@ -140,7 +144,7 @@ class PointMassEnv(NDPEnv):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Draw a start in ``[-0.5, 0.5]^D`` and a goal near it; returns ``(obs [3D], info)``."""
         self._reset_rng(seed)
-        rng = self.np_random
+        rng = self._task_rng()
         self._pos = rng.uniform(-0.5, 0.5, self.dim)
         self._vel = np.zeros(self.dim)
         while True:

@@ -145,15 +145,22 @@ class MetaWorldTorqueEnv(MetaWorldEnv):
         width: int = 480,
         height: int = 480,
         camera_name: str = "corner",
+        reward_version: str = "v2",
+        fixed_goal: int | None = None,
     ) -> None:
-        """Create the env (``controller``: the task table's row; None: the default OSC row)."""
+        """Create the env (``controller``: the task table's row; None: the default OSC row;
+        ``reward_version``, ``fixed_goal``: as :class:`~ndp.envs.metaworld_env.MetaWorldEnv`)."""
         self.controller = controller if controller is not None else sawyer_controller()
         if self.controller.space != "ee" or not self.controller.gripper:
             raise ValueError("controller: Meta-World takes end-effector control with a gripper")
-        super().__init__(task, horizon, render_mode, width, height, camera_name)
+        super().__init__(
+            task, horizon, render_mode, width, height, camera_name,
+            reward_version=reward_version, fixed_goal=fixed_goal,
+        )  # fmt: skip
         EzPickle.__init__(
-            self, task, self.controller, horizon, render_mode, width, height, camera_name
-        )
+            self, task, self.controller, horizon, render_mode, width, height, camera_name,
+            reward_version, fixed_goal,
+        )  # fmt: skip
         m = self.model
         self._weld = np.array(
             [i for i in range(m.neq) if m.eq_type[i] == mujoco.mjtEq.mjEQ_WELD], dtype=int
@@ -315,13 +322,17 @@ class JacoTorqueEnv(jaco.JacoEnv):
         width: int = 480,
         height: int = 480,
         camera: str = "side",
+        fixed_goal: int | None = None,
     ) -> None:
-        """Create the env (``controller``: the task table's row; None: joint space)."""
+        """Create the env (``controller``: the task table's row; None: joint space;
+        ``fixed_goal``: as :class:`~ndp.envs.jaco.JacoEnv`)."""
         self.controller = controller if controller is not None else jaco_controller()
         if not self.controller.gripper:
             raise ValueError("controller: the Jaco tasks take a finger command")
-        super().__init__(task, horizon, render_mode, width, height, camera)
-        EzPickle.__init__(self, task, self.controller, horizon, render_mode, width, height, camera)
+        super().__init__(task, horizon, render_mode, width, height, camera, fixed_goal=fixed_goal)
+        EzPickle.__init__(
+            self, task, self.controller, horizon, render_mode, width, height, camera, fixed_goal
+        )
         m = self.model
         ee = ("site", "jaco/hand/gripsite") if self.controller.space == "ee" else None
         if self.controller.space == "ee":

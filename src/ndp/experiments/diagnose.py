@@ -77,7 +77,9 @@ def diagnose(
     torch.set_num_threads(1)
     k = cfg.k
     env = ChunkedEnv(
-        resolve_task(cfg.task).make(horizon=cfg.horizon), k, stale_world=cfg.stale_world
+        resolve_task(cfg.task, **cfg.env_options()).make(horizon=cfg.horizon),
+        k,
+        stale_world=cfg.stale_world,
     )
     key = "cmd" if cfg.policy.dmp_state == "commanded" else "dmp"
     scale = np.array([s if s > 0 else 1.0 for s in spec.action_scale])[: spec.action_dim]

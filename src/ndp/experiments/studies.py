@@ -47,6 +47,21 @@ class ArmSpec:
 
 
 @dataclass(frozen=True)
+class Condition:
+    """A named setting of a study whose arms are shared between conditions: which arm (run
+    label) stands for each method under it (``ndp report --conditions``)."""
+
+    name: str
+    note: str
+    """What the condition is, for the tables."""
+    methods: tuple[tuple[str, str], ...]
+    """(method, arm label) pairs, in table order."""
+    unequal: bool = False
+    """The methods do not see the same task distribution or settings on purpose (a condition
+    reproduced from the 2021 release): the report labels it so."""
+
+
+@dataclass(frozen=True)
 class Study:
     """A named grid: tasks x arms x seeds at one budget."""
 
@@ -65,6 +80,9 @@ class Study:
     """Fractions of the budget at which the report gives the success."""
     summary: tuple[str, ...] = field(default=())
     """Extra report sections: 'over-tasks' (mean over tasks, NDP >= PPO count)."""
+    conditions: tuple[Condition, ...] = field(default=())
+    """Conditions over shared arms (the report's condition x method tables); empty: every
+    arm is its own column."""
 
     def task_list(self) -> tuple[str, ...]:
         return tuple(self.tasks())
@@ -197,6 +215,55 @@ def _ablation_arms() -> tuple[ArmSpec, ...]:
     return tuple(arms)
 
 
+RELEASE_TASKS = ("push-v3", "soccer-v3", "faucet-open-v3")
+"""Meta-World tasks of the release-conditions study (the paper's three Meta-World tasks)."""
+RELEASE_V1 = ("--reward-version", "v1")
+RELEASE_FIXED = ("--goals", "fixed")
+RELEASE_OPTIMISER = ("--ent-coef", "0.01", "--clip-value-loss")
+"""The release's PPO settings that differ from ours: entropy 0.01, the clipped value loss."""
+RELEASE_METHODS = ("ndp", "ppo-multi", "ppo")
+
+
+def _release_arms() -> tuple[ArmSpec, ...]:
+    """The distinct runs of the release-conditions study (conditions share them)."""
+    arms = []
+    for suffix, args, what in (
+        ("", (), "fair: v2 rewards, random goals, our PPO settings"),
+        ("-v1", RELEASE_V1, "v1 rewards, random goals"),
+        ("-v1-fixed", RELEASE_V1 + RELEASE_FIXED, "v1 rewards, one fixed goal per run"),
+        ("-v1-ropt", RELEASE_V1 + RELEASE_OPTIMISER,
+         "v1 rewards, random goals, the release's entropy 0.01 and clipped value loss"),
+    ):  # fmt: skip
+        for m in RELEASE_METHODS:
+            arms.append(ArmSpec(m + suffix, m, args, what))
+    return tuple(arms)
+
+
+def _condition(name: str, note: str, suffix: dict[str, str], unequal: bool = False) -> Condition:
+    return Condition(name, note, tuple((m, m + suffix[m]) for m in RELEASE_METHODS), unequal)
+
+
+RELEASE_CONDITIONS = (
+    _condition("fair", "v2 rewards, random goals for every method (our default)",
+               dict.fromkeys(RELEASE_METHODS, "")),
+    _condition("v1", "v1 rewards for every method, random goals",
+               dict.fromkeys(RELEASE_METHODS, "-v1")),
+    _condition(
+        "release-goals",
+        "UNEQUAL, the release's condition: v1 rewards; fixed goals for NDP and PPO-multi, "
+        "random goals for PPO",
+        {"ndp": "-v1-fixed", "ppo-multi": "-v1-fixed", "ppo": "-v1"},
+        unequal=True,
+    ),
+    _condition("fixed-all", "v1 rewards, one fixed goal per run for every method",
+               dict.fromkeys(RELEASE_METHODS, "-v1-fixed")),
+    _condition("release-optimiser",
+               "v1 rewards, random goals, entropy 0.01 and the clipped value loss for every method",
+               dict.fromkeys(RELEASE_METHODS, "-v1-ropt")),
+)  # fmt: skip
+"""The conditions of the release-conditions study, each a method -> arm map over shared runs."""
+
+
 DIGITS_TASKS = ("pendigits", "synthetic-300", "synthetic-1000", "synthetic-3000", "synthetic")
 
 
@@ -254,6 +321,26 @@ STUDIES: dict[str, Study] = {
             tasks=lambda: ("throw",),
             arms=_ablation_arms,
             steps=300_000,
+        ),
+        Study(
+            name="release-conditions",
+            title="The 2021 release's conditions, one at a time: NDP vs PPO-multi vs PPO",
+            doc=(
+                "push-v3, soccer-v3, faucet-open-v3 x NDP, PPO-multi, PPO under five conditions "
+                "that share runs (12 distinct runs per task and seed): fair (v2 rewards, random "
+                "goals, our defaults); v1 (the v1 shaped rewards the release trained on); "
+                "release-goals (v1, fixed goals for NDP and PPO-multi, random goals for PPO: the "
+                "release's UNEQUAL condition, reproduced on purpose and labelled so); fixed-all "
+                "(v1, fixed goals for every method); release-optimiser (v1, entropy 0.01 and the "
+                "clipped value loss for every method). Success is the v2 evaluation under every "
+                "reward. Report with --conditions: per condition and task the mean and 95% "
+                "bootstrap CI over seeds, success at any step and at the final step; over tasks "
+                "the IQM with stratified-bootstrap CIs and P(NDP > baseline)."
+            ),
+            tasks=lambda: RELEASE_TASKS,
+            arms=_release_arms,
+            steps=300_000,
+            conditions=RELEASE_CONDITIONS,
         ),
         Study(
             name="digits-data",

@@ -208,6 +208,13 @@ class TrainConfig:
     """Stale-world reward rule during the k sub-steps (NDP and PPO-multi; no effect for k = 1)."""
     horizon: int | None = None
     """Episode length in env steps; None: the task's default."""
+    reward_version: str = "v2"
+    """Meta-World's reward function: 'v2' (metaworld's default) or 'v1' (the shaped rewards the
+    2021 release trained on; success is the v2 evaluation under both). Meta-World tasks only."""
+    goals: str = "random"
+    """'random' (a fresh seeded task configuration every episode) or 'fixed' (one object + goal
+    configuration for the whole run, drawn from the run's seed: the release's condition for NDP
+    and PPO-multi). Evaluation of the run uses the same."""
     run_dir: str | None = None
     """Run directory; None: runs/<task>-<algo>-s<seed>."""
     checkpoint_every: int = 10
@@ -242,6 +249,10 @@ class TrainConfig:
         _check_int("torch_threads", self.torch_threads, 1)
         if self.horizon is not None:
             _check_int("horizon", self.horizon, 1)
+        if self.reward_version not in ("v1", "v2"):
+            raise ValueError(f"reward_version: expected 'v1' or 'v2', got {self.reward_version!r}")
+        if self.goals not in ("random", "fixed"):
+            raise ValueError(f"goals: expected 'random' or 'fixed', got {self.goals!r}")
         _check_device(self.device)
         if self.vector not in ("auto", "sync", "workers", "async"):
             raise ValueError(
@@ -275,6 +286,17 @@ class TrainConfig:
     def num_updates(self) -> int:
         """Updates in the run: ceil(steps / env_steps_per_update)."""
         return math.ceil(self.steps / self.env_steps_per_update)
+
+    def env_options(self) -> dict[str, Any]:
+        """The task options every env of this run gets (``ndp.envs.make_env`` keywords):
+        ``reward_version`` and, for ``goals="fixed"``, the ``fixed_goal`` seed derived from
+        ``seed`` (``ndp.envs.fixed_goal_seed``)."""
+        out: dict[str, Any] = {"reward_version": self.reward_version}
+        if self.goals == "fixed":
+            from ndp.envs.factory import fixed_goal_seed
+
+            out["fixed_goal"] = fixed_goal_seed(self.seed)
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (nested for ``ppo``, ``policy`` and ``dyne``)."""
@@ -322,6 +344,9 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
         from ndp.rl.envs import resolve_task
 
         spec = resolve_task(cfg.task).spec
+    from ndp.envs.factory import task_options
+
+    task_options(spec, cfg.reward_version)  # v1 rewards on a task without them: refused here
     from ndp.policies.heads import SINGLE_STEP_HEADS
     from ndp.rl.methods import METHODS
 

@@ -295,7 +295,7 @@ class DyneLearner:
     """
 
     def __init__(self, cfg: TrainConfig, resume: bool = False) -> None:
-        task = rl_envs.resolve_task(cfg.task)
+        task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
         cfg = resolve_dyne_config(cfg)
         check_budget(cfg)  # before any env is built
         self.cfg, self.spec = cfg, task.spec

@@ -39,16 +39,20 @@ class TaskHandle:
     """``make(seed=None, horizon=None, render_mode=None) -> per-step gymnasium.Env``."""
 
 
-def resolve_task(name: str) -> TaskHandle:
+def resolve_task(name: str, **options: Any) -> TaskHandle:
     """Resolve a task name or alias through ``ndp.envs.TASKS`` (the toy tasks included).
 
+    ``options``: task options every env of the handle gets (``reward_version``,
+    ``fixed_goal``: ``ndp.envs.make_env``), checked here against the task's row.
+
     Raises:
-        ValueError: unknown name (the message lists close names).
+        ValueError: unknown name (the message lists close names), or a bad option.
     """
-    from ndp.envs import get_task_spec, make_env
+    from ndp.envs import get_task_spec, make_env, task_options
 
     spec = get_task_spec(name)
-    return TaskHandle(spec, functools.partial(make_env, spec.name))
+    kw = task_options(spec, **options)
+    return TaskHandle(spec, functools.partial(make_env, spec.name, **kw))
 
 
 def _make_chunked(

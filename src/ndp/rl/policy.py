@@ -154,7 +154,7 @@ class Policy:
         h = horizon if horizon is not None else self.cfg.horizon
         m = self.substeps
         kw: dict[str, Any] = {} if m == 1 else {"substeps": m}
-        base = resolve_task(self.cfg.task).make(
+        base = resolve_task(self.cfg.task, **self.cfg.env_options()).make(
             horizon=None if h is None else h * m, render_mode=render_mode, **kw
         )
         if wrap is not None:

@@ -70,8 +70,8 @@ class Trainer:
     def __init__(self, cfg: TrainConfig, resume: bool = False) -> None:
         task = resolve_task(cfg.task)
         cfg = resolve_config(cfg, task.spec)
-        if cfg.task != task.spec.name:  # the method runs another row (VICES: torque variant)
-            task = resolve_task(cfg.task)
+        # the row the method runs (VICES: the torque variant) with the run's task options
+        task = resolve_task(cfg.task, **cfg.env_options())
         self.cfg = cfg
         self.spec = task.spec
         self.run_dir = Path(cfg.run_dir or ".")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -223,3 +224,60 @@ def test_report_deterministic_success_column_reads_and_writes_the_per_run_cache(
     )
     with pytest.raises(ValueError, match="eval_episodes"):
         report([runs], tmp_path / "rep4", "cmd", eval_episodes=-1)
+
+
+def _release_runs(root, seeds=(0, 1, 2)):
+    """Every arm of the release-conditions study on its 3 tasks: success constant per run,
+    NDP's 0.9 under fixed goals (arms *-v1-fixed), 0.1 elsewhere; PPO-multi 0.5; PPO 0.3 + 0.1
+    per seed; success at the final step half of it."""
+    from ndp.experiments.studies import RELEASE_TASKS, get_study
+
+    for spec in get_study("release-conditions").arm_specs():
+        for task in RELEASE_TASKS:
+            for seed in seeds:
+                if spec.algo == "ndp":
+                    y = 0.9 if spec.label.endswith("-v1-fixed") else 0.1
+                else:
+                    y = 0.5 if spec.algo == "ppo-multi" else 0.3 + 0.1 * seed
+                run = _rl_run(root, task, spec.label, seed, y, algo=spec.algo)
+                rows = list(csv.reader((run / "metrics.csv").open()))
+                rows[0].append("charts/success_final")
+                for r in rows[1:]:
+                    r.append(str(float(r[2]) / 2))
+                with (run / "metrics.csv").open("w", newline="") as fh:
+                    csv.writer(fh).writerows(rows)
+
+
+def test_report_of_a_study_with_conditions(tmp_path):
+    runs = tmp_path / "runs"
+    _release_runs(runs)
+    out = tmp_path / "out" / "rc"
+    res = report([runs], out, "ndp report runs --study release-conditions",
+                 study="release-conditions")  # fmt: skip
+    md = (tmp_path / "out" / "rc.md").read_text()
+    assert "**release-goals (UNEQUAL)**" in md and "## Conditions" in md
+    # per task: NDP under fixed goals 0.90 at any step, 0.45 at the final step, every seed
+    # (area 0.81: the curve is 0 before the first logged update, at 10% of the budget)
+    assert ("| fixed-all | ndp | `ndp-v1-fixed` | 3 | 0.81 [0.81, 0.81] | 0.90 [0.90, 0.90] "
+            "| 0.45 [0.45, 0.45] |") in md  # fmt: skip
+    # tasks in the study's order
+    assert md.index("### push-v3") < md.index("### soccer-v3") < md.index("### faucet-open-v3")
+    # PPO: seeds 0.3, 0.4, 0.5 -> mean 0.40, the bootstrap interval inside [0.3, 0.5]
+    row = next(
+        r
+        for r in (csv.DictReader((tmp_path / "out" / "rc-conditions.csv").open()))
+        if r["condition"] == "fair" and r["task"] == "push-v3" and r["method"] == "ppo"
+    )
+    assert float(row["final_mean"]) == pytest.approx(0.4)
+    assert 0.3 <= float(row["final_ci_low"]) < 0.4 < float(row["final_ci_high"]) <= 0.5
+    # over tasks: IQM of PPO's 9 runs (three each of 0.3, 0.4, 0.5): the middle 5 -> 0.4
+    assert re.search(r"\| fair \| ppo \| [0-9.]+ \[[^]]*\] \| 0\.40 \[", md)
+    # NDP beats every run of both baselines under fixed goals, loses every pair elsewhere
+    assert "| release-goals (UNEQUAL) | 1.00 [1.00, 1.00] |" in md
+    assert "| fair | 0.00 [0.00, 0.00] |" in md
+    lines = [ln for ln in md.splitlines() if ln.startswith("| release-goals (UNEQUAL) | 1.00")]
+    assert lines and lines[0].endswith("| yes |")  # 0.9 > 0.5 > 0.4
+    assert [ln for ln in md.splitlines() if ln.startswith("| v1 | 0.00")][0].endswith("| no |")
+    assert any(p.endswith("rc-conditions.png") for p in res["png"])
+    # the per-arm table carries the final-step success too
+    assert "final success (final step)" in md

@@ -198,6 +198,7 @@ def rl_numbers(info: RunInfo, budgets: Sequence[float]) -> dict[str, Any]:
     rows = read_metrics(info.path)
     x = np.array([r.get("global_step", math.nan) for r in rows], dtype=np.float64)
     y = np.array([r.get("charts/success_any", math.nan) for r in rows], dtype=np.float64)
+    y_last = np.array([r.get("charts/success_final", math.nan) for r in rows], dtype=np.float64)
     key = "charts/episode_return_live"
     if not rows or key not in rows[0]:
         key = "charts/episode_return"
@@ -207,6 +208,7 @@ def rl_numbers(info: RunInfo, budgets: Sequence[float]) -> dict[str, Any]:
     out: dict[str, Any] = {
         "area": success_area(xs, ys, info.steps) if len(xs) else math.nan,
         "final": final_success(ys) if len(ys) else math.nan,
+        "final_last": _last_tenth(y_last),
         "return": _last_tenth(ret),
         "curve": (xs, smooth(ys, max(1, len(ys) // 20)) if len(ys) else ys),
     }
@@ -358,8 +360,14 @@ def report(
     title: str = "Report",
     plots: bool = True,
     eval_episodes: int = 0,
+    study: str | None = None,
 ) -> dict[str, Any]:
     """Write ``<out>.md``, ``<out>.csv`` and ``<out>-<task>.png`` (see the module doc).
+
+    ``study``: a named study; where it has conditions (``release-conditions``), the report adds
+    the condition x method section (:mod:`ndp.experiments.conditions`: bootstrap intervals, IQM,
+    probability of improvement; ``<out>-conditions.csv`` and ``<out>-conditions.png``), and
+    ``methods`` defaults to the study's arms.
 
     ``budgets``: env steps at which to give the success (default: a quarter, half and all of
     the largest budget). ``eval_episodes`` > 0 adds the success of each finished RL run's
@@ -372,6 +380,16 @@ def report(
     """
     from ndp.provenance import git_commit
 
+    conditions: tuple[Any, ...] = ()
+    if study is not None:
+        from ndp.experiments.studies import get_study
+
+        st = get_study(study)
+        conditions = st.conditions
+        if methods is None and conditions:
+            methods = [a.label for a in st.arm_specs()]
+        if tasks is None and conditions:
+            tasks = list(st.task_list())
     dirs = find_run_dirs(run_dirs)
     infos = [i for i in (run_info(d) for d in dirs) if i is not None]
     if not infos:
@@ -404,6 +422,18 @@ def report(
     rows = _csv_rows(rl_cells, il_cells, budgets, expected, prov)
     _write_csv(out.with_suffix(".csv"), rows)
     md = _markdown(title, rl_cells, il_cells, budgets, expected, prov, pngs, out, eval_episodes)
+    if conditions:
+        from ndp.experiments.conditions import conditions_section
+
+        foot = f"{prov['command']}  |  commit {prov['commit']}  |  {prov['date']}"
+        cmd, crows, cpngs = conditions_section(rl_cells, conditions, expected, out, foot, plots)
+        csv_rows = [{**r, "command": prov["command"], "commit": prov["commit"],
+                     "date": prov["date"]} for r in crows]  # fmt: skip
+        _write_csv(out.with_name(out.name + "-conditions.csv"), csv_rows)
+        # before the per-arm table
+        at = next((i for i, line in enumerate(md) if line.startswith("Success:")), len(md))
+        md[at:at] = cmd
+        pngs = [*cpngs, *pngs]
     out.with_suffix(".md").write_text("\n".join(md) + "\n")
     return {
         **prov,
@@ -443,6 +473,7 @@ def _csv_rows(
             keys += [
                 ("success_area", "area"),
                 ("final_success", "final"),
+                ("final_success_last_step", "final_last"),
                 ("final_return_live", "return"),
                 ("det_success", "det"),
             ]
@@ -507,8 +538,9 @@ def _markdown(
             "Success: `charts/success_any` of the training episodes. Success @ b: mean over the "
             "updates in the last 10% of [0, b] (`-`: no update logged by b, or b past the "
             "budget); area: the success curve averaged over the "
-            "budget; final: last 10% of updates; live return: `charts/episode_return_live` over "
-            "the last 10% of updates."
+            "budget; final: last 10% of updates; final (final step): the same for "
+            "`charts/success_final`, success at the episode's last step (the release's metric); "
+            "live return: `charts/episode_return_live` over the last 10% of updates."
             + (
                 f" Deterministic: success (any step) of the trained policy's mode over "
                 f"{eval_episodes} fresh episodes per run (`ndp rl eval`, seeds from 10,000)."
@@ -518,13 +550,14 @@ def _markdown(
             "",
             "| task | method | n | "
             + " | ".join(heads)
-            + " | success area | final success | final live return |"
+            + " | success area | final success | final success (final step) | final live return |"
             + (" deterministic success |" if eval_episodes else ""),
-            "|---" * (6 + len(heads) + bool(eval_episodes)) + "|",
+            "|---" * (7 + len(heads) + bool(eval_episodes)) + "|",
         ]
         for c in rl_cells:
             vals = [_fmt(*c.stat(f"at:{b}")) for b in budgets]
-            vals += [_fmt(*c.stat("area")), _fmt(*c.stat("final")), _fmt(*c.stat("return"), 1)]
+            vals += [_fmt(*c.stat("area")), _fmt(*c.stat("final")), _fmt(*c.stat("final_last"))]
+            vals += [_fmt(*c.stat("return"), 1)]
             vals += [_fmt(*c.stat("det"))] if eval_episodes else []
             n = f"{len(c.runs)}" + (f" **{c.marker()}**" if c.missing else "")
             md.append(f"| {c.task} | {c.label} | {n} | " + " | ".join(vals) + " |")

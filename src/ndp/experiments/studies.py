@@ -250,7 +250,7 @@ RELEASE_CONDITIONS = (
                dict.fromkeys(RELEASE_METHODS, "-v1")),
     _condition(
         "release-goals",
-        "UNEQUAL, the release's condition: v1 rewards; fixed goals for NDP and PPO-multi, "
+        "the release's condition: v1 rewards; fixed goals for NDP and PPO-multi, "
         "random goals for PPO",
         {"ndp": "-v1-fixed", "ppo-multi": "-v1-fixed", "ppo": "-v1"},
         unequal=True,

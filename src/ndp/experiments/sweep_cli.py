@@ -149,6 +149,12 @@ def report_parser() -> argparse.ArgumentParser:
         "(ndp rl eval; cached in the run as eval-det-eN.json; default 0: off)",
     )
     p.add_argument("--no-plots", action="store_true", help="tables only")
+    p.add_argument(
+        "--study",
+        metavar="NAME",
+        help="the named study the runs belong to: with conditions (release-conditions), add the "
+        "condition x method tables (bootstrap intervals, IQM, P(NDP > baseline))",
+    )
     return p
 
 
@@ -308,6 +314,7 @@ def sweep_command(argv: list[str]) -> int:
     )
     if args.report is not None and not result.interrupted:
         from ndp.experiments.report import report
+        from ndp.experiments.studies import get_study
 
         cmd = "ndp sweep " + shlex.join(argv)
         unit = "epochs" if g["kind"] == "il" else "env steps"
@@ -320,6 +327,7 @@ def sweep_command(argv: list[str]) -> int:
             budgets=g["budgets"],
             allow_missing=True,
             title=f"{g['name']} ({g['steps']:,} {unit} per run)",
+            study=args.study if args.study and get_study(args.study).conditions else None,
         )
         print(f"report: {out['markdown']}, {out['csv']}, {len(out['png'])} PNG")
     return result.exit_code
@@ -358,6 +366,7 @@ def report_command(argv: list[str]) -> int:
         title=args.title,
         plots=not args.no_plots,
         eval_episodes=args.eval_episodes,
+        study=args.study,
     )
     print(Path(res["markdown"]).read_text())
     print(f"wrote {res['markdown']}, {res['csv']}" + "".join(f", {p}" for p in res["png"]))

@@ -277,7 +277,7 @@ def test_report_of_a_study_with_conditions(tmp_path):
     assert "| fair | 0.00 [0.00, 0.00] |" in md
     lines = [ln for ln in md.splitlines() if ln.startswith("| release-goals (UNEQUAL) | 1.00")]
     assert lines and lines[0].endswith("| yes |")  # 0.9 > 0.5 > 0.4
-    assert [ln for ln in md.splitlines() if ln.startswith("| v1 | 0.00")][0].endswith("| no |")
+    assert next(ln for ln in md.splitlines() if ln.startswith("| v1 | 0.00")).endswith("| no |")
     assert any(p.endswith("rc-conditions.png") for p in res["png"])
     # the per-arm table carries the final-step success too
     assert "final success (final step)" in md

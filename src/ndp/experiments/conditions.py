@@ -18,6 +18,7 @@ and figure.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -205,7 +206,7 @@ def _over_tasks(
             ordered = [m for m in ORDER if m in lab]
             holds = all(
                 iqm_area[(cond.name, a)] > iqm_area[(cond.name, b)]
-                for a, b in zip(ordered, ordered[1:], strict=False)
+                for a, b in itertools.pairwise(ordered)
             )
             md.append(f"| {_name(cond)} | " + " | ".join(vals) + f" | {'yes' if holds else 'no'} |")
         md.append("")

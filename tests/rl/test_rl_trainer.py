@@ -131,8 +131,8 @@ def test_terminated_episodes_and_all_methods_run(tmp_path, monkeypatch):
 
     orig = rl_envs.resolve_task
 
-    def toy_terminating(name):
-        h = orig(name)
+    def toy_terminating(name, **options):
+        h = orig(name, **options)
         return rl_envs.TaskHandle(h.spec, lambda **kw: h.make(terminate_on_success=True, **kw))
 
     monkeypatch.setattr(rl_trainer, "resolve_task", toy_terminating)
@@ -185,6 +185,60 @@ def test_param_noise_uses_one_decision_level_advantage(tmp_path, monkeypatch):
     torch.testing.assert_close(
         torch.sort(adv.flatten()).values, torch.sort(expected.flatten()).values
     )
+
+
+def _ppo_methods() -> list[tuple[str, str]]:
+    """(method, task) of every registered method the PPO trainer trains (VICES on the torque
+    variant of push-v3, the others on the toy task)."""
+    from ndp.rl.methods import METHODS
+
+    out = []
+    for name, m in METHODS.items():
+        if m.learner is not None:  # trained by another learner (Dyn-E: TD3)
+            continue
+        out.append((name, "push-v3" if m.task_variant is not None else "point-mass"))
+    return out
+
+
+@pytest.mark.parametrize("algo,task", _ppo_methods())
+def test_every_head_gets_the_advantage_its_distribution_asks_for(tmp_path, monkeypatch, algo, task):
+    """The trainer reads "one log-prob per decision" from the distribution (per_decision), never
+    from a head attribute: a per-decision distribution gets the decision's advantage A[:, :1],
+    a per-sub-action one the k sub-step advantages. vices-low-freq (HoldHead, a ParamGaussian
+    without param_noise) was trained with the k sub-step advantages before this rule."""
+    import ndp.rl.trainer as trainer_mod
+
+    seen = []
+    real_pl, real_gl = trainer_mod.policy_loss, trainer_mod.gaussian_policy_loss
+
+    def spy_pl(new_logp, old_logp, adv, mask, clip):
+        seen.append((new_logp.shape[1], adv.shape[1]))
+        return real_pl(new_logp, old_logp, adv, mask, clip)
+
+    def spy_gl(mean, log_std, z, old_logp, adv, mask, clip):
+        seen.append((old_logp.shape[1], adv.shape[1]))
+        return real_gl(mean, log_std, z, old_logp, adv, mask, clip)
+
+    monkeypatch.setattr(trainer_mod, "policy_loss", spy_pl)
+    monkeypatch.setattr(trainer_mod, "gaussian_policy_loss", spy_gl)
+    ppo = PPOConfig(steps_per_update=256, minibatches=1, epochs=1)
+    tr = Trainer(_cfg(tmp_path, algo=algo, task=task, ppo=ppo, num_envs=2, steps=256))
+    try:
+        batch = tr.collect()
+        obs = torch.zeros(1, tr.obs_dim)
+        y0 = torch.zeros(1, tr.spec.dmp_dofs)
+        dist, _ = tr.model.distribution(obs, y0, y0)
+        tr.learn(batch)
+    finally:
+        tr.close()
+    assert batch["per_decision"] == dist.per_decision
+    ((logp_cols, adv_cols),) = seen
+    if dist.per_decision:
+        assert logp_cols == 1 and adv_cols == 1
+    else:
+        assert logp_cols == adv_cols == tr.k
+    if algo == "vices-low-freq":
+        assert dist.per_decision and tr.k > 1  # the case the old rule got wrong
 
 
 def test_minibatch_advantage_normalisation(tmp_path, monkeypatch):

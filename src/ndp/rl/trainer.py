@@ -211,6 +211,7 @@ class Trainer:
         weight_norms: list[float] = []
         ctrl = dict.fromkeys(CTRL_INFO, 0.0)
         executed = 0
+        per_decision = False
         for t in range(T):
             obs_n = torch.from_numpy(self.obs_norm(self._obs, update=True))
             y0 = torch.as_tensor(self._y0, dtype=torch.float32)
@@ -223,6 +224,7 @@ class Trainer:
                     raise self._diverged(msg) from None
                 z = dist.sample()
                 logp = dist.log_prob(z)
+                per_decision = bool(dist.per_decision)
                 values = self.rollout_model.value(obs_n)
                 act = torch.maximum(torch.minimum(dist.actions(z), self.high), self.low)
             if not bool(torch.isfinite(act).all()):
@@ -280,6 +282,7 @@ class Trainer:
             "goal_norm": float(np.mean(goal_norms)) if goal_norms else math.nan,
             "weight_norm": float(np.mean(weight_norms)) if weight_norms else math.nan,
             "ctrl": ctrl,
+            "per_decision": per_decision,
         }
 
     # ----------------------------------------------------------------------- update
@@ -297,8 +300,9 @@ class Trainer:
             }
         mask = batch["mask"]
         adv = batch["adv"]
-        per_decision = bool(getattr(self.model.head, "param_noise", False))
-        if per_decision:
+        # the distribution says whether it draws one log-prob per decision (ParamGaussian: NDP
+        # with parameter noise, VICES' hold head) or one per sub-action
+        if batch["per_decision"]:
             # one log-prob per decision: its advantage is the decision's own GAE advantage
             # A[t, 0] (every reward of the decision, (gamma lambda)^l weighted), one term each
             adv, mask = adv[:, :1], mask[:, :1]

@@ -392,3 +392,43 @@ def test_run_grid_of_the_benchmarks_runs_on_the_sweep(tmp_path, monkeypatch):
     assert all((d / "done.json").is_file() for d in dirs)
     with pytest.raises(RuntimeError, match="point-mass bad s0"):
         run_grid(["point-mass"], [Arm("bad", "ppo")], [0], 512, tmp_path, jobs=1)
+
+
+def test_pack_and_unpack_carry_finished_runs_to_a_fresh_runs_directory(tmp_path, capsys):
+    """--pack writes the finished runs without checkpoints; --unpack on a fresh machine (an
+    empty runs directory) restores them, the sweep counts them finished, the report reads them;
+    the archive grows across sessions and refuses members that are not run files."""
+    import tarfile
+
+    from ndp.experiments.archive import unpack
+    from ndp.experiments.report import report
+
+    runs, fresh, archive = tmp_path / "runs", tmp_path / "fresh", tmp_path / "a" / "runs.tar.gz"
+    base = ["sweep", *TINY, "--methods", "ppo", "--jobs", "1", "--vector", "sync"]
+    assert main([*base, "--seeds", "0", "--runs-dir", str(runs), "--pack", str(archive)]) == 0
+    assert "pack: 1 finished runs of this sweep written" in capsys.readouterr().out
+    with tarfile.open(archive) as tf:
+        names = sorted(tf.getnames())
+    assert "point-mass-ppo-s0/metrics.csv" in names and "point-mass-ppo-s0/done.json" in names
+    assert not any(n.endswith("checkpoint.pt") for n in names)
+    # another session, another machine: seed 1 added to the same archive
+    other = tmp_path / "runs2"
+    assert main([*base, "--seeds", "1", "--runs-dir", str(other), "--pack", str(archive)]) == 0
+    assert "(2 runs in the archive)" in capsys.readouterr().out
+    # a fresh machine: unpack, and the sweep trains nothing
+    argv = [*base, "--seeds", "0", "1", "--runs-dir", str(fresh), "--unpack", str(archive)]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "unpack: 2 finished runs restored" in out
+    assert "2/2 finished (0 trained now, 2 already finished)" in out
+    assert _rows(fresh / "point-mass-ppo-s0") == _rows(runs / "point-mass-ppo-s0")
+    res = report([fresh], tmp_path / "rep", "ndp report fresh")
+    assert [r["n_seeds"] for r in res["rows"]] == [2]
+    # unpacking again leaves the existing directories alone
+    assert unpack(archive, fresh) == ([], ["point-mass-ppo-s0", "point-mass-ppo-s1"])
+    bad = tmp_path / "bad.tar.gz"
+    with tarfile.open(bad, "w:gz") as tf:
+        tf.add(archive, arcname="../escape/metrics.csv")
+    with pytest.raises(ValueError, match="not a run file"):
+        unpack(bad, tmp_path / "x")
+    assert not (tmp_path / "escape").exists() and not (tmp_path / "x").exists()

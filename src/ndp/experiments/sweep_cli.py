@@ -116,6 +116,20 @@ def sweep_parser() -> argparse.ArgumentParser:
         help="at the end, write the report OUT.md / OUT.csv / OUT-<task>.png",
     )
     p.add_argument("--list", action="store_true", help="list the studies with their arms")
+    p.add_argument(
+        "--pack",
+        type=Path,
+        metavar="ARCHIVE",
+        help="at the end (with --dry-run: now), add the sweep's finished runs to ARCHIVE "
+        "(.tar.gz, without checkpoints) so that a later session on another machine has them",
+    )
+    p.add_argument(
+        "--unpack",
+        type=Path,
+        metavar="ARCHIVE",
+        help="first restore the finished runs of ARCHIVE (--pack) into the runs directory "
+        "(existing run directories are left as they are)",
+    )
     return p
 
 
@@ -266,6 +280,17 @@ def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
     }
 
 
+def _pack(jobs: Any, out: Path) -> None:
+    """Write the finished runs of ``jobs`` to the archive ``out`` (``--pack``)."""
+    from ndp.experiments.archive import pack
+    from ndp.experiments.study import is_finished
+
+    done = [j.run_dir for j in jobs if j.run_dir.is_dir() and is_finished(j.run_dir, j.arm)]
+    names = pack(done, out)
+    print(f"pack: {len(done)} finished runs of this sweep written to {out} "
+          f"({len(names)} runs in the archive)", flush=True)  # fmt: skip
+
+
 def sweep_command(argv: list[str]) -> int:
     """``ndp sweep [STUDY] [options] [-- trainer options]``."""
     own, extra = _split_extra(list(argv))
@@ -298,10 +323,18 @@ def sweep_command(argv: list[str]) -> int:
     )
     from ndp.experiments.sweep import check_plan
 
+    if args.unpack is not None:
+        from ndp.experiments.archive import unpack
+
+        restored, kept = unpack(args.unpack, runs_dir)
+        print(f"unpack: {len(restored)} finished runs restored from {args.unpack} into "
+              f"{runs_dir}; {len(kept)} already there, left as they are", flush=True)  # fmt: skip
     check_plan(jobs)
     if args.dry_run:
         print(f"{g['name']}: {len(jobs)} runs in {runs_dir} (dry run: nothing started)")
         print("\n".join(plan_lines(jobs)))
+        if args.pack is not None:
+            _pack(jobs, args.pack)
         return 0
     result = run_sweep(
         jobs,
@@ -312,6 +345,8 @@ def sweep_command(argv: list[str]) -> int:
         wait_busy=args.wait_busy,
         progress_every=args.progress_every,
     )
+    if args.pack is not None:
+        _pack(jobs, args.pack)
     if args.report is not None and not result.interrupted:
         from ndp.experiments.report import report
         from ndp.experiments.studies import get_study

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 import sys
 
@@ -137,3 +138,96 @@ def test_resume_refuses_run_changing_options_and_extends_steps(tmp_path, capsys)
     assert ndp_main(["rl", "train", "--resume", str(run), "--steps", "1024", "--no-progress"]) == 0
     state = ck.load_checkpoint(run / "checkpoint.pt")
     assert state["update"] == 4 and state["config"]["steps"] == 1024
+
+
+def _tiny(run_dir: str) -> list[str]:
+    return ["rl", "train", "--task", "point-mass", "--steps-per-update", "256",
+            "--minibatches", "2", "--no-progress", "--no-tensorboard", "--vector", "sync",
+            "--steps", "512", "--run-dir", run_dir]  # fmt: skip
+
+
+def test_a_run_resumes_from_any_spelling_of_its_path_and_after_a_move(tmp_path, monkeypatch):
+    """A run's identity is its folder's contents: created as a relative path, it resumes from
+    its absolute path, from another working directory, and after the folder was moved (another
+    disk, a cluster's mount point)."""
+    import shutil
+
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    assert ndp_main(_tiny("r/base")) == 0
+    extend = ["--steps", "1024", "--no-progress"]
+    assert ndp_main(["rl", "train", "--resume", str(work / "r" / "base"), *extend]) == 0
+    assert ck.load_checkpoint(work / "r" / "base" / "checkpoint.pt")["update"] == 4
+    moved = tmp_path / "elsewhere" / "base"
+    shutil.move(work / "r" / "base", moved)
+    monkeypatch.chdir(tmp_path)
+    assert ndp_main(["rl", "train", "--resume", "elsewhere/base", "--steps", "1536",
+                     "--no-progress"]) == 0  # fmt: skip
+    state = ck.load_checkpoint(moved / "checkpoint.pt")
+    assert state["update"] == 6 and state["config"]["run_dir"] == "elsewhere/base"
+    assert [int(r["update"]) for r in read_metrics(moved)] == [1, 2, 3, 4, 5, 6]
+
+
+def test_a_refused_resume_names_each_field_and_both_values(tmp_path):
+    """Another instance of the class: a config edited under a run (or a checkpoint of another
+    run copied in) is refused naming the fields, never 'config differs' alone."""
+    from ndp.rl.config import TrainConfig, load_config
+    from ndp.rl.trainer import Trainer
+    from ndp.runs.resume import config_differences
+
+    run = tmp_path / "run"
+    assert ndp_main(_tiny(str(run))) == 0
+    cfg = load_config(run / "config.json")
+    changed = dataclasses.replace(cfg, seed=7, ppo=dataclasses.replace(cfg.ppo, lr=1e-2))
+    assert config_differences(cfg, changed) == [("seed", 0, 7), ("ppo.lr", 3e-4, 1e-2)]
+    assert config_differences(cfg, dataclasses.replace(cfg, run_dir="/x")) == []
+    with pytest.raises(ValueError, match=r"seed: 0 in the checkpoint, 7 now; ppo\.lr: 0\.0003"):
+        Trainer(TrainConfig.from_dict(changed.to_dict()), resume=True)
+
+
+def test_ctrl_c_before_the_first_checkpoint_says_so_and_the_same_command_restarts(tmp_path):
+    """Interrupted before its first checkpoint: the stop line says there is nothing to resume,
+    --resume says to rerun the command, and the plain rerun starts the run again (replacing the
+    partial files, named on stderr) instead of refusing the folder."""
+    import os
+    import subprocess
+    import time
+
+    run = tmp_path / "run"
+    argv = [*_tiny(str(run)), "--checkpoint-every", "1000", "--steps", "100000"]
+    proc = subprocess.Popen([sys.executable, "-m", "ndp.cli", *argv], stderr=subprocess.PIPE)
+    deadline = time.time() + 120
+    while time.time() < deadline and not (
+        (run / "metrics.csv").is_file() and len(read_metrics(run)) >= 1
+    ):
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "before the first checkpoint: nothing to resume" in err.decode()
+    assert not (run / "checkpoint.pt").exists() and (run / "metrics.csv").exists()
+    with pytest.raises(FileNotFoundError, match="stopped before its first checkpoint"):
+        ck.RunDir(run).open_for_resume()
+    res = subprocess.run([sys.executable, "-m", "ndp.cli", *_tiny(str(run))],
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    assert "stopped before its first checkpoint (nothing to resume); starting the run again" in (
+        res.stderr
+    )
+    assert [int(r["update"]) for r in read_metrics(run)] == [1, 2]
+    assert (run / "partial-start-1" / "metrics.csv").is_file()  # kept aside, not deleted
+
+
+def test_a_finished_archived_run_is_never_taken_for_a_partial_start(tmp_path):
+    """A run archived without its checkpoint (done.json) holds metrics but no checkpoint: a new
+    run in its folder is refused, not started over it."""
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "metrics.csv").write_text("update,global_step\n1,100\n")
+    (run / "done.json").write_text("{}")
+    (run / "config.json").write_text("{}")
+    (run / "provenance.json").write_text("[]")
+    with pytest.raises(ValueError, match=r"already holds a run's metrics\.csv"):
+        ck.RunDir(run).create()
+    assert (run / "metrics.csv").exists()

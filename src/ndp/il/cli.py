@@ -111,7 +111,7 @@ def train_command(argv: list[str]) -> int:
         with stop_on_sigterm():
             summary = train(cfg, resume=resume_dir is not None, overwrite=overwrite)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (ndp.runs.signals.Terminated)
-        return report_stop(exc, f"ndp il train --resume {cfg.run_dir}")
+        return report_stop(exc, f"ndp il train --resume {cfg.run_dir}", cfg.run_dir)
     if cmd.eval:
         summary["eval"] = evaluate(cfg.run_dir, dtw=cmd.dtw, threads=cfg.threads)
     print(json.dumps(summary, indent=2))

@@ -142,7 +142,7 @@ def train_command(argv: list[str]) -> int:
         print(f"ndp: error: {exc}", file=sys.stderr)
         return 3
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (ndp.runs.signals.Terminated)
-        return report_stop(exc, f"ndp rl train --resume {run_name}")
+        return report_stop(exc, f"ndp rl train --resume {run_name}", run_name)
     keys = ("update", "global_step", "charts/success_any", "charts/episode_return")
     print(json.dumps({k: metrics.get(k) for k in keys}))
     return 0

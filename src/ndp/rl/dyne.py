@@ -61,6 +61,7 @@ from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.progress import TrainProgress, episode_charts, last_update
 from ndp.rl.trainer import TrainingDivergedError
 from ndp.runs import RunDir, load_checkpoint, save_checkpoint
+from ndp.runs.resume import check_resume
 
 DEFAULT_EXPLORE_STEPS = 50_000
 """Exploration env steps of the embedding where a task has no preset: 10k sequences of k = 5,
@@ -305,9 +306,7 @@ class DyneLearner:
             self.run.open_for_resume()
             ckpt = load_checkpoint(self.run.checkpoint, kind="rl")
             saved = TrainConfig.from_dict(ckpt["config"])
-            saved = dataclasses.replace(saved, **{f: getattr(cfg, f) for f in SAFE_ON_RESUME})
-            if saved != cfg:
-                raise ValueError(f"resume: config differs from the checkpoint's in {self.run.path}")
+            check_resume(saved, cfg, SAFE_ON_RESUME, self.run.path)
         else:
             self.run.create()
         torch.set_num_threads(cfg.torch_threads)

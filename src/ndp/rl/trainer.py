@@ -53,6 +53,7 @@ from ndp.rl.ppo import (
 )
 from ndp.rl.progress import TrainProgress, episode_charts, last_update
 from ndp.runs import RunDir, load_checkpoint, save_checkpoint
+from ndp.runs.resume import check_resume
 
 
 class TrainingDivergedError(FloatingPointError):
@@ -82,9 +83,7 @@ class Trainer:
             self.run.open_for_resume()
             ckpt = load_checkpoint(self.ckpt_path, kind="rl")
             saved = TrainConfig.from_dict(ckpt["config"])
-            saved = dataclasses.replace(saved, **{f: getattr(cfg, f) for f in SAFE_ON_RESUME})
-            if saved != cfg:
-                raise ValueError(f"resume: config differs from the checkpoint's in {self.run_dir}")
+            check_resume(saved, cfg, SAFE_ON_RESUME, self.run.path)
         else:
             self.run.create()
         torch.set_num_threads(cfg.torch_threads)

@@ -63,6 +63,20 @@ class RunDir:
                 return f"a run's {name}"
         return None
 
+    def partial_start(self) -> bool:
+        """The directory holds the files of a start that stopped before its first checkpoint
+        (this version's metrics.csv, config.json and provenance.json) and nothing that could be
+        resumed or that marks a finished run (a checkpoint, done.json, eval.json). Older
+        layouts (a legacy metrics file alone) are not taken for one."""
+        return (
+            self.metrics.is_file()
+            and self.config.is_file()
+            and (self.path / PROVENANCE_NAME).is_file()
+            and not self.checkpoint.exists()
+            and not (self.path / "done.json").exists()
+            and not (self.path / "eval.json").exists()
+        )
+
     def run_files(self) -> list[Path]:
         """The files and folders of a run in the directory (what ``overwrite`` removes)."""
         names = (
@@ -95,6 +109,24 @@ class RunDir:
             raise ValueError(f"run_dir: {self.path} exists and is not a directory")
         held = self.held()
         removed: list[Path] = []
+        if held is not None and not overwrite and self.partial_start():
+            # a start stopped before its first checkpoint: nothing of it can be resumed, and
+            # the same command starts the run again; its files are kept aside, not deleted
+            files = self.run_files()
+            n = 1
+            while (self.path / f"partial-start-{n}").exists():
+                n += 1
+            aside = self.path / f"partial-start-{n}"
+            aside.mkdir()
+            for p in files:
+                p.rename(aside / p.name)
+            print(
+                f"ndp: {self.path} holds a start that stopped before its first checkpoint "
+                f"(nothing to resume); starting the run again ({', '.join(p.name for p in files)}"
+                f" moved to {aside.name}/)",
+                file=sys.stderr,
+            )
+            held = None
         if held is not None and not overwrite:
             raise ValueError(
                 f"run_dir: {self.path} already holds {held}; resume it (--resume), replace it "
@@ -134,9 +166,14 @@ class RunDir:
             FileNotFoundError: no checkpoint in the directory.
         """
         if not self.checkpoint.is_file():
+            if self.partial_start():
+                raise FileNotFoundError(
+                    f"resume: {self.path} stopped before its first checkpoint, so there is "
+                    "nothing to resume: run the same command without --resume to start it again"
+                )
             raise FileNotFoundError(
-                f"resume: no checkpoint in {self.path} (the run was killed before its first "
-                "checkpoint, or this is not a run directory)"
+                f"resume: no checkpoint in {self.path} (not a run directory, or a run archived "
+                "without its checkpoint)"
             )
         self._check_writable()
         remove_stale_tmp(self.path)  # left by a write that was killed

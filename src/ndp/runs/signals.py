@@ -13,6 +13,7 @@ import contextlib
 import signal
 import sys
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 
@@ -78,9 +79,21 @@ def stop_on_sigterm() -> Iterator[None]:
         signal.signal(signal.SIGINT, old_int)
 
 
-def report_stop(exc: KeyboardInterrupt, resume_command: str) -> int:
-    """Print the one line a stopped run gives; returns the exit code."""
+def report_stop(
+    exc: KeyboardInterrupt, resume_command: str, run_dir: str | Path | None = None
+) -> int:
+    """Print the one line a stopped run gives; returns the exit code.
+
+    With ``run_dir``, a run stopped before its first checkpoint says that there is nothing to
+    resume and that the same command starts it again (instead of pointing to ``--resume``)."""
     what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+    if run_dir is not None and not (Path(run_dir) / "checkpoint.pt").is_file():
+        print(
+            f"ndp: {what} before the first checkpoint: nothing to resume; the same command "
+            "starts the run again",
+            file=sys.stderr,
+        )
+        return exit_code(exc)
     print(
         f"ndp: {what}; the last checkpoint is kept. Continue with: {resume_command}",
         file=sys.stderr,

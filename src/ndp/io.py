@@ -54,7 +54,7 @@ def remove_stale_tmp(folder: str | os.PathLike) -> list[Path]:
     return removed
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+def atomic_write_bytes(path: str | os.PathLike, data: bytes | memoryview) -> None:
     """Atomic binary write; see :func:`atomic_write`."""
     atomic_write(path, lambda f: f.write(data))
 
@@ -65,14 +65,26 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
 
 
 def atomic_torch_save(obj: Any, path: str | os.PathLike) -> None:
-    """``torch.save(obj)`` atomically; see :func:`atomic_write`."""
+    """``torch.save(obj)`` atomically; see :func:`atomic_write`.
+
+    The object is serialised in memory first and then written: a full disk then fails in the
+    write itself, as an ``OSError`` naming the file (``torch.save`` straight to a file on a full
+    disk raises its zip writer's ``RuntimeError: ... unexpected pos`` instead)."""
+    import io
+
     import torch
 
-    atomic_write(path, lambda f: torch.save(obj, f))
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    atomic_write_bytes(path, buf.getbuffer())
 
 
 def atomic_save_npz(path: str | os.PathLike, **arrays: Any) -> None:
     """``numpy.savez_compressed`` atomically; see :func:`atomic_write`."""
+    import io
+
     import numpy as np
 
-    atomic_write(path, lambda f: np.savez_compressed(f, **arrays))
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)  # in memory first, as atomic_torch_save
+    atomic_write_bytes(path, buf.getbuffer())

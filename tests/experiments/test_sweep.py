@@ -316,7 +316,17 @@ def test_an_arm_with_an_option_the_trainer_lacks_is_refused_up_front(tmp_path, c
 
 
 def test_studies_are_defined_and_their_arms_accepted(capsys):
-    assert set(STUDIES) == {"paper-five", "mt50", "ablations", "digits-data"}
+    assert set(STUDIES) == {"paper-five", "mt50", "ablations", "digits-data", "release-conditions"}
+    rc = get_study("release-conditions")
+    arms = {a.label: a for a in rc.arm_specs()}
+    assert len(arms) == 12 and rc.task_list() == ("push-v3", "soccer-v3", "faucet-open-v3")
+    sw.check_arms([a.arm() for a in arms.values()], list(rc.task_list()), "release-conditions")
+    for cond in rc.conditions:  # every condition names one arm per method, all in the study
+        assert [m for m, _ in cond.methods] == ["ndp", "ppo-multi", "ppo"]
+        assert all(lb in arms and arms[lb].algo == m for m, lb in cond.methods)
+    goals = dict(next(c for c in rc.conditions if c.name == "release-goals").methods)
+    assert goals == {"ndp": "ndp-v1-fixed", "ppo-multi": "ppo-multi-v1-fixed", "ppo": "ppo-v1"}
+    assert [c.name for c in rc.conditions if c.unequal] == ["release-goals"]
     pf = get_study("paper-five")
     assert pf.task_list() == ("throw", "pick", "push-v3", "soccer-v3", "faucet-open-v3")
     keep, pending = pf.available()

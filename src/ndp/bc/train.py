@@ -22,12 +22,14 @@ import dataclasses
 import json
 import math
 import random
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Annotated, Any
 
 import numpy as np
 
+from ndp.checks import plain_numbers
 from ndp.policies.config import PolicyConfig
 from ndp.runs.cli import cli
 
@@ -76,6 +78,7 @@ class BCConfig:
     """Network and head settings, as for RL (the head follows the model)."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         if self.model not in BC_MODELS:
             raise ValueError(f"model: expected one of {', '.join(BC_MODELS)}, got {self.model!r}")
         for name, low in (("episodes", 0), ("epochs", 1), ("batch_size", 1), ("threads", 1),
@@ -153,8 +156,21 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
             f"actions: {cfg.demos} has {demos.actions.shape[1]} action dimensions, task "
             f"{spec.name} has {spec.action_dim}"
         )
+    n_val = round(cfg.val_fraction * demos.n_episodes) if demos.n_episodes >= 2 else 0
+    if n_val >= demos.n_episodes:
+        raise ValueError(
+            f"val_fraction: {cfg.val_fraction} of {demos.n_episodes} demonstration episodes "
+            "leaves none for training; give a smaller --val-fraction or more episodes"
+        )
+    if cfg.val_fraction > 0 and n_val == 0:
+        print(
+            f"ndp: bc: --val-fraction {cfg.val_fraction} of {demos.n_episodes} demonstration "
+            "episode(s) rounds to no validation episode: val/loss is not measured (empty in "
+            "metrics.csv, null in the summary); give more episodes for a validation split",
+            file=sys.stderr,
+        )
     run = RunDir(cfg.run_dir)
-    run.create(overwrite=overwrite)
+    run.create(overwrite=overwrite, resumable=False)  # ndp il bc has no --resume
     run.write_config(rl_cfg.to_dict())
     run.record_session("start")
     from ndp.io import atomic_write_text
@@ -258,6 +274,6 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
         "episodes": demos.n_episodes,
         "train_steps": len(tr),
         "val_steps": len(va),
-        "final": row,
+        "final": {**row, "val/loss": None if not len(va) else row["val/loss"]},
         "train_wall_s": time.perf_counter() - t_run,
     }

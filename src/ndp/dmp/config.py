@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from ndp.checks import plain_numbers
+
 FORCING_FORMS = ("released", "supplement")
 
 
@@ -49,6 +51,7 @@ class DMPConfig:
     """Report every l-th integration step; ``steps`` must be a multiple of it."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         _check_int("n_basis", self.n_basis, 1)
         _check_int("steps", self.steps, 1)
         _check_int("subsample", self.subsample, 1)

@@ -19,6 +19,7 @@ Subclasses provide ``robot_state()`` (and ``world_snapshot`` / ``stale_reward`` 
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import gymnasium as gym
@@ -243,6 +244,23 @@ class NDPEnv(gym.Env):
         info = {} if info is None else info
         info.update(self._state_info(False, np.nan_to_num(pos), np.nan_to_num(vel), True))
         return last_obs, 0.0, False, True, info
+
+    def _render_frame(self, draw: Any) -> np.ndarray | None:
+        """``draw()`` (the env's own rendering call) with the OpenGL failures of a machine
+        without a display turned into one line naming ``MUJOCO_GL`` and what to set."""
+        try:
+            return draw()  # type: ignore[no-any-return]
+        except Exception as exc:  # mujoco.FatalError, GLFW / EGL / OSMesa errors
+            text = f"{type(exc).__name__}: {exc}"
+            words = ("OpenGL", "EGL", "GLFW", "glfw", "DISPLAY", "display", "GL context")
+            if type(exc).__name__ != "FatalError" and not any(w in text for w in words):
+                raise
+            gl = os.environ.get("MUJOCO_GL", "(unset)")
+            raise OSError(
+                f"render: MuJoCo could not create an OpenGL context with MUJOCO_GL={gl} "
+                f"({text.splitlines()[0][:160]}); on a machine without a display set "
+                "MUJOCO_GL=egl (GPU or Mesa EGL) or MUJOCO_GL=osmesa"
+            ) from None
 
     def _render_guard(self) -> bool:
         """True if a frame can be rendered; else warns (as gymnasium does) and returns False."""

@@ -20,6 +20,8 @@ from typing import ClassVar
 
 import torch
 
+from ndp.checks import plain_numbers
+
 
 @dataclass(frozen=True)
 class DeltaController:
@@ -36,6 +38,7 @@ class DeltaController:
     """Action upper bounds."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         n = len(self.scale)
         if not (len(self.absolute) == len(self.low) == len(self.high) == n) or n == 0:
             raise ValueError(

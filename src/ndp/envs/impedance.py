@@ -39,6 +39,8 @@ from typing import ClassVar, Literal
 import mujoco
 import numpy as np
 
+from ndp.checks import plain_numbers
+
 KP_RANGE = (10.0, 300.0)
 """Stiffness range per axis (robosuite's variable-impedance range; 1/s^2, mass-normalised)."""
 ZETA_RANGE = (0.0, 2.0)
@@ -230,6 +232,7 @@ class ImpedanceController:
     """OSC stiffness of the held orientation."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         if self.space not in ("ee", "joint"):
             raise ValueError(f"space: expected 'ee' or 'joint', got {self.space!r}")
         if not self.max_delta or any(not d > 0 for d in self.max_delta):

@@ -472,10 +472,14 @@ class JacoEnv(NDPEnv, EzPickle):
         """Upright RGB frame [H, W, 3] uint8 from ``self.camera`` (``render_mode="rgb_array"``)."""
         if not self._render_guard():
             return None
-        if self._renderer is None:
-            self._renderer = mujoco.Renderer(self.model, height=self.height, width=self.width)
-        self._renderer.update_scene(self.data, camera=self.camera)
-        return self._renderer.render().copy()
+
+        def draw() -> np.ndarray:
+            if self._renderer is None:
+                self._renderer = mujoco.Renderer(self.model, height=self.height, width=self.width)
+            self._renderer.update_scene(self.data, camera=self.camera)
+            return self._renderer.render().copy()
+
+        return self._render_frame(draw)
 
     def close(self) -> None:
         """Free the renderer."""

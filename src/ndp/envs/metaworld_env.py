@@ -474,7 +474,7 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         """Upright RGB frame [H, W, 3] uint8 (``render_mode="rgb_array"``)."""
         if not self._render_guard():
             return None
-        frame = self.mw.render()
+        frame = self._render_frame(self.mw.render)
         # metaworld's cameras come out of MuJoCo's renderer bottom row first: flip to upright.
         return None if frame is None else np.ascontiguousarray(frame[::-1])
 

@@ -68,6 +68,8 @@ class RunInfo:
     """'rl', 'sb3' or 'il'."""
     finished: bool = False
     commits: list[str] = field(default_factory=list)
+    problem: str = ""
+    """Why a run that says it is finished does not count (e.g. its metrics.csv was cut)."""
 
 
 # ----------------------------------------------------------------------------- finding runs
@@ -153,22 +155,36 @@ def run_info(path: Path) -> RunInfo | None:
     return info
 
 
+def _record_reaches_budget(info: RunInfo) -> bool:
+    """The run's metrics.csv reaches its budget (RL: the last row's ``global_step`` >= the
+    budget; imitation: the last ``epoch``); a file cut short records less than ran."""
+    if not metrics_path(info.path).is_file():
+        return False
+    rows = read_metrics(info.path)
+    col = "epoch" if info.kind == "il" else "global_step"
+    last = rows[-1].get(col, 0) if rows else 0
+    if not (rows and last >= info.steps):
+        unit = "epoch" if info.kind == "il" else "env step"
+        info.problem = f"metrics.csv ends at {unit} {last:,.0f} of {info.steps:,}"
+        return False
+    return True
+
+
 def _finished(info: RunInfo) -> bool:
     path = info.path
-    if (path / "done.json").is_file():
-        return True
-    if (path / "checkpoint.pt").is_file():
-        try:
-            return is_finished(path, kind=info.kind)
-        except Exception:  # an unreadable checkpoint: not a finished run
-            return False
-    if not metrics_path(path).is_file():
-        return False
+    if (path / "done.json").is_file() or (path / "checkpoint.pt").is_file():
+        if not (path / "done.json").is_file():
+            try:
+                if not is_finished(path, kind=info.kind):
+                    return False
+            except Exception:  # an unreadable checkpoint: not a finished run
+                info.problem = "its checkpoint is unreadable"
+                return False
+        # finished by its own account; the record must say so too (a cut metrics.csv does not)
+        return _record_reaches_budget(info)
     if info.kind == "il" and not (path / "eval.json").is_file():
         return False
-    rows = read_metrics(path)
-    col = "epoch" if info.kind == "il" else "global_step"
-    return bool(rows) and rows[-1].get(col, 0) >= info.steps
+    return _record_reaches_budget(info)
 
 
 # ----------------------------------------------------------------------------- numbers
@@ -336,6 +352,8 @@ def _missing_message(cells: Sequence[Cell], expected: Sequence[int]) -> str:
     for c in bad[:10]:
         unf = [s for s in c.missing if s in c.unfinished]
         extra = f" ({len(unf)} unfinished: seeds {unf})" if unf else ""
+        why = [f"seed {s}: {c.unfinished[s].problem}" for s in unf if c.unfinished[s].problem]
+        extra += f" [{'; '.join(why)}]" if why else ""
         parts.append(f"{c.task} x {c.label}: seeds {c.missing} missing{extra}")
     more = f"; and {len(bad) - 10} more cells" if len(bad) > 10 else ""
     return (
@@ -400,6 +418,9 @@ def report(
     rl_cells = [c for c in cells if c.kind != "il"]
     il_cells = [c for c in cells if c.kind == "il"]
     top = max((i.steps for c in rl_cells for i in c.runs.values()), default=0)
+    for b in budgets or ():
+        if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b <= 0:
+            raise ValueError(f"budgets: expected env steps > 0, got {b!r}")
     budgets = sorted({int(b) for b in (budgets or [top / 4, top / 2, top]) if b > 0})
     if isinstance(eval_episodes, bool) or not isinstance(eval_episodes, int) or eval_episodes < 0:
         raise ValueError(f"eval_episodes: expected an integer >= 0, got {eval_episodes!r}")
@@ -417,7 +438,10 @@ def report(
         "run_commits": sorted({x for c in cells for i in c.runs.values() for x in i.commits}),
     }
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise OSError(f"out: cannot create {out.parent}: a part of that path is a file") from None
     pngs = _plot_all(rl_cells, il_cells, out, prov) if plots else []
     rows = _csv_rows(rl_cells, il_cells, budgets, expected, prov)
     _write_csv(out.with_suffix(".csv"), rows)

@@ -130,6 +130,13 @@ def arm_record(arm: Arm, steps: int, task: str | None = None, seed: int | None =
 def arm_conflict(run: Path, arm: Arm, steps: int, task: str | None = None,
                  seed: int | None = None) -> str | None:  # fmt: skip
     """Why ``run`` cannot hold this arm's run (another arm, budget, task or seed), or None."""
+    budget = _config_budget(run, arm)
+    if budget is not None and budget != steps:
+        unit = "epochs" if arm.kind == "il" else "env steps"
+        return (
+            f"its config.json trains {budget:,} {unit} where this sweep has {steps:,}; a "
+            "run is counted only at its own budget"
+        )
     rec = run / "arm.json"
     if not rec.is_file():
         return None
@@ -145,6 +152,19 @@ def arm_conflict(run: Path, arm: Arm, steps: int, task: str | None = None,
     return "it holds another run (" + ", ".join(
         f"{k} {a!r} where this sweep has {b!r}" for k, (a, b) in diff.items()
     ) + ")"  # fmt: skip
+
+
+def _config_budget(run: Path, arm: Arm) -> int | None:
+    """The budget the run's config.json records (RL: ``steps``; imitation: ``epochs``), or None
+    where there is no readable config (a run not started yet)."""
+    try:
+        cfg = json.loads((run / "config.json").read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    if not isinstance(cfg, dict):
+        return None
+    v = cfg.get("epochs" if arm.kind == "il" else "steps")
+    return int(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
 
 
 def _check_arm(run: Path, arm: Arm, steps: int, task: str | None = None,

@@ -237,9 +237,15 @@ def _log_tail(log: Path, start: int, lines: int = 3) -> str:
             text = fh.read().decode("utf-8", "replace")
     except OSError:
         return ""
-    rows = [r.strip() for r in text.splitlines() if r.strip() and not r.startswith("# ")]
+    rows = []
+    for r in text.splitlines():
+        # the box a command-line parser draws around its message (tyro): keep the text only
+        r = r.strip().strip("│╭╮╰╯─ ").strip()
+        if r and not r.startswith("# ") and not set(r) <= set("─━═-"):
+            rows.append(r)
     errors = [r for r in rows if r.startswith("ndp: error") or r.startswith("ndp: ")]
-    picked = errors[-1:] if errors else rows[-lines:]
+    parse = [r for r in rows if r.startswith("Error parsing") or "error" in r.lower()[:40]]
+    picked = errors[-1:] if errors else parse[-2:] if parse else rows[-lines:]
     return " | ".join(picked)[-600:]
 
 

@@ -11,6 +11,7 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Annotated, Any
 
+from ndp.checks import plain_numbers
 from ndp.runs.cli import HIDDEN, cli
 
 if TYPE_CHECKING:
@@ -51,6 +52,7 @@ class ModelConfig:
     """Ridge of the least-squares DMP fit that makes CNN-DMP's parameter targets."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         if self.kind not in MODEL_KINDS:
             raise ValueError(f"model: expected one of {', '.join(MODEL_KINDS)}, got {self.kind!r}")
         if self.forcing_param not in ("amplitude", "weights"):
@@ -124,6 +126,7 @@ class DataConfig:
     """Resample .npz trajectories of another length to 301 points instead of refusing."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         if self.split not in SPLITS:
             raise ValueError(f"split: expected one of {', '.join(SPLITS)}, got {self.split!r}")
         for name in ("n_samples", "n_train", "n_test"):
@@ -178,11 +181,12 @@ class TrainConfig:
     this model's encoder ('' = train from scratch)."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         if isinstance(self.data, dict):
             object.__setattr__(self, "data", DataConfig(**self.data))
         if isinstance(self.model, dict):
             object.__setattr__(self, "model", ModelConfig(**self.model))
-        for name, low in (("epochs", 0), ("batch_size", 1), ("threads", 0), ("seed", 0)):
+        for name, low in (("epochs", 1), ("batch_size", 1), ("threads", 0), ("seed", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")

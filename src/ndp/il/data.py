@@ -445,7 +445,11 @@ def paper_split(
     """
     need = n_train + n_test
     if n_train <= 0 or n_test <= 0:
-        raise ValueError(f"n_train and n_test must be positive, got {n_train}, {n_test}")
+        raise ValueError(
+            f"split: a train / test split needs at least one sample on each side, got "
+            f"n_train={n_train} and n_test={n_test} (of {n_total} samples; a file of one "
+            "sample can only be trained on whole: --split all)"
+        )
     if need > n_total:
         raise ValueError(f"split needs {need} samples but the data set has {n_total}")
     perm = np.random.default_rng(seed).permutation(need)

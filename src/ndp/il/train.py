@@ -191,6 +191,9 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
         NonFiniteLossError: the loss became NaN / Inf (the last good checkpoint stays).
         FileNotFoundError, ValueError: bad data paths or files.
     """
+    from ndp.checks import check_device_available
+
+    check_device_available(cfg.device)  # before the run folder is made
     run = RunDir(cfg.run_dir)
     run_dir, ckpt_path = run.path, run.checkpoint
     ckpt = None
@@ -203,6 +206,11 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
             **{f: getattr(cfg, f) for f in SAFE_ON_RESUME},
             run_dir=cfg.run_dir,
         )
+        if cfg.epochs < int(ckpt["epoch"]):
+            raise ValueError(
+                f"epochs: the run has trained {int(ckpt['epoch'])} epochs; --epochs {cfg.epochs} "
+                "would cut its budget below that (give at least that many, or start a new run)"
+            )
     else:
         run.create(overwrite=overwrite)
     _set_threads(cfg.threads)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Annotated
 
+from ndp.checks import plain_numbers
 from ndp.runs.cli import HIDDEN
 
 HEADS = ("step", "multi", "ndp", "dyne")
@@ -96,6 +97,7 @@ class PolicyConfig:
     preset ('state' on Meta-World, 'zero' on Jaco and the toy task)."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         from ndp.policies.heads import HEAD_BUILDERS, SINGLE_STEP_HEADS
 
         if self.head not in HEAD_BUILDERS:

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ndp.checks import plain_numbers
 from ndp.policies.config import PolicyConfig
 
 SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers", "device")
@@ -78,6 +79,7 @@ class PPOConfig:
     """Decay the learning rate linearly to 0 over the run."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         for name in (
             "lr",
             "adam_eps",
@@ -156,6 +158,7 @@ class DyneConfig:
     """Dyn-E: clip of the target-policy smoothing noise, times the latent range."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         if self.explore_steps is not None:
             _check_int("explore_steps", self.explore_steps, 1)
         for name in ("embed_updates", "decoder_updates", "start_steps"):
@@ -236,6 +239,7 @@ class TrainConfig:
     """Dyn-E settings (``--algo dyne`` only)."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)
         from ndp.rl.methods import METHODS
 
         if self.algo not in METHODS:
@@ -344,9 +348,11 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
         from ndp.rl.envs import resolve_task
 
         spec = resolve_task(cfg.task).spec
+    from ndp.checks import check_device_available
     from ndp.envs.factory import task_options
 
     task_options(spec, cfg.reward_version)  # v1 rewards on a task without them: refused here
+    check_device_available(cfg.device)  # before any env is built or run folder made
     from ndp.policies.heads import SINGLE_STEP_HEADS
     from ndp.rl.methods import METHODS
 

@@ -14,9 +14,17 @@ from ndp.rl.policy import Policy, load_policy
 __all__ = ["Policy", "evaluate", "evaluate_policy", "load_policy", "render"]
 
 
+def _check_episodes(episodes: Any, seed: Any) -> None:
+    """Episode count and first seed checked before anything loads (one-line errors)."""
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed: expected an integer >= 0 (the first episode seed), got {seed!r}")
+
+
 def _episode(pol: Policy, env: Any, seed: int, deterministic: bool) -> dict[str, float]:
     obs, info = env.reset(seed=seed)
-    pol.reset()
+    pol.reset(seed)  # the action noise of a stochastic episode is seeded by the episode seed
     ret, length = 0.0, 0
     while True:
         obs, r, term, trunc, info = env.step(pol.act(obs, info, deterministic))
@@ -55,8 +63,7 @@ def evaluate(
         compares across ``exec_k``; the return does not (m times as many env-step rewards are
         summed at m = exec_k / k).
     """
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
+    _check_episodes(episodes, seed)
     pol = load_policy(run_dir)
     if exec_k is not None:
         pol = pol.at_exec_k(exec_k)
@@ -67,8 +74,7 @@ def evaluate_policy(
     pol: Policy, episodes: int = 10, deterministic: bool = True, seed: int = 10_000
 ) -> dict[str, Any]:
     """:func:`evaluate` of a loaded policy (or its ``at_exec_k`` copy) in ``pol.make_env()``."""
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
+    _check_episodes(episodes, seed)
     env = pol.make_env()
     try:
         rows = [_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
@@ -92,6 +98,7 @@ def _record(
 ) -> tuple[list[np.ndarray], list[dict[str, Any]], Any]:
     """Frames (every env step) and episode rows of a run's policy (at ``exec_k`` sub-steps per
     decision where given: ``Policy.at_exec_k``), and the policy."""
+    _check_episodes(episodes, seed)
     pol = load_policy(run_dir)
     if exec_k is not None:
         pol = pol.at_exec_k(exec_k)

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -63,6 +63,8 @@ class Policy:
     substeps: int = 1
     """m: each env step of the trained env runs as m shorter ones (:meth:`at_exec_k`); 1 for
     the policy as trained. ``spec`` is then the finer row (``ndp.envs.spec.finer_spec``)."""
+    _generator: torch.Generator | None = field(default=None, repr=False, compare=False)
+    """Sampler of the stochastic actions (:meth:`reset` with a seed); None: torch's global."""
 
     @property
     def exec_k(self) -> int:
@@ -84,9 +86,15 @@ class Policy:
             return "cmd_y0", "cmd_dy0"
         return "dmp_y0", "dmp_dy0"
 
-    def reset(self) -> None:
-        """Start a new episode (the policy keeps no state between decisions; kept so that
-        callers need not know)."""
+    def reset(self, seed: int | None = None) -> None:
+        """Start a new episode. The policy keeps no state between decisions; ``seed`` seeds the
+        sampling of ``act(..., deterministic=False)``, so a stochastic episode is reproducible
+        (None: the sampler continues as it is; an unseeded policy draws from torch's global
+        generator)."""
+        if seed is not None:
+            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+                raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
+            self._generator = torch.Generator().manual_seed(int(seed))
 
     def act(self, obs: np.ndarray, info: dict[str, Any], deterministic: bool = True) -> np.ndarray:
         """The k sub-actions of one decision (``exec_k`` of them for an :meth:`at_exec_k` copy),
@@ -112,18 +120,34 @@ class Policy:
                 f"{sorted(info)[:8]}"
             )
         single = np.ndim(obs) == 1
-        o = np.asarray(obs, dtype=np.float64).reshape(1 if single else len(obs), -1)
-        if o.shape[1] != self.model.obs_dim:
-            raise ValueError(f"obs: expected {self.model.obs_dim} values, got {o.shape[1]}")
-        y0 = np.asarray(info[ky], dtype=np.float64).reshape(len(o), -1)
-        dy0 = np.asarray(info[kdy], dtype=np.float64).reshape(len(o), -1)
+        o = np.asarray(obs, dtype=np.float64)
+        if o.ndim not in (1, 2) or o.shape[-1] != self.model.obs_dim:
+            raise ValueError(
+                f"obs: expected [{self.model.obs_dim}] or [E, {self.model.obs_dim}], got shape "
+                f"{list(o.shape)}"
+            )
+        o = o.reshape(1 if single else len(o), -1)
+        if not np.isfinite(o).all():
+            bad = np.argwhere(~np.isfinite(o))[0].tolist()
+            raise ValueError(f"obs: expected finite values, got {o[tuple(bad)]} at {bad}")
+        D = self.spec.dmp_dofs
+        states = []
+        for key in (ky, kdy):
+            v = np.asarray(info[key], dtype=np.float64)
+            if v.shape != ((D,) if single else (len(o), D)):
+                want = f"[{D}]" if single else f"[{len(o)}, {D}] for {len(o)} observations"
+                raise ValueError(f"info: {key!r} expected shape {want}, got {list(v.shape)}")
+            if not np.isfinite(v).all():
+                raise ValueError(f"info: {key!r} expected finite values, got {v.tolist()}")
+            states.append(v.reshape(len(o), D))
+        y0, dy0 = states
         with torch.no_grad():
             dist, _ = self.model.distribution(
                 torch.from_numpy(self.obs_norm(o)),
                 torch.as_tensor(y0, dtype=torch.float32),
                 torch.as_tensor(dy0, dtype=torch.float32),
             )
-            z = dist.mode() if deterministic else dist.sample()
+            z = dist.mode() if deterministic else dist.sample(self._generator)
             act = dist.actions(z)
         low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
         high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
@@ -171,16 +195,44 @@ def _build(
     obs_dim: int,
     model_state: dict[str, torch.Tensor],
     obs_norm_state: dict[str, Any],
+    source: str = "policy",
 ) -> Policy:
     from ndp.rl.envs import resolve_task
 
     spec = resolve_task(cfg.task).spec
     model = build_actor_critic(obs_dim, spec, cfg.policy)
+    _check_weights(model.state_dict(), model_state, source)
     model.load_state_dict(model_state)
     model.eval()
+    for key in ("mean", "var"):
+        v = np.asarray(obs_norm_state.get(key), dtype=np.float64)
+        if v.shape != (obs_dim,) or not np.isfinite(v).all():
+            raise ValueError(
+                f"{source}: obs_norm.{key}: expected {obs_dim} finite values, got shape "
+                f"{list(v.shape)}"
+            )
     obs_norm = ObsNormalizer(obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
     obs_norm.load_state_dict(obs_norm_state)
     return Policy(cfg, spec, model, obs_norm)
+
+
+def _check_weights(want: dict[str, torch.Tensor], have: dict[str, Any], source: str) -> None:
+    """The saved weights match the network the config builds: names and shapes (one line
+    naming the file and the first tensor that differs)."""
+    missing = [k for k in want if k not in have]
+    extra = [k for k in have if k not in want]
+    if missing or extra:
+        raise ValueError(
+            f"{source}: the weights do not belong to this config's network (missing "
+            f"{missing[:3]}, unexpected {extra[:3]})"
+        )
+    for k, t in want.items():
+        got = tuple(getattr(have[k], "shape", ()))
+        if got != tuple(t.shape):
+            raise ValueError(
+                f"{source}: weight {k!r} has shape {list(got)}, the config's network needs "
+                f"{list(t.shape)}"
+            )
 
 
 def load_policy(path: str | Path) -> Policy:
@@ -196,29 +248,89 @@ def load_policy(path: str | Path) -> Policy:
     """
     path = Path(path)
     if (path / "policy.json").is_file():
+        meta = read_export_meta(path / "policy.json")
+        weights = path / "policy.safetensors"
+        if not weights.is_file():
+            raise FileNotFoundError(f"policy: {path} has policy.json but no policy.safetensors")
+        from safetensors import SafetensorError
         from safetensors.torch import load_file
 
-        meta = json.loads((path / "policy.json").read_text())
-        if meta.get("format") != EXPORT_FORMAT or meta.get("version") != EXPORT_VERSION:
+        try:
+            state = load_file(str(weights))
+        except (SafetensorError, OSError, ValueError) as exc:
             raise ValueError(
-                f"path: {path} holds format {meta.get('format')!r} version "
-                f"{meta.get('version')!r}; expected {EXPORT_FORMAT!r} version {EXPORT_VERSION}"
-            )
-        state = load_file(str(path / "policy.safetensors"))
-        return _build(
-            TrainConfig.from_dict(meta["config"]), int(meta["obs_dim"]), state, meta["obs_norm"]
-        )
+                f"{weights}: not a readable safetensors file ({str(exc)[:120]})"
+            ) from None
+        try:
+            cfg = TrainConfig.from_dict(meta["config"])
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"{path / 'policy.json'}: config: {exc}") from None
+        return _build(cfg, meta["obs_dim"], state, meta["obs_norm"], str(weights))
     if (path / "config.json").is_file():
         from ndp.rl.config import load_config
         from ndp.runs import load_checkpoint
 
         cfg = load_config(path / "config.json")
         ckpt = load_checkpoint(path, kind="rl")
-        return _build(cfg, int(ckpt["obs_dim"]), ckpt["model"], ckpt["obs_norm"])
+        for key in ("obs_dim", "model", "obs_norm"):
+            if key not in ckpt:
+                raise ValueError(f"{path / 'checkpoint.pt'}: no {key!r} (not an RL checkpoint)")
+        ck = str(path / "checkpoint.pt")
+        return _build(cfg, int(ckpt["obs_dim"]), ckpt["model"], ckpt["obs_norm"], ck)
     raise FileNotFoundError(
         f"path: {path} holds neither a training run (config.json + checkpoint.pt) nor an "
         "exported policy (policy.json + policy.safetensors)"
     )
+
+
+EXPORT_SCHEMA: dict[str, tuple[type, ...]] = {
+    "format": (str,),
+    "version": (int,),
+    "task": (str,),
+    "algo": (str,),
+    "obs_dim": (int,),
+    "config": (dict,),
+    "obs_norm": (dict,),
+}
+"""Required fields of ``policy.json`` and their JSON types (``versions`` and ``commit`` are
+provenance, optional when loading)."""
+
+
+def read_export_meta(path: Path) -> dict[str, Any]:
+    """``policy.json`` read and checked against :data:`EXPORT_SCHEMA` (format, version, field
+    types, ``obs_norm`` statistics of ``obs_dim`` numbers).
+
+    Raises:
+        ValueError: one line naming the file and the field.
+    """
+    try:
+        meta = json.loads(Path(path).read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise ValueError(f"{path}: expected a JSON object")
+    if meta.get("format") != EXPORT_FORMAT or meta.get("version") != EXPORT_VERSION:
+        raise ValueError(
+            f"{path}: format {meta.get('format')!r} version {meta.get('version')!r}; expected "
+            f"{EXPORT_FORMAT!r} version {EXPORT_VERSION}"
+        )
+    for key, types in EXPORT_SCHEMA.items():
+        if key not in meta:
+            raise ValueError(f"{path}: missing field {key!r}")
+        v = meta[key]
+        if isinstance(v, bool) or not isinstance(v, types):
+            names = " or ".join(t.__name__ for t in types)
+            raise ValueError(f"{path}: field {key!r}: expected {names}, got {type(v).__name__}")
+    if meta["obs_dim"] < 1:
+        raise ValueError(
+            f"{path}: field 'obs_dim': expected an integer >= 1, got {meta['obs_dim']}"
+        )
+    for key in ("mean", "var", "count"):
+        if key not in meta["obs_norm"]:
+            raise ValueError(f"{path}: field 'obs_norm.{key}' is missing")
+    if meta["config"].get("task") != meta["task"] or meta["config"].get("algo") != meta["algo"]:
+        raise ValueError(f"{path}: fields 'task' / 'algo' disagree with the config's")
+    return meta
 
 
 def export_policy(path: str | Path, out_dir: str | Path) -> Path:

@@ -21,6 +21,7 @@ import dataclasses
 import itertools
 import math
 import random
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -84,8 +85,10 @@ class Trainer:
             ckpt = load_checkpoint(self.ckpt_path, kind="rl")
             saved = TrainConfig.from_dict(ckpt["config"])
             check_resume(saved, cfg, SAFE_ON_RESUME, self.run.path)
+            check_budget_not_below(int(ckpt["update"]), cfg)
         else:
             self.run.create()
+        say_budget(cfg)
         torch.set_num_threads(cfg.torch_threads)
         random.seed(cfg.seed)
         np.random.seed(cfg.seed)  # noqa: NPY002  (third-party code may use it)
@@ -461,6 +464,36 @@ def _robot_state(
         np.asarray(y0, dtype=np.float64).reshape(n, -1),
         np.asarray(dy0, dtype=np.float64).reshape(n, -1),
     )
+
+
+def say_budget(cfg: TrainConfig) -> None:
+    """The one place a PPO run's budget is rounded and said: ``steps`` rounds up to whole
+    updates of ``env_steps_per_update`` (itself ``steps_per_update`` rounded up to
+    ``k * num_envs``); where that changes the number, stderr says what will be trained."""
+    trained = cfg.num_updates * cfg.env_steps_per_update
+    if trained != cfg.steps or cfg.env_steps_per_update != cfg.ppo.steps_per_update:
+        print(
+            f"ndp: budget: --steps {cfg.steps:,} trains {trained:,} env steps: "
+            f"{cfg.num_updates:,} update(s) of {cfg.env_steps_per_update:,} env steps "
+            f"(--steps-per-update {cfg.ppo.steps_per_update:,} rounded up to whole decisions of "
+            f"k={cfg.k} x num_envs={cfg.num_envs})",
+            file=sys.stderr,
+        )
+
+
+def check_budget_not_below(done_updates: int, cfg: TrainConfig) -> None:
+    """A resume may extend a run's budget, never cut it below what it has trained (its
+    config.json and record would then claim less than ran).
+
+    Raises:
+        ValueError: ``steps`` gives fewer updates than the checkpoint's.
+    """
+    if cfg.num_updates < done_updates:
+        raise ValueError(
+            f"steps: the run has trained {done_updates} updates "
+            f"({done_updates * cfg.env_steps_per_update:,} env steps); --steps {cfg.steps:,} "
+            "would cut its budget below that (give at least that many, or start a new run)"
+        )
 
 
 def make_learner(cfg: TrainConfig, resume: bool = False) -> Any:

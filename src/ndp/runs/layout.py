@@ -90,12 +90,13 @@ class RunDir:
         )
         return [self.path / n for n in names if (self.path / n).exists()]
 
-    def create(self, overwrite: bool = False) -> list[Path]:
+    def create(self, overwrite: bool = False, resumable: bool = True) -> list[Path]:
         """Make the directory for a new run; refuse one that holds an earlier run.
 
         Args:
             overwrite: remove the earlier run's files first (and say which on stderr); other
                 files in the directory are left alone.
+            resumable: the command can ``--resume`` (named in the refusal only then).
 
         Returns:
             The paths removed (empty without ``overwrite``).
@@ -128,8 +129,9 @@ class RunDir:
             )
             held = None
         if held is not None and not overwrite:
+            resume = "resume it (--resume), " if resumable else ""
             raise ValueError(
-                f"run_dir: {self.path} already holds {held}; resume it (--resume), replace it "
+                f"run_dir: {self.path} already holds {held}; {resume}replace it "
                 "(--overwrite) or choose another run directory"
             )
         if held is not None:

@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed-stamp
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: install demo test test-slow lint bench clean
+.PHONY: install demo test test-slow test-hostile lint bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -32,6 +32,10 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
+
+# the hostile-user catalogue alone, with its count per outcome printed (also in `make test`)
+test-hostile: $(STAMP)
+	$(BIN)/python -m pytest -q -s -m hostile tests/test_hostile.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

@@ -253,3 +253,28 @@ def test_repeated_sigkill_with_a_checkpoint_every_update_loses_and_duplicates_no
     assert [int(r["update"]) for r in read_metrics(run)] == list(range(1, n + 1))
     assert load_checkpoint(run, kind="rl")["update"] == n
     assert not list(run.glob(".*.tmp"))
+
+
+@pytest.mark.parametrize("task", ["push-v3", "throw"])
+def test_rendering_without_a_display_is_one_line(tmp_path, task):
+    """MUJOCO_GL=glfw on a machine without a display: one line naming MUJOCO_GL and what to
+    set, not MuJoCo's FatalError traceback (a Meta-World and a Jaco task; one per process, as
+    MuJoCo cannot try a second context after a failed one)."""
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    env["MUJOCO_GL"] = "glfw"
+    code = (
+        "import ndp\n"
+        f"e = ndp.make_env({task!r}, render_mode='rgb_array')\n"
+        "e.reset(seed=0)\n"
+        "try:\n"
+        "    e.render()\n"
+        "except OSError as exc:\n"
+        "    print('ONE-LINE', exc)\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         timeout=300)  # fmt: skip
+    if "ONE-LINE" not in res.stdout and res.returncode == 0:
+        pytest.skip("this machine renders with glfw (a display is available)")
+    lines = [ln for ln in res.stdout.splitlines() if ln.startswith("ONE-LINE")]
+    assert len(lines) == 1 and "Traceback" not in res.stderr, res.stderr[-2000:]
+    assert "MUJOCO_GL=glfw" in lines[0] and "MUJOCO_GL=egl" in lines[0]

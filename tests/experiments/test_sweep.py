@@ -442,3 +442,18 @@ def test_pack_and_unpack_carry_finished_runs_to_a_fresh_runs_directory(tmp_path,
     with pytest.raises(ValueError, match="not a run file"):
         unpack(bad, tmp_path / "x")
     assert not (tmp_path / "escape").exists() and not (tmp_path / "x").exists()
+
+
+def test_a_failed_run_shows_the_trainers_reason_not_the_parser_box(tmp_path):
+    """tyro draws a box around an option error; the sweep's failure line carries its text."""
+    log = tmp_path / "train.log"
+    log.write_text(
+        "╭─ Value error ──────────────────╮\n"
+        "│ Error parsing --lr: could not convert string to float: 'abc' │\n"
+        "│ ────────────────────────────── │\n"
+        "│ For full helptext, see ndp rl train --help │\n"
+        "╰────────────────────────────────╯\n"
+    )
+    tail = sw._log_tail(log, 0)
+    assert "Error parsing --lr: could not convert string to float: 'abc'" in tail
+    assert "╭" not in tail and "│" not in tail

@@ -19,7 +19,9 @@ Subclasses provide ``robot_state()`` (and ``world_snapshot`` / ``stale_reward`` 
 
 from __future__ import annotations
 
+import gc
 import os
+import sys
 from typing import Any
 
 import gymnasium as gym
@@ -248,6 +250,7 @@ class NDPEnv(gym.Env):
     def _render_frame(self, draw: Any) -> np.ndarray | None:
         """``draw()`` (the env's own rendering call) with the OpenGL failures of a machine
         without a display turned into one line naming ``MUJOCO_GL`` and what to set."""
+        hook = sys.unraisablehook
         try:
             return draw()  # type: ignore[no-any-return]
         except Exception as exc:  # mujoco.FatalError, GLFW / EGL / OSMesa errors
@@ -255,12 +258,19 @@ class NDPEnv(gym.Env):
             words = ("OpenGL", "EGL", "GLFW", "glfw", "DISPLAY", "display", "GL context")
             if type(exc).__name__ != "FatalError" and not any(w in text for w in words):
                 raise
-            gl = os.environ.get("MUJOCO_GL", "(unset)")
-            raise OSError(
-                f"render: MuJoCo could not create an OpenGL context with MUJOCO_GL={gl} "
-                f"({text.splitlines()[0][:160]}); on a machine without a display set "
-                "MUJOCO_GL=egl (GPU or Mesa EGL) or MUJOCO_GL=osmesa"
-            ) from None
+            # the half-built renderer in this traceback fails again in its __del__ when freed
+            # with it (a second traceback of MuJoCo's): muted while it goes
+            sys.unraisablehook = lambda *_: None
+        try:
+            gc.collect()
+        finally:
+            sys.unraisablehook = hook
+        gl = os.environ.get("MUJOCO_GL", "(unset)")
+        raise OSError(
+            f"render: MuJoCo could not create an OpenGL context with MUJOCO_GL={gl} "
+            f"({text.splitlines()[0][:160]}); on a machine without a display set "
+            "MUJOCO_GL=egl (GPU or Mesa EGL) or MUJOCO_GL=osmesa"
+        )
 
     def _render_guard(self) -> bool:
         """True if a frame can be rendered; else warns (as gymnasium does) and returns False."""

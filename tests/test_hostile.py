@@ -1,0 +1,314 @@
+"""A hostile user's catalogue: bad inputs and misuse replayed against the CLI and the Python API,
+each outcome classified (docs/reliability.md, "The hostile catalogue").
+
+Outcomes: **clear** (a one-line ``ndp: error:`` or a parser's message naming the option, exit
+code 2; or a ``ValueError`` / ``OSError`` from the API with a message naming the argument),
+**handled** (the right result, checked), **traceback** (an exception escaped the CLI),
+**silent** (exit 0, or no exception, where an error or a notice was due; or a wrong result),
+**lost** (a file that was there before the case changed or disappeared).
+
+``make test-hostile`` prints the count per outcome (``pytest -s -m hostile``); the default
+suite runs the same cases and fails on any traceback, silent result or lost file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import hashlib
+import io
+import json
+import shutil
+import traceback
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from ndp.cli import main as ndp_main
+
+pytestmark = pytest.mark.hostile
+
+RL = ["--task", "point-mass", "--algo", "ndp", "--steps-per-update", "256", "--minibatches", "2",
+      "--vector", "sync", "--num-envs", "2", "--no-progress", "--no-tensorboard"]  # fmt: skip
+IL = ["--data", "synthetic", "--n-train", "48", "--n-test", "16", "--model", "cnn",
+      "--batch-size", "16", "--no-progress", "--no-tensorboard"]  # fmt: skip
+
+
+@dataclass
+class Case:
+    name: str
+    run: Callable[[Path], Any]
+    """CLI: returns (exit code, stderr, stdout); API: returns anything or raises."""
+    expect: str
+    """'error' (a clear error is due) or 'ok' (a result, checked by ``check``)."""
+    check: Callable[[Any], bool] | None = None
+    protect: list[str] = field(default_factory=list)
+    """Paths (relative to the fixture root) that must be unchanged after the case."""
+    api: bool = False
+
+
+def _cli(argv: list[str]) -> tuple[int, str, str]:
+    err, out = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+        rc = ndp_main(argv)
+    return rc, err.getvalue(), out.getvalue()
+
+
+def _clear_cli(res: tuple[int, str, str]) -> bool:
+    rc, err, _ = res
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    if rc == 0 or not lines:
+        return False
+    if "Traceback" in err:
+        return False
+    last = lines[-1]
+    parser_box = any("Error parsing" in ln or "error:" in ln.lower() for ln in lines)
+    return last.startswith("ndp: error:") or parser_box
+
+
+def _digest(root: Path, rel: str) -> str:
+    p = root / rel
+    if p.is_dir():
+        return "|".join(f"{q.relative_to(p)}:{_digest(p, str(q.relative_to(p)))}"
+                        for q in sorted(p.rglob("*")) if q.is_file())  # fmt: skip
+    return hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "missing"
+
+
+def classify(case: Case, root: Path) -> tuple[str, str]:
+    """(outcome, detail) of one case."""
+    before = {p: _digest(root, p) for p in case.protect}
+    try:
+        res = case.run(root)
+    except (ValueError, OSError, FileNotFoundError) as exc:
+        if not case.api:
+            return "traceback", "".join(traceback.format_exception_only(exc)).strip()
+        outcome = "clear" if case.expect == "error" and "\n" not in str(exc) else "silent"
+        res = None
+        detail = f"{type(exc).__name__}: {exc}"
+    except Exception as exc:  # anything else escaping is a traceback for the user
+        return "traceback", "".join(traceback.format_exception_only(exc)).strip()
+    else:
+        if case.api:
+            ok = case.expect == "ok" and (case.check is None or case.check(res))
+            outcome, detail = ("handled" if ok else "silent"), repr(res)[:200]
+        elif case.expect == "error":
+            ok = _clear_cli(res) and (case.check is None or case.check(res))
+            outcome = "clear" if ok else "silent"
+            detail = res[1].strip()[-300:]
+            if "Traceback" in res[1]:
+                outcome = "traceback"
+        else:
+            ok = res[0] == 0 and (case.check is None or case.check(res))
+            outcome, detail = ("handled" if ok else "silent"), (res[1] + res[2]).strip()[-300:]
+    after = {p: _digest(root, p) for p in case.protect}
+    if after != before:
+        return "lost", f"changed: {[p for p in case.protect if after[p] != before[p]]}"
+    return outcome, detail
+
+
+# ----------------------------------------------------------------------------- fixtures
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory) -> Path:
+    """A trained RL run (relative name 'rl'), its export, a finished imitation run, BC demos."""
+    root = tmp_path_factory.mktemp("hostile")
+    assert _cli(["rl", "train", *RL, "--steps", "512", "--run-dir", str(root / "rl")])[0] == 0
+    assert _cli(["rl", "export", str(root / "rl"), str(root / "export")])[0] == 0
+    assert _cli(["il", "train", *IL, "--epochs", "2", "--out", str(root / "il")])[0] == 0
+    assert _cli(["il", "collect", "--task", "point-mass", "--episodes", "1", "--out",
+                 str(root / "demos.npz")])[0] == 0  # fmt: skip
+    return root
+
+
+def _export_copy(root: Path, name: str, edit: Callable[[dict], None] | None = None,
+                 text: str | None = None) -> Path:  # fmt: skip
+    out = root / name
+    if not out.exists():
+        shutil.copytree(root / "export", out)
+        meta = json.loads((out / "policy.json").read_text())
+        if edit is not None:
+            edit(meta)
+        (out / "policy.json").write_text(text if text is not None else json.dumps(meta))
+    return out
+
+
+def _cut_metrics(root: Path) -> Path:
+    out = root / "cut"
+    if not out.exists():
+        shutil.copytree(root / "rl", out)
+        rows = (out / "metrics.csv").read_text().splitlines()
+        (out / "metrics.csv").write_text("\n".join(rows[:1]) + "\n")
+    return out
+
+
+def _wrong_weights(root: Path) -> Path:
+    from safetensors.torch import load_file, save_file
+
+    out = _export_copy(root, "export-shape")
+    w = load_file(str(out / "policy.safetensors"))
+    k = next(iter(w))
+    w[k] = w[k][..., :1].contiguous() if w[k].ndim else w[k]
+    save_file(w, str(out / "policy.safetensors"))
+    return out
+
+
+def _one_sample(root: Path) -> Path:
+    out = root / "one.npz"
+    if not out.exists():
+        np.savez(out, images=np.zeros((1, 28, 28), np.float32),
+                 trajectories=np.zeros((1, 301, 2), np.float32))  # fmt: skip
+    return out
+
+
+def _policy_act(root: Path, obs: Any, info_batch: bool) -> Any:
+    import ndp
+
+    pol = ndp.load_policy(root / "rl")
+    env = pol.make_env()
+    o, info = env.reset(seed=0)
+    env.close()
+    if info_batch:
+        return pol.act(np.stack([o, o]), {k: v for k, v in info.items()})
+    return pol.act(obs if obs is not None else o, info)
+
+
+def _stochastic_twice(root: Path) -> tuple[str, str]:
+    argv = ["rl", "eval", str(root / "rl"), "--episodes", "1", "--mode", "stochastic",
+            "--seed", "3"]  # fmt: skip
+    return _cli(argv)[2], _cli(argv)[2]
+
+
+def _sweep_budget(root: Path) -> tuple[int, str, str]:
+    runs = root / "sweep"
+    if not runs.exists():
+        runs.mkdir()
+        shutil.copytree(root / "rl", runs / "point-mass-ndp-s0")
+    return _cli(["sweep", "--tasks", "point-mass", "--methods", "ndp", "--steps", "1600",
+                 "--runs-dir", str(runs), "--jobs", "1", "--vector", "sync"])  # fmt: skip
+
+
+def _cases() -> list[Case]:
+    rl = lambda r: str(r / "rl")  # noqa: E731
+    protect_rl = ["rl/config.json", "rl/checkpoint.pt", "rl/metrics.csv"]
+    protect_il = ["il/config.json", "il/checkpoint.pt", "il/metrics.csv"]
+    return [
+        # budgets and data said, never silently changed
+        Case("rl train --steps 400 (rounded up)", lambda r: _cli(["rl", "train", *RL, "--steps",
+             "400", "--run-dir", str(r / "s400")]), "ok",
+             lambda res: "budget: --steps 400 trains 520 env steps" in res[1]),  # fmt: skip
+        Case("rl resume cutting the budget", lambda r: _cli(["rl", "train", "--resume", rl(r),
+             "--steps", "100"]), "error", protect=protect_rl),  # fmt: skip
+        Case("il resume cutting the epochs", lambda r: _cli(["il", "train", "--resume",
+             str(r / "il"), "--epochs", "1"]), "error", protect=protect_il),  # fmt: skip
+        Case("il train --epochs 0", lambda r: _cli(["il", "train", *IL, "--epochs", "0",
+             "--out", str(r / "il0")]), "error"),  # fmt: skip
+        Case("il bc with an empty validation split", lambda r: _cli(["il", "bc", "--demos",
+             str(r / "demos.npz"), "--val-fraction", "0.5", "--epochs", "1", "--out",
+             str(r / "bc"), "--no-progress", "--no-tensorboard"]), "ok",
+             lambda res: "val/loss is not measured" in res[1]),  # fmt: skip
+        Case("sweep at another budget over a finished run", _sweep_budget, "error",
+             protect=["rl/config.json"]),
+        # relocation and resume
+        Case("resume from the absolute path", lambda r: _cli(["rl", "train", "--resume",
+             str((r / "rl").resolve()), "--steps", "512"]), "ok",
+             lambda res: "nothing to do" in res[1], protect_rl),  # fmt: skip
+        Case("resume changing the learning rate", lambda r: _cli(["rl", "train", "--resume",
+             rl(r), "--lr", "1"]), "error", protect=protect_rl),  # fmt: skip
+        Case("a new run over a finished one", lambda r: _cli(["rl", "train", *RL, "--run-dir",
+             rl(r)]), "error", protect=protect_rl),  # fmt: skip
+        # reports
+        Case("report of a cut metrics.csv", lambda r: _cli(["report", str(_cut_metrics(r)),
+             "--out", str(r / "rep-cut")]), "error"),  # fmt: skip
+        Case("report --budgets -5 nan", lambda r: _cli(["report", rl(r), "--budgets", "-5",
+             "nan", "--out", str(r / "rep-b")]), "error"),  # fmt: skip
+        Case("report --out under a file", lambda r: _cli(["report", rl(r), "--out",
+             str(r / "rl" / "config.json" / "x")]), "error", protect=protect_rl),  # fmt: skip
+        Case("report of a missing directory", lambda r: _cli(["report", str(r / "nope")]),
+             "error"),
+        # exports
+        Case("export without obs_dim", lambda r: _cli(["rl", "eval", str(_export_copy(
+             r, "export-noobs", lambda m: m.pop("obs_dim"))), "--episodes", "1"]),
+             "error"),  # fmt: skip
+        Case("export with a truncated policy.json", lambda r: _cli(["rl", "eval", str(
+             _export_copy(r, "export-trunc", text='{"format": "ndp-pol')), "--episodes",
+             "1"]), "error"),  # fmt: skip
+        Case("export with weights of another shape", lambda r: _cli(["rl", "eval",
+             str(_wrong_weights(r)), "--episodes", "1"]), "error"),  # fmt: skip
+        Case("export over an export", lambda r: _cli(["rl", "export", rl(r),
+             str(r / "export")]), "error", protect=["export/policy.json"]),  # fmt: skip
+        # bad options
+        Case("--device cuda without CUDA", lambda r: _cli(["rl", "train", *RL, "--device",
+             "cuda", "--run-dir", str(r / "cuda")]), "error",
+             protect=["cuda"]),  # fmt: skip
+        Case("rl eval --seed -1", lambda r: _cli(["rl", "eval", rl(r), "--seed", "-1"]),
+             "error"),
+        Case("rl eval --episodes 0", lambda r: _cli(["rl", "eval", rl(r), "--episodes", "0"]),
+             "error"),
+        Case("--init-log-std nan", lambda r: _cli(["rl", "train", *RL, "--init-log-std", "nan",
+             "--run-dir", str(r / "nan")]), "error"),  # fmt: skip
+        Case("--lr inf", lambda r: _cli(["rl", "train", *RL, "--lr", "inf", "--run-dir",
+             str(r / "inf")]), "error"),  # fmt: skip
+        Case("--num-envs 0", lambda r: _cli(["rl", "train", *RL, "--num-envs", "0"]), "error"),
+        Case("unknown task", lambda r: _cli(["rl", "train", "--task", "pussh-v3"]), "error"),
+        Case("v1 rewards on Throw", lambda r: _cli(["rl", "train", "--task", "throw",
+             "--reward-version", "v1", "--run-dir", str(r / "v1throw")]), "error"),  # fmt: skip
+        Case("unknown study", lambda r: _cli(["sweep", "paper-fiv"]), "error"),
+        Case("il bc into a folder holding a run (no --resume hint)", lambda r: _cli(["il", "bc",
+             "--demos", str(r / "demos.npz"), "--out", rl(r)]), "error",
+             lambda res: "--resume" not in res[1] and "--overwrite" in res[1],
+             protect=protect_rl),  # fmt: skip
+        Case("il train on a one-sample npz", lambda r: _cli(["il", "train", "--data",
+             str(_one_sample(r)), "--out", str(r / "il1")]), "error",
+             lambda res: "at least one sample on each side" in res[1]),  # fmt: skip
+        Case("il train on a missing file", lambda r: _cli(["il", "train", "--data",
+             str(r / "none.npz"), "--out", str(r / "ilx")]), "error"),  # fmt: skip
+        # determinism
+        Case("stochastic eval twice, same seed", _stochastic_twice, "ok",
+             lambda res: res[0] == res[1], api=True),
+        # the Python API
+        Case("DMPConfig(n_basis=np.int64(5))", lambda r: __import__("ndp.dmp").dmp.DMPConfig(
+             n_basis=np.int64(5)), "ok", lambda c: c.n_basis == 5 and type(c.n_basis) is int,
+             api=True),  # fmt: skip
+        Case("policy.act(NaN observation)", lambda r: _policy_act(r, np.full(6, np.nan), False),
+             "error", api=True),
+        Case("policy.act([2, O] with one env's info)", lambda r: _policy_act(r, None, True),
+             "error", api=True),
+        Case("make_env(v1 on the point mass)", lambda r: __import__("ndp").make_env(
+             "point-mass", reward_version="v1"), "error", api=True),  # fmt: skip
+    ]
+
+
+CASES = _cases()
+
+
+@pytest.fixture(scope="module")
+def outcomes(root) -> list[tuple[str, str, str]]:
+    rows = [(c.name, *classify(c, root)) for c in CASES]
+    counts = Counter(o for _, o, _ in rows)
+    print("\nhostile catalogue: " + ", ".join(
+        f"{k} {counts.get(k, 0)}" for k in ("clear", "handled", "traceback", "silent", "lost")
+    ) + f" (of {len(rows)} cases)")  # fmt: skip
+    for name, o, d in rows:
+        if o in ("traceback", "silent", "lost"):
+            print(f"  {o:9s} {name}: {d}")
+    with (root / "catalogue.csv").open("w", newline="") as fh:
+        csv.writer(fh).writerows([("case", "outcome", "detail"), *rows])
+    return rows
+
+
+def test_no_traceback_silent_result_or_lost_file(outcomes):
+    bad = [(n, o, d) for n, o, d in outcomes if o in ("traceback", "silent", "lost")]
+    assert not bad, "\n".join(f"{o}: {n}: {d}" for n, o, d in bad)
+
+
+def test_every_case_has_its_expected_kind_of_outcome(outcomes):
+    want = {c.name: ("clear",) if c.expect == "error" else ("handled",) for c in CASES}
+    assert all(o in want[n] for n, o, _ in outcomes), [
+        (n, o) for n, o, _ in outcomes if o not in want[n]
+    ]

@@ -197,91 +197,93 @@ def _cases() -> list[Case]:
     rl = lambda r: str(r / "rl")  # noqa: E731
     protect_rl = ["rl/config.json", "rl/checkpoint.pt", "rl/metrics.csv"]
     protect_il = ["il/config.json", "il/checkpoint.pt", "il/metrics.csv"]
+    # fmt: off
     return [
         # budgets and data said, never silently changed
         Case("rl train --steps 400 (rounded up)", lambda r: _cli(["rl", "train", *RL, "--steps",
              "400", "--run-dir", str(r / "s400")]), "ok",
-             lambda res: "budget: --steps 400 trains 520 env steps" in res[1]),  # fmt: skip
+             lambda res: "budget: --steps 400 trains 520 env steps" in res[1]),
         Case("rl resume cutting the budget", lambda r: _cli(["rl", "train", "--resume", rl(r),
-             "--steps", "100"]), "error", protect=protect_rl),  # fmt: skip
+             "--steps", "100"]), "error", protect=protect_rl),
         Case("il resume cutting the epochs", lambda r: _cli(["il", "train", "--resume",
-             str(r / "il"), "--epochs", "1"]), "error", protect=protect_il),  # fmt: skip
+             str(r / "il"), "--epochs", "1"]), "error", protect=protect_il),
         Case("il train --epochs 0", lambda r: _cli(["il", "train", *IL, "--epochs", "0",
-             "--out", str(r / "il0")]), "error"),  # fmt: skip
+             "--out", str(r / "il0")]), "error"),
         Case("il bc with an empty validation split", lambda r: _cli(["il", "bc", "--demos",
              str(r / "demos.npz"), "--val-fraction", "0.5", "--epochs", "1", "--out",
              str(r / "bc"), "--no-progress", "--no-tensorboard"]), "ok",
-             lambda res: "val/loss is not measured" in res[1]),  # fmt: skip
+             lambda res: "val/loss is not measured" in res[1]),
         Case("sweep at another budget over a finished run", _sweep_budget, "error",
              protect=["rl/config.json"]),
         # relocation and resume
         Case("resume from the absolute path", lambda r: _cli(["rl", "train", "--resume",
              str((r / "rl").resolve()), "--steps", "512"]), "ok",
-             lambda res: "nothing to do" in res[1], protect_rl),  # fmt: skip
+             lambda res: "nothing to do" in res[1], protect_rl),
         Case("resume changing the learning rate", lambda r: _cli(["rl", "train", "--resume",
-             rl(r), "--lr", "1"]), "error", protect=protect_rl),  # fmt: skip
+             rl(r), "--lr", "1"]), "error", protect=protect_rl),
         Case("a new run over a finished one", lambda r: _cli(["rl", "train", *RL, "--run-dir",
-             rl(r)]), "error", protect=protect_rl),  # fmt: skip
+             rl(r)]), "error", protect=protect_rl),
         # reports
         Case("report of a cut metrics.csv", lambda r: _cli(["report", str(_cut_metrics(r)),
-             "--out", str(r / "rep-cut")]), "error"),  # fmt: skip
+             "--out", str(r / "rep-cut")]), "error"),
         Case("report --budgets -5 nan", lambda r: _cli(["report", rl(r), "--budgets", "-5",
-             "nan", "--out", str(r / "rep-b")]), "error"),  # fmt: skip
+             "nan", "--out", str(r / "rep-b")]), "error"),
         Case("report --out under a file", lambda r: _cli(["report", rl(r), "--out",
-             str(r / "rl" / "config.json" / "x")]), "error", protect=protect_rl),  # fmt: skip
+             str(r / "rl" / "config.json" / "x")]), "error", protect=protect_rl),
         Case("report of a missing directory", lambda r: _cli(["report", str(r / "nope")]),
              "error"),
         # exports
         Case("export without obs_dim", lambda r: _cli(["rl", "eval", str(_export_copy(
              r, "export-noobs", lambda m: m.pop("obs_dim"))), "--episodes", "1"]),
-             "error"),  # fmt: skip
+             "error"),
         Case("export with a truncated policy.json", lambda r: _cli(["rl", "eval", str(
              _export_copy(r, "export-trunc", text='{"format": "ndp-pol')), "--episodes",
-             "1"]), "error"),  # fmt: skip
+             "1"]), "error"),
         Case("export with weights of another shape", lambda r: _cli(["rl", "eval",
-             str(_wrong_weights(r)), "--episodes", "1"]), "error"),  # fmt: skip
+             str(_wrong_weights(r)), "--episodes", "1"]), "error"),
         Case("export over an export", lambda r: _cli(["rl", "export", rl(r),
-             str(r / "export")]), "error", protect=["export/policy.json"]),  # fmt: skip
+             str(r / "export")]), "error", protect=["export/policy.json"]),
         # bad options
         Case("--device cuda without CUDA", lambda r: _cli(["rl", "train", *RL, "--device",
              "cuda", "--run-dir", str(r / "cuda")]), "error",
-             protect=["cuda"]),  # fmt: skip
+             protect=["cuda"]),
         Case("rl eval --seed -1", lambda r: _cli(["rl", "eval", rl(r), "--seed", "-1"]),
              "error"),
         Case("rl eval --episodes 0", lambda r: _cli(["rl", "eval", rl(r), "--episodes", "0"]),
              "error"),
         Case("--init-log-std nan", lambda r: _cli(["rl", "train", *RL, "--init-log-std", "nan",
-             "--run-dir", str(r / "nan")]), "error"),  # fmt: skip
+             "--run-dir", str(r / "nan")]), "error"),
         Case("--lr inf", lambda r: _cli(["rl", "train", *RL, "--lr", "inf", "--run-dir",
-             str(r / "inf")]), "error"),  # fmt: skip
+             str(r / "inf")]), "error"),
         Case("--num-envs 0", lambda r: _cli(["rl", "train", *RL, "--num-envs", "0"]), "error"),
         Case("unknown task", lambda r: _cli(["rl", "train", "--task", "pussh-v3"]), "error"),
         Case("v1 rewards on Throw", lambda r: _cli(["rl", "train", "--task", "throw",
-             "--reward-version", "v1", "--run-dir", str(r / "v1throw")]), "error"),  # fmt: skip
+             "--reward-version", "v1", "--run-dir", str(r / "v1throw")]), "error"),
         Case("unknown study", lambda r: _cli(["sweep", "paper-fiv"]), "error"),
         Case("il bc into a folder holding a run (no --resume hint)", lambda r: _cli(["il", "bc",
              "--demos", str(r / "demos.npz"), "--out", rl(r)]), "error",
              lambda res: "--resume" not in res[1] and "--overwrite" in res[1],
-             protect=protect_rl),  # fmt: skip
+             protect=protect_rl),
         Case("il train on a one-sample npz", lambda r: _cli(["il", "train", "--data",
              str(_one_sample(r)), "--out", str(r / "il1")]), "error",
-             lambda res: "at least one sample on each side" in res[1]),  # fmt: skip
+             lambda res: "at least one sample on each side" in res[1]),
         Case("il train on a missing file", lambda r: _cli(["il", "train", "--data",
-             str(r / "none.npz"), "--out", str(r / "ilx")]), "error"),  # fmt: skip
+             str(r / "none.npz"), "--out", str(r / "ilx")]), "error"),
         # determinism
         Case("stochastic eval twice, same seed", _stochastic_twice, "ok",
              lambda res: res[0] == res[1], api=True),
         # the Python API
         Case("DMPConfig(n_basis=np.int64(5))", lambda r: __import__("ndp.dmp").dmp.DMPConfig(
              n_basis=np.int64(5)), "ok", lambda c: c.n_basis == 5 and type(c.n_basis) is int,
-             api=True),  # fmt: skip
+             api=True),
         Case("policy.act(NaN observation)", lambda r: _policy_act(r, np.full(6, np.nan), False),
              "error", api=True),
         Case("policy.act([2, O] with one env's info)", lambda r: _policy_act(r, None, True),
              "error", api=True),
         Case("make_env(v1 on the point mass)", lambda r: __import__("ndp").make_env(
-             "point-mass", reward_version="v1"), "error", api=True),  # fmt: skip
+             "point-mass", reward_version="v1"), "error", api=True),
     ]
+    # fmt: on
 
 
 CASES = _cases()

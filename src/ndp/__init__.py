@@ -56,6 +56,7 @@ def make_env(
     render_mode: str | None = None,
     reward_version: str = "v2",
     fixed_goal: int | None = None,
+    observation: str = "full",
 ) -> Any:
     """The chunked env of a task: k sub-steps per decision (``k = 1``: plain per-step).
 
@@ -71,6 +72,8 @@ def make_env(
         fixed_goal: None (a fresh seeded goal every reset) or the seed of the one task
             configuration every reset uses (a run with ``goals="fixed"`` uses
             ``ndp.envs.fixed_goal_seed(run_seed)``).
+        observation: ``"full"`` or ``"release9"`` (Meta-World: the release's 9-D observation,
+            hand, object and goal xyz).
 
     Returns:
         An :class:`ndp.envs.ChunkedEnv` (actions [k, A]; info with the robot and commanded
@@ -92,6 +95,7 @@ def make_env(
         render_mode=render_mode,
         reward_version=reward_version,
         fixed_goal=fixed_goal,
+        observation=observation,
     )
     return ChunkedEnv(base, k, stale_world=stale_world)
 

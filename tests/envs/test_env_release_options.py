@@ -94,3 +94,37 @@ def test_public_make_env_takes_the_options():
     base = env.unwrapped
     assert base.reward_version == "v1" and base.fixed_goal == 7
     env.close()
+
+
+def test_release9_observation_is_hand_object_goal_and_trains(tmp_path):
+    """observation='release9': the 9 values the release's policies saw, taken from the full
+    observation; the stale rule and rewards are untouched; a run trains on it and its policy
+    acts in its own env."""
+    from ndp.envs.factory import RELEASE9
+    from ndp.rl.config import TrainConfig
+    from ndp.rl.evaluate import load_policy
+    from ndp.rl.trainer import train
+
+    full = ndp.make_env("push-v3", k=5)
+    small = ndp.make_env("push-v3", k=5, observation="release9")
+    assert small.observation_space.shape == (9,)
+    o_full, _ = full.reset(seed=1)
+    o_small, _ = small.reset(seed=1)
+    np.testing.assert_array_equal(o_small, o_full[list(RELEASE9)])
+    act = np.zeros((5, 4))
+    o_full, r_full, *_, i_full = full.step(act)
+    o_small, r_small, *_, i_small = small.step(act)
+    np.testing.assert_array_equal(o_small, o_full[list(RELEASE9)])
+    assert r_small == r_full
+    np.testing.assert_array_equal(i_small["sub_rewards"], i_full["sub_rewards"])
+    with pytest.raises(ValueError, match="observation: 'release9' exists for Meta-World"):
+        make_env("throw", observation="release9")
+    run = tmp_path / "r9"
+    train(TrainConfig(task="push-v3", algo="ndp", observation="release9", steps=200,
+                      num_envs=2, vector="workers", env_workers=2, run_dir=str(run),
+                      progress=False, tensorboard=False))  # fmt: skip
+    pol = load_policy(run)
+    env = pol.make_env()
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (9,) and pol.act(obs, info).shape == (5, 4)
+    env.close()

@@ -63,6 +63,7 @@ def make_env(
     substeps: int = 1,
     reward_version: str = "v2",
     fixed_goal: int | None = None,
+    observation: str = "full",
     **kw: Any,
 ) -> gym.Env:
     """Create the plain per-step env of a task.
@@ -86,6 +87,9 @@ def make_env(
         fixed_goal: None (a fresh seeded task configuration every reset) or the seed of the
             one configuration (objects, goal) every reset uses; :func:`fixed_goal_seed` derives
             it from a run's seed.
+        observation: ``"full"`` (the task's observation) or ``"release9"`` (Meta-World only: the
+            2021 release's 9 values, hand xyz, first object xyz, goal xyz; a
+            :class:`ReleaseObservation` wrapper, the env's own state is unchanged).
         **kw: Passed to the env class (``width``, ``height``, ``camera_name`` for Meta-World,
             ``camera`` for Jaco).
 
@@ -104,6 +108,7 @@ def make_env(
     if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
         raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
     kw.update(task_options(spec, reward_version, fixed_goal))
+    release9 = check_observation(spec, observation) == "release9"
     families = TORQUE_FAMILIES if spec.actuation == "torque" else FAMILIES
     if spec.family not in families:
         raise ValueError(
@@ -112,7 +117,7 @@ def make_env(
         )
     env = families[spec.family](spec, horizon, render_mode, **kw)
     defer_seed(env, seed)
-    return env
+    return ReleaseObservation(env) if release9 else env
 
 
 def task_options(spec: Any, reward_version: str = "v2", fixed_goal: Any = None) -> dict[str, Any]:
@@ -141,6 +146,48 @@ def task_options(spec: Any, reward_version: str = "v2", fixed_goal: Any = None) 
     if goal is not None:
         out["fixed_goal"] = goal
     return out
+
+
+OBSERVATIONS = ("full", "release9")
+"""Observation filters of ``make_env(observation=...)``."""
+RELEASE9 = (0, 1, 2, 4, 5, 6, 36, 37, 38)
+"""Indices of the Meta-World observation the 2021 release's policies saw: hand xyz, the first
+object's xyz, goal xyz."""
+
+
+def check_observation(spec: Any, observation: Any) -> str:
+    """``observation`` checked against the task's row.
+
+    Raises:
+        ValueError: not one of :data:`OBSERVATIONS`, or ``release9`` for a task that is not
+            Meta-World's.
+    """
+    if observation not in OBSERVATIONS:
+        raise ValueError(f"observation: expected 'full' or 'release9', got {observation!r}")
+    if observation == "release9" and spec.family != "metaworld":
+        raise ValueError(
+            f"observation: 'release9' exists for Meta-World tasks only, got task {spec.name!r}"
+        )
+    return str(observation)
+
+
+class ReleaseObservation(gym.ObservationWrapper):
+    """The 2021 release's 9-D Meta-World observation (:data:`RELEASE9`: hand, object, goal) in
+    place of the 39 values; the env underneath, its rewards and the stale-world rule (which
+    reads ``env.unwrapped``) are unchanged."""
+
+    def __init__(self, env: gym.Env) -> None:
+        import numpy as np
+        from gymnasium import spaces
+
+        super().__init__(env)
+        box = env.observation_space
+        idx = np.array(RELEASE9)
+        self._idx = idx
+        self.observation_space = spaces.Box(box.low[idx], box.high[idx], dtype=box.dtype)
+
+    def observation(self, observation: Any) -> Any:
+        return observation[self._idx].copy()
 
 
 def fixed_goal_seed(run_seed: int) -> int:

@@ -218,6 +218,9 @@ class TrainConfig:
     """'random' (a fresh seeded task configuration every episode) or 'fixed' (one object + goal
     configuration for the whole run, drawn from the run's seed: the release's condition for NDP
     and PPO-multi). Evaluation of the run uses the same."""
+    observation: str = "full"
+    """'full' (the task's observation) or 'release9' (Meta-World only: the 2021 release's 9
+    values, hand, object and goal xyz)."""
     run_dir: str | None = None
     """Run directory; None: runs/<task>-<algo>-s<seed>."""
     checkpoint_every: int = 10
@@ -296,6 +299,8 @@ class TrainConfig:
         ``reward_version`` and, for ``goals="fixed"``, the ``fixed_goal`` seed derived from
         ``seed`` (``ndp.envs.fixed_goal_seed``)."""
         out: dict[str, Any] = {"reward_version": self.reward_version}
+        if self.observation != "full":
+            out["observation"] = self.observation
         if self.goals == "fixed":
             from ndp.envs.factory import fixed_goal_seed
 
@@ -352,6 +357,9 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     from ndp.envs.factory import task_options
 
     task_options(spec, cfg.reward_version)  # v1 rewards on a task without them: refused here
+    from ndp.envs.factory import check_observation
+
+    check_observation(spec, cfg.observation)
     check_device_available(cfg.device)  # before any env is built or run folder made
     from ndp.policies.heads import SINGLE_STEP_HEADS
     from ndp.rl.methods import METHODS

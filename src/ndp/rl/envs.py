@@ -17,6 +17,7 @@ observation and info are the reset ones and the finished step's info is under
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -27,6 +28,7 @@ import numpy as np
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv
 
 from ndp.envs.chunked import ChunkedEnv
+from ndp.envs.factory import RELEASE9
 
 
 @dataclass(frozen=True)
@@ -49,9 +51,14 @@ def resolve_task(name: str, **options: Any) -> TaskHandle:
         ValueError: unknown name (the message lists close names), or a bad option.
     """
     from ndp.envs import get_task_spec, make_env, task_options
+    from ndp.envs.factory import check_observation
 
     spec = get_task_spec(name)
+    observation = check_observation(spec, options.pop("observation", "full"))
     kw = task_options(spec, **options)
+    if observation != "full":
+        kw["observation"] = observation
+        spec = dataclasses.replace(spec, obs_dim=len(RELEASE9))
     return TaskHandle(spec, functools.partial(make_env, spec.name, **kw))
 
 

@@ -326,3 +326,41 @@ def read_rows(run: Path):
     from ndp.runs import read_metrics
 
     return read_metrics(run)
+
+
+def test_early_stopping_on_a_validation_split_keeps_the_best_weights(tmp_path, capsys):
+    """--val-fraction holds out part of the training split; every epoch logs val/mse_px2; the
+    lowest one's weights are best.pt, which the last row's test MSE and ndp il eval score;
+    --patience stops the run (done.json says why), and a sweep / report count it finished."""
+    import json
+
+    from ndp.experiments.study import is_finished
+    from ndp.il.train import validation_split
+    from ndp.runs import load_checkpoint, read_metrics
+
+    tr, va = validation_split(np.arange(100), 0.1, 0)
+    assert len(va) == 10 and len(tr) == 90 and not set(tr) & set(va)
+    assert np.array_equal(validation_split(np.arange(100), 0.1, 0)[1], va)  # seeded
+    run = tmp_path / "es"
+    # a learning rate this high makes validation stop improving within a few epochs
+    argv = ["il", "train", "--data", "synthetic", "--n-train", "64", "--n-test", "16",
+            "--model", "cnn", "--batch-size", "16", "--epochs", "40", "--lr", "0.05",
+            "--val-fraction", "0.25", "--patience", "2", "--eval-every", "0",
+            "--out", str(run), "--no-progress", "--no-tensorboard"]  # fmt: skip
+    assert main(argv) == 0
+    capsys.readouterr()
+    rows = read_metrics(run)
+    done = json.loads((run / "done.json").read_text())
+    best = load_checkpoint(run / "best.pt")
+    vals = [r["val/mse_px2"] for r in rows]
+    assert done["reason"] == "early stop" and done["epoch"] == len(rows) < 40
+    assert best["epoch"] == done["best_epoch"] == 1 + int(np.argmin(vals))
+    assert len(rows) - best["epoch"] == 2  # patience
+    assert all(np.isnan(r.get("test/mse_px2", np.nan)) for r in rows[:-1])  # test touched once
+    ev = json.loads((run / "eval.json").read_text())
+    assert ev["scored_epoch"] == best["epoch"]
+    assert abs(ev["test_mse_px2"]["mean"] - rows[-1]["test/mse_px2"]) < 1e-3
+    assert is_finished(run, kind="il")
+    assert main(["il", "train", *argv[2:-6], "--patience", "2", "--out", str(tmp_path / "x"),
+                 "--val-fraction", "0"]) == 2  # fmt: skip
+    assert "patience: early stopping needs a validation split" in capsys.readouterr().err

@@ -163,7 +163,11 @@ def _record_reaches_budget(info: RunInfo) -> bool:
     rows = read_metrics(info.path)
     col = "epoch" if info.kind == "il" else "global_step"
     last = rows[-1].get(col, 0) if rows else 0
-    if not (rows and last >= info.steps):
+    target = info.steps
+    done = _json(info.path / "done.json") or {}
+    if done.get("reason") == "early stop" and isinstance(done.get("epoch"), int):
+        target = done["epoch"]  # stopped on its validation split before the maximum
+    if not (rows and last >= target):
         unit = "epoch" if info.kind == "il" else "env step"
         info.problem = f"metrics.csv ends at {unit} {last:,.0f} of {info.steps:,}"
         return False

@@ -185,6 +185,8 @@ def is_finished(run: Path, arm: Arm | None = None, kind: str | None = None) -> b
     ('rl', 'sb3', 'il') stands for the arm where only that is known."""
     run = Path(run)
     kind = kind or (arm.kind if arm is not None else "rl")
+    if kind == "il" and not (run / "eval.json").is_file():
+        return False  # an imitation run counts once trained and evaluated
     if (run / "done.json").is_file():
         return True
     ckpt = run / "checkpoint.pt"

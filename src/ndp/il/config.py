@@ -176,6 +176,15 @@ class TrainConfig:
     """Evaluate the test MSE every this many epochs (0: only at the end)."""
     max_train_batches: int = 0
     """Stop each epoch after this many batches (0: all; for smoke tests)."""
+    val_fraction: float = 0.0
+    """Fraction of the training split held out as a validation split (drawn with
+    ``data.split_seed``: the same samples for every model, seed and learning rate); 0: none
+    (the paper protocol). With it, every epoch logs ``val/mse_px2``, the lowest one's weights
+    are kept in ``best.pt`` (``ndp il eval`` scores them), and the last row's test MSE is the
+    best checkpoint's."""
+    patience: int = 0
+    """Stop after this many epochs without a lower validation MSE (0: train all ``epochs``,
+    which is then the maximum); needs ``val_fraction`` > 0."""
     encoder_init: str = ""
     """Pretraining option: a run directory / checkpoint whose CNN encoder weights initialise
     this model's encoder ('' = train from scratch)."""
@@ -196,6 +205,18 @@ class TrainConfig:
                 raise ValueError(f"{name}: expected an integer >= 0, got {v!r}")
         if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr: expected a finite number > 0, got {self.lr!r}")
+        if not (isinstance(self.val_fraction, (int, float)) and 0 <= self.val_fraction < 1):
+            raise ValueError(
+                f"val_fraction: expected a number in [0, 1), got {self.val_fraction!r}"
+            )
+        if (
+            isinstance(self.patience, bool)
+            or not isinstance(self.patience, int)
+            or self.patience < 0
+        ):
+            raise ValueError(f"patience: expected an integer >= 0, got {self.patience!r}")
+        if self.patience > 0 and self.val_fraction == 0:
+            raise ValueError("patience: early stopping needs a validation split (--val-fraction)")
         if not self.run_dir:
             raise ValueError("run_dir: expected a directory, got ''")
         import torch

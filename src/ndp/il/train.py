@@ -17,6 +17,7 @@ samples shuffled with ``split_seed`` into 10,000 train / 2,000 test.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import math
@@ -57,6 +58,8 @@ METRICS = (
     "train/mse_px2",
     "test/mse_px2",
     "test/mse_px2_std",
+    "val/mse_px2",
+    "val/best_epoch",
     "time/epoch_s",
     "time/samples_per_s",
 )
@@ -108,6 +111,33 @@ def load_data(cfg: DataConfig, n_points: int = 301, progress: bool = False) -> D
     if data.n_points != n_points:
         raise ValueError(f"data has {data.n_points} points per trajectory, model needs {n_points}")
     return data
+
+
+BEST_NAME = "best.pt"
+"""The weights with the lowest validation MSE (runs with ``val_fraction`` > 0)."""
+DONE_NAME = "done.json"
+"""Written when a run has finished (its budget, or an early stop): epoch, reason, best epoch."""
+
+
+def validation_split(
+    train_idx: np.ndarray, fraction: float, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(training indices, validation indices): ``fraction`` of ``train_idx`` held out (at least
+    one sample, at least one left), drawn with ``seed``; (train_idx, empty) for fraction 0.
+
+    Raises:
+        ValueError: too few training samples to hold any out.
+    """
+    if fraction <= 0:
+        return train_idx, train_idx[:0]
+    n = len(train_idx)
+    n_val = max(1, round(fraction * n))
+    if n_val >= n:
+        raise ValueError(
+            f"val_fraction: {fraction} of {n} training samples leaves none for training"
+        )
+    perm = np.random.default_rng([seed, 0x5A1]).permutation(n)
+    return np.sort(train_idx[perm[n_val:]]), np.sort(train_idx[perm[:n_val]])
 
 
 def make_split(data: DigitData, cfg: DataConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -219,10 +249,12 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
 
     data = load_data(cfg.data, cfg.model.n_points, progress=cfg.progress)
     tr_idx, te_idx = make_split(data, cfg.data)
+    tr_idx, va_idx = validation_split(tr_idx, cfg.val_fraction, cfg.data.split_seed)
     x_all = torch.from_numpy(data.images)
     y_all = torch.from_numpy(data.trajs)
     x_tr, y_tr = x_all[tr_idx].to(device), y_all[tr_idx].to(device)
     x_te, y_te = x_all[te_idx].to(device), y_all[te_idx].to(device)
+    x_va, y_va = x_all[va_idx].to(device), y_all[va_idx].to(device)
     if cfg.model.frame != data.frame[1]:  # the data set's pixel frame (derived, not chosen)
         cfg = dataclasses.replace(
             cfg, model=dataclasses.replace(cfg.model, frame=float(data.frame[1]))
@@ -240,6 +272,7 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
     start_epoch = 0
     history: list[dict[str, float]] = []
     gen = torch.Generator().manual_seed(cfg.seed)
+    early = {"best_val": math.inf, "best_epoch": 0, "bad": 0, "stopped": False}
     if ckpt is not None:
         model.load_state_dict(ckpt["model"])
         opt.load_state_dict(ckpt["optimizer"])
@@ -247,6 +280,11 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
         history = list(ckpt.get("history", []))
         gen.set_state(ckpt["generator"])
         torch.set_rng_state(ckpt["torch_rng"])
+        early.update(ckpt.get("early", {}))
+    done_path = run_dir / DONE_NAME
+    if done_path.exists() and not early["stopped"]:
+        done_path.unlink()  # a run extended by --epochs is no longer finished
+    best_path = run_dir / BEST_NAME
 
     run.write_config(cfg.as_dict())
     run.record_session("resume" if resume else "start")
@@ -309,10 +347,28 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
                 "time/epoch_s": dt,
                 "time/samples_per_s": seen / dt,
             }
-            last_epoch = epoch + 1 == cfg.epochs
+            if x_va.shape[0] > 0:
+                val = float(
+                    per_sample_mse(predict(model, x_va, y_va[:, 0]).cpu(), y_va.cpu()).mean()
+                )
+                row["val/mse_px2"] = val
+                if val < early["best_val"]:
+                    early.update(best_val=val, best_epoch=epoch + 1, bad=0)
+                    save_checkpoint(best_path, {"model": model.state_dict(), "epoch": epoch + 1,
+                                                "val_mse_px2": val, "config": cfg.as_dict()},
+                                    kind="il")  # fmt: skip
+                else:
+                    early["bad"] += 1
+                row["val/best_epoch"] = early["best_epoch"]
+                early["stopped"] = cfg.patience > 0 and early["bad"] >= cfg.patience
+            last_epoch = epoch + 1 == cfg.epochs or bool(early["stopped"])
             scheduled = cfg.eval_every > 0 and (epoch + 1) % cfg.eval_every == 0
             if (scheduled or last_epoch) and x_te.shape[0] > 0:
-                err = per_sample_mse(predict(model, x_te, y_te[:, 0]).cpu(), y_te.cpu())
+                scored = model
+                if last_epoch and x_va.shape[0] > 0:  # the test split scores the best weights
+                    scored = copy.deepcopy(model)
+                    scored.load_state_dict(load_checkpoint(best_path)["model"])
+                err = per_sample_mse(predict(scored, x_te, y_te[:, 0]).cpu(), y_te.cpu())
                 row["test/mse_px2"] = float(err.mean())
                 row["test/mse_px2_std"] = float(err.std())
             logger.log({"epoch": epoch + 1, **row})
@@ -327,16 +383,32 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
                     "history": history,
                     "generator": gen.get_state(),
                     "torch_rng": torch.get_rng_state(),
+                    "early": dict(early),
                 },
                 kind="il",
             )
+            if last_epoch:
+                break
     finally:
         if bar is not None:
             bar.close()
         logger.close()
+    last = int(history[-1]["epoch"]) if history else start_epoch
+    done = {
+        "finished": True,
+        "epoch": last,
+        "reason": "early stop" if early["stopped"] else "budget",
+        "best_epoch": early["best_epoch"] or None,
+        "best_val_mse_px2": early["best_val"] if early["best_epoch"] else None,
+        "train_wall_s": time.perf_counter() - t_run,
+    }
+    if last >= cfg.epochs or early["stopped"]:
+        atomic_write_text(done_path, json.dumps(done, indent=1) + "\n")
     return {
         "run_dir": str(run_dir),
         "checkpoint": str(ckpt_path),
+        "stopped_early": bool(early["stopped"]),
+        "best_epoch": early["best_epoch"] or None,
         "epochs": cfg.epochs,
         "train_wall_s": time.perf_counter() - t_run,
         "final": row,
@@ -436,6 +508,11 @@ def evaluate(
     ckpt = load_checkpoint(path)
     run_path = path if path.is_dir() else path.parent
     model, cfg = load_model(ckpt)
+    scored_epoch = int(ckpt["epoch"])
+    if path.is_dir() and (path / BEST_NAME).is_file():  # selected on the validation split
+        best = load_checkpoint(path / BEST_NAME)
+        model.load_state_dict(best["model"])
+        scored_epoch = int(best["epoch"])
     own = data_cfg is None or data_cfg == cfg.data
     dcfg = cfg.data if data_cfg is None else data_cfg
     data = load_data(dcfg, cfg.model.n_points)
@@ -454,6 +531,7 @@ def evaluate(
         "data": dcfg.source,
         "split": dcfg.split,
         "epoch": int(ckpt["epoch"]),
+        "scored_epoch": scored_epoch,
         "n_test": len(scored),
         "test_mse_px2": summarize(mse),
         "per_class": grouped(mse, data.labels[scored]),

@@ -24,7 +24,7 @@ PROVENANCE_NAME = "provenance.json"
 """A list with one entry per session of the run (see :func:`ndp.provenance.provenance`)."""
 TB_DIR = "tb"
 """TensorBoard event folder."""
-RUN_OUTPUTS = ("eval.json", "predictions.png", "video.mp4")
+RUN_OUTPUTS = ("eval.json", "predictions.png", "video.mp4", "best.pt", "done.json")
 """Outputs that commands write from a run (removed with it by ``overwrite``)."""
 
 

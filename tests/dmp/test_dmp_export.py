@@ -71,7 +71,7 @@ def test_exported_positions_and_the_eager_layer_after_export():
     assert torch.isnan(program.module()(*bad)[0]).any()
 
 
-@pytest.mark.filterwarnings("ignore::torch.jit.TracerWarning")
+@pytest.mark.filterwarnings("ignore::torch.jit.TracerWarning", "ignore::DeprecationWarning")
 def test_jit_trace_still_matches():
     cfg = CONFIGS["rl"]
     layer = DMPLayer(cfg)

@@ -23,12 +23,12 @@ import ndp
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = Path(ndp.__file__).resolve().parents[1]  # the ndp under test (editable install or PYTHONPATH)
-EXTRAS = ("envs", "rl", "il", "ray", "dev")
+EXTRAS = ("envs", "rl", "il", "ray", "onnx", "sb3", "dev")
 CORE = {"torch", "numpy"}
 # Packages only an extra installs (import names); the core must run with all of them absent.
 BLOCKED = (
     "gymnasium mujoco metaworld dm_control scipy matplotlib tensorboard tqdm tyro imageio "
-    "imageio_ffmpeg safetensors sklearn stable_baselines3 ray"
+    "imageio_ffmpeg safetensors sklearn stable_baselines3 ray onnx onnxruntime"
 ).split()
 
 BARE_SCRIPT = r"""

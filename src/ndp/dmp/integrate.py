@@ -161,6 +161,20 @@ def spring_constants(
     return a_z, a_z / 4.0
 
 
+def recording() -> bool:
+    """True while ``torch.export``, ``torch.compile`` or ``torch.jit.trace`` records the
+    computation rather than running it.
+
+    A recorded graph cannot raise a Python exception on a value it has not seen yet, so the
+    finite checks (one ``bool`` of a reduction: a data-dependent branch) are left out of it, and
+    the linear map enters it as a constant rather than through the process-wide cache (under
+    ``torch.export`` every tensor made while tracing is a fake tensor that must not be cached).
+    """
+    is_compiling = getattr(torch.compiler, "is_compiling", None)  # torch >= 2.3
+    tracing = torch.jit.is_tracing()  # type: ignore[attr-defined, no-untyped-call]
+    return bool(tracing or (is_compiling is not None and is_compiling()))
+
+
 def check_finite(**tensors: torch.Tensor | None) -> None:
     """Raise ``FloatingPointError`` naming the first tensor that holds NaN or Inf.
 
@@ -313,6 +327,18 @@ def dmp_rollout_fast(
     return _fast(cfg, goal, weights, y0, dy0)
 
 
+def _map_tensor(
+    cfg: DMPConfig, like: torch.Tensor, map_f64: np.ndarray | None = None
+) -> torch.Tensor:
+    """The linear map [N + 3, 3 * n_out] on ``like``'s device and dtype: from the cache when
+    running, a graph constant when recorded (:func:`recording`; ``map_f64``: the caller's
+    precomputed map, so that nothing is built from fake tensors while tracing)."""
+    if recording():
+        src = map_f64 if map_f64 is not None else _linear_map_f64(cfg, None)
+        return torch.as_tensor(src.copy(), dtype=like.dtype, device=like.device)
+    return _linear_map(cfg, None, like.device, like.dtype)
+
+
 def _fast_packed(
     cfg: DMPConfig,
     goal: torch.Tensor,
@@ -320,9 +346,10 @@ def _fast_packed(
     y0: torch.Tensor,
     dy0: torch.Tensor,
     check: bool,
+    map_f64: np.ndarray | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """(u [B * D, N + 3] packed inputs, m [N + 3, 3 * n_out] map) of the linear-map path."""
-    m = _linear_map(cfg, None, goal.device, goal.dtype)
+    m = _map_tensor(cfg, goal, map_f64)
     b, d = goal.shape
     n = cfg.n_basis
     if cfg.only_g:
@@ -350,8 +377,9 @@ def _fast(
     y0: torch.Tensor,
     dy0: torch.Tensor,
     check: bool = False,
+    map_f64: np.ndarray | None = None,
 ) -> DMPTrajectory:
-    u, m = _fast_packed(cfg, goal, weights, y0, dy0, check)
+    u, m = _fast_packed(cfg, goal, weights, y0, dy0, check, map_f64)
     b, d = goal.shape
     out = (u @ m).view(b, d, 3, cfg.n_out).permute(2, 0, 3, 1)
     if check:
@@ -377,8 +405,9 @@ def _fast_positions(
     y0: torch.Tensor,
     dy0: torch.Tensor,
     check: bool = False,
+    map_f64: np.ndarray | None = None,
 ) -> torch.Tensor:
-    u, m = _fast_packed(cfg, goal, weights, y0, dy0, check)
+    u, m = _fast_packed(cfg, goal, weights, y0, dy0, check, map_f64)
     b, d = goal.shape
     pos = (u @ m[:, : cfg.n_out]).view(b, d, cfg.n_out).transpose(1, 2)
     if check:
@@ -395,6 +424,8 @@ def dmp_rollout(
     a_z: torch.Tensor | None = None,
     method: str = "auto",
     check: bool = False,
+    *,
+    linear_map: np.ndarray | None = None,
 ) -> DMPTrajectory:
     """Integrate a batch of DMPs (pure function).
 
@@ -407,12 +438,17 @@ def dmp_rollout(
         a_z: optional per-sample spring constant [B], [B, 1] or [B, D]; requires
             ``cfg.learn_az`` and is clamped to ``cfg.az_range``.
         method: 'auto' (fast path unless a_z is per-sample), 'fast' or 'loop'.
-        check: raise ``FloatingPointError`` if any input holds NaN or Inf.
+        check: raise ``FloatingPointError`` if any input holds NaN or Inf (not while the call
+            is recorded by ``torch.export`` / ``torch.jit.trace``: :func:`recording`).
+        linear_map: ``linear_map_f64(cfg)``, precomputed by the caller (``DMPLayer`` holds
+            its own, so that ``torch.export`` never has to build it while tracing); None: the
+            process-wide cache.
 
     Returns:
         :class:`DMPTrajectory`, each field [B, steps // subsample + 1, D].
     """
     cfg = cfg or DMPConfig()
+    check = check and not recording()
     if method not in ("auto", "fast", "loop"):
         raise ValueError(f"method: expected 'auto', 'fast' or 'loop', got {method!r}")
     if cfg.learn_az and a_z is None:
@@ -436,7 +472,7 @@ def dmp_rollout(
         if check:
             _check_outputs(traj.pos)
         return traj
-    return _fast(cfg, goal, weights, y0, dy0, check)
+    return _fast(cfg, goal, weights, y0, dy0, check, linear_map)
 
 
 def dmp_positions(
@@ -446,11 +482,15 @@ def dmp_positions(
     dy0: torch.Tensor | None = None,
     cfg: DMPConfig | None = None,
     check: bool = False,
+    *,
+    linear_map: np.ndarray | None = None,
 ) -> torch.Tensor:
     """Positions only, [B, steps // subsample + 1, D], of a fixed-a_z DMP (one third of the
-    linear map: for callers that need no velocities or accelerations, e.g. the RL head)."""
+    linear map: for callers that need no velocities or accelerations, e.g. the RL head);
+    ``check`` and ``linear_map`` as for :func:`dmp_rollout`."""
     cfg = cfg or DMPConfig()
+    check = check and not recording()
     if cfg.learn_az:
         raise ValueError("cfg: dmp_positions needs a fixed a_z (learn_az False)")
     goal, weights, y0, dy0, _ = validate_inputs(cfg, goal, weights, y0, dy0)
-    return _fast_positions(cfg, goal, weights, y0, dy0, check)
+    return _fast_positions(cfg, goal, weights, y0, dy0, check, linear_map)

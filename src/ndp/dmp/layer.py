@@ -9,7 +9,7 @@ import torch
 from torch import nn
 
 from ndp.dmp.config import DMPConfig
-from ndp.dmp.integrate import DMPTrajectory, dmp_positions, dmp_rollout
+from ndp.dmp.integrate import DMPTrajectory, _linear_map_f64, dmp_positions, dmp_rollout
 
 
 class DMPLayer(nn.Module):
@@ -35,6 +35,8 @@ class DMPLayer(nn.Module):
         config = config or DMPConfig()
         self.config = dataclasses.replace(config, **overrides) if overrides else config
         self.check_finite = check_finite
+        # the fixed-a_z linear map, built now (eagerly) so that torch.export only reads it
+        self._map_f64 = None if self.config.learn_az else _linear_map_f64(self.config, None)
 
     def forward(
         self,
@@ -53,7 +55,16 @@ class DMPLayer(nn.Module):
         Returns:
             :class:`DMPTrajectory` of [B, n_out, D] tensors.
         """
-        return dmp_rollout(goal, weights, y0, dy0, self.config, a_z=a_z, check=self.check_finite)
+        return dmp_rollout(
+            goal,
+            weights,
+            y0,
+            dy0,
+            self.config,
+            a_z=a_z,
+            check=self.check_finite,
+            linear_map=self._map_f64,
+        )
 
     def positions(
         self,
@@ -63,7 +74,9 @@ class DMPLayer(nn.Module):
         dy0: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """Positions only, [B, n_out, D] (fixed a_z; a third of the work of :meth:`forward`)."""
-        return dmp_positions(goal, weights, y0, dy0, self.config, check=self.check_finite)
+        return dmp_positions(
+            goal, weights, y0, dy0, self.config, check=self.check_finite, linear_map=self._map_f64
+        )
 
     def extra_repr(self) -> str:
         c = self.config

@@ -36,6 +36,7 @@ import torch
 from torch import nn
 
 from ndp.dmp import DMPConfig, DMPLayer
+from ndp.dmp.integrate import recording
 from ndp.policies.distributions import ParamGaussian, PolicyDistribution, SubActionGaussian
 
 
@@ -270,7 +271,7 @@ class NDPHead(ActionHead):
         cfg = self.dmp.config
         v = weights * (goal - y0).unsqueeze(-1) if cfg.scale_by_goal else weights
         u = torch.cat((v, torch.stack((goal, y0, dy0_dmp), dim=-1)), dim=-1)  # [B, D, N + 3]
-        if self.dmp.check_finite and not bool(torch.isfinite(u.sum())):
+        if self.dmp.check_finite and not recording() and not bool(torch.isfinite(u.sum())):
             from ndp.dmp.integrate import check_finite
 
             check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0_dmp)

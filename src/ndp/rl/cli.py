@@ -63,10 +63,20 @@ def add_subparser(sub: Any) -> None:
     ev.set_defaults(func=_cmd_eval)
 
     ex = rl_sub.add_parser(
-        "export", help="export a trained run's policy (safetensors + JSON, no pickle)"
+        "export",
+        help="export a trained run's policy (safetensors + JSON, no pickle; or one ONNX graph)",
     )
     ex.add_argument("run_dir", metavar="RUN_DIR")
     ex.add_argument("out", metavar="OUT_DIR", help="new directory for the export")
+    ex.add_argument(
+        "--format",
+        choices=("safetensors", "onnx"),  # ndp.rl.policy.EXPORT_FORMATS (torch-free here)
+        default="safetensors",
+        help="safetensors: policy.safetensors + policy.json, loaded by ndp.load_policy "
+        "(default); onnx: policy.onnx, the whole deterministic decision (normaliser, actor, "
+        "head, DMP, action bounds) as one graph with inputs obs, y0, dy0 and output actions "
+        "(needs the [onnx] extra; docs/rl.md, 'Export formats')",
+    )
     ex.set_defaults(func=_cmd_export)
 
     rd = rl_sub.add_parser("render", help="render a trained run to mp4")
@@ -173,7 +183,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 def _cmd_export(args: argparse.Namespace) -> int:
     from ndp.rl.policy import export_policy
 
-    print(json.dumps({"export": str(export_policy(args.run_dir, args.out))}))
+    out = export_policy(args.run_dir, args.out, format=args.format)
+    print(json.dumps({"export": str(out), "format": args.format}))
     return 0
 
 

@@ -46,6 +46,9 @@ EXPORT_FORMAT = "ndp-policy"
 """``format`` field of ``policy.json``."""
 EXPORT_VERSION = 1
 """``version`` field of ``policy.json`` (incremented on incompatible changes)."""
+EXPORT_FORMATS = ("safetensors", "onnx")
+"""``Policy.export`` / ``ndp rl export --format``: the loadable export (default) or one ONNX
+graph of the deterministic decision (:mod:`ndp.rl.onnx_export`)."""
 
 
 @dataclass
@@ -185,8 +188,16 @@ class Policy:
             base = wrap(base)
         return ChunkedEnv(base, self.exec_k, stale_world=self.cfg.stale_world)
 
-    def export(self, out_dir: str | Path) -> Path:
-        """Write ``policy.safetensors`` + ``policy.json`` to ``out_dir`` (see the module)."""
+    def export(self, out_dir: str | Path, format: str = "safetensors") -> Path:
+        """Write ``policy.safetensors`` + ``policy.json`` to ``out_dir`` (see the module), or
+        with ``format="onnx"`` the deterministic decision as one graph, ``policy.onnx``
+        (:mod:`ndp.rl.onnx_export`)."""
+        if format not in EXPORT_FORMATS:
+            raise ValueError(f"format: expected one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
+        if format == "onnx":
+            from ndp.rl.onnx_export import write_onnx_export
+
+            return write_onnx_export(self, out_dir)
         return _write_export(self, Path(out_dir))
 
 
@@ -333,9 +344,12 @@ def read_export_meta(path: Path) -> dict[str, Any]:
     return meta
 
 
-def export_policy(path: str | Path, out_dir: str | Path) -> Path:
-    """Export the policy of a run (or re-export an export) to ``out_dir``; returns it."""
-    return load_policy(path).export(out_dir)
+def export_policy(path: str | Path, out_dir: str | Path, format: str = "safetensors") -> Path:
+    """Export the policy of a run (or re-export an export) to ``out_dir``; returns it
+    (``format``: see :meth:`Policy.export`)."""
+    if format not in EXPORT_FORMATS:  # before loading anything
+        raise ValueError(f"format: expected one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
+    return load_policy(path).export(out_dir, format)
 
 
 def _versions() -> dict[str, str]:

@@ -1,0 +1,311 @@
+"""A trained policy's deterministic decision as one ONNX graph (``ndp rl export --format onnx``).
+
+The graph is :class:`DecisionModule`: observation normaliser (clip included) -> actor MLP ->
+action head (NDP: goal and weights -> DMP rollout from (y0, dy0) -> inverse controller -> k
+sub-actions; PPO: one action; PPO-multi: k actions; VICES: the impedance action; Dyn-E: the
+decoded k actions) -> the distribution's mode -> clip to the task's action bounds. It computes
+exactly what ``Policy.act(obs, info, deterministic=True)`` computes:
+
+- inputs ``obs`` [E, O], ``y0`` [E, D], ``dy0`` [E, D], all float64 (as the env and its info
+  give them; the normaliser runs in float64 like the eager policy's, the rest in float32). y0
+  and dy0 are the DMP start, read from the chunked env's info keys named in the metadata
+  (``state_keys``: ``cmd_y0`` / ``cmd_dy0`` for the commanded state, ``dmp_y0`` / ``dmp_dy0``
+  for the measured one). Heads without a DMP ignore their values (every graph takes the three
+  inputs, so one calling code serves every method; their batch size must be E);
+- output ``actions`` [E, k, A] float32 within the action bounds; E is a dynamic axis.
+
+The file's ``metadata_props`` hold the task, method, k, the dimensions, the state keys and DMP
+frame, the bounds, the resolved config, package versions and the commit (:func:`onnx_metadata`).
+
+Exporter: ``torch.onnx.export(..., dynamo=False)``, the TorchScript-based exporter. torch 2.13's
+default (``dynamo=True``) records the module with ``torch.export`` (which this module passes:
+``tests/rl/test_onnx.py``) and then needs the ``onnxscript`` package, which is not among this
+project's dependencies; the TorchScript exporter needs nothing beyond torch, and ``onnx``
+(checker, metadata) and ``onnxruntime`` (the export is run once on probe inputs and compared
+with the eager policy before it is written: a graph that does not reproduce the policy is
+refused, naming the method).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import torch
+from torch import nn
+
+if TYPE_CHECKING:
+    from ndp.rl.policy import Policy
+
+ONNX_FORMAT = "ndp-policy-onnx"
+"""``format`` entry of the ONNX file's metadata."""
+ONNX_VERSION = 1
+"""``version`` entry of the metadata (incremented on incompatible changes)."""
+ONNX_FILE = "policy.onnx"
+"""File name of the graph inside the export directory."""
+OPSET = 17
+"""ONNX opset of the graph (supported by onnxruntime >= 1.14)."""
+INPUTS = ("obs", "y0", "dy0")
+OUTPUTS = ("actions",)
+VERIFY_ATOL = 1e-5
+"""Largest absolute difference from the eager policy accepted on the probe inputs."""
+
+
+class DecisionModule(nn.Module):
+    """``(obs, y0, dy0) -> actions``: the deterministic decision of a :class:`Policy`.
+
+    Args:
+        policy: a trained policy (not an ``at_exec_k`` copy); its actor-critic is shared, not
+            copied.
+
+    Shapes: obs [E, O], y0 and dy0 [E, D] float64 -> actions [E, k, A] float32.
+    """
+
+    def __init__(self, policy: Policy) -> None:
+        super().__init__()
+        self.model = policy.model
+        norm = policy.obs_norm
+        self.normalise = bool(norm.enabled)
+        self.clip = float(norm.clip)
+        mean = torch.as_tensor(np.asarray(norm.rms.mean, dtype=np.float64))
+        std = torch.as_tensor(np.sqrt(np.asarray(norm.rms.var, dtype=np.float64) + 1e-8))
+        self.register_buffer("obs_mean", mean, persistent=False)
+        self.register_buffer("obs_std", std, persistent=False)
+        low = torch.as_tensor(np.asarray(policy.spec.action_low, dtype=np.float32))
+        high = torch.as_tensor(np.asarray(policy.spec.action_high, dtype=np.float32))
+        self.register_buffer("low", low, persistent=False)
+        self.register_buffer("high", high, persistent=False)
+        self.k = int(policy.model.head.k)
+        self.action_dim = int(policy.model.head.action_dim)
+
+    def forward(self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor) -> torch.Tensor:
+        x = obs.to(torch.float64)
+        if self.normalise:  # ObsNormalizer: float64, then float32
+            x = torch.clamp((x - self.obs_mean) / self.obs_std, -self.clip, self.clip)
+        state = y0.to(torch.float32), dy0.to(torch.float32)
+        dist, _ = self.model.distribution(x.to(torch.float32), *state)
+        act = dist.actions(dist.mode())
+        act = torch.maximum(torch.minimum(act, self.high), self.low)
+        # the batch sizes of y0 and dy0 enter the graph, so every method's graph keeps the
+        # three inputs (an exporter drops inputs whose values are not used) and checks them
+        act = act.reshape(y0.shape[0], self.k, self.action_dim)
+        return act.reshape(dy0.shape[0], self.k, self.action_dim)
+
+
+def probe_inputs(policy: Policy, batch: int, seed: int = 0) -> tuple[torch.Tensor, ...]:
+    """Float64 inputs spread around the normaliser's statistics (observations within 3 std,
+    some beyond the clip) and robot states in [-1, 1], for tracing and verification."""
+    gen = np.random.default_rng(seed)
+    norm = policy.obs_norm
+    std = np.sqrt(np.asarray(norm.rms.var, dtype=np.float64) + 1e-8)
+    obs = norm.rms.mean + std * gen.normal(0.0, 3.0, (batch, policy.model.obs_dim))
+    d = int(policy.spec.dmp_dofs)
+    y0 = gen.uniform(-1.0, 1.0, (batch, d))
+    dy0 = gen.uniform(-1.0, 1.0, (batch, d))
+    return tuple(torch.as_tensor(a, dtype=torch.float64) for a in (obs, y0, dy0))
+
+
+def _require(name: str) -> Any:
+    """Import ``onnx`` / ``onnxruntime``, or say which extra installs them."""
+    import importlib
+
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        raise ModuleNotFoundError(
+            f"{exc}: the ONNX export needs the [onnx] extra "
+            "(pip install 'neural-dynamic-policies[onnx]')",
+            name=exc.name,
+        ) from None
+
+
+def _method(policy: Policy) -> str:
+    return f"method {policy.cfg.algo!r} (head {type(policy.model.head).__name__})"
+
+
+def onnx_model_bytes(policy: Policy) -> bytes:
+    """The decision of ``policy`` as a serialised ONNX model with its metadata, checked by
+    ``onnx.checker`` and verified against the eager policy in onnxruntime.
+
+    Raises:
+        ValueError: an ``at_exec_k`` copy; a head the exporter cannot record, or whose graph
+            does not reproduce the policy (one line naming the method).
+    """
+    import io
+
+    onnx = _require("onnx")
+    _require("onnxruntime")  # before the export's work: the verification needs it
+    if policy.substeps != 1:
+        raise ValueError(
+            "policy: an exec-k evaluation copy cannot be exported; export the trained policy"
+        )
+    module = DecisionModule(policy).eval()
+    args = probe_inputs(policy, 2)
+    buf = io.BytesIO()
+    try:
+        with torch.no_grad(), warnings.catch_warnings():
+            # the TorchScript exporter is deprecated in favour of dynamo=True (the module doc
+            # says why it is used); tracer warnings concern the shape checks, constant here
+            warnings.simplefilter("ignore")
+            torch.onnx.export(
+                module,
+                args,
+                buf,
+                dynamo=False,
+                input_names=list(INPUTS),
+                output_names=list(OUTPUTS),
+                dynamic_axes={name: {0: "E"} for name in INPUTS + OUTPUTS},
+                opset_version=OPSET,
+            )
+    except Exception as exc:  # any exporter failure: one line naming the method and head
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:160]
+        raise ValueError(f"{_method(policy)}: cannot be exported to ONNX ({first})") from None
+    model = onnx.load_from_string(buf.getvalue())
+    names = [i.name for i in model.graph.input]
+    if names != list(INPUTS):  # an input whose values were recorded as constants is dropped
+        raise ValueError(
+            f"{_method(policy)}: the ONNX graph does not reproduce the policy (its inputs are "
+            f"{names}, not {list(INPUTS)}: the head computes outside torch); use the default "
+            "format"
+        )
+    for key, value in onnx_metadata_of(policy).items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = key, value
+    onnx.checker.check_model(model, full_check=True)
+    data = model.SerializeToString()
+    _verify(policy, module, data)
+    return bytes(data)
+
+
+def _verify(policy: Policy, module: DecisionModule, data: bytes) -> None:
+    """Run the graph on probe inputs of another batch size than the traced one; refuse it when
+    it differs from the eager module by more than :data:`VERIFY_ATOL`."""
+    ort = _require("onnxruntime")
+    session = ort.InferenceSession(data, providers=["CPUExecutionProvider"])
+    for batch, seed in ((5, 1), (1, 2)):
+        inputs = probe_inputs(policy, batch, seed)
+        with torch.no_grad():
+            want = module(*inputs).numpy()
+        feed = {name: t.numpy() for name, t in zip(INPUTS, inputs, strict=True)}
+        try:
+            got = session.run(None, feed)[0]
+        except Exception as exc:  # onnxruntime's own error types
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:160]
+            raise ValueError(
+                f"{_method(policy)}: the ONNX graph does not run in onnxruntime ({first})"
+            ) from None
+        err = float(np.abs(got - want).max()) if got.shape == want.shape else float("inf")
+        if not err <= VERIFY_ATOL:
+            raise ValueError(
+                f"{_method(policy)}: the ONNX graph does not reproduce the policy (batch "
+                f"{batch}: shape {list(got.shape)} vs {list(want.shape)}, max difference "
+                f"{err:.3g}); use the default format"
+            )
+
+
+def onnx_metadata_of(policy: Policy) -> dict[str, str]:
+    """The ``metadata_props`` of a policy's ONNX file (every value a string; JSON where it is
+    not one)."""
+    from ndp.provenance import git_commit
+    from ndp.rl.policy import _versions
+
+    spec, head = policy.spec, policy.model.head
+    ky, kdy = policy.state_keys
+    meta: dict[str, Any] = {
+        "format": ONNX_FORMAT,
+        "version": ONNX_VERSION,
+        "task": policy.cfg.task,
+        "algo": policy.cfg.algo,
+        "head": policy.cfg.policy.head,
+        "k": int(head.k),
+        "obs_dim": int(policy.model.obs_dim),
+        "action_dim": int(head.action_dim),
+        "dmp_dofs": int(spec.dmp_dofs),
+        "inputs": list(INPUTS),
+        "outputs": list(OUTPUTS),
+        "input_dtype": "float64",
+        "output_dtype": "float32",
+        "state_keys": [ky, kdy],
+        "dmp_state": "commanded" if ky == "cmd_y0" else "measured",
+        "uses_robot_state": bool(head.needs_robot_state),
+        "action_low": np.asarray(spec.action_low, dtype=np.float64).tolist(),
+        "action_high": np.asarray(spec.action_high, dtype=np.float64).tolist(),
+        "config": policy.cfg.to_dict(),
+        "versions": _versions(),
+        "commit": git_commit(),
+    }
+    return {k: v if isinstance(v, str) else json.dumps(v) for k, v in meta.items()}
+
+
+def write_onnx_export(policy: Policy, out_dir: str | Path) -> Path:
+    """Write ``out_dir/policy.onnx`` (a new directory, or one without that file); returns
+    ``out_dir``."""
+    from ndp.io import atomic_write_bytes
+
+    out = Path(out_dir)
+    if (out / ONNX_FILE).exists():
+        raise FileExistsError(f"out_dir: {out} already holds {ONNX_FILE}; choose another")
+    data = onnx_model_bytes(policy)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(out / ONNX_FILE, data)
+    return out
+
+
+def onnx_metadata(path: str | Path) -> dict[str, Any]:
+    """The metadata of an exported ``policy.onnx`` (or of the directory holding it), JSON values
+    decoded.
+
+    Raises:
+        ValueError: not an export of this format and version.
+    """
+    onnx = _require("onnx")
+    path = Path(path)
+    if path.is_dir():
+        path = path / ONNX_FILE
+    model = onnx.load(str(path), load_external_data=False)
+    meta: dict[str, Any] = {}
+    for entry in model.metadata_props:
+        try:
+            meta[entry.key] = json.loads(entry.value)
+        except json.JSONDecodeError:
+            meta[entry.key] = entry.value
+    if meta.get("format") != ONNX_FORMAT or meta.get("version") != ONNX_VERSION:
+        raise ValueError(
+            f"{path}: format {meta.get('format')!r} version {meta.get('version')!r}; expected "
+            f"{ONNX_FORMAT!r} version {ONNX_VERSION}"
+        )
+    return meta
+
+
+class OnnxPolicy:
+    """An exported ``policy.onnx`` run in onnxruntime, with ``Policy.act``'s calling convention.
+
+    Example::
+
+        pol = OnnxPolicy("exports/push-v3-ndp-onnx")
+        obs, info = env.reset(seed=0)                  # the chunked env (ndp.make_env)
+        actions = pol.act(obs, info)                   # [k, A] float32
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        ort = _require("onnxruntime")
+        path = Path(path)
+        if path.is_dir():
+            path = path / ONNX_FILE
+        self.meta = onnx_metadata(path)
+        self.state_keys: tuple[str, str] = tuple(self.meta["state_keys"])  # type: ignore[assignment]
+        self.session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+
+    def act(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """The deterministic decision: [k, A] for obs [O], [E, k, A] for obs [E, O]."""
+        single = np.ndim(obs) == 1
+        feed = {"obs": np.atleast_2d(np.asarray(obs, dtype=np.float64))}
+        for name, key in zip(("y0", "dy0"), self.state_keys, strict=True):
+            if key not in info:
+                raise ValueError(f"info: expected the chunked env's {key!r}")
+            feed[name] = np.atleast_2d(np.asarray(info[key], dtype=np.float64))
+        out: np.ndarray = self.session.run(None, feed)[0]
+        return out[0] if single else out

@@ -1,0 +1,311 @@
+"""An NDP policy for Stable-Baselines3's PPO on this package's chunked envs (docs/sb3.md).
+
+SB3 sees one decision as one env step: ``ndp.make_env(task, k)`` takes actions [k, A] (SB3's
+Gaussian is over the k * A flattened numbers) and returns the sum of the k sub-step rewards.
+:class:`NDPPolicy` acts through the DMP: its network predicts the DMP goal and forcing weights
+of the decision, the DMP is integrated from the robot state and the task's inverse controller
+turns the trajectory into the k sub-actions (the :class:`ndp.policies.NDPHead` of this package's
+own trainer, with the task's presets).
+
+The DMP starts from the robot state, which an SB3 policy does not see (it gets the observation
+only): :func:`with_robot_state` turns the chunked env's observation into a dict
+``{"obs": obs [O], "y0": [D], "dy0": [D]}`` whose ``y0`` / ``dy0`` are the info keys of the
+task's DMP frame (``cmd_y0`` / ``cmd_dy0`` for the commanded state, ``dmp_y0`` / ``dmp_dy0``
+for the measured one; ``ndp.envs.presets``), in physical units. The policy's network reads
+``obs`` only; the DMP reads ``y0`` and ``dy0``. With ``VecNormalize``, normalise the ``obs``
+key only (``norm_obs_keys=["obs"]``): a normalised y0 is not where the robot is.
+
+Exploration: a diagonal Gaussian around each of the k sub-actions the DMP gives, with one
+learned, state-independent log std per action dimension shared by the k sub-actions (this
+package's ``SubActionGaussian``); SB3 sums its log-probability over the k * A numbers (one
+ratio per decision). Its deterministic action is the DMP's sub-actions themselves.
+
+Example::
+
+    import ndp.sb3
+    from stable_baselines3 import PPO
+
+    env = ndp.sb3.make_env("point-mass", k=5)          # = with_robot_state(ndp.make_env(...))
+    model = PPO(ndp.sb3.NDPPolicy, env, gamma=0.99**5)  # gamma per decision of 5 env steps
+    model.learn(20_000)                                 # decisions (5 env steps each)
+    obs, info = env.reset(seed=0)
+    actions, _ = model.predict(obs, deterministic=True)  # [5, A]
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+from gymnasium import spaces
+from stable_baselines3.common.distributions import DiagGaussianDistribution
+from stable_baselines3.common.policies import ActorCriticPolicy
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from torch import nn
+
+__all__ = ["NDPPolicy", "ObservationOnly", "RobotStateSpace", "make_env", "with_robot_state"]
+
+STATE_KEYS = {"commanded": ("cmd_y0", "cmd_dy0"), "measured": ("dmp_y0", "dmp_dy0")}
+"""DMP frame -> the chunked env's info keys of the DMP start (as ``Policy.state_keys``)."""
+
+
+class RobotStateSpace(spaces.Dict):
+    """The observation space of :func:`with_robot_state`: ``obs``, ``y0``, ``dy0``, and the task
+    and DMP frame they belong to (so that ``PPO(NDPPolicy, env)`` needs no other argument)."""
+
+    def __init__(self, obs: spaces.Box, dofs: int, task: str, dmp_state: str) -> None:
+        state = spaces.Box(-np.inf, np.inf, shape=(int(dofs),), dtype=np.float64)
+        super().__init__({"obs": obs, "y0": state, "dy0": state})
+        self.task = str(task)
+        self.dmp_state = str(dmp_state)
+
+    @property
+    def state_keys(self) -> tuple[str, str]:
+        """The info keys ``y0`` and ``dy0`` are read from."""
+        return STATE_KEYS[self.dmp_state]
+
+
+class _RobotState(gym.Wrapper):
+    def __init__(self, env: gym.Env, task: str, dmp_state: str) -> None:
+        super().__init__(env)
+        act = env.action_space
+        if not isinstance(act, spaces.Box) or len(act.shape) != 2:
+            raise ValueError(
+                f"env: expected a chunked env (ndp.make_env(task, k=...)) whose actions are "
+                f"[k, A], got action space {act}"
+            )
+        obs = env.observation_space
+        if not isinstance(obs, spaces.Box):
+            raise ValueError(f"env: expected a Box observation space, got {obs}")
+        from ndp.envs import get_task_spec
+
+        self._spec = get_task_spec(task)
+        if act.shape[1] != self._spec.action_dim:
+            raise ValueError(
+                f"env: actions [k, {act.shape[1]}], but task {self._spec.name!r} has "
+                f"{self._spec.action_dim} action dimensions"
+            )
+        self.observation_space = RobotStateSpace(
+            obs, self._spec.dmp_dofs, self._spec.name, dmp_state
+        )
+        self._keys = STATE_KEYS[dmp_state]
+
+    def _dict(self, obs: Any, info: dict[str, Any]) -> dict[str, np.ndarray]:
+        ky, kdy = self._keys
+        if ky not in info or kdy not in info:
+            raise ValueError(
+                f"info: expected the chunked env's {ky!r} and {kdy!r}, got keys {sorted(info)[:8]}"
+            )
+        return {
+            "obs": np.asarray(obs),
+            "y0": np.asarray(info[ky], dtype=np.float64).copy(),
+            "dy0": np.asarray(info[kdy], dtype=np.float64).copy(),
+        }
+
+    def reset(self, **kwargs: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        obs, info = self.env.reset(**kwargs)
+        return self._dict(obs, info), info
+
+    def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool, dict]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return self._dict(obs, info), reward, terminated, truncated, info
+
+
+def with_robot_state(env: gym.Env, task: str, dmp_state: str | None = None) -> gym.Env:
+    """The chunked env ``env`` with the DMP start in its observation (see the module).
+
+    Args:
+        env: ``ndp.make_env(task, k=...)`` (actions [k, A]; info with the robot state).
+        task: its task name (sets the DMP frame's default and the NDP head of the policy).
+        dmp_state: 'commanded' or 'measured'; None: the task's preset.
+    """
+    from ndp.envs import get_task_spec
+    from ndp.envs.presets import preset_of
+
+    spec = get_task_spec(task)
+    frame = preset_of(spec).dmp_state if dmp_state is None else dmp_state
+    if frame not in STATE_KEYS:
+        raise ValueError(f"dmp_state: expected one of {', '.join(STATE_KEYS)}, got {frame!r}")
+    return _RobotState(env, spec.name, frame)
+
+
+def make_env(task: str, k: int = 5, dmp_state: str | None = None, **kwargs: Any) -> gym.Env:
+    """``with_robot_state(ndp.make_env(task, k, **kwargs), task, dmp_state)``."""
+    import ndp
+
+    return with_robot_state(ndp.make_env(task, k=k, **kwargs), task, dmp_state)
+
+
+class ObservationOnly(BaseFeaturesExtractor):
+    """Features of :class:`RobotStateSpace` observations: the ``obs`` entry, flattened (the
+    robot state is for the DMP, not the network)."""
+
+    def __init__(self, observation_space: spaces.Dict) -> None:
+        box = observation_space["obs"]
+        super().__init__(observation_space, int(np.prod(box.shape)))
+
+    def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
+        return observations["obs"].flatten(1)
+
+
+class NDPPolicy(ActorCriticPolicy):
+    """SB3 actor-critic whose actions come from a DMP (see the module).
+
+    The features are the ``obs`` entry (:class:`ObservationOnly`); the actor and critic are
+    SB3's ``MlpExtractor`` (``net_arch``, ``activation_fn``: SB3's defaults, as for its
+    ``MlpPolicy``); the actor's last layer gives the raw DMP parameters of the decision
+    (goal and N weights per DoF) and :class:`ndp.policies.NDPHead` maps them, from ``y0`` /
+    ``dy0``, to the k sub-action means.
+
+    Args:
+        observation_space: a :class:`RobotStateSpace` (:func:`with_robot_state`).
+        action_space: Box [k, A].
+        lr_schedule: SB3's learning-rate schedule.
+        task: the task (None: the observation space's).
+        ndp: NDP head settings, any field of :class:`ndp.policies.PolicyConfig` (``n_basis``,
+            ``a_z``, ``goal_scale``, ``forcing``, ``dmp_velocity``, ...); None fields take the
+            task's presets. ``param_noise`` is not supported (SB3's Gaussian is over actions).
+        log_std_init: initial log std of the sub-action Gaussian.
+        **kwargs: the remaining ``ActorCriticPolicy`` arguments (``net_arch``,
+            ``activation_fn``, ``ortho_init``, ``optimizer_class``, ...).
+    """
+
+    def __init__(
+        self,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        lr_schedule: Any,
+        task: str | None = None,
+        ndp: dict[str, Any] | None = None,
+        log_std_init: float = 0.0,
+        use_sde: bool = False,
+        **kwargs: Any,
+    ) -> None:
+        if use_sde:
+            raise ValueError("NDPPolicy: gSDE (use_sde=True) is not supported")
+        if task is None:
+            task = getattr(observation_space, "task", None)
+        if not isinstance(observation_space, spaces.Dict) or task is None:
+            raise ValueError(
+                "NDPPolicy: expected the observations of ndp.sb3.with_robot_state(env, task) "
+                f"(a dict with obs, y0, dy0), got {observation_space}"
+            )
+        if not isinstance(action_space, spaces.Box) or len(action_space.shape) != 2:
+            raise ValueError(f"NDPPolicy: expected actions [k, A] (a Box), got {action_space}")
+        ndp = dict(ndp or {})
+        if ndp.get("param_noise"):
+            raise ValueError("NDPPolicy: param_noise is not supported (SB3 explores in actions)")
+        frame = getattr(observation_space, "dmp_state", None)
+        if frame is not None and ndp.setdefault("dmp_state", frame) != frame:
+            raise ValueError(
+                f"NDPPolicy: ndp dmp_state {ndp['dmp_state']!r}, but the observations carry the "
+                f"{frame!r} state"
+            )
+        self.task = str(task)
+        self.ndp = ndp
+        kwargs.pop("features_extractor_class", None)  # the obs entry only
+        super().__init__(
+            observation_space,
+            action_space,
+            lr_schedule,
+            log_std_init=log_std_init,
+            features_extractor_class=ObservationOnly,
+            **kwargs,
+        )
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        for key in ("use_sde", "squash_output", "full_std", "use_expln"):
+            data.pop(key, None)  # gSDE: refused
+        data.pop("features_extractor_class", None)  # always ObservationOnly
+        data.update(task=self.task, ndp=self.ndp)
+        return data
+
+    def _build(self, lr_schedule: Any) -> None:
+        """The MLP extractor, the raw-parameter layer, the NDP head, the value layer, SB3's
+        orthogonal initialisation and the optimiser."""
+        from ndp.policies import PolicyConfig, build_head
+        from ndp.rl.config import TrainConfig, resolve_config
+
+        k, a = (int(n) for n in self.action_space.shape)  # type: ignore[misc]
+        cfg = resolve_config(
+            TrainConfig(
+                task=self.task,
+                algo="ndp",
+                policy=PolicyConfig(k=k, init_log_std=self.log_std_init, **self.ndp),
+            )
+        )
+        from ndp.rl.envs import resolve_task
+
+        spec = resolve_task(cfg.task).spec
+        if spec.action_dim != a:
+            raise ValueError(
+                f"NDPPolicy: actions [k, {a}], but task {spec.name!r} has {spec.action_dim}"
+            )
+        self.k = k
+        self.ndp_config = cfg.policy
+        self._build_mlp_extractor()
+        self.ndp_head = build_head(cfg.policy, spec)
+        self.action_net = nn.Linear(self.mlp_extractor.latent_dim_pi, self.ndp_head.n_params)
+        self.value_net = nn.Linear(self.mlp_extractor.latent_dim_vf, 1)
+        if self.ortho_init:  # SB3's gains: sqrt(2) hidden, 0.01 policy output, 1 value output
+            gains = {self.mlp_extractor: np.sqrt(2), self.action_net: 0.01, self.value_net: 1.0}
+            for module, gain in gains.items():
+                module.apply(lambda m, g=gain: self.init_weights(m, gain=g))
+        self.optimizer = self.optimizer_class(
+            self.parameters(),
+            lr=lr_schedule(1),
+            **self.optimizer_kwargs,  # type: ignore[call-arg]
+        )
+
+    @property
+    def log_std(self) -> torch.Tensor:
+        """The sub-action log std [A] (SB3 logs ``exp(log_std).mean()`` as train/std)."""
+        return self.ndp_head.log_std
+
+    def dmp_actions(self, latent_pi: torch.Tensor, obs: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The k sub-action means [B, k, A] of the DMP (goal and weights from ``latent_pi``,
+        started at the observation's ``y0`` / ``dy0``)."""
+        raw = self.action_net(latent_pi)
+        y0 = obs["y0"].to(raw.dtype).reshape(raw.shape[0], -1)
+        dy0 = obs["dy0"].to(raw.dtype).reshape(raw.shape[0], -1)
+        return self.ndp_head.decode(raw, y0, dy0)[0]
+
+    def _distribution(
+        self, latent_pi: torch.Tensor, obs: dict[str, torch.Tensor]
+    ) -> DiagGaussianDistribution:
+        mean = self.dmp_actions(latent_pi, obs).flatten(1)  # [B, k * A], sub-step major
+        log_std = self.ndp_head.log_std.repeat(self.k)  # one std per action dim, k times
+        dist = self.action_dist
+        assert isinstance(dist, DiagGaussianDistribution)
+        return dist.proba_distribution(mean, log_std)
+
+    def _latents(self, obs: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+        features = self.extract_features(obs)
+        if self.share_features_extractor:
+            return self.mlp_extractor(features)  # type: ignore[no-any-return]
+        pi, vf = features
+        return self.mlp_extractor.forward_actor(pi), self.mlp_extractor.forward_critic(vf)
+
+    def forward(
+        self, obs: Any, deterministic: bool = False
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        latent_pi, latent_vf = self._latents(obs)
+        dist = self._distribution(latent_pi, obs)
+        actions = dist.get_actions(deterministic=deterministic)
+        log_prob = dist.log_prob(actions)
+        return actions.reshape((-1, *self.action_space.shape)), self.value_net(latent_vf), log_prob  # type: ignore[misc]
+
+    def evaluate_actions(
+        self, obs: Any, actions: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
+        latent_pi, latent_vf = self._latents(obs)
+        dist = self._distribution(latent_pi, obs)
+        flat = actions.reshape(actions.shape[0], -1)
+        return self.value_net(latent_vf), dist.log_prob(flat), dist.entropy()
+
+    def get_distribution(self, obs: Any) -> DiagGaussianDistribution:
+        features = super(ActorCriticPolicy, self).extract_features(obs, self.pi_features_extractor)
+        return self._distribution(self.mlp_extractor.forward_actor(features), obs)

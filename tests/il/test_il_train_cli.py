@@ -364,3 +364,31 @@ def test_early_stopping_on_a_validation_split_keeps_the_best_weights(tmp_path, c
     assert main(["il", "train", *argv[2:-6], "--patience", "2", "--out", str(tmp_path / "x"),
                  "--val-fraction", "0"]) == 2  # fmt: skip
     assert "patience: early stopping needs a validation split" in capsys.readouterr().err
+
+
+def test_dmp_floor_is_zero_on_dmp_trajectories_and_falls_with_n(tmp_path, capsys):
+    """ndp il floor: trajectories that are themselves rollouts of the models' DMP (N = 30) are
+    fitted to ~0 px^2; on synthetic digits the floor falls as N grows."""
+    from ndp.dmp import DMPLayer
+    from ndp.il.config import DataConfig, ModelConfig
+    from ndp.il.floor import dmp_floor
+
+    cfg = ModelConfig().dmp_config()
+    g = torch.Generator().manual_seed(0)
+    n = 12
+    y0 = torch.rand(n, 2, generator=g, dtype=torch.float64) * 28
+    goal = torch.rand(n, 2, generator=g, dtype=torch.float64) * 28
+    w = torch.randn(n, 2, cfg.n_basis, generator=g, dtype=torch.float64) * 50
+    trajs = DMPLayer(cfg)(goal, w, y0).pos.numpy()
+    npz = tmp_path / "dmp.npz"
+    np.savez(npz, images=np.zeros((n, 28, 28), np.float32), trajectories=trajs)
+    (row,) = dmp_floor(DataConfig(source=str(npz), split="all"), (30,))
+    assert row["n_test"] == n and row["mse_px2"]["max"] < 1e-8
+    out = tmp_path / "floor.json"
+    argv = ["il", "floor", "--data", "synthetic", "--n-train", "100", "--n-test", "50",
+            "--n-basis", "5", "30", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    rows = json.loads(out.read_text())["floor"]
+    assert rows[0]["mse_px2"]["mean"] > 10 * rows[1]["mse_px2"]["mean"]
+    assert main(argv) == 2  # an existing file is refused, not overwritten
+    assert "exists" in capsys.readouterr().err

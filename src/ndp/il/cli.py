@@ -145,16 +145,51 @@ def eval_command(argv: list[str]) -> int:
     return 0
 
 
-CONFIG_COMMANDS = {"il train": train_command, "il eval": eval_command}
+@dataclass(frozen=True)
+class FloorCommand:
+    """``ndp il floor``: the DMP's floor, the test MSE (px^2) of least-squares DMP fits to every
+    test trajectory of a data set and split, per number of basis functions (ndp.il.floor)."""
+
+    data: DataConfig = field(default_factory=DataConfig)
+    """Data set and split (the test part is scored)."""
+    n_basis: tuple[int, ...] = (30,)
+    """Numbers of basis functions N to fit with (the models' N is 30)."""
+    ridge: float = 0.0
+    """Ridge of the least-squares fit (0: plain least squares)."""
+    out: str | None = None
+    """JSON file to write (atomically; refused if it exists); None: print only."""
+
+
+def floor_command(argv: list[str]) -> int:
+    """``ndp il floor [options]``."""
+    from ndp.runs.cli import parse_config
+
+    cmd = parse_config(FloorCommand, argv, prog="ndp il floor")
+    _check_data_path(cmd.data)
+    if cmd.out is not None and Path(cmd.out).exists():
+        raise FileExistsError(f"out: {cmd.out} exists; choose another file")
+    from ndp.il.floor import dmp_floor
+    from ndp.io import atomic_write_text
+
+    rows = dmp_floor(cmd.data, cmd.n_basis, ridge=cmd.ridge)
+    text = json.dumps({"data": dataclasses.asdict(cmd.data), "floor": rows}, indent=2)
+    if cmd.out is not None:
+        atomic_write_text(Path(cmd.out), text + "\n")
+    print(text)
+    return 0
+
+
+CONFIG_COMMANDS = {"il train": train_command, "il eval": eval_command, "il floor": floor_command}
 """Commands whose options are a typed config (see ndp.cli)."""
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     """Register ``il`` (listing only: its commands are parsed by :data:`CONFIG_COMMANDS`)."""
     il = sub.add_parser("il", help="imitation learning: image -> pen trajectory (digits)")
-    il_sub = il.add_subparsers(dest="il_command", metavar="{train,eval,collect,bc}")
+    il_sub = il.add_subparsers(dest="il_command", metavar="{train,eval,floor,collect,bc}")
     il_sub.required = True
     il_sub.add_parser("train", help="train NDP, CNN or CNN-DMP (ndp il train --help)")
     il_sub.add_parser("eval", help="evaluate a run: MSE px^2, DTW, PNG grid (ndp il eval --help)")
+    il_sub.add_parser("floor", help="the DMP's floor: test MSE of least-squares DMP fits, per N")
     il_sub.add_parser("collect", help="record scripted-expert demonstrations of a robot task")
     il_sub.add_parser("bc", help="behaviour cloning (NDP or a plain network) on demonstrations")

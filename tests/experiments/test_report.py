@@ -281,3 +281,38 @@ def test_report_of_a_study_with_conditions(tmp_path):
     assert any(p.endswith("rc-conditions.png") for p in res["png"])
     # the per-arm table carries the final-step success too
     assert "final success (final step)" in md
+
+
+def test_report_selects_each_models_learning_rate_on_validation_only(tmp_path):
+    """digits-converged: per data set and model the arm with the lowest mean validation MSE is
+    chosen, even where another arm has a lower test MSE; its test MSE, CI, epochs to best and
+    wall time are reported; an early-stopped run (done.json) counts as finished."""
+    from ndp.experiments.studies import get_study
+
+    runs = tmp_path / "runs"
+    val = {"3e-4": 3.0, "1e-3": 2.0, "3e-3": 2.5}
+    test = {"3e-4": 1.0, "1e-3": 5.0, "3e-3": 9.0}  # the test split must not decide
+    for spec in get_study("digits-converged").arm_specs():
+        lr = spec.label.rsplit("-lr", 1)[1]
+        for seed in (0, 1, 2):
+            run = runs / f"synthetic-300-{spec.label}-s{seed}"
+            run.mkdir(parents=True)
+            rows = ["epoch,train/loss,val/mse_px2,test/mse_px2,time/epoch_s"]
+            rows += [f"{e},1,{val[lr] + (e - 3) ** 2},,2" for e in range(1, 7)]
+            rows[-1] += ""
+            (run / "metrics.csv").write_text("\n".join(rows) + "\n")
+            (run / "eval.json").write_text(json.dumps({"test_mse_px2": {"mean": test[lr] + seed}}))
+            (run / "arm.json").write_text(json.dumps({
+                "label": spec.label, "algo": spec.algo, "args": list(spec.args), "steps": 500,
+                "task": "synthetic-300", "seed": seed, "kind": "il"}))  # fmt: skip
+            (run / "done.json").write_text(json.dumps({"reason": "early stop", "epoch": 6}))
+    res = report([runs], tmp_path / "dc", "cmd", study="digits-converged", plots=False,
+                 tasks=["synthetic-300"])  # fmt: skip
+    md = (tmp_path / "dc.md").read_text()
+    assert "## Selected on the validation split" in md
+    for model in ("ndp", "cnn", "cnn-dmp"):
+        row = next(ln for ln in md.splitlines() if ln.startswith(f"| synthetic-300 | {model} |"))
+        # lr 1e-3: validation 2.0 (lowest); test 5, 6, 7 -> mean 6; best epoch 3; wall 6 x 2 s
+        assert f"`{model}-lr1e-3` | 3 | 2 | 6 [" in row and "| 3 | 12 |" in row, row
+        assert f"`{model}-lr3e-3` 2.5" in row and f"`{model}-lr3e-4` 3" in row
+    assert res["missing"] == []

@@ -316,7 +316,14 @@ def test_an_arm_with_an_option_the_trainer_lacks_is_refused_up_front(tmp_path, c
 
 
 def test_studies_are_defined_and_their_arms_accepted(capsys):
-    assert set(STUDIES) == {"paper-five", "mt50", "ablations", "digits-data", "release-conditions"}
+    assert set(STUDIES) == {
+        "paper-five",
+        "mt50",
+        "ablations",
+        "digits-data",
+        "release-conditions",
+        "digits-converged",
+    }
     rc = get_study("release-conditions")
     arms = {a.label: a for a in rc.arm_specs()}
     assert len(arms) == 12 and rc.task_list() == ("push-v3", "soccer-v3", "faucet-open-v3")

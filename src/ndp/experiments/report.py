@@ -243,11 +243,28 @@ def il_numbers(info: RunInfo) -> dict[str, Any]:
     x = np.array([r.get("epoch", math.nan) for r in rows], dtype=np.float64)
     y = np.array([r.get("test/mse_px2", math.nan) for r in rows], dtype=np.float64)
     keep = ~np.isnan(y)
+    v = np.array([r.get("val/mse_px2", math.nan) for r in rows], dtype=np.float64)
     ev = _json(info.path / "eval.json") or {}
+    done = _json(info.path / "done.json") or {}
     last = float(y[keep][-1]) if keep.any() else math.nan
     mse = (ev.get("test_mse_px2") or {}).get("mean", last)
     dtw = (ev.get("test_dtw_px") or {}).get("mean", math.nan)
-    return {"mse": float(mse), "dtw": float(dtw), "curve": (x[keep], y[keep])}
+    has_val = bool((~np.isnan(v)).any())
+    best = int(np.nanargmin(v)) if has_val else -1
+    curve = (x[keep], y[keep])
+    if has_val and keep.sum() < 2:  # test scored once at the end: draw the validation curve
+        curve = (x[~np.isnan(v)], v[~np.isnan(v)])
+    wall = np.array([r.get("time/epoch_s", math.nan) for r in rows], dtype=np.float64)
+    return {
+        "mse": float(mse),
+        "dtw": float(dtw),
+        "val": float(v[best]) if has_val else math.nan,
+        "best_epoch": float(x[best]) if has_val else math.nan,
+        "epochs": float(x[-1]) if len(x) else math.nan,
+        "wall_s": float(np.nansum(wall)) if len(wall) else math.nan,
+        "stopped_early": done.get("reason") == "early stop",
+        "curve": curve,
+    }
 
 
 DET_EVAL_FILE = "eval-det-e{episodes}.json"
@@ -403,14 +420,16 @@ def report(
     from ndp.provenance import git_commit
 
     conditions: tuple[Any, ...] = ()
+    selection: tuple[Any, ...] = ()
     if study is not None:
         from ndp.experiments.studies import get_study
 
         st = get_study(study)
         conditions = st.conditions
-        if methods is None and conditions:
+        selection = st.selection
+        if methods is None and (conditions or selection):
             methods = [a.label for a in st.arm_specs()]
-        if tasks is None and conditions:
+        if tasks is None and (conditions or selection):
             tasks = list(st.task_list())
     dirs = find_run_dirs(run_dirs)
     infos = [i for i in (run_info(d) for d in dirs) if i is not None]
@@ -462,6 +481,15 @@ def report(
         at = next((i for i, line in enumerate(md) if line.startswith("Success:")), len(md))
         md[at:at] = cmd
         pngs = [*cpngs, *pngs]
+    if selection and il_cells:
+        from ndp.experiments.selection import selection_section
+
+        smd, srows = selection_section(il_cells, selection, expected, floor=plots)
+        _write_csv(out.with_name(out.name + "-selection.csv"),
+                   [{**r, "command": prov["command"], "commit": prov["commit"],
+                     "date": prov["date"]} for r in srows])  # fmt: skip
+        at = next((i for i, line in enumerate(md) if line.startswith("Imitation:")), len(md))
+        md[at:at] = smd
     out.with_suffix(".md").write_text("\n".join(md) + "\n")
     return {
         **prov,

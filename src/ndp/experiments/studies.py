@@ -83,6 +83,9 @@ class Study:
     conditions: tuple[Condition, ...] = field(default=())
     """Conditions over shared arms (the report's condition x method tables); empty: every
     arm is its own column."""
+    selection: tuple[tuple[str, tuple[str, ...]], ...] = field(default=())
+    """(model, candidate arm labels): the report picks per task the candidate with the lowest
+    mean validation MSE and reports its test MSE (``ndp.experiments.selection``)."""
 
     def task_list(self) -> tuple[str, ...]:
         return tuple(self.tasks())
@@ -275,6 +278,27 @@ def _digits_arms() -> tuple[ArmSpec, ...]:
     )
 
 
+CONVERGED_LRS = ("3e-4", "1e-3", "3e-3")
+"""The learning-rate grid of the converged digit study (the same for every model)."""
+CONVERGED_ARGS = ("--val-fraction", "0.1", "--patience", "20", "--eval-every", "0")
+"""Every converged run: 10% of the training split for validation, stop after 20 epochs without
+a lower validation MSE, the test split scored once at the end (on the best weights)."""
+CONVERGED_MODELS = (("ndp", "il-ndp"), ("cnn", "il-cnn"), ("cnn-dmp", "il-cnn-dmp"))
+
+
+def _converged_arms() -> tuple[ArmSpec, ...]:
+    return tuple(
+        ArmSpec(
+            f"{m}-lr{lr}",
+            algo,
+            ("--lr", lr, *CONVERGED_ARGS),
+            f"{m}, Adam lr {lr}, early stopping on validation",
+        )
+        for m, algo in CONVERGED_MODELS
+        for lr in CONVERGED_LRS
+    )
+
+
 STUDIES: dict[str, Study] = {
     s.name: s
     for s in (
@@ -357,6 +381,33 @@ STUDIES: dict[str, Study] = {
             arms=_digits_arms,
             steps=71,
             kind="il",
+        ),
+        Study(
+            name="digits-converged",
+            title="Digit writing at convergence: NDP vs CNN vs CNN-DMP, selected on validation",
+            doc=(
+                "The digits-data sets (300 / 1,000 / 3,000 / 10,000 synthetic training digits "
+                "and Pendigits' writers) x NDP, CNN, CNN-DMP x Adam lr 3e-4 / 1e-3 / 3e-3, each "
+                "run stopped on a validation split (10% of its training split, the same for "
+                "every model; patience 20 epochs, at most 500) and its best-validation weights "
+                "kept; 3 seeds. The report picks each model's learning rate per data set on the "
+                "validation MSE alone and gives that arm's test MSE (scored once, at the end) "
+                "with its 95% bootstrap interval, epochs to best and wall time, and the DMP's "
+                "floor (least-squares DMP fits to every test trajectory, N 10 / 20 / 30)."
+            ),
+            tasks=lambda: (
+                "synthetic-300",
+                "synthetic-1000",
+                "synthetic-3000",
+                "synthetic",
+                "pendigits",
+            ),
+            arms=_converged_arms,
+            steps=500,
+            kind="il",
+            selection=tuple(
+                (m, tuple(f"{m}-lr{lr}" for lr in CONVERGED_LRS)) for m, _ in CONVERGED_MODELS
+            ),
         ),
     )
 }

@@ -1,0 +1,122 @@
+"""The report's model-selection section (``ndp report --study NAME`` for a study with a
+``selection``, such as ``digits-converged``).
+
+A selection maps each model to its candidate arms (the same model at each learning rate of a
+grid, every run stopped on its validation split). Per data set and model the candidate with
+the lowest mean validation MSE over seeds is chosen (the test split plays no part in the
+choice), and its test MSE is reported: the mean over seeds with a 95% percentile-bootstrap
+interval, with the epochs to the best validation MSE and the training wall time. Below the
+models, the DMP's floor of the data set (:mod:`ndp.il.floor`: least-squares DMP fits to every
+test trajectory, per N) says how close any DMP-based model could get at all.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ndp.experiments import stats
+
+FLOOR_N = (10, 20, 30)
+"""Numbers of basis functions of the floor rows (30: the models' DMP)."""
+
+
+def data_config(task: str) -> Any:
+    """The ``DataConfig`` of an imitation study's "task" (a data set name, as
+    :func:`ndp.experiments.study.il_data_args` reads it)."""
+    from ndp.experiments.study import il_data_args
+    from ndp.il.config import DataConfig
+
+    args = il_data_args(task)
+    opts = dict(zip(args[::2], args[1::2], strict=True))
+    kw: dict[str, Any] = {"source": opts["--data"], "split": opts["--split"]}
+    if "--n-train" in opts:
+        kw["n_train"] = int(opts["--n-train"])
+    return DataConfig(**kw)
+
+
+def _vals(cell: Any, key: str, seeds: Sequence[int]) -> list[float]:
+    out = []
+    for s in seeds:
+        n = cell.numbers.get(s) if cell is not None else None
+        if n is not None and not math.isnan(float(n[key])):
+            out.append(float(n[key]))
+    return out
+
+
+def selection_section(
+    cells: Sequence[Any],
+    selection: Sequence[tuple[str, tuple[str, ...]]],
+    seeds: Sequence[int],
+    floor: bool = True,
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """(Markdown lines, CSV rows) of the selection (see the module docstring).
+
+    Args:
+        cells: the report's imitation cells (``task``, ``label``, ``numbers`` per seed).
+        selection: (model, candidate arm labels) pairs.
+        seeds: the seeds every cell should have.
+        floor: add the DMP floor rows (fits every test trajectory of each data set).
+    """
+    by = {(c.task, c.label): c for c in cells}
+    tasks = list(dict.fromkeys(c.task for c in cells))
+    md = [
+        "## Selected on the validation split",
+        "",
+        "Per data set and model, the learning rate (arm) with the lowest mean validation MSE "
+        "over seeds; its test MSE: mean over seeds [95% percentile-bootstrap interval]. The "
+        "test split is scored once, at the end, on each run's best-validation weights. "
+        "n: seeds. Epochs to best: the epoch of the lowest validation MSE (mean over seeds). "
+        "Floor: the test MSE of least-squares DMP fits to every test trajectory (`ndp il floor`), "
+        "the closest any model using that DMP could get.",
+        "",
+        "| data | model | chosen arm | n | validation MSE px^2 | test MSE px^2 | epochs to best | "
+        "wall s | other arms (validation MSE) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    rows: list[dict[str, Any]] = []
+    for task in tasks:
+        for model, labels in selection:
+            cands = []
+            for lb in labels:
+                v = _vals(by.get((task, lb)), "val", seeds)
+                if len(v) == len(seeds) and v:
+                    cands.append((float(np.mean(v)), lb))
+            if not cands:
+                md.append(f"| {task} | {model} | - | 0 | - | - | - | - | no complete arm yet |")
+                continue
+            best_val, lb = min(cands)
+            cell = by[(task, lb)]
+            test = _vals(cell, "mse", seeds)
+            lo, hi = stats.bootstrap_ci(test) if test else (math.nan, math.nan)
+            ep = _vals(cell, "best_epoch", seeds)
+            wall = _vals(cell, "wall_s", seeds)
+            others = ", ".join(f"`{b}` {a:.3g}" for a, b in sorted(cands) if b != lb) or "-"
+            md.append(
+                f"| {task} | {model} | `{lb}` | {len(test)} | {best_val:.3g} | "
+                f"{np.mean(test):.3g} [{lo:.3g}, {hi:.3g}] | {np.mean(ep):.0f} | "
+                f"{np.mean(wall):.0f} | {others} |"
+            )
+            rows.append({"task": task, "model": model, "arm": lb, "n_seeds": len(test),
+                         "val_mse_px2": best_val, "test_mse_px2_mean": float(np.mean(test)),
+                         "test_mse_px2_ci_low": lo, "test_mse_px2_ci_high": hi,
+                         "epochs_to_best": float(np.mean(ep)),
+                         "wall_s": float(np.mean(wall))})  # fmt: skip
+        if floor:
+            from ndp.il.floor import dmp_floor
+
+            for r in dmp_floor(data_config(task), FLOOR_N):
+                m = r["mse_px2"]
+                md.append(
+                    f"| {task} | DMP floor, N = {r['n_basis']} | least-squares fit | "
+                    f"{r['n_test']} test trajectories | - | {m['mean']:.3g} (median "
+                    f"{m['median']:.3g}) | - | {r['fit_s']:.0f} | - |"
+                )
+                rows.append({"task": task, "model": f"dmp-floor-n{r['n_basis']}",
+                             "arm": "fit_dmp", "n_seeds": 0,
+                             "test_mse_px2_mean": m["mean"]})  # fmt: skip
+    md.append("")
+    return md, rows

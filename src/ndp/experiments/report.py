@@ -429,12 +429,16 @@ def report(
         selection = st.selection
         if methods is None and (conditions or selection):
             methods = [a.label for a in st.arm_specs()]
-        if tasks is None and (conditions or selection):
-            tasks = list(st.task_list())
+    study_tasks = tasks is None and (conditions or selection)
+    if study_tasks:
+        tasks = list(st.task_list())
     dirs = find_run_dirs(run_dirs)
     infos = [i for i in (run_info(d) for d in dirs) if i is not None]
     if not infos:
         raise ValueError(f"report: no runs found in {', '.join(map(str, run_dirs))}")
+    if study_tasks and tasks is not None:  # the study's order; tasks without runs yet left out
+        found = {i.task for i in infos}
+        tasks = [t for t in tasks if t in found]
     cells, expected = build_cells(infos, seeds, tasks, methods)
     if any(c.missing for c in cells) and not allow_missing:
         raise MissingSeedsError(_missing_message(cells, expected))

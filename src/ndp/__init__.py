@@ -34,17 +34,57 @@ from __future__ import annotations
 from typing import Any
 
 __version__ = "0.1.0"
+"""The source tree's version (``pyproject.toml``'s; a test keeps them equal). The installed
+distribution's version: :func:`version`."""
 
-# name -> (module, attribute, the extra that module needs; None: the core install)
+# name -> (module, attribute (None: the module itself), the extra that module needs; None: the
+# core install)
 _LAZY = {
     "DMPLayer": ("ndp.dmp", "DMPLayer", None),
     "DMPConfig": ("ndp.dmp", "DMPConfig", None),
-    "Policy": ("ndp.rl.policy", "Policy", "rl"),
-    "load_policy": ("ndp.rl.policy", "load_policy", "rl"),
-    "export_policy": ("ndp.rl.policy", "export_policy", "rl"),
+    "Policy": ("ndp.rl.policy", "Policy", None),
+    "load_policy": ("ndp.rl.policy", "load_policy", None),
+    "export_policy": ("ndp.rl.policy", "export_policy", None),
+    "RobotState": ("ndp.rl.policy", "RobotState", None),
+    "zoo": ("ndp.zoo", None, None),
 }
 
-__all__ = ["DMPConfig", "DMPLayer", "Policy", "export_policy", "load_policy", "make_env"]
+__all__ = [
+    "DMPConfig",
+    "DMPLayer",
+    "Policy",
+    "RobotState",
+    "export_policy",
+    "load_policy",
+    "make_env",
+    "version",
+    "zoo",
+]
+
+
+def version() -> str:
+    """The installed version of ``neural-dynamic-policies`` (``importlib.metadata``), else the
+    version of this source tree (``pyproject.toml`` next to ``src/``, else ``__version__``)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("neural-dynamic-policies")
+    except metadata.PackageNotFoundError:
+        pass
+    from pathlib import Path
+
+    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    try:
+        import re
+
+        text = pyproject.read_text()
+        project = text.split("[project]", 1)[1].split("\n[", 1)[0]
+        found = re.search(r'^version\s*=\s*"([^"]+)"', project, re.MULTILINE)
+        if found:
+            return found.group(1)
+    except (OSError, IndexError):
+        pass
+    return __version__
 
 
 def make_env(
@@ -109,13 +149,19 @@ def _missing_extra(
     )
 
 
+def __dir__() -> list[str]:
+    """The module's names and the lazily imported public API (``__all__``)."""
+    return sorted(set(globals()) | set(__all__))
+
+
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
         import importlib
 
         module, attr, extra = _LAZY[name]
         try:
-            return getattr(importlib.import_module(module), attr)
+            mod = importlib.import_module(module)
+            return mod if attr is None else getattr(mod, attr)
         except ModuleNotFoundError as exc:
             hint = _missing_extra(exc, name, extra)
             if hint is None:

@@ -15,18 +15,21 @@ Packages, in the order the data flows:
 - :mod:`ndp.experiments`  presets, sweeps, result tables and plots
 - :mod:`ndp.cli`          the ``ndp`` command
 
-Public API (imported lazily, so ``import ndp`` stays cheap):
+Public API (imported lazily, so ``import ndp`` stays cheap; ``__all__``, ``dir(ndp)``):
 
 - ``ndp.DMPLayer``, ``ndp.DMPConfig``: the differentiable DMP layer for your own network;
 - ``ndp.make_env(task, k=5)``: a task's chunked env (k sub-steps per decision, stale-world rule);
-- ``ndp.load_policy(path)``: a trained policy (a run directory or an export) with
-  ``act(obs, info)``, ``reset()`` and ``make_env()``; ``ndp.export_policy(run, out)`` writes a
-  safetensors + JSON export that loads without unpickling.
+- ``ndp.load_policy(path)``: a trained policy (a run directory, an export, or ``"zoo:<name>"``,
+  one shipped with the package: ``ndp.zoo.list()``) with ``act(obs, robot_state)``, ``reset()``
+  and ``make_env()``; ``robot_state`` is the env's info or an ``ndp.RobotState(y0, dy0)``, so
+  an export acts without any simulator. ``ndp.export_policy(run, out)`` writes a safetensors +
+  JSON export with a model card that loads without unpickling;
+- ``ndp.version()``: the installed version (``ndp --version``).
 
-``pip install neural-dynamic-policies`` (torch and numpy only) gives :mod:`ndp.dmp`,
-:mod:`ndp.nets` and :mod:`ndp.policies`; the simulators, trainers and tools are extras:
-``[envs]`` (``make_env``), ``[rl]`` (``load_policy``, ``ndp rl``), ``[il]`` (``ndp il``),
-``[ray]``, and ``[dev]`` for all of them plus the test tools.
+``pip install neural-dynamic-policies`` (torch, numpy, safetensors) gives :mod:`ndp.dmp`,
+:mod:`ndp.nets`, :mod:`ndp.policies` and trained policies (``load_policy``, ``ndp.zoo``); the
+simulators, trainers and tools are extras: ``[envs]`` (``make_env``), ``[rl]`` (``ndp rl``),
+``[il]`` (``ndp il``), ``[ray]``, and ``[dev]`` for all of them plus the test tools.
 """
 
 from __future__ import annotations

@@ -60,7 +60,7 @@ EXPORT_FORMAT = "ndp-policy"
 EXPORT_VERSION = 1
 """``version`` field of ``policy.json`` (incremented on incompatible changes; the optional
 ``"spec"``, ``"training"`` fields were added compatibly)."""
-_SIMULATORS = ("gymnasium", "mujoco", "metaworld", "dm_control")
+_SIMULATORS = ("gymnasium", "mujoco", "metaworld", "dm_control", "imageio", "imageio_ffmpeg")
 """Packages of the [envs] extra whose absence makes a policy fall back to its recorded spec."""
 
 

@@ -320,8 +320,7 @@ def _task_spec(cfg: TrainConfig, recorded: dict[str, Any] | None, source: str) -
             ) from exc
         return PolicySpec.from_record(recorded, f"{source}: spec")
     spec = resolve_task(cfg.task).spec
-    if recorded is not None:
-        PolicySpec.from_record(recorded, f"{source}: spec")  # checked either way
+    if recorded is not None:  # (read_export_meta has checked its fields)
         table = spec_record(spec)
         differ = [k for k in table if k != "y0_source" and table[k] != recorded.get(k)]
         if differ:

@@ -9,6 +9,10 @@ velocities and accelerations w.r.t. every input) of
 - ``matmul``:  one dense [B*D, N+3] @ [N+3, 3*n_out] product with the same operand sizes
   (forward + backward), the practical floor of the fast path.
 
+``check_cost`` is the cost of the layer's default finite check: the median, over ``--pairs``
+back-to-back calls in alternating order, of time(``fast``) / time(``fast_unchecked``) (target
+<= 1.2; the shape ``check_cost`` is a policy-sized batch, B 256, D 7, N 10, 100 steps).
+
 Memory is the bytes autograd saves for backward plus the outputs (exact, from saved-tensor
 hooks), and on CUDA also the peak allocated memory.
 
@@ -37,6 +41,8 @@ SHAPES = {
     "imitation": (100, 2, 30, 300, 1),
     "rl": (2048, 4, 6, 40, 8),
     "rl_all_steps": (2048, 4, 6, 40, 1),
+    # the finite check's cost at a policy-sized batch (fast / fast unchecked)
+    "check_cost": (256, 7, 10, 100, 1),
 }
 
 
@@ -91,7 +97,7 @@ def _time(fn, inputs, device, min_time) -> float:
     return timer.blocked_autorange(min_run_time=min_time).median
 
 
-def bench_shape(name, shape, device, dtype, min_time, rounds):
+def bench_shape(name, shape, device, dtype, min_time, rounds, pairs=1000):
     b, d, n, steps, sub = shape
     cfg = DMPConfig(n_basis=n, a_z=25.0, steps=steps, subsample=sub)
     layer = DMPLayer(cfg)
@@ -129,7 +135,28 @@ def bench_shape(name, shape, device, dtype, min_time, rounds):
     res["loop_over_fast"] = round(res["loop_ms"] / res["fast_ms"], 1)
     res["fast_over_matmul"] = round(res["fast_ms"] / res["matmul_ms"], 2)
     res["fast_unchecked_over_matmul"] = round(res["fast_unchecked_ms"] / res["matmul_ms"], 2)
+    res["check_cost"] = paired_ratio(
+        candidates["fast"], candidates["fast_unchecked"], inputs, pairs
+    )
     return res
+
+
+def paired_ratio(fn_a, fn_b, inputs, pairs: int) -> float:
+    """Median over ``pairs`` back-to-back calls of time(a) / time(b), the order alternating:
+    on a loaded machine both calls of a pair see the same load, so the ratio stays meaningful
+    when the separate medians drift (a slow phase hits one candidate's timing block only)."""
+    import statistics
+    import time
+
+    ratios = []
+    for i in range(pairs):
+        ts = {}
+        for key, fn in (("a", fn_a), ("b", fn_b)) if i % 2 else (("b", fn_b), ("a", fn_a)):
+            t0 = time.perf_counter()
+            _fwd_bwd(fn, inputs)
+            ts[key] = time.perf_counter() - t0
+        ratios.append(ts["a"] / ts["b"])
+    return round(statistics.median(ratios), 3)
 
 
 def main(argv=None) -> int:
@@ -140,6 +167,9 @@ def main(argv=None) -> int:
     p.add_argument("--min-time", type=float, default=0.5, help="seconds per candidate and round")
     p.add_argument("--rounds", type=int, default=3, help="interleaved timing rounds (best kept)")
     p.add_argument("--shapes", nargs="+", default=list(SHAPES), choices=list(SHAPES))
+    p.add_argument(
+        "--pairs", type=int, default=1000, help="back-to-back call pairs of the check-cost ratio"
+    )
     p.add_argument("--md-out", default=None, help="also write a markdown table to this file")
     args = p.parse_args(argv)
     if args.device == "cuda" and not torch.cuda.is_available():
@@ -157,18 +187,24 @@ def main(argv=None) -> int:
         "torch": torch.__version__,
         "commit": git_commit(),
         "threads": torch.get_num_threads(),
-        "targets": {"loop_over_fast_imitation": ">= 30", "fast_over_matmul": "<= 3"},
+        "targets": {
+            "loop_over_fast_imitation": ">= 30",
+            "fast_over_matmul": "<= 3",
+            "check_cost": "<= 1.2",
+        },
         "shapes": {},
     }
     for name in args.shapes:
         results["shapes"][name] = bench_shape(
-            name, SHAPES[name], args.device, dtype, args.min_time, args.rounds
+            name, SHAPES[name], args.device, dtype, args.min_time, args.rounds, args.pairs
         )
     s = results["shapes"]
     results["targets_met"] = {
         "loop_over_fast_imitation": s.get("imitation", {}).get("loop_over_fast", 0) >= 30,
         **{f"fast_over_matmul_{k}": v["fast_over_matmul"] <= 3 for k, v in s.items()},
     }
+    if "check_cost" in s:
+        results["targets_met"]["check_cost"] = s["check_cost"]["check_cost"] <= 1.2
     print(json.dumps(results, indent=2))
     if args.md_out:
         atomic_write_text(args.md_out, markdown_table(results))
@@ -183,14 +219,16 @@ def markdown_table(results: dict) -> str:
         "Forward + backward, best median of interleaved rounds.",
         "",
         "| shape | B | D | N | steps / stride | fast (layer) ms | fast unchecked ms | loop ms "
-        "| matmul floor ms | loop / fast | fast / floor | saved for backward (fast / loop) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| matmul floor ms | loop / fast | fast / floor | check cost (fast / unchecked, paired) "
+        "| saved for backward (fast / loop) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, r in results["shapes"].items():
         lines.append(
             f"| {name} | {r['B']} | {r['D']} | {r['N']} | {r['steps']} / {r['subsample']} "
             f"| {r['fast_ms']:.3f} | {r['fast_unchecked_ms']:.3f} | {r['loop_ms']:.2f} "
             f"| {r['matmul_ms']:.3f} | {r['loop_over_fast']:.1f}x | {r['fast_over_matmul']:.2f}x "
+            f"| {r['check_cost']:.2f}x "
             f"| {r['fast_saved_bytes'] / 1e6:.2f} MB / {r['loop_saved_bytes'] / 1e6:.2f} MB |"
         )
     lines += ["", f"Targets met: {json.dumps(results['targets_met'])}", ""]

@@ -1,9 +1,11 @@
-"""The install layout: the core (torch + numpy) gives a working DMP layer, the rest are extras.
+"""The install layout: the core (torch, numpy, safetensors) gives a working DMP layer and
+trained policies that act; the rest are extras.
 
-``pip install neural-dynamic-policies`` installs torch and numpy only; ``ndp.dmp`` (and
-``ndp.nets``, ``ndp.policies``) must import and run with nothing else. The first test runs a
-Python in which every package of an extra is unimportable; the others read pyproject.toml,
-constraints.txt and the Makefile.
+``pip install neural-dynamic-policies`` installs torch, numpy and safetensors only; ``ndp.dmp``
+(and ``ndp.nets``, ``ndp.policies``) must import and run with nothing else, and a shipped policy
+(``ndp.load_policy("zoo:...")``) must load and act. The first test runs a Python in which every
+package of an extra is unimportable; the others read pyproject.toml, constraints.txt and the
+Makefile.
 """
 
 from __future__ import annotations
@@ -24,11 +26,11 @@ import ndp
 ROOT = Path(__file__).resolve().parents[1]
 SRC = Path(ndp.__file__).resolve().parents[1]  # the ndp under test (editable install or PYTHONPATH)
 EXTRAS = ("envs", "rl", "il", "ray", "onnx", "sb3", "dev")
-CORE = {"torch", "numpy"}
+CORE = {"torch", "numpy", "safetensors"}
 # Packages only an extra installs (import names); the core must run with all of them absent.
 BLOCKED = (
     "gymnasium mujoco metaworld dm_control scipy matplotlib tensorboard tqdm tyro imageio "
-    "imageio_ffmpeg safetensors sklearn stable_baselines3 ray onnx onnxruntime"
+    "imageio_ffmpeg sklearn stable_baselines3 ray yaml onnx onnxruntime"
 ).split()
 
 BARE_SCRIPT = r"""
@@ -84,6 +86,13 @@ assert torch.allclose(traj.pos, ref.pos, atol=1e-8), (traj.pos - ref.pos).abs().
 g_fit, w_fit = fit_dmp(traj.pos.detach(), cfg)
 refit = layer(g_fit, w_fit, y0)
 assert (refit.pos - traj.pos).abs().max() < 1e-4
+
+# a shipped policy loads and acts (the robot state given directly: no env)
+policy = ndp.load_policy("zoo:push-v3-ndp")
+actions = policy.act(torch.zeros(39).numpy(), ndp.RobotState(torch.zeros(4).numpy(),
+                                                             torch.zeros(4).numpy()))
+assert actions.shape == (5, 4) and abs(actions).max() <= 1.0, actions
+assert policy.simulator_free
 
 # the public API names the extra a missing package belongs to
 try:
@@ -163,7 +172,7 @@ def _constraints() -> dict[str, str]:
     return pins
 
 
-def test_pyproject_core_is_torch_and_numpy_and_dev_has_every_extra():
+def test_pyproject_core_is_torch_numpy_safetensors_and_dev_has_every_extra():
     project = _project()
     assert {_req_name(r)[0] for r in project["dependencies"]} == CORE
     for req in project["dependencies"]:
@@ -220,8 +229,8 @@ def test_every_third_party_import_is_declared():
     assert not undeclared, f"imports of packages pyproject.toml does not name: {undeclared}"
 
 
-@pytest.mark.parametrize("pkg", ["dmp", "nets", "policies"])
-def test_core_packages_import_only_torch_and_numpy_at_module_level(pkg):
+@pytest.mark.parametrize("pkg", ["dmp", "nets", "policies", "zoo"])
+def test_core_packages_import_only_the_core_at_module_level(pkg):
     bad = {}
     for f in sorted((SRC / "ndp" / pkg).rglob("*.py")):
         extra = _third_party_imports(f, top_level_only=True) - CORE

@@ -1,14 +1,23 @@
-"""The published trained policies (zoo/, made by benchmarks/zoo.py) load and act."""
+"""The published trained policies (package data ndp/zoo/policies, zoo/ in a checkout; made by
+benchmarks/zoo.py) load and act, by path and by name, also from a built wheel."""
 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+import textwrap
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-ZOO = Path(__file__).resolve().parents[1] / "zoo"
+import ndp
+
+ROOT = Path(__file__).resolve().parents[1]
+ZOO = Path(str(ndp.zoo.root()))
 META = json.loads((ZOO / "zoo.json").read_text()) if (ZOO / "zoo.json").is_file() else None
 POLICIES = [r["policy"] for r in META["policies"]] if META else []
 
@@ -21,6 +30,23 @@ def test_the_index_lists_exactly_the_published_directories():
     for name in POLICIES:
         assert f"`{name}`" in readme, name
     assert META["commit"] and META["command"].startswith("python benchmarks/zoo.py")
+    assert ndp.zoo.list() == POLICIES
+    # the checkout's zoo/ is the package's folder
+    assert (ROOT / "zoo").resolve() == ZOO.resolve()
+
+
+def test_zoo_names_load_and_unknown_names_are_one_line_with_close_names():
+    pol = ndp.load_policy("zoo:push-v3-ndp")
+    assert pol.cfg.task == "push-v3" and pol.cfg.algo == "ndp"
+    assert ndp.zoo.path("zoo:push-v3-ndp") == ndp.zoo.path("push-v3-ndp") == ZOO / "push-v3-ndp"
+    assert ndp.zoo.info("throw-ndp")["success"] == 0.94
+    for bad, close in (("zoo:push-v3-npd", "push-v3-ndp"), ("zoo:trow-ppo", "throw-ppo")):
+        with pytest.raises(ValueError) as exc:
+            ndp.load_policy(bad)
+        msg = str(exc.value)
+        assert "\n" not in msg and close in msg and "ndp.zoo.list()" in msg, msg
+    with pytest.raises(ValueError, match="none close"):
+        ndp.zoo.card("zzzzzzzz")
 
 
 @pytest.mark.parametrize("name", POLICIES)
@@ -96,3 +122,61 @@ def test_zoo_script_refuses_bad_grids_before_writing_anything(tmp_path, capsys):
         zoo.main(["--runs-dir", str(runs), "--out", str(out), "--tasks", "push-v3", "throw"])
     assert json.loads((out / "zoo.json").read_text()) == {"policies": [row]}
     assert (out / "throw-ppo").is_dir()
+
+
+WHEEL_SCRIPT = r"""
+import sys
+
+sys.path.insert(0, SITE)  # the unpacked wheel, ahead of any other ndp
+import ndp
+
+assert ndp.__file__.startswith(SITE), ndp.__file__
+assert len(ndp.zoo.list()) == N_POLICIES
+pol = ndp.load_policy("zoo:push-v3-ndp")
+import numpy as np
+
+act = pol.act(np.zeros(39), ndp.RobotState(np.zeros(4), np.zeros(4)))
+assert act.shape == (5, 4)
+assert ndp.zoo.card("throw-ndp").startswith("---")
+print("WHEEL OK", str(ndp.zoo.path("push-v3-ndp")))
+"""
+
+
+def test_the_wheel_ships_the_zoo_and_loads_it_by_name(tmp_path):
+    """``pip wheel`` of a copy of the source (no build isolation: the installed setuptools, no
+    network; the build's folders stay out of the checkout), then the wheel unpacked as an
+    install would and used from another directory: zoo:push-v3-ndp by name."""
+    import shutil
+
+    source, wheels = tmp_path / "source", tmp_path / "wheels"
+    source.mkdir()
+    for f in ("pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy2(ROOT / f, source / f)
+    junk = shutil.ignore_patterns("__pycache__", "*.egg-info", "*.pyc")
+    shutil.copytree(ROOT / "src", source / "src", ignore=junk)
+    r = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
+         "-w", str(wheels), str(source)],
+        capture_output=True, text=True, timeout=600, check=False, cwd=tmp_path,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
+    (wheel,) = wheels.glob("neural_dynamic_policies-*.whl")
+    with zipfile.ZipFile(wheel) as zf:
+        names = set(zf.namelist())
+        for name in POLICIES:
+            for f in ("policy.json", "policy.safetensors", "README.md"):
+                assert f"ndp/zoo/policies/{name}/{f}" in names, (name, f)
+        assert {"ndp/zoo/__init__.py", "ndp/zoo/policies/zoo.json"} <= names
+        assert "ndp/zoo/policies/README.md" in names
+        site = tmp_path / "site"
+        zf.extractall(site)
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    script = WHEEL_SCRIPT.replace("SITE", repr(str(site))).replace("N_POLICIES", str(len(POLICIES)))
+    r = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(script)],
+        capture_output=True, text=True, timeout=300, check=False, cwd=work,
+        env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"} | {"OMP_NUM_THREADS": "1"},
+    )  # fmt: skip
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
+    assert f"WHEEL OK {site}" in r.stdout

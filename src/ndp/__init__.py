@@ -15,18 +15,21 @@ Packages, in the order the data flows:
 - :mod:`ndp.experiments`  presets, sweeps, result tables and plots
 - :mod:`ndp.cli`          the ``ndp`` command
 
-Public API (imported lazily, so ``import ndp`` stays cheap):
+Public API (imported lazily, so ``import ndp`` stays cheap; ``__all__``, ``dir(ndp)``):
 
 - ``ndp.DMPLayer``, ``ndp.DMPConfig``: the differentiable DMP layer for your own network;
 - ``ndp.make_env(task, k=5)``: a task's chunked env (k sub-steps per decision, stale-world rule);
-- ``ndp.load_policy(path)``: a trained policy (a run directory or an export) with
-  ``act(obs, info)``, ``reset()`` and ``make_env()``; ``ndp.export_policy(run, out)`` writes a
-  safetensors + JSON export that loads without unpickling.
+- ``ndp.load_policy(path)``: a trained policy (a run directory, an export, or ``"zoo:<name>"``,
+  one shipped with the package: ``ndp.zoo.list()``) with ``act(obs, robot_state)``, ``reset()``
+  and ``make_env()``; ``robot_state`` is the env's info or an ``ndp.RobotState(y0, dy0)``, so
+  an export acts without any simulator. ``ndp.export_policy(run, out)`` writes a safetensors +
+  JSON export with a model card that loads without unpickling;
+- ``ndp.version()``: the installed version (``ndp --version``).
 
-``pip install neural-dynamic-policies`` (torch and numpy only) gives :mod:`ndp.dmp`,
-:mod:`ndp.nets` and :mod:`ndp.policies`; the simulators, trainers and tools are extras:
-``[envs]`` (``make_env``), ``[rl]`` (``load_policy``, ``ndp rl``), ``[il]`` (``ndp il``),
-``[ray]``, and ``[dev]`` for all of them plus the test tools.
+``pip install neural-dynamic-policies`` (torch, numpy, safetensors) gives :mod:`ndp.dmp`,
+:mod:`ndp.nets`, :mod:`ndp.policies` and trained policies (``load_policy``, ``ndp.zoo``); the
+simulators, trainers and tools are extras: ``[envs]`` (``make_env``), ``[rl]`` (``ndp rl``),
+``[il]`` (``ndp il``), ``[ray]``, and ``[dev]`` for all of them plus the test tools.
 """
 
 from __future__ import annotations
@@ -34,17 +37,57 @@ from __future__ import annotations
 from typing import Any
 
 __version__ = "0.1.0"
+"""The source tree's version (``pyproject.toml``'s; a test keeps them equal). The installed
+distribution's version: :func:`version`."""
 
-# name -> (module, attribute, the extra that module needs; None: the core install)
+# name -> (module, attribute (None: the module itself), the extra that module needs; None: the
+# core install)
 _LAZY = {
     "DMPLayer": ("ndp.dmp", "DMPLayer", None),
     "DMPConfig": ("ndp.dmp", "DMPConfig", None),
-    "Policy": ("ndp.rl.policy", "Policy", "rl"),
-    "load_policy": ("ndp.rl.policy", "load_policy", "rl"),
-    "export_policy": ("ndp.rl.policy", "export_policy", "rl"),
+    "Policy": ("ndp.rl.policy", "Policy", None),
+    "load_policy": ("ndp.rl.policy", "load_policy", None),
+    "export_policy": ("ndp.rl.policy", "export_policy", None),
+    "RobotState": ("ndp.rl.policy", "RobotState", None),
+    "zoo": ("ndp.zoo", None, None),
 }
 
-__all__ = ["DMPConfig", "DMPLayer", "Policy", "export_policy", "load_policy", "make_env"]
+__all__ = [
+    "DMPConfig",
+    "DMPLayer",
+    "Policy",
+    "RobotState",
+    "export_policy",
+    "load_policy",
+    "make_env",
+    "version",
+    "zoo",
+]
+
+
+def version() -> str:
+    """The installed version of ``neural-dynamic-policies`` (``importlib.metadata``), else the
+    version of this source tree (``pyproject.toml`` next to ``src/``, else ``__version__``)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("neural-dynamic-policies")
+    except metadata.PackageNotFoundError:
+        pass
+    from pathlib import Path
+
+    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    try:
+        import re
+
+        text = pyproject.read_text()
+        project = text.split("[project]", 1)[1].split("\n[", 1)[0]
+        found = re.search(r'^version\s*=\s*"([^"]+)"', project, re.MULTILINE)
+        if found:
+            return found.group(1)
+    except (OSError, IndexError):
+        pass
+    return __version__
 
 
 def make_env(
@@ -113,13 +156,19 @@ def _missing_extra(
     )
 
 
+def __dir__() -> list[str]:
+    """The module's names and the lazily imported public API (``__all__``)."""
+    return sorted(set(globals()) | set(__all__))
+
+
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
         import importlib
 
         module, attr, extra = _LAZY[name]
         try:
-            return getattr(importlib.import_module(module), attr)
+            mod = importlib.import_module(module)
+            return mod if attr is None else getattr(mod, attr)
         except ModuleNotFoundError as exc:
             hint = _missing_extra(exc, name, extra)
             if hint is None:

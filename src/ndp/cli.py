@@ -66,6 +66,9 @@ def _modules() -> list[tuple[str, ModuleType | str]]:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ndp", description="Neural Dynamic Policies")
+    parser.add_argument(
+        "--version", action="store_true", help="print the installed version and exit"
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name, module in _modules():
@@ -88,8 +91,18 @@ def _config_command(argv: list[str]) -> tuple[str, Callable[[list[str]], int]] |
     return None
 
 
+def version_line() -> str:
+    """``ndp --version``'s line: the installed distribution's version (``ndp.version``)."""
+    from ndp import version
+
+    return f"ndp {version()}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args_list = list(sys.argv[1:] if argv is None else argv)
+    if args_list[:1] == ["--version"]:  # before the sub-command modules are imported
+        print(version_line())
+        return 0
     try:
         found = _config_command(args_list)
         if found is not None:

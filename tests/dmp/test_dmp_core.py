@@ -303,3 +303,62 @@ def test_finite_inputs_that_overflow_are_caught_at_the_outputs():
     big = DMPConfig(n_basis=5, steps=10)  # scale_by_goal: w * (g - y0) itself overflows
     with pytest.raises(FloatingPointError, match=r"w \* \(g - y0\) overflow"):
         DMPLayer(big)(torch.full((1, 1), 1e20), torch.full((1, 1, 5), 1e20), torch.zeros(1, 1))
+
+
+def _torch_calls(fn):
+    """Names of the torch functions and tensor methods ``fn`` calls."""
+    from torch.overrides import TorchFunctionMode
+
+    calls: list[str] = []
+
+    class Record(TorchFunctionMode):
+        def __torch_function__(self, func, types, args=(), kwargs=None):
+            calls.append(getattr(func, "__name__", str(func)))
+            return func(*args, **(kwargs or {}))
+
+    with Record():
+        fn()
+    return calls
+
+
+@pytest.mark.parametrize("positions", [False, True])
+def test_the_finite_check_is_one_small_reduction_over_the_inputs(positions):
+    # the default check must not reduce the [B, n_out, D] outputs on the common path (that cost
+    # the layer 2x at B=256, D=7, N=10, 100 steps): one max |u| over the packed inputs bounds them
+    cfg = DMPConfig(n_basis=10, steps=100)
+    goal, w, y0, dy0 = _inputs(b=8, d=7, n=10, dtype=torch.float32)
+    checked, unchecked = DMPLayer(cfg), DMPLayer(cfg, check_finite=False)
+    call = "positions" if positions else "forward"
+    for layer in (checked, unchecked):  # warm the caches (linear map, its gain)
+        getattr(layer, call)(goal, w, y0, dy0)
+    with_check = _torch_calls(lambda: getattr(checked, call)(goal, w, y0, dy0))
+    without = _torch_calls(lambda: getattr(unchecked, call)(goal, w, y0, dy0))
+    extra = list(with_check)
+    for name in without:
+        extra.remove(name)
+    assert "isfinite" not in with_check, with_check
+    # one reduction (amax of |u|, [B * D, N + 3]) read back once; attribute reads aside
+    assert [n for n in extra if n in ("abs", "amax", "__float__")] == ["abs", "amax", "__float__"]
+    assert set(extra) <= {"abs", "amax", "__float__", "detach", "numel", "__get__"}, extra
+    # and the bound is sound: near the dtype's limit the outputs are checked exactly; the
+    # layer never returns a non-finite rollout from finite inputs
+    raw = DMPConfig(n_basis=5, steps=10, scale_by_goal=False)
+    for scale in (1e30, 1e36, 1e37, 1e38, 2.5e38, 3.4e38):
+        for sign in (1.0, -1.0):
+            args = (torch.ones(2, 1), torch.full((2, 1, 5), sign * scale), torch.zeros(2, 1))
+            try:
+                out = getattr(DMPLayer(raw), call)(*args)
+            except FloatingPointError as exc:
+                assert "outputs" in str(exc)
+                continue
+            for t in out if isinstance(out, tuple) else (out,):
+                assert torch.isfinite(t).all(), (scale, sign)
+    if not positions:  # the accelerations overflow here (tests above: the message)
+        with pytest.raises(FloatingPointError, match="outputs"):
+            DMPLayer(raw)(torch.ones(1, 1), torch.full((1, 1, 5), 2.5e38), torch.zeros(1, 1))
+    # NaN / Inf in any input, or in w * (g - y0), still raise naming the culprit
+    for i, name in enumerate(("goal", "weights", "y0", "dy0")):
+        bad = [t.clone() for t in (goal, w, y0, dy0)]
+        bad[i].view(-1)[3] = float("nan") if i % 2 else float("-inf")
+        with pytest.raises(FloatingPointError, match=name):
+            getattr(checked, call)(*bad)

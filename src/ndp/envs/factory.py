@@ -2,7 +2,12 @@
 
 Ids: ``ndp/<name>`` for the per-step env (``ndp/push-v3``, ``ndp/JacoThrow-v0``) and
 ``ndp/<name>-k<k>`` for the chunked env with k sub-steps per decision (k in :data:`CHUNKED_KS`,
-e.g. ``gymnasium.make("ndp/push-v3-k5")``).
+e.g. ``gymnasium.make("ndp/push-v3-k5")``). Each id has its ``max_episode_steps``: the task's
+horizon in env steps (150), and ``ceil(horizon / k)`` decisions for the chunked ids, the same
+length the env itself truncates at; a longer episode needs both ``horizon=`` (the env) and
+``max_episode_steps=`` (gymnasium's ``TimeLimit``). The ids are registered when
+:mod:`ndp.envs` is imported; gymnasium 1.x has no plugin entry points, so code that does not
+import ndp names the module in the id: ``gymnasium.make("ndp.envs:ndp/push-v3")``.
 """
 
 from __future__ import annotations
@@ -217,27 +222,32 @@ def register_torque_envs() -> list[str]:
     Returns:
         The registered ids, e.g. ``"ndp/push-v3-osc"``, ``"ndp/throw-joint"``.
     """
-    return [_register(spec.env_id, name) for name, spec in TORQUE_TASKS.items()]
+    return [_register(spec.env_id, name, spec.horizon) for name, spec in TORQUE_TASKS.items()]
 
 
-def _register(env_id: str, name: str) -> str:
-    """Register the per-step env of task ``name`` as ``env_id`` (if not yet); returns the id."""
+def _register(env_id: str, name: str, horizon: int) -> str:
+    """Register the per-step env of task ``name`` as ``env_id`` (if not yet), episodes of
+    ``horizon`` env steps; returns the id."""
     if env_id not in gym.registry:
         gym.register(
-            id=env_id, entry_point="ndp.envs.factory:_make_registered", kwargs={"name": name}
+            id=env_id,
+            entry_point="ndp.envs.factory:_make_registered",
+            kwargs={"name": name},
+            max_episode_steps=int(horizon),
         )
     return env_id
 
 
 def register_envs() -> list[str]:
-    """Register every task with gymnasium (idempotent).
+    """Register every task with gymnasium (idempotent), with its horizon as
+    ``max_episode_steps`` (decisions for the chunked ids).
 
     Returns:
         The registered ids, e.g. ``"ndp/push-v3"``, ``"ndp/JacoThrow-v0"``.
     """
     ids = []
     for name, spec in TASKS.items():
-        ids.append(_register(spec.env_id, name))
+        ids.append(_register(spec.env_id, name, spec.horizon))
         for k in CHUNKED_KS:
             cid = f"ndp/{name}-k{k}"
             if cid not in gym.registry:
@@ -246,6 +256,7 @@ def register_envs() -> list[str]:
                     entry_point="ndp.envs.factory:_make_registered_chunked",
                     kwargs={"name": name, "k": k},
                     disable_env_checker=True,
+                    max_episode_steps=-(-int(spec.horizon) // k),  # decisions: ceil(horizon / k)
                 )
             ids.append(cid)
     return ids

@@ -4,6 +4,12 @@
 normaliser and task. ``act(obs, info)`` reads the robot state the head needs (the DMP start)
 from the chunked env's ``info`` itself, so it cannot be passed wrong; ``make_env()`` builds the
 chunked env the policy was trained for (its k, stale-world rule and horizon).
+
+Without the simulators (a robot, another simulator; only torch, numpy and safetensors
+installed), an export still loads and acts: its ``policy.json`` records the task's spec
+(``"spec"``: DMP coordinates, action bounds and scale, clocks; ``ndp.policies.task``), and
+``act(obs, robot_state)`` takes the DMP start as a mapping with the keys
+:attr:`Policy.state_keys` or a :class:`RobotState`.
 ``policy.at_exec_k(K2)`` is an evaluation copy that runs each decision as K2 = k * m sub-steps of
 a finer env (:mod:`ndp.rl.exec_k`, ``ndp rl eval --exec-k``).
 
@@ -25,12 +31,19 @@ Example::
         obs, reward, term, trunc, info = env.step(policy.act(obs, info))
         done = term or trunc
     print(info["success_any"])
+
+Without a simulator (``obs`` from your own pipeline, the robot's state in physical units)::
+
+    policy = ndp.load_policy("zoo:push-v3-ndp")
+    y0, dy0 = hand_xyz_and_gripper, their_velocities    # [D] each (D = policy.spec.dmp_dofs)
+    actions = policy.act(obs, ndp.RobotState(y0, dy0))  # [k, A]
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -45,7 +58,29 @@ from ndp.rl.normalize import ObsNormalizer
 EXPORT_FORMAT = "ndp-policy"
 """``format`` field of ``policy.json``."""
 EXPORT_VERSION = 1
-"""``version`` field of ``policy.json`` (incremented on incompatible changes)."""
+"""``version`` field of ``policy.json`` (incremented on incompatible changes; the optional
+``"spec"``, ``"training"`` fields were added compatibly)."""
+_SIMULATORS = ("gymnasium", "mujoco", "metaworld", "dm_control", "imageio", "imageio_ffmpeg")
+"""Packages of the [envs] extra whose absence makes a policy fall back to its recorded spec."""
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """The robot state a policy's DMP starts from (the ``robot_state`` of :meth:`Policy.act`).
+
+    Units are the task's DMP coordinates (``policy.spec.dof_names`` / ``dof_units``; where the
+    env reads them: ``policy.spec.y0_source``); which state (commanded or measured) is
+    ``policy.cfg.policy.dmp_state``, i.e. the info keys :attr:`Policy.state_keys`.
+    """
+
+    y0: Any
+    """Position [D] (or [E, D] for E observations), e.g. Meta-World: hand x, y, z (m) and the
+    last gripper command; Jaco: 6 joint angles and the finger angle (rad)."""
+    dy0: Any = None
+    """Velocity [D] / [E, D] per second; None: at rest (zeros), allowed only for a policy whose
+    DMP starts at rest (``dmp_velocity == "zero"``)."""
+
+
 EXPORT_FORMATS = ("safetensors", "onnx")
 """``Policy.export`` / ``ndp rl export --format``: the loadable export (default) or one ONNX
 graph of the deterministic decision (:mod:`ndp.rl.onnx_export`)."""
@@ -58,7 +93,9 @@ class Policy:
     cfg: TrainConfig
     """The run's resolved config (method, task, k, head settings)."""
     spec: Any
-    """The task spec (``ndp.envs.TaskSpec``)."""
+    """The task spec: the task table's row (``ndp.envs.TaskSpec``), or, when the simulators are
+    not installed, the one the export recorded (``ndp.policies.task.PolicySpec``, the same
+    fields the head and :meth:`act` read)."""
     model: ActorCritic
     """The actor-critic, in eval mode."""
     obs_norm: ObsNormalizer
@@ -68,6 +105,10 @@ class Policy:
     the policy as trained. ``spec`` is then the finer row (``ndp.envs.spec.finer_spec``)."""
     _generator: torch.Generator | None = field(default=None, repr=False, compare=False)
     """Sampler of the stochastic actions (:meth:`reset` with a seed); None: torch's global."""
+    training: dict[str, Any] | None = field(default=None, repr=False, compare=False)
+    """Where the weights come from, as far as recorded: ``{"commands": [...], "commits":
+    [...]}`` (a run's ``provenance.json`` sessions, or an export's ``"training"``); None when
+    nothing is recorded. Exports carry it on."""
 
     @property
     def exec_k(self) -> int:
@@ -84,10 +125,26 @@ class Policy:
 
     @property
     def state_keys(self) -> tuple[str, str]:
-        """The info keys of the DMP start this policy reads (commanded or measured state)."""
+        """The info keys of the DMP start this policy reads (commanded or measured state):
+        ``("cmd_y0", "cmd_dy0")`` or ``("dmp_y0", "dmp_dy0")``, each [D] (D =
+        ``spec.dmp_dofs``) or [E, D]."""
         if self.cfg.policy.dmp_state == "commanded":
             return "cmd_y0", "cmd_dy0"
         return "dmp_y0", "dmp_dy0"
+
+    @property
+    def needs_robot_state(self) -> bool:
+        """Whether :meth:`act` reads the robot state (the NDP head's DMP start); the other
+        heads ignore it, and ``act(obs)`` without one works for them."""
+        return self.cfg.policy.head == "ndp"
+
+    @property
+    def simulator_free(self) -> bool:
+        """True when the task spec is the one recorded in the export (``PolicySpec``: the
+        simulators were not importable at load time); :meth:`make_env` then needs them."""
+        from ndp.policies.task import PolicySpec
+
+        return isinstance(self.spec, PolicySpec)
 
     def reset(self, seed: int | None = None) -> None:
         """Start a new episode. The policy keeps no state between decisions; ``seed`` seeds the
@@ -99,14 +156,27 @@ class Policy:
                 raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
             self._generator = torch.Generator().manual_seed(int(seed))
 
-    def act(self, obs: np.ndarray, info: dict[str, Any], deterministic: bool = True) -> np.ndarray:
+    def act(
+        self,
+        obs: np.ndarray,
+        info: Mapping[str, Any] | RobotState | None = None,
+        deterministic: bool = True,
+    ) -> np.ndarray:
         """The k sub-actions of one decision (``exec_k`` of them for an :meth:`at_exec_k` copy),
         within the task's action bounds.
 
         Args:
-            obs: [O] observation (or [E, O] for E envs).
-            info: the chunked env's info of that observation (``reset`` or ``step``; a vector
-                env's info dict for [E, O]).
+            obs: [O] observation (or [E, O] for E envs), O = ``spec.obs_dim``, as the env
+                returns it (the policy normalises it itself).
+            info: the robot state the DMP starts from (the ``robot_state``), one of:
+
+                - the chunked env's info of that observation (``reset`` or ``step``; a vector
+                  env's info dict for [E, O]): the policy reads its :attr:`state_keys`;
+                - any mapping with the two :attr:`state_keys` (``{"dmp_y0": y0, "dmp_dy0":
+                  dy0}``), values [D] for an [O] observation or [E, D] for [E, O], D =
+                  ``spec.dmp_dofs``, in the units of ``spec.dof_units`` (velocities per second);
+                - a :class:`RobotState` ``(y0, dy0)`` with the same shapes;
+                - None, for the heads that do not read it (:attr:`needs_robot_state` False).
             deterministic: the distribution's mode (else a sample).
 
         Returns:
@@ -116,12 +186,6 @@ class Policy:
             action scale is 1 / m of the trained one: the same displacement per decision.
         """
         ky, kdy = self.state_keys
-        if ky not in info or kdy not in info:
-            raise ValueError(
-                f"info: expected the chunked env's {ky!r} and {kdy!r} (use policy.make_env() "
-                "or ndp.make_env(task, k=...)), got keys "
-                f"{sorted(info)[:8]}"
-            )
         single = np.ndim(obs) == 1
         o = np.asarray(obs, dtype=np.float64)
         if o.ndim not in (1, 2) or o.shape[-1] != self.model.obs_dim:
@@ -134,6 +198,13 @@ class Policy:
             bad = np.argwhere(~np.isfinite(o))[0].tolist()
             raise ValueError(f"obs: expected finite values, got {o[tuple(bad)]} at {bad}")
         D = self.spec.dmp_dofs
+        info = self._state_mapping(info, (D,) if single else (len(o), D))
+        if ky not in info or kdy not in info:
+            raise ValueError(
+                f"info: expected the chunked env's {ky!r} and {kdy!r} (use policy.make_env() "
+                "or ndp.make_env(task, k=...)), or a robot state (ndp.RobotState(y0, dy0) or "
+                f"a mapping with those keys), got keys {sorted(info)[:8]}"
+            )
         states = []
         for key in (ky, kdy):
             v = np.asarray(info[key], dtype=np.float64)
@@ -160,6 +231,35 @@ class Policy:
             out = np.repeat(out, reps, axis=-2)
         return out[0] if single else out
 
+    def _state_mapping(self, info: Any, shape: tuple[int, ...]) -> Mapping[str, Any]:
+        """``act``'s robot state as a mapping with :attr:`state_keys` (a RobotState, None)."""
+        ky, kdy = self.state_keys
+        if isinstance(info, RobotState):
+            dy0 = info.dy0
+            if dy0 is None:
+                if self.cfg.policy.dmp_velocity != "zero" and self.needs_robot_state:
+                    raise ValueError(
+                        "robot_state: dy0 is None, but this policy's DMP starts with the "
+                        f"robot's velocity (dmp_velocity={self.cfg.policy.dmp_velocity!r}); "
+                        f"give dy0 with shape {list(shape)}"
+                    )
+                dy0 = np.zeros(shape)
+            return {ky: info.y0, kdy: dy0}
+        if info is None:
+            if self.needs_robot_state:
+                raise ValueError(
+                    f"robot_state: this {self.cfg.algo} policy's DMP starts from the robot's "
+                    f"state; give ndp.RobotState(y0, dy0) or a mapping with {ky!r}, {kdy!r} "
+                    f"(shape {list(shape)} each)"
+                )
+            return {ky: np.zeros(shape), kdy: np.zeros(shape)}
+        if not isinstance(info, Mapping):
+            raise ValueError(
+                "info: expected the env's info dict, a mapping with "
+                f"{ky!r} and {kdy!r}, or an ndp.RobotState; got {type(info).__name__}"
+            )
+        return info
+
     def make_env(
         self,
         render_mode: str | None = None,
@@ -175,8 +275,17 @@ class Policy:
         ``exec_k`` per decision) with ``horizon * substeps`` env steps (``horizon`` and the
         run's horizon count trained env steps), the same episode duration in seconds.
         """
-        from ndp.envs.chunked import ChunkedEnv
-        from ndp.rl.envs import resolve_task
+        try:
+            from ndp.envs.chunked import ChunkedEnv
+            from ndp.rl.envs import resolve_task
+        except ModuleNotFoundError as exc:
+            if (exc.name or "ndp").split(".")[0] == "ndp":
+                raise
+            raise ModuleNotFoundError(
+                f"{exc}: policy.make_env() needs the simulators, the [envs] extra (pip install "
+                "'neural-dynamic-policies[envs]'); act() does not",
+                name=exc.name,
+            ) from exc
 
         h = horizon if horizon is not None else self.cfg.horizon
         m = self.substeps
@@ -188,9 +297,16 @@ class Policy:
             base = wrap(base)
         return ChunkedEnv(base, self.exec_k, stale_world=self.cfg.stale_world)
 
-    def export(self, out_dir: str | Path, format: str = "safetensors") -> Path:
-        """Write ``policy.safetensors`` + ``policy.json`` to ``out_dir`` (see the module), or
-        with ``format="onnx"`` the deterministic decision as one graph, ``policy.onnx``
+    def export(
+        self,
+        out_dir: str | Path,
+        evaluation: dict[str, Any] | None = None,
+        format: str = "safetensors",
+    ) -> Path:
+        """Write ``policy.safetensors`` + ``policy.json`` + the model card ``README.md``
+        (:mod:`ndp.rl.card`; ``evaluation``: what was measured, e.g. ``{"success": 0.8,
+        "episodes": 50}``, else "not recorded") to ``out_dir`` (see the module), or with
+        ``format="onnx"`` the deterministic decision as one graph, ``policy.onnx``
         (:mod:`ndp.rl.onnx_export`)."""
         if format not in EXPORT_FORMATS:
             raise ValueError(f"format: expected one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
@@ -198,7 +314,41 @@ class Policy:
             from ndp.rl.onnx_export import write_onnx_export
 
             return write_onnx_export(self, out_dir)
-        return _write_export(self, Path(out_dir))
+        return _write_export(self, Path(out_dir), evaluation)
+
+
+def _task_spec(cfg: TrainConfig, recorded: dict[str, Any] | None, source: str) -> Any:
+    """The task's row of the task table when the simulators import (``ndp.envs``), else the
+    spec the export recorded (``PolicySpec``). With both, a recorded field that differs from
+    the table's is warned about (the table's is used, as the env is built from it)."""
+    from ndp.policies.task import PolicySpec, spec_record
+
+    try:
+        from ndp.rl.envs import resolve_task
+    except ImportError as exc:
+        if (exc.name or "").split(".")[0] not in _SIMULATORS:
+            raise
+        if recorded is None:
+            raise ModuleNotFoundError(
+                f"{source}: this policy records no task spec (an export made before policy.json "
+                "had 'spec', or a run directory), so loading it needs the simulators: install "
+                "the [envs] extra, or re-export it where they are installed (ndp rl export "
+                f"OLD NEW): {exc}",
+                name=exc.name,
+            ) from exc
+        return PolicySpec.from_record(recorded, f"{source}: spec")
+    spec = resolve_task(cfg.task).spec
+    if recorded is not None:  # (read_export_meta has checked its fields)
+        table = spec_record(spec)
+        differ = [k for k in table if k != "y0_source" and table[k] != recorded.get(k)]
+        if differ:
+            warnings.warn(
+                f"{source}: the recorded task spec differs from the task table's in "
+                f"{', '.join(differ)} (recorded {[recorded.get(k) for k in differ]}, table "
+                f"{[table[k] for k in differ]}); acting with the table's",
+                stacklevel=3,
+            )
+    return spec
 
 
 def _build(
@@ -207,10 +357,11 @@ def _build(
     model_state: dict[str, torch.Tensor],
     obs_norm_state: dict[str, Any],
     source: str = "policy",
+    recorded_spec: dict[str, Any] | None = None,
 ) -> Policy:
-    from ndp.rl.envs import resolve_task
+    import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
 
-    spec = resolve_task(cfg.task).spec
+    spec = _task_spec(cfg, recorded_spec, source)
     model = build_actor_critic(obs_dim, spec, cfg.policy)
     _check_weights(model.state_dict(), model_state, source)
     model.load_state_dict(model_state)
@@ -251,12 +402,21 @@ def load_policy(path: str | Path) -> Policy:
 
     Args:
         path: a directory with ``config.json`` + ``checkpoint.pt`` (``ndp rl train``) or with
-            ``policy.json`` + ``policy.safetensors`` (:func:`export_policy`).
+            ``policy.json`` + ``policy.safetensors`` (:func:`export_policy`), or
+            ``"zoo:<name>"``, a policy shipped with the package (``ndp.zoo.list()``).
+
+    An export loads without the simulators (only torch, numpy and safetensors) when its
+    ``policy.json`` records the task's spec (exports of this version on, and the zoo's); a run
+    directory and older exports need the [envs] extra.
 
     Raises:
         FileNotFoundError: neither kind of directory.
-        ValueError: an export of another format or version.
+        ValueError: an export of another format or version; an unknown zoo name.
     """
+    if isinstance(path, str) and path.startswith("zoo:"):
+        from ndp import zoo
+
+        path = zoo.path(path)
     path = Path(path)
     if (path / "policy.json").is_file():
         meta = read_export_meta(path / "policy.json")
@@ -276,7 +436,10 @@ def load_policy(path: str | Path) -> Policy:
             cfg = TrainConfig.from_dict(meta["config"])
         except (ValueError, TypeError) as exc:
             raise ValueError(f"{path / 'policy.json'}: config: {exc}") from None
-        return _build(cfg, meta["obs_dim"], state, meta["obs_norm"], str(weights))
+        pol = _build(cfg, meta["obs_dim"], state, meta["obs_norm"], str(weights), meta.get("spec"))
+        training = meta.get("training")
+        pol.training = training if isinstance(training, dict) else None
+        return pol
     if (path / "config.json").is_file():
         from ndp.rl.config import load_config
         from ndp.runs import load_checkpoint
@@ -287,11 +450,34 @@ def load_policy(path: str | Path) -> Policy:
             if key not in ckpt:
                 raise ValueError(f"{path / 'checkpoint.pt'}: no {key!r} (not an RL checkpoint)")
         ck = str(path / "checkpoint.pt")
-        return _build(cfg, int(ckpt["obs_dim"]), ckpt["model"], ckpt["obs_norm"], ck)
+        pol = _build(cfg, int(ckpt["obs_dim"]), ckpt["model"], ckpt["obs_norm"], ck)
+        pol.training = run_training(path)
+        return pol
     raise FileNotFoundError(
         f"path: {path} holds neither a training run (config.json + checkpoint.pt) nor an "
         "exported policy (policy.json + policy.safetensors)"
     )
+
+
+def run_training(run_dir: Path) -> dict[str, Any] | None:
+    """A run's training record for its exports: the command line of each session (start,
+    resumes) and the commits they ran at, from its ``provenance.json``; None without one."""
+    import shlex
+
+    from ndp.runs.layout import PROVENANCE_NAME, run_commits
+
+    try:
+        sessions = json.loads((Path(run_dir) / PROVENANCE_NAME).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(sessions, list):
+        return None
+    commands = [
+        shlex.join(str(a) for a in e["argv"])
+        for e in sessions
+        if isinstance(e, dict) and isinstance(e.get("argv"), list)
+    ]
+    return {"commands": commands, "commits": run_commits(run_dir)}
 
 
 EXPORT_SCHEMA: dict[str, tuple[type, ...]] = {
@@ -304,7 +490,9 @@ EXPORT_SCHEMA: dict[str, tuple[type, ...]] = {
     "obs_norm": (dict,),
 }
 """Required fields of ``policy.json`` and their JSON types (``versions`` and ``commit`` are
-provenance, optional when loading)."""
+provenance, optional when loading; ``spec``, the task's spec for loading without the simulators
+(``ndp.policies.task``), and ``training``, the run's command lines and commits, are optional:
+exports older than them load too)."""
 
 
 def read_export_meta(path: Path) -> dict[str, Any]:
@@ -341,15 +529,64 @@ def read_export_meta(path: Path) -> dict[str, Any]:
             raise ValueError(f"{path}: field 'obs_norm.{key}' is missing")
     if meta["config"].get("task") != meta["task"] or meta["config"].get("algo") != meta["algo"]:
         raise ValueError(f"{path}: fields 'task' / 'algo' disagree with the config's")
+    if "spec" in meta:
+        from ndp.policies.task import check_record
+
+        check_record(meta["spec"], f"{path}: field 'spec'")
     return meta
 
 
-def export_policy(path: str | Path, out_dir: str | Path, format: str = "safetensors") -> Path:
+def export_policy(
+    path: str | Path,
+    out_dir: str | Path,
+    evaluation: dict[str, Any] | None = None,
+    format: str = "safetensors",
+) -> Path:
     """Export the policy of a run (or re-export an export) to ``out_dir``; returns it
-    (``format``: see :meth:`Policy.export`)."""
+    (``format``: see :meth:`Policy.export`).
+
+    The export's model card (``README.md``) reports ``evaluation`` (``{"success", "episodes",
+    ...}``: :func:`ndp.rl.card.card_fields`); without one, a run's cached deterministic
+    evaluation (``eval-det-e<N>.json``, written by ``ndp report``; the largest N), else "not
+    recorded".
+    """
     if format not in EXPORT_FORMATS:  # before loading anything
         raise ValueError(f"format: expected one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
-    return load_policy(path).export(out_dir, format)
+    if evaluation is None and not str(path).startswith("zoo:"):
+        evaluation = cached_evaluation(Path(path))
+    return load_policy(path).export(out_dir, evaluation, format)
+
+
+def cached_evaluation(run_dir: Path) -> dict[str, Any] | None:
+    """A run's cached deterministic evaluation (``eval-det-e<N>.json``, episode seeds 10,000
+    on; the largest N) in the card's terms, or None."""
+    import re
+
+    best: tuple[int, dict[str, Any]] | None = None
+    for f in Path(run_dir).glob("eval-det-e*.json"):
+        m = re.fullmatch(r"eval-det-e(\d+)\.json", f.name)
+        try:
+            data = json.loads(f.read_text()) if m else None
+        except (OSError, ValueError):
+            continue
+        if (
+            isinstance(data, dict)
+            and "success_any" in data
+            and (best is None or int(m[1]) > best[0])
+        ):
+            best = (int(m[1]), data)
+    if best is None:
+        return None
+    n, data = best
+    return {
+        "success": float(data["success_any"]),
+        "episodes": n,
+        "deterministic": True,
+        "first_seed": 10_000,
+        "success_final": data.get("success_final"),
+        "episode_return": data.get("episode_return"),
+        "command": f"ndp report (its cached evaluation of the run, eval-det-e{n}.json)",
+    }
 
 
 def _versions() -> dict[str, str]:
@@ -372,11 +609,13 @@ def _versions() -> dict[str, str]:
     return out
 
 
-def _write_export(policy: Policy, out_dir: Path) -> Path:
+def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | None = None) -> Path:
     from safetensors.torch import save
 
     from ndp.io import atomic_write_bytes, atomic_write_text
+    from ndp.policies.task import spec_record
     from ndp.provenance import git_commit
+    from ndp.rl.card import model_card
 
     if policy.substeps != 1:
         raise ValueError(
@@ -402,6 +641,10 @@ def _write_export(policy: Policy, out_dir: Path) -> Path:
         },
         "versions": _versions(),
         "commit": git_commit(),
+        "spec": spec_record(policy.spec),
     }
+    if policy.training is not None:
+        meta["training"] = policy.training
     atomic_write_text(out_dir / "policy.json", json.dumps(meta, indent=1) + "\n")
+    atomic_write_text(out_dir / "README.md", model_card(meta, evaluation, out_dir.name))
     return out_dir

@@ -1,0 +1,273 @@
+"""Model cards of exported policies: ``README.md`` in the Hugging Face model-card format.
+
+A card is YAML front matter between ``---`` lines, then a short text. The front matter has the
+Hub's keys (``library_name``, ``license``, ``tags``, and a ``model-index`` with the success rate
+when one was measured) and plain keys a script can read without knowing the Hub's schema:
+``task``, ``method``, ``success_rate``, ``success_rate_ci95`` (the Wilson score interval,
+``ndp.experiments.stats.wilson_interval``), ``episodes``, ``budget_env_steps``, ``seeds``,
+``command``, ``commit``. Whatever the export does not record is written ``"not recorded"``.
+
+Every export writes its card (:func:`ndp.rl.policy.export_policy`); the zoo's are written by
+``benchmarks/zoo.py`` (``--cards`` rewrites them from each policy's ``policy.json`` and the
+zoo's index). The YAML is written here without a YAML library (the core install has none); the
+tests parse it with PyYAML.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+NOT_RECORDED = "not recorded"
+"""The value of a card field the export does not record."""
+
+LICENSE = "mit"
+LIBRARY = "neural-dynamic-policies"
+
+_METHODS = {
+    "ndp": "NDP (Neural Dynamic Policies: the actor's output is the goal and forcing weights of "
+    "a DMP integrated over each k-step decision)",
+    "ppo": "PPO (one action per env step)",
+    "ppo-multi": "PPO-multi (k actions per decision, no DMP)",
+    "vices": "VICES (PPO on an impedance controller's targets and gains)",
+    "vices-pos": "VICES in end-effector space",
+    "vices-low-freq": "VICES, one decision per k env steps",
+    "dyne": "Dyn-E (TD3 in a learned embedding of k-action sequences)",
+}
+
+
+def wilson_ci(success: float, episodes: int) -> tuple[float, float]:
+    """The 95% Wilson interval of a success rate measured over ``episodes`` episodes."""
+    from ndp.experiments.stats import wilson_interval
+
+    k = round(float(success) * int(episodes))
+    return wilson_interval(k, int(episodes))
+
+
+def card_fields(
+    meta: dict[str, Any], evaluation: dict[str, Any] | None = None, name: str | None = None
+) -> dict[str, Any]:
+    """The front matter of a card, as a dict.
+
+    Args:
+        meta: the export's ``policy.json``.
+        evaluation: what was measured, if anything: ``success`` (rate, success at any step),
+            ``episodes``, and optionally ``deterministic``, ``first_seed``, ``success_final``,
+            ``episode_return``, ``command`` (that measured it), ``protocol`` (in words).
+        name: the policy's name (default ``<task>-<algo>``).
+    """
+    cfg = meta.get("config", {})
+    spec = meta.get("spec") or {}
+    training = meta.get("training") or {}
+    task, algo = str(meta["task"]), str(meta["algo"])
+    family = spec.get("family")
+    tags = ["reinforcement-learning", "robotics", LIBRARY, "dynamic-movement-primitives"]
+    tags += [t for t in (family, task, algo) if t and t not in tags]
+    fields: dict[str, Any] = {
+        "library_name": LIBRARY,
+        "license": LICENSE,
+        "tags": tags,
+        "pipeline_tag": "reinforcement-learning",
+        "task": task,
+        "method": algo,
+    }
+    if evaluation and evaluation.get("success") is not None and evaluation.get("episodes"):
+        p, n = float(evaluation["success"]), int(evaluation["episodes"])
+        lo, hi = wilson_ci(p, n)
+        fields["success_rate"] = round(p, 4)
+        fields["success_rate_ci95"] = [round(lo, 4), round(hi, 4)]
+        fields["episodes"] = n
+    else:
+        fields["success_rate"] = NOT_RECORDED
+        fields["success_rate_ci95"] = NOT_RECORDED
+        fields["episodes"] = NOT_RECORDED
+    steps = cfg.get("steps")
+    fields["budget_env_steps"] = int(steps) if isinstance(steps, int) else NOT_RECORDED
+    seed = cfg.get("seed")
+    fields["seeds"] = [int(seed)] if isinstance(seed, int) else NOT_RECORDED
+    commands = training.get("commands") or []
+    fields["command"] = commands[0] if len(commands) == 1 else (commands or NOT_RECORDED)
+    fields["commit"] = str(meta.get("commit") or NOT_RECORDED)
+    commits = training.get("commits") or []
+    fields["training_commits"] = [str(c) for c in commits] or NOT_RECORDED
+    if evaluation:
+        fields["evaluation_command"] = str(evaluation.get("command") or NOT_RECORDED)
+    if evaluation and fields["success_rate"] != NOT_RECORDED:
+        mode = "deterministic" if evaluation.get("deterministic", True) else "stochastic"
+        metric_name = f"success rate ({mode}, {fields['episodes']} episodes)"
+        fields["model-index"] = [
+            {
+                "name": name or f"{task}-{algo}",
+                "results": [
+                    {
+                        "task": {
+                            "type": "reinforcement-learning",
+                            "name": "Reinforcement Learning",
+                        },
+                        "dataset": {"type": task, "name": task},
+                        "metrics": [
+                            {
+                                "type": "success_rate",
+                                "value": fields["success_rate"],
+                                "name": metric_name,
+                                "verified": False,
+                            }
+                        ],
+                    }
+                ],
+            }
+        ]
+    return fields
+
+
+def to_yaml(obj: Any, indent: int = 0) -> str:
+    """Block YAML of JSON-like data (dicts, lists, strings, numbers, booleans, None); strings
+    are written as JSON strings, which YAML reads as double-quoted scalars."""
+    pad = " " * indent
+    if isinstance(obj, dict):
+        lines = []
+        for k, v in obj.items():
+            if isinstance(v, (dict, list)) and v and not _flat(v):
+                lines.append(f"{pad}{k}:\n{to_yaml(v, indent + 2)}")
+            else:
+                lines.append(f"{pad}{k}: {_scalar(v)}")
+        return "\n".join(lines)
+    if isinstance(obj, list):
+        lines = []
+        for v in obj:
+            if isinstance(v, dict) and v:
+                body = to_yaml(v, indent + 2)
+                lines.append(f"{pad}- {body[indent + 2 :]}")
+            else:
+                lines.append(f"{pad}- {_scalar(v)}")
+        return "\n".join(lines)
+    return pad + _scalar(obj)
+
+
+def _flat(v: Any) -> bool:
+    """A list of scalars (written in flow style, ``[a, b]``)."""
+    return isinstance(v, list) and all(not isinstance(x, (dict, list)) for x in v)
+
+
+def _scalar(v: Any) -> str:
+    if isinstance(v, bool) or v is None:
+        return json.dumps(v)
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(_scalar(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{}"
+    return json.dumps(str(v), ensure_ascii=False)
+
+
+def model_card(
+    meta: dict[str, Any], evaluation: dict[str, Any] | None = None, name: str | None = None
+) -> str:
+    """The ``README.md`` of an export: front matter (:func:`card_fields`) and a short text."""
+    fields = card_fields(meta, evaluation, name)
+    name = name or f"{meta['task']}-{meta['algo']}"
+    cfg = meta.get("config", {})
+    pol = cfg.get("policy", {})
+    spec = meta.get("spec") or {}
+    k = pol.get("k", NOT_RECORDED)
+    method = _METHODS.get(str(meta["algo"]), str(meta["algo"]))
+    lines = ["---", to_yaml(fields), "---", "", f"# {name}", ""]
+    lines += [
+        f"A policy for the `{meta['task']}` task. Method: {method}. Trained with the "
+        f"[{LIBRARY}](https://pypi.org/project/{LIBRARY}/) package: {_budget(fields)}, "
+        f"seed {_seq(fields['seeds'])}, k = {k} (env steps per decision).",
+        "",
+        "## Result",
+        "",
+        _result_text(fields, evaluation),
+        "",
+        "## Use",
+        "",
+        "```python",
+        "import ndp",
+        "",
+        f'policy = ndp.load_policy("{_load_path(name, evaluation)}")',
+        "# with the simulator ([envs] extra): the env the policy was trained for",
+        "env = policy.make_env()",
+        "obs, info = env.reset(seed=0)",
+        "obs, reward, terminated, truncated, info = env.step(policy.act(obs, info))",
+        "# without one: the robot state the DMP starts from, [D] each",
+        "# actions = policy.act(obs, ndp.RobotState(y0, dy0))   # [k, A]",
+        "```",
+        "",
+    ]
+    if spec:
+        units = ", ".join(
+            f"{n} ({u})"
+            for n, u in zip(spec.get("dof_names", []), spec.get("dof_units", []), strict=False)
+        )
+        lines += [
+            f"Observation: {spec.get('obs_dim')} numbers (as the env returns them). Robot "
+            f"state (`policy.state_keys`, D = {spec.get('dmp_dofs')}): {units}; "
+            f"{spec.get('y0_source')}. Actions: [k, {spec.get('action_dim')}] in "
+            f"[{min(spec.get('action_low', [0]))}, {max(spec.get('action_high', [0]))}], one per "
+            f"env step of {spec.get('control_dt')} s.",
+            "",
+        ]
+    if pol.get("head") == "ndp":
+        lines += [
+            f"DMP: N = {pol.get('n_basis')} basis functions, a_z = {pol.get('a_z')}, "
+            f"{pol.get('dmp_steps')} integration steps per decision, started from the "
+            f"{pol.get('dmp_state')} state ({pol.get('dmp_velocity')} velocity).",
+            "",
+        ]
+    lines += [
+        "Files: `policy.safetensors` (weights), `policy.json` (format, resolved training "
+        "config, observation normaliser, task spec, versions, commit); they load without "
+        "unpickling anything.",
+        "",
+        "Neural Dynamic Policies: Shikhar Bahl, Mustafa Mukadam, Abhinav Gupta, Deepak Pathak. "
+        "Neural Dynamic Policies for End-to-End Sensorimotor Learning. NeurIPS 2020.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def _seq(v: Any) -> str:
+    return ", ".join(str(x) for x in v) if isinstance(v, list) else str(v)
+
+
+def _budget(fields: dict[str, Any]) -> str:
+    b = fields["budget_env_steps"]
+    return f"{b:,} env steps" if isinstance(b, int) else f"budget {NOT_RECORDED}"
+
+
+def _load_path(name: str, evaluation: dict[str, Any] | None) -> str:
+    if evaluation and evaluation.get("zoo"):
+        return f"zoo:{name}"
+    return name
+
+
+def _result_text(fields: dict[str, Any], evaluation: dict[str, Any] | None) -> str:
+    if fields["success_rate"] == NOT_RECORDED:
+        return (
+            "Success rate: not recorded (measure it with `ndp rl eval` on the training run, "
+            "or `ndp.rl.evaluate.evaluate_policy(ndp.load_policy(...), episodes)`)."
+        )
+    assert evaluation is not None
+    lo, hi = fields["success_rate_ci95"]
+    mode = "deterministic" if evaluation.get("deterministic", True) else "stochastic"
+    text = (
+        f"Success (at any step of an episode) {fields['success_rate']:.2f} over "
+        f"{fields['episodes']} episodes, 95% Wilson interval [{lo:.2f}, {hi:.2f}], {mode} "
+        "actions"
+    )
+    if evaluation.get("first_seed") is not None:
+        text += f", episode seeds {evaluation['first_seed']} on"
+    text += "."
+    extra = []
+    if evaluation.get("success_final") is not None:
+        extra.append(f"success at the final step {float(evaluation['success_final']):.2f}")
+    if evaluation.get("episode_return") is not None:
+        extra.append(f"mean return {float(evaluation['episode_return']):.1f}")
+    if extra:
+        text += " Also: " + ", ".join(extra) + "."
+    if evaluation.get("protocol"):
+        text += " " + str(evaluation["protocol"])
+    return text

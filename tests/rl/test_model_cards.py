@@ -1,0 +1,122 @@
+"""Model cards (README.md, Hugging Face format) of the zoo and of every export; the Wilson
+interval they report."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+import ndp
+from ndp.experiments.stats import wilson_interval
+from ndp.rl.card import NOT_RECORDED, card_fields, model_card, to_yaml
+
+yaml = pytest.importorskip("yaml")
+
+REQUIRED = (
+    "library_name",
+    "license",
+    "tags",
+    "task",
+    "method",
+    "success_rate",
+    "success_rate_ci95",
+    "episodes",
+    "budget_env_steps",
+    "seeds",
+    "command",
+    "commit",
+)
+
+
+def front_matter(text: str) -> dict:
+    """The YAML between the card's first two ``---`` lines, parsed."""
+    lines = text.splitlines()
+    assert lines[0] == "---", lines[:2]
+    end = lines.index("---", 1)
+    data = yaml.safe_load("\n".join(lines[1:end]))
+    assert isinstance(data, dict)
+    body = "\n".join(lines[end + 1 :])
+    assert body.strip().startswith("# "), body[:80]
+    return data
+
+
+def test_wilson_interval_against_hand_computed_values():
+    z = 1.959963984540054
+    # 40 of 50: p = 0.8, z^2 / n = 0.0768292, centre = (0.8 + 0.0384146) / 1.0768292 = 0.7785953,
+    # half = z * sqrt(0.0032 + 0.000384146) / 1.0768292 = 0.1089665
+    lo, hi = wilson_interval(40, 50)
+    assert lo == pytest.approx(0.7785953 - 0.1089665, abs=1e-6)
+    assert hi == pytest.approx(0.7785953 + 0.1089665, abs=1e-6)
+    # 0 of 10 and 10 of 10: the closed forms [0, z^2 / (n + z^2)] and [n / (n + z^2), 1]
+    assert wilson_interval(0, 10) == (0.0, pytest.approx(z * z / (10 + z * z), abs=1e-12))
+    assert wilson_interval(10, 10) == (pytest.approx(10 / (10 + z * z), abs=1e-12), 1.0)
+    # 1 of 2, z = 1.96: centre 0.5, half = 1.96 sqrt(0.125 + 0.2401) / 2.9208 = 0.405527...
+    lo, hi = wilson_interval(1, 2, z=1.96)
+    half = 1.96 * math.sqrt(0.125 + 1.96**2 / 16) / (1 + 1.96**2 / 2)
+    assert (lo, hi) == (pytest.approx(0.5 - half, abs=1e-12), pytest.approx(0.5 + half, abs=1e-12))
+    assert half == pytest.approx(0.4055, abs=1e-4)
+    for bad in ((3, 2), (-1, 5), (1, 0), (1.5, 4)):
+        with pytest.raises(ValueError):
+            wilson_interval(*bad)
+
+
+@pytest.mark.parametrize("name", ndp.zoo.list())
+def test_every_zoo_card_has_the_required_front_matter_and_the_published_numbers(name):
+    data = front_matter(ndp.zoo.card(name))
+    assert [k for k in REQUIRED if k not in data] == []
+    assert data["license"] == "mit" and data["library_name"] == "neural-dynamic-policies"
+    assert "reinforcement-learning" in data["tags"]
+    row, index = ndp.zoo.info(name), ndp.zoo.index()
+    meta = json.loads((ndp.zoo.path(name) / "policy.json").read_text())
+    assert data["task"] == meta["task"] and data["method"] == meta["algo"] == row["method"]
+    assert data["success_rate"] == pytest.approx(row["success"])
+    assert data["episodes"] == index["episodes"] == 50
+    lo, hi = wilson_interval(round(row["success"] * 50), 50)
+    assert data["success_rate_ci95"] == [pytest.approx(lo, abs=1e-4), pytest.approx(hi, abs=1e-4)]
+    assert data["budget_env_steps"] == row["steps"] == meta["config"]["steps"]
+    assert data["seeds"] == [row["seed"]]
+    assert data["commit"] == meta["commit"]
+    assert data["command"] == NOT_RECORDED  # the zoo's exports predate recorded commands
+    assert data["training_commits"] == (row["trained_at"] or NOT_RECORDED)
+    assert data["evaluation_command"] == index["command"]
+    result = data["model-index"][0]["results"][0]
+    assert result["metrics"][0]["type"] == "success_rate"
+    assert result["metrics"][0]["value"] == pytest.approx(row["success"])
+    assert data["model-index"][0]["name"] == name
+
+
+def test_an_export_card_says_not_recorded_and_reports_a_cached_evaluation(tmp_path):
+    from ndp.rl.policy import cached_evaluation
+
+    meta = json.loads((ndp.zoo.path("throw-ndp") / "policy.json").read_text())
+    bare = front_matter(model_card(meta, None, "mine"))
+    assert [k for k in REQUIRED if k not in bare] == []
+    for key in ("success_rate", "success_rate_ci95", "episodes", "command"):
+        assert bare[key] == NOT_RECORDED, key
+    assert "model-index" not in bare  # the Hub's results need a measured value
+    # a run's cached deterministic evaluation (ndp report) is found and reported
+    (tmp_path / "eval-det-e20.json").write_text(json.dumps({"success_any": 0.85}))
+    (tmp_path / "eval-det-e5.json").write_text(json.dumps({"success_any": 1.0}))
+    (tmp_path / "eval-det-ex.json").write_text("{")
+    ev = cached_evaluation(tmp_path)
+    assert ev["success"] == 0.85 and ev["episodes"] == 20
+    meta["training"] = {"commands": ["ndp rl train --task throw --algo ndp"], "commits": ["abc"]}
+    data = front_matter(model_card(meta, ev, "mine"))
+    assert data["success_rate"] == 0.85 and data["episodes"] == 20
+    assert data["success_rate_ci95"] == [round(x, 4) for x in wilson_interval(17, 20)]
+    assert data["command"] == "ndp rl train --task throw --algo ndp"
+    assert data["training_commits"] == ["abc"]
+    assert card_fields(meta, ev)["model-index"][0]["name"] == "throw-ndp"
+
+
+def test_the_yaml_writer_round_trips_awkward_strings():
+    data = {
+        "a": 'quote " and \\ backslash: colon # hash',
+        "b": ["x: y", "- dash", "ünïcode", "", "null", "true", "1e5"],
+        "c": {"d": [{"e": 1.5, "f": None, "g": False}], "h": []},
+        "i": -0.0,
+        "j": "line\nbreak",
+    }
+    assert yaml.safe_load(to_yaml(data)) == data

@@ -45,10 +45,12 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
+from ndp.chunk_info import DMP_START_KEYS
+
 __all__ = ["NDPPolicy", "ObservationOnly", "RobotStateSpace", "make_env", "with_robot_state"]
 
-STATE_KEYS = {"commanded": ("cmd_y0", "cmd_dy0"), "measured": ("dmp_y0", "dmp_dy0")}
-"""DMP frame -> the chunked env's info keys of the DMP start (as ``Policy.state_keys``)."""
+STATE_KEYS = DMP_START_KEYS
+"""DMP frame -> the chunked env's info keys of the DMP start (:mod:`ndp.chunk_info`)."""
 
 
 class RobotStateSpace(spaces.Dict):

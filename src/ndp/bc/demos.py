@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from ndp.chunk_info import dmp_start
+
 DEMO_FORMAT = "ndp-demos"
 DEMO_VERSION = 1
 _REQUIRED = {
@@ -131,10 +133,14 @@ def collect(
                 a = np.asarray(expert.act(base, obs, info), dtype=np.float64)
                 ep["obs"].append(np.asarray(obs, dtype=np.float32))
                 ep["actions"].append(a.astype(np.float32))
-                ep["robot_pos"].append(info["dmp_y0"])
-                ep["robot_vel"].append(info["dmp_dy0"])
-                ep["cmd_pos"].append(info["cmd_y0"])
-                ep["cmd_vel"].append(info["cmd_dy0"])
+                frames = (
+                    ("measured", "robot_pos", "robot_vel"),
+                    ("commanded", "cmd_pos", "cmd_vel"),
+                )
+                for frame, kp, kv in frames:
+                    y0, dy0 = dmp_start(info, frame)
+                    ep[kp].append(y0)
+                    ep[kv].append(dy0)
                 obs, r, term, trunc, info = env.step(a[None])
                 ep["rewards"].append(np.float32(r))
                 ep["success"].append(bool(info["success"]))

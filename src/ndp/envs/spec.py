@@ -35,13 +35,13 @@ from typing import Literal
 
 import torch
 
+from ndp.dmp.controllers import DeltaController
 from ndp.envs import jaco, point_mass
 from ndp.envs.base import divisors
 from ndp.envs.impedance import ImpedanceController
 from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metaworld_env_names
 from ndp.envs.presets import DEFAULT as DEFAULT_PRESET
 from ndp.envs.presets import NDP_PRESETS, NDPPreset
-from ndp.policies.controllers import DeltaController
 
 Family = Literal["metaworld", "jaco", "toy"]
 

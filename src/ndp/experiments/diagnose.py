@@ -33,6 +33,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from ndp.chunk_info import dmp_start
+
 
 def _policy(task: str | None, algo: str, run: str | None, overrides: dict[str, Any]):
     """(config, spec, model, obs normaliser) of a fresh policy or a trained run."""
@@ -108,7 +110,7 @@ def diagnose(
             prev_cmd.append(float(last_cmd[0]))
         obs, _, term, trunc, info = env.step(act)
         # commanded-target motion per sub-step of this decision (measured in the env)
-        cmd_now = info["cmd_y0"] if "cmd_y0" in info else info["dmp_y0"]
+        cmd_now = dmp_start(info, "commanded")[0]
         moved.append(
             np.abs(cmd_now[: len(delta)][delta] - np.asarray(before)[: len(delta)][delta]) / k
         )

@@ -136,30 +136,7 @@ def probability_of_improvement_ci(
     return float(np.quantile(boot, q)), float(np.quantile(boot, 1 - q))
 
 
-Z95 = 1.959963984540054
-"""The standard normal's 97.5% quantile: two-sided 95% intervals."""
-
-
-def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, float]:
-    """The Wilson score interval of a success rate (95% for the default ``z``).
-
-    For ``k`` successes in ``n`` episodes, ``p = k / n``:
-    ``(p + z^2 / 2n -+ z sqrt(p (1 - p) / n + z^2 / 4n^2)) / (1 + z^2 / n)``. Unlike the normal
-    (Wald) interval it stays inside [0, 1] and is not empty at p = 0 or 1 (0 of 10: [0, 0.278]),
-    which is where trained policies' success rates often are.
-
-    Raises:
-        ValueError: ``n < 1`` or ``successes`` outside ``0..n``.
-    """
-    if isinstance(n, bool) or int(n) != n or n < 1:
-        raise ValueError(f"n: expected an integer >= 1, got {n!r}")
-    if isinstance(successes, bool) or int(successes) != successes or not 0 <= successes <= n:
-        raise ValueError(f"successes: expected an integer in 0..{n}, got {successes!r}")
-    p = successes / n
-    z2 = z * z
-    denom = 1.0 + z2 / n
-    centre = (p + z2 / (2 * n)) / denom
-    half = z * float(np.sqrt(p * (1 - p) / n + z2 / (4 * n * n))) / denom
-    lo = 0.0 if successes == 0 else max(0.0, centre - half)
-    hi = 1.0 if successes == n else min(1.0, centre + half)
-    return lo, hi
+# the Wilson interval of a success rate lives with the model cards that report it (ndp.rl sits
+# below ndp.experiments in the data flow); re-exported here with the other statistics
+from ndp.rl.card import Z95 as Z95  # noqa: E402
+from ndp.rl.card import wilson_interval as wilson_interval  # noqa: E402

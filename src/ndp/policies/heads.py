@@ -452,7 +452,7 @@ def _as_tensor(x: Any) -> torch.Tensor:
 def _linear_controller(spec: Any) -> tuple[torch.Tensor, ...] | None:
     """(scale, absolute, low, high) [D] of a task whose controller is linear (a
     ``DeltaController``), else None (the composed path is used)."""
-    from ndp.policies.controllers import DeltaController
+    from ndp.dmp.controllers import DeltaController
 
     ctrl = getattr(spec, "controller", None)
     if not isinstance(ctrl, DeltaController) or len(ctrl.scale) != spec.dmp_dofs:

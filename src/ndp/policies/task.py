@@ -18,7 +18,7 @@ from typing import Any
 
 import torch
 
-from ndp.policies.controllers import DeltaController
+from ndp.dmp.controllers import DeltaController
 
 RECORD_FIELDS: dict[str, type | tuple[type, ...]] = {
     "name": str,

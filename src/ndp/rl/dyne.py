@@ -50,6 +50,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from ndp.chunk_info import dmp_start, dmp_start_keys
 from ndp.nets.mlp import MLP
 from ndp.policies import build_actor_critic
 from ndp.policies.dyne import ActionDecoder, DyneHead, SequenceEmbedding
@@ -274,10 +275,7 @@ class DecisionReplay:
 
 def _robot_state(info: dict[str, Any], n: int) -> np.ndarray:
     """The measured robot positions and velocities now [E, 2 D] (the next chunk's start)."""
-    return np.concatenate(
-        [np.asarray(info[key], dtype=np.float64).reshape(n, -1) for key in ("dmp_y0", "dmp_dy0")],
-        axis=1,
-    )
+    return np.concatenate(dmp_start(info, "measured", n), axis=1)
 
 
 def _soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
@@ -479,7 +477,7 @@ class DyneLearner:
             end = np.concatenate(
                 [
                     np.asarray(rl_envs.step_info(infos, done, key), dtype=np.float64).reshape(E, -1)
-                    for key in ("dmp_y0", "dmp_dy0")
+                    for key in dmp_start_keys("measured")
                 ],
                 axis=1,
             )

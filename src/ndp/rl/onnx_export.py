@@ -37,6 +37,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from ndp.chunk_info import frame_of_keys
+
 if TYPE_CHECKING:
     from ndp.rl.policy import Policy
 
@@ -229,7 +231,7 @@ def onnx_metadata_of(policy: Policy) -> dict[str, str]:
         "input_dtype": "float64",
         "output_dtype": "float32",
         "state_keys": [ky, kdy],
-        "dmp_state": "commanded" if ky == "cmd_y0" else "measured",
+        "dmp_state": frame_of_keys(ky),
         "uses_robot_state": bool(head.needs_robot_state),
         "action_low": np.asarray(spec.action_low, dtype=np.float64).tolist(),
         "action_high": np.asarray(spec.action_high, dtype=np.float64).tolist(),

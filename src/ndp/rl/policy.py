@@ -128,9 +128,9 @@ class Policy:
         """The info keys of the DMP start this policy reads (commanded or measured state):
         ``("cmd_y0", "cmd_dy0")`` or ``("dmp_y0", "dmp_dy0")``, each [D] (D =
         ``spec.dmp_dofs``) or [E, D]."""
-        if self.cfg.policy.dmp_state == "commanded":
-            return "cmd_y0", "cmd_dy0"
-        return "dmp_y0", "dmp_dy0"
+        from ndp.chunk_info import dmp_start_keys
+
+        return dmp_start_keys(self.cfg.policy.dmp_state or "measured")
 
     @property
     def needs_robot_state(self) -> bool:

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from ndp.chunk_info import dmp_start, dmp_start_keys
 from ndp.envs.base import CTRL_INFO
 from ndp.policies import build_actor_critic
 from ndp.policies.distributions import SubActionGaussian
@@ -451,11 +452,11 @@ def _robot_state(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The next decision's DMP start (physical y0, dy0) [E, D] from a vector env's info.
 
-    ``source``: 'measured' (the robot) or 'commanded' (the target the actions move)."""
-    if source == "commanded" and "cmd_y0" in info:
-        y0, dy0 = info["cmd_y0"], info["cmd_dy0"]
-    elif "dmp_y0" in info:
-        y0, dy0 = info["dmp_y0"], info["dmp_dy0"]
+    ``source``: 'measured' (the robot) or 'commanded' (the target the actions move)
+    (:func:`ndp.chunk_info.dmp_start`); an env without them: its ``robot_pos`` / ``robot_vel``."""
+    ky, _ = dmp_start_keys(source)
+    if ky in info:
+        return dmp_start(info, source, n)
     else:
         y0, dy0 = info["robot_pos"], info["robot_vel"]
         if np.ndim(y0) == 3:  # [E, k+1, D] step info: the state after the last sub-step

@@ -1,6 +1,7 @@
 # Two commands do everything on a fresh machine:
 #   make demo   -> creates .venv, installs the package, runs the main demo (outputs in runs/demo)
 #   make test   -> creates .venv, installs the package with test extras, runs the default test suite
+#                  (which builds the API reference with warnings as errors: tests/test_api_reference.py)
 # Both install `.[dev]` (every extra) at the exact versions of constraints.txt.
 PYTHON ?= python3
 VENV ?= .venv
@@ -9,7 +10,7 @@ STAMP := $(VENV)/.installed-stamp
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: install demo test test-slow test-hostile lint bench clean
+.PHONY: install demo test test-slow test-hostile lint bench api clean
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -25,8 +26,8 @@ demo: $(STAMP)
 	$(BIN)/ndp demo --out runs/demo
 
 test: $(STAMP)
-	$(BIN)/ruff check src tests benchmarks
-	$(BIN)/ruff format --check src tests benchmarks
+	$(BIN)/ruff check src tests benchmarks docs/api
+	$(BIN)/ruff format --check src tests benchmarks docs/api
 	$(BIN)/mypy
 	$(BIN)/python -m pytest -q
 
@@ -38,12 +39,16 @@ test-hostile: $(STAMP)
 	$(BIN)/python -m pytest -q -s -m hostile tests/test_hostile.py
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests benchmarks
-	$(BIN)/ruff format --check src tests benchmarks
+	$(BIN)/ruff check src tests benchmarks docs/api
+	$(BIN)/ruff format --check src tests benchmarks docs/api
 	$(BIN)/mypy
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/dmp_speed.py
 
+# the API reference from the docstrings, browsable: open build/api/index.html (warnings are errors)
+api: $(STAMP)
+	$(BIN)/python docs/api/build.py --out build/api
+
 clean:
-	rm -rf $(VENV) runs
+	rm -rf $(VENV) runs build/api

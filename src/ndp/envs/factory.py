@@ -99,7 +99,7 @@ def make_env(
             ``camera`` for Jaco).
 
     Returns:
-        A :class:`~ndp.envs.metaworld_env.MetaWorldEnv` or :class:`~ndp.envs.jaco.JacoEnv`.
+        A :class:`ndp.envs.metaworld_env.MetaWorldEnv` or :class:`ndp.envs.jaco.JacoEnv`.
 
     Raises:
         ValueError: unknown name (with close names), bad horizon, render mode or substeps.

@@ -94,7 +94,7 @@ class TaskSpec:
     controller: DeltaController | ImpedanceController | None = None
     """The low-level controller, trajectory points -> actions (``ndp.envs.controllers``); None:
     a :class:`DeltaController` built from the ``action_*`` fields. Torque-actuated rows hold an
-    :class:`~ndp.envs.impedance.ImpedanceController` (their action layout and gains)."""
+    :class:`ndp.envs.impedance.ImpedanceController` (their action layout and gains)."""
     actuation: Literal["position", "torque"] = "position"
     """How the arm is driven: ``"position"`` (mocap / joint position targets, the paper's
     tasks) or ``"torque"`` (torque actuators under ``controller``, the VICES baseline)."""

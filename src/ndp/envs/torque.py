@@ -149,7 +149,7 @@ class MetaWorldTorqueEnv(MetaWorldEnv):
         fixed_goal: int | None = None,
     ) -> None:
         """Create the env (``controller``: the task table's row; None: the default OSC row;
-        ``reward_version``, ``fixed_goal``: as :class:`~ndp.envs.metaworld_env.MetaWorldEnv`)."""
+        ``reward_version``, ``fixed_goal``: as :class:`ndp.envs.metaworld_env.MetaWorldEnv`)."""
         self.controller = controller if controller is not None else sawyer_controller()
         if self.controller.space != "ee" or not self.controller.gripper:
             raise ValueError("controller: Meta-World takes end-effector control with a gripper")
@@ -310,7 +310,7 @@ class JacoTorqueEnv(jaco.JacoEnv):
     (joint space: rad per arm joint from the measured angles, clipped to the joint ranges;
     end-effector space: grip-site xyz in m from its measured position, clipped to
     ``JACO_EE_LOW`` / ``JACO_EE_HIGH``), kp per axis, optionally the damping ratio per axis,
-    and the tied finger-target delta / ``FINGER_DELTA`` (as in :class:`~ndp.envs.jaco.JacoEnv`).
+    and the tied finger-target delta / ``FINGER_DELTA`` (as in :class:`ndp.envs.jaco.JacoEnv`).
     """
 
     def __init__(
@@ -325,7 +325,7 @@ class JacoTorqueEnv(jaco.JacoEnv):
         fixed_goal: int | None = None,
     ) -> None:
         """Create the env (``controller``: the task table's row; None: joint space;
-        ``fixed_goal``: as :class:`~ndp.envs.jaco.JacoEnv`)."""
+        ``fixed_goal``: as :class:`ndp.envs.jaco.JacoEnv`)."""
         self.controller = controller if controller is not None else jaco_controller()
         if not self.controller.gripper:
             raise ValueError("controller: the Jaco tasks take a finger command")

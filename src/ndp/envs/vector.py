@@ -1,6 +1,6 @@
 """A vector env of chunked envs in worker processes, several envs per worker, shared memory.
 
-:class:`WorkerVectorEnv` runs ``num_envs`` :class:`~ndp.envs.ChunkedEnv` copies in ``workers``
+:class:`WorkerVectorEnv` runs ``num_envs`` :class:`ndp.envs.ChunkedEnv` copies in ``workers``
 subprocesses (env ``i`` lives in worker ``i * workers // num_envs``: contiguous slices). Actions,
 observations and every per-step info array of the chunked env live in shared memory; a step
 sends one short message per worker and waits for one reply, so the main process's cost per
@@ -36,7 +36,7 @@ class WorkerError(RuntimeError):
 
 
 def info_schema(k: int, dof: int) -> dict[str, tuple[tuple[int, ...], type]]:
-    """Key -> (per-env shape, dtype) of :class:`~ndp.envs.ChunkedEnv`'s step info."""
+    """Key -> (per-env shape, dtype) of :class:`ndp.envs.ChunkedEnv`'s step info."""
     f, b = np.float64, np.bool_
     return {
         "sub_rewards": ((k,), f),

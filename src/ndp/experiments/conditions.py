@@ -67,7 +67,7 @@ def conditions_section(
 
     Args:
         cells: the report's RL cells (``task``, ``label``, ``numbers`` per seed).
-        conditions: :class:`~ndp.experiments.studies.Condition` objects.
+        conditions: :class:`ndp.experiments.studies.Condition` objects.
         seeds: the seeds every cell should have.
         out: the report's output stem (the figure is ``<out>-conditions.png``).
         foot: provenance line for the figure.

@@ -27,7 +27,7 @@ from typing import Any
 
 @dataclass(frozen=True)
 class ArmSpec:
-    """An arm as data (the :class:`~ndp.experiments.study.Arm` is built on demand)."""
+    """An arm as data (the :class:`ndp.experiments.study.Arm` is built on demand)."""
 
     label: str
     algo: str

@@ -351,7 +351,7 @@ def register_head(
 
 
 def build_head(cfg: Any, spec: Any) -> ActionHead:
-    """Build the head named by a resolved :class:`~ndp.policies.config.PolicyConfig`.
+    """Build the head named by a resolved :class:`ndp.policies.config.PolicyConfig`.
 
     Args:
         cfg: resolved policy config (no ``None`` NDP fields for the NDP head).

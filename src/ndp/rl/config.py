@@ -1,7 +1,7 @@
 """Typed configuration of an RL run, its resolution against a task, and its argparse CLI.
 
 A run is one :class:`TrainConfig` holding a :class:`PPOConfig`, a :class:`DyneConfig` and a
-:class:`~ndp.policies.PolicyConfig`. Every field has a docstring, which becomes its ``--help``
+:class:`ndp.policies.PolicyConfig`. Every field has a docstring, which becomes its ``--help``
 text: ``ndp rl train`` is this dataclass tree parsed by tyro (:mod:`ndp.runs.cli`), one flat
 ``--field-name`` option per field. :func:`resolve_config` fills what depends on the
 task (the action head of the method, the NDP preset, k = 1 for PPO) and validates everything

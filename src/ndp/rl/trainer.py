@@ -498,7 +498,8 @@ def check_budget_not_below(done_updates: int, cfg: TrainConfig) -> None:
 
 
 def make_learner(cfg: TrainConfig, resume: bool = False) -> Any:
-    """The learner of ``cfg.algo``: its registered :attr:`Method.learner`, else :class:`Trainer`."""
+    """The learner of ``cfg.algo``: its registered :attr:`ndp.rl.methods.Method.learner`, else
+    :class:`Trainer`."""
     from ndp.rl.methods import METHODS
 
     build = METHODS[cfg.algo].learner

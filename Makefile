@@ -26,8 +26,8 @@ demo: $(STAMP)
 	$(BIN)/ndp demo --out runs/demo
 
 test: $(STAMP)
-	$(BIN)/ruff check src tests benchmarks docs/api
-	$(BIN)/ruff format --check src tests benchmarks docs/api
+	$(BIN)/ruff check setup.py src tests benchmarks docs/api
+	$(BIN)/ruff format --check setup.py src tests benchmarks docs/api
 	$(BIN)/mypy
 	$(BIN)/python -m pytest -q
 
@@ -39,8 +39,8 @@ test-hostile: $(STAMP)
 	$(BIN)/python -m pytest -q -s -m hostile tests/test_hostile.py
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests benchmarks docs/api
-	$(BIN)/ruff format --check src tests benchmarks docs/api
+	$(BIN)/ruff check setup.py src tests benchmarks docs/api
+	$(BIN)/ruff format --check setup.py src tests benchmarks docs/api
 	$(BIN)/mypy
 
 bench: $(STAMP)

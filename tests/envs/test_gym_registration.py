@@ -15,7 +15,7 @@ gym = pytest.importorskip("gymnasium")
 
 import ndp  # noqa: E402
 from ndp.envs import TASKS, TORQUE_TASKS, register_envs, register_torque_envs  # noqa: E402
-from ndp.envs.factory import CHUNKED_KS  # noqa: E402
+from ndp.envs.factory import CHUNKED_KS, gym_id_table  # noqa: E402
 
 SRC = Path(ndp.__file__).resolve().parents[1]
 
@@ -41,12 +41,175 @@ def test_every_id_has_the_task_horizon_as_max_episode_steps():
 
 def test_gymnasium_has_no_plugin_entry_points():
     # gymnasium 1.0 removed the `gymnasium.envs` entry-point plugins (0.26-0.29 loaded them on
-    # `import gymnasium`), so ndp declares none; ids are made with the module prefix instead.
+    # `import gymnasium`), which is why ndp ships a start-up hook (_ndp_gymnasium.pth) instead.
     # Should a later gymnasium load plugins again, this fails: declare the entry point then.
     from gymnasium.envs import registration
 
     assert not hasattr(registration, "load_plugin_envs")
     assert not hasattr(registration, "load_env_plugins")
+
+
+def test_the_shipped_id_table_is_the_one_the_task_tables_give():
+    from ndp import gym_ids
+
+    shipped = json.loads(gym_ids.TABLE.read_text())
+    assert shipped == gym_id_table(), "rewrite it: ndp.envs.factory.write_gym_id_table()"
+    # and the ids it expands to are exactly what `import ndp.envs` registered
+    by_id = {g.id: g for g in gym_ids.shipped()}
+    assert set(by_id) == set(register_envs()) | set(register_torque_envs())
+    for i, g in by_id.items():
+        spec = gym.spec(i)
+        assert (spec.entry_point, spec.kwargs, spec.max_episode_steps) == (
+            g.entry_point,
+            g.kwargs,
+            g.max_episode_steps,
+        ), i
+        assert spec.disable_env_checker == g.disable_env_checker, i
+
+
+HOOK_SCRIPT = r"""
+import json
+import sys
+import time
+
+t = time.perf_counter()
+import gymnasium
+import_s = time.perf_counter() - t
+heavy = sorted(m for m in sys.modules if m.split(".")[0] in ("torch", "mujoco", "metaworld")
+               or m.startswith("ndp.envs"))
+ids = [i for i in gymnasium.registry if i.startswith("ndp/")]
+env = gymnasium.make("ndp/reach-v3")  # imports ndp.envs now, through the string entry point
+env.reset(seed=0)
+steps, done = 0, False
+while not done:
+    _, _, term, trunc, _ = env.step(env.action_space.sample() * 0)
+    steps += 1
+    done = term or trunc
+print("RESULT " + json.dumps({"heavy": heavy, "n_ids": len(ids), "steps": steps,
+                              "max_steps": env.spec.max_episode_steps,
+                              "ndp": sys.modules["ndp"].__file__, "import_s": import_s}))
+"""
+
+
+def test_import_gymnasium_alone_registers_the_ids_through_the_startup_hook(tmp_path):
+    """The installed package (the test venv is an editable install, like `make install`) ships
+    _ndp_gymnasium.pth: `import gymnasium` registers every id without importing a simulator."""
+    pytest.importorskip("metaworld")
+    import site
+    import sysconfig
+
+    dirs = {sysconfig.get_paths()["purelib"], *site.getsitepackages()}
+    assert any((Path(d) / "_ndp_gymnasium.pth").is_file() for d in dirs), (
+        f"_ndp_gymnasium.pth is not in {sorted(dirs)}: reinstall the package (make install)"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "NDP_NO_GYMNASIUM_HOOK")}
+    r = subprocess.run(
+        [sys.executable, "-c", HOOK_SCRIPT],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+        cwd=tmp_path,  # not the repository root: only the installed package can be found
+        env=env | {"OMP_NUM_THREADS": "1"},
+    )
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
+    out = json.loads(next(x for x in r.stdout.splitlines() if x.startswith("RESULT "))[7:])
+    assert out["heavy"] == []  # registering imported no simulator, torch or env module
+    assert out["n_ids"] == len(TASKS) * (1 + len(CHUNKED_KS)) + len(TORQUE_TASKS)
+    assert out["steps"] == out["max_steps"] == 150
+    # and the switch turns it off
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import gymnasium; print(sum(i.startswith('ndp/') for i in gymnasium.registry))",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+        cwd=tmp_path,
+        env=env | {"NDP_NO_GYMNASIUM_HOOK": "1"},
+    )
+    assert r.stdout.strip() == "0"
+
+
+def test_a_failing_registration_warns_and_never_breaks_import_gymnasium(tmp_path):
+    import _ndp_gymnasium
+
+    # a gym_ids that raises: gymnasium still imports, with one warning naming the way out
+    fake = tmp_path / "ndp"
+    fake.mkdir()
+    (fake / "__init__.py").write_text("")
+    (fake / "gym_ids.py").write_text("def register_shipped():\n    raise OSError('table gone')\n")
+    code = (
+        f"import sys, warnings; sys.path.insert(0, {str(tmp_path)!r})\n"
+        "import _ndp_gymnasium; _ndp_gymnasium.install()\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        "    warnings.simplefilter('always')\n"
+        "    import gymnasium\n"
+        "print('OK', gymnasium.__version__, [str(x.message) for x in w if 'ndp' in str(x.message)])"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+        | {"NDP_NO_GYMNASIUM_HOOK": ""},
+    )
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.startswith("OK "), r.stdout
+    assert "table gone" in r.stdout and "import ndp.envs" in r.stdout
+    assert _ndp_gymnasium.__file__  # the hook module itself is importable in the test venv
+
+
+def test_a_built_wheel_ships_the_hook_and_the_table(tmp_path):
+    pytest.importorskip("setuptools")
+    pytest.importorskip("wheel")
+    import shutil
+    import zipfile
+
+    root = Path(__file__).resolve().parents[2]
+    proj = tmp_path / "proj"
+    proj.mkdir()
+    for f in ("pyproject.toml", "setup.py", "MANIFEST.in", "README.md", "LICENSE"):
+        shutil.copy(root / f, proj / f)
+    shutil.copytree(
+        root / "src", proj / "src", ignore=shutil.ignore_patterns("*.egg-info", "__pycache__")
+    )
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "-q",
+            "--no-deps",
+            "--no-build-isolation",
+            "-w",
+            str(tmp_path / "dist"),
+            str(proj),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
+    (whl,) = (tmp_path / "dist").glob("*.whl")
+    names = set(zipfile.ZipFile(whl).namelist())
+    assert {
+        "_ndp_gymnasium.pth",
+        "_ndp_gymnasium.py",
+        "ndp/gym_ids.py",
+        "ndp/gym_ids.json",
+    } <= names
+    assert (
+        zipfile.ZipFile(whl).read("_ndp_gymnasium.pth")
+        == (root / "src" / "_ndp_gymnasium.pth").read_bytes()
+    )
 
 
 SCRIPT = r"""
@@ -85,7 +248,9 @@ def test_make_by_module_prefix_without_importing_ndp_and_episodes_end_at_the_hor
         text=True,
         timeout=300,
         check=False,
-        env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"} | {"OMP_NUM_THREADS": "1"},
+        # the module prefix alone, without the start-up hook (which would import ndp.gym_ids)
+        env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+        | {"OMP_NUM_THREADS": "1", "NDP_NO_GYMNASIUM_HOOK": "1"},
     )
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
     out = json.loads(next(x for x in r.stdout.splitlines() if x.startswith("RESULT "))[7:])

@@ -59,7 +59,13 @@ ALLOWED = {
     "bc": {"dmp", "nets", "envs", "policies", "rl", "runs"},
     "experiments": {"dmp", "nets", "envs", "policies", "rl", "il", "bc", "runs"},
 }
-LEAVES = {"io", "provenance", "checks", "chunk_info"}  # leaf helper modules anyone may import
+LEAVES = {
+    "io",
+    "provenance",
+    "checks",
+    "chunk_info",
+    "gym_ids",
+}  # leaf helper modules anyone may import
 
 
 def _ndp_imports(path: Path) -> set[str]:

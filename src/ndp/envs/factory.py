@@ -6,12 +6,14 @@ e.g. ``gymnasium.make("ndp/push-v3-k5")``). Each id has its ``max_episode_steps`
 horizon in env steps (150), and ``ceil(horizon / k)`` decisions for the chunked ids, the same
 length the env itself truncates at; a longer episode needs both ``horizon=`` (the env) and
 ``max_episode_steps=`` (gymnasium's ``TimeLimit``). The ids are registered when
-:mod:`ndp.envs` is imported; gymnasium 1.x has no plugin entry points, so code that does not
-import ndp names the module in the id: ``gymnasium.make("ndp.envs:ndp/push-v3")``.
+:mod:`ndp.envs` is imported, and in an installed package already on ``import gymnasium`` (the
+start-up hook described in :mod:`ndp.gym_ids`); ``gymnasium.make("ndp.envs:ndp/push-v3")``
+(the module named in the id) works without the hook.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from typing import Any
 
@@ -22,6 +24,7 @@ from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import MetaWorldEnv
 from ndp.envs.point_mass import PointMassEnv
 from ndp.envs.spec import TASKS, TORQUE_TASKS, finer_spec, get_task_spec
+from ndp.gym_ids import TABLE, expand, register
 
 FAMILIES: dict[str, Callable[..., gym.Env]] = {
     "metaworld": lambda spec, horizon, render_mode, **kw: MetaWorldEnv(
@@ -222,41 +225,31 @@ def register_torque_envs() -> list[str]:
     Returns:
         The registered ids, e.g. ``"ndp/push-v3-osc"``, ``"ndp/throw-joint"``.
     """
-    return [_register(spec.env_id, name, spec.horizon) for name, spec in TORQUE_TASKS.items()]
-
-
-def _register(env_id: str, name: str, horizon: int) -> str:
-    """Register the per-step env of task ``name`` as ``env_id`` (if not yet), episodes of
-    ``horizon`` env steps; returns the id."""
-    if env_id not in gym.registry:
-        gym.register(
-            id=env_id,
-            entry_point="ndp.envs.factory:_make_registered",
-            kwargs={"name": name},
-            max_episode_steps=int(horizon),
-        )
-    return env_id
+    return register(expand({}, (), {n: (s.env_id, s.horizon) for n, s in TORQUE_TASKS.items()}))
 
 
 def register_envs() -> list[str]:
     """Register every task with gymnasium (idempotent), with its horizon as
-    ``max_episode_steps`` (decisions for the chunked ids).
+    ``max_episode_steps`` (decisions for the chunked ids); :mod:`ndp.gym_ids` holds the rule.
 
     Returns:
         The registered ids, e.g. ``"ndp/push-v3"``, ``"ndp/JacoThrow-v0"``.
     """
-    ids = []
-    for name, spec in TASKS.items():
-        ids.append(_register(spec.env_id, name, spec.horizon))
-        for k in CHUNKED_KS:
-            cid = f"ndp/{name}-k{k}"
-            if cid not in gym.registry:
-                gym.register(
-                    id=cid,
-                    entry_point="ndp.envs.factory:_make_registered_chunked",
-                    kwargs={"name": name, "k": k},
-                    disable_env_checker=True,
-                    max_episode_steps=-(-int(spec.horizon) // k),  # decisions: ceil(horizon / k)
-                )
-            ids.append(cid)
-    return ids
+    return register(expand({n: (s.env_id, s.horizon) for n, s in TASKS.items()}, CHUNKED_KS))
+
+
+def gym_id_table() -> dict[str, Any]:
+    """The id table the task tables give, in the shape of the shipped one
+    (:data:`ndp.gym_ids.TABLE`, which the start-up hook registers on ``import gymnasium``)."""
+    return {
+        "tasks": {n: [s.env_id, int(s.horizon)] for n, s in TASKS.items()},
+        "chunked_ks": [int(k) for k in CHUNKED_KS],
+        "torque": {n: [s.env_id, int(s.horizon)] for n, s in TORQUE_TASKS.items()},
+    }
+
+
+def write_gym_id_table() -> None:
+    """Rewrite the shipped id table from the task tables (after adding a task)."""
+    from ndp.io import atomic_write_text
+
+    atomic_write_text(TABLE, json.dumps(gym_id_table(), indent=1) + "\n")

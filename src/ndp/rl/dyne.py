@@ -40,7 +40,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import random
 import time
 from pathlib import Path
 from typing import Any
@@ -60,9 +59,15 @@ from ndp.rl.logger import METRICS
 from ndp.rl.methods import DYNE_METRICS
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.progress import TrainProgress, episode_charts, last_update
-from ndp.rl.trainer import TrainingDivergedError
-from ndp.runs import RunDir, load_checkpoint, save_checkpoint
-from ndp.runs.resume import check_resume
+from ndp.rl.trainer import rl_manifest
+from ndp.runs.session import (
+    RunSession,
+    TrainingDivergedError,
+    checkpoint_due,
+    drive,
+    nonfinite_parameter,
+    seed_everything,
+)
 
 DEFAULT_EXPLORE_STEPS = 50_000
 """Exploration env steps of the embedding where a task has no preset: 10k sequences of k = 5,
@@ -298,19 +303,18 @@ class DyneLearner:
         cfg = resolve_dyne_config(cfg)
         check_budget(cfg)  # before any env is built
         self.cfg, self.spec = cfg, task.spec
-        self.run = RunDir(cfg.run_dir or ".")
-        ckpt = None
-        if resume:
-            self.run.open_for_resume()
-            ckpt = load_checkpoint(self.run.checkpoint, kind="rl")
-            saved = TrainConfig.from_dict(ckpt["config"])
-            check_resume(saved, cfg, SAFE_ON_RESUME, self.run.path)
-        else:
-            self.run.create()
+        self.session, ckpt = RunSession.open(
+            cfg.run_dir or ".",
+            kind="rl",
+            config=cfg,
+            config_from_dict=TrainConfig.from_dict,
+            safe_on_resume=SAFE_ON_RESUME,
+            resume=resume,
+            hint="Try smaller --actor-lr / --critic-lr or check the task's reward.",
+        )
+        self.run = self.session.run
         torch.set_num_threads(cfg.torch_threads)
-        random.seed(cfg.seed)
-        np.random.seed(cfg.seed)  # noqa: NPY002  (third-party code may use it)
-        torch.manual_seed(cfg.seed)
+        seed_everything(cfg.seed)
         self.rng = np.random.default_rng(cfg.seed)
         self.gen = torch.Generator().manual_seed(cfg.seed)
 
@@ -350,30 +354,34 @@ class DyneLearner:
         self.embed_stats: dict[str, float] = {}
         self.embedded = False
         self._explore_data: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-        self.last_ckpt_update: int | None = None
         if ckpt is not None:
-            self._load_state(ckpt)
-        self.run.write_config(cfg.to_dict())
-        self.run.record_session("resume" if resume else "start")
+            self.load_state_dict(ckpt)
+            self.session.restored(ckpt, self.update)
+        self.session.start(cfg.to_dict(), rl_manifest(cfg, self.global_step, self.update))
         self._tracker = rl_envs.EpisodeTracker(self.E)
         obs, info = self.envs.reset(seed=rl_envs.env_seeds(cfg.seed, self.E, epoch=self.update))
         self._obs = np.asarray(obs, dtype=np.float64).reshape(self.E, self.obs_dim)
         self._state = _robot_state(info, self.E)
 
     # ----------------------------------------------------------------------- state
+    @property
+    def step(self) -> int:
+        """Iterations done (the :class:`ndp.runs.session.Learner` counter)."""
+        return self.update
+
+    @property
+    def last_ckpt_update(self) -> int | None:
+        """The iteration of the last good checkpoint (None: none yet)."""
+        return self.session.last_saved
+
     def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue (the session adds the global RNG state and config)."""
         return {
             "model": self.model.state_dict(),
             "obs_norm": self.obs_norm.state_dict(),
             "obs_dim": self.obs_dim,
-            "config": self.cfg.to_dict(),
             "update": self.update,
             "global_step": self.global_step,
-            "rng": {
-                "torch": torch.get_rng_state(),
-                "numpy": np.random.get_state(),  # noqa: NPY002
-                "python": random.getstate(),
-            },
             "dyne": {
                 "embedding": self.embedding.state_dict(),
                 "critic": self.critic.state_dict(),
@@ -391,7 +399,8 @@ class DyneLearner:
             },
         }
 
-    def _load_state(self, ckpt: dict[str, Any]) -> None:
+    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
+        """Continue from a checkpoint (the session restores the global RNG state)."""
         dy = ckpt["dyne"]
         self.model.load_state_dict(ckpt["model"])
         self.obs_norm.load_state_dict(ckpt["obs_norm"])
@@ -404,9 +413,6 @@ class DyneLearner:
         self.replay.load_state_dict(dy["replay"])
         self.rng.bit_generator.state = dy["rng"]
         self.gen.set_state(dy["gen"])
-        torch.set_rng_state(ckpt["rng"]["torch"])
-        np.random.set_state(ckpt["rng"]["numpy"])  # noqa: NPY002
-        random.setstate(ckpt["rng"]["python"])
         self.rl_steps = int(dy["rl_steps"])
         self.grad_steps = int(dy["grad_steps"])
         self.update_debt = float(dy["update_debt"])
@@ -415,7 +421,6 @@ class DyneLearner:
         self.global_step = int(ckpt["global_step"])
         self.embedded = True
         self._freeze_embedding()
-        self.last_ckpt_update = self.update
 
     def _freeze_embedding(self) -> None:
         self.embedding.eval()
@@ -424,26 +429,15 @@ class DyneLearner:
 
     def save(self) -> Path:
         """Write the checkpoint atomically (only with finite parameters)."""
-        for name, prm in [
-            *self.model.actor.named_parameters(),
-            *self.critic.named_parameters(),
-        ]:
-            if not bool(torch.isfinite(prm).all()):
-                raise self._diverged(f"parameter {name} holds NaN/Inf before saving a checkpoint")
-        save_checkpoint(self.run.checkpoint, self.state_dict(), kind="rl")
-        self.last_ckpt_update = self.update
-        return self.run.checkpoint
+        name = nonfinite_parameter(
+            [*self.model.actor.named_parameters(), *self.critic.named_parameters()]
+        )
+        if name is not None:
+            raise self._diverged(f"parameter {name} holds NaN/Inf before saving a checkpoint")
+        return self.session.save(self.state_dict(), self.update, self.cfg.to_dict())
 
     def _diverged(self, what: str) -> TrainingDivergedError:
-        last = (
-            f"{self.run.checkpoint} (update {self.last_ckpt_update})"
-            if self.last_ckpt_update is not None
-            else "none written yet"
-        )
-        return TrainingDivergedError(
-            f"training stopped at update {self.update + 1}: {what}. The last good checkpoint is "
-            f"kept: {last}. Try smaller --actor-lr / --critic-lr or check the task's reward."
-        )
+        return self.session.diverged(what, self.update)
 
     # ----------------------------------------------------------------------- acting
 
@@ -593,45 +587,53 @@ class DyneLearner:
             _soft_update(self.actor_target, self.model.actor, d.tau)
 
     # ----------------------------------------------------------------------- loop
+    def iterate(self) -> dict[str, float]:
+        """One iteration (exploration, then the embedding fit once, or TD3); returns its row.
+
+        Raises:
+            TrainingDivergedError: NaN / Inf in a loss or parameter.
+        """
+        t0 = time.perf_counter()
+        exploring = self.update < self.n_explore
+        if exploring:
+            batch = self._explore_iteration()
+            t_update = 0.0
+        else:
+            batch = self._rl_iteration()
+            t_update = batch["t_update"]
+        t1 = time.perf_counter()
+        embed: dict[str, float] = {}
+        if exploring and self.update + 1 == self.n_explore:
+            embed = self._fit_embedding()
+        t2 = time.perf_counter()
+        self.update += 1
+        self.global_step += batch["executed"]
+        return self._metrics(batch, embed, t1 - t0 - t_update, t_update + t2 - t1)
+
     def train(self, max_updates: int | None = None) -> dict[str, float]:
         """Train until ``cfg.steps`` (or ``max_updates`` more iterations); returns the last
-        metrics row.
+        metrics row. Checkpoints start once the embedding is fitted (at the end of
+        exploration), then follow the default cadence.
 
         Raises:
             TrainingDivergedError: NaN / Inf in a loss or parameter (the last good checkpoint
                 is kept).
         """
         cfg = self.cfg
-        resumed = self.last_ckpt_update is not None
+
+        def save_if_due() -> None:
+            if self.embedded and (
+                self.update == self.n_explore
+                or checkpoint_due(self.update, cfg.checkpoint_every, cfg.num_updates)
+            ):
+                self.save()
+
         stop = last_update(cfg.num_updates, self.update, max_updates)
-        metrics: dict[str, float] = {}
         with TrainProgress(
-            self.run.path, COLUMNS, cfg, self.update, self.global_step, resumed
+            self.run.path, COLUMNS, cfg, self.update, self.global_step, self.session.resumed
         ) as progress:
-            while self.update < stop:
-                t0 = time.perf_counter()
-                exploring = self.update < self.n_explore
-                if exploring:
-                    batch = self._explore_iteration()
-                    t_update = 0.0
-                else:
-                    batch = self._rl_iteration()
-                    t_update = batch["t_update"]
-                t1 = time.perf_counter()
-                embed: dict[str, float] = {}
-                if exploring and self.update + 1 == self.n_explore:
-                    embed = self._fit_embedding()
-                t2 = time.perf_counter()
-                self.update += 1
-                self.global_step += batch["executed"]
-                metrics = self._metrics(batch, embed, t1 - t0 - t_update, t_update + t2 - t1)
-                progress.log(metrics)
-                if self.embedded and (
-                    self.update == self.n_explore
-                    or self.update % cfg.checkpoint_every == 0
-                    or self.update == cfg.num_updates
-                ):
-                    self.save()
+            metrics = drive(self, stop, progress.log, save_if_due)
+        self.session.finish(rl_manifest(cfg, self.global_step, self.update))
         return metrics
 
     def _metrics(

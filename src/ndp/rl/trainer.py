@@ -20,7 +20,6 @@ import copy
 import dataclasses
 import itertools
 import math
-import random
 import sys
 import time
 from pathlib import Path
@@ -54,12 +53,18 @@ from ndp.rl.ppo import (
     value_loss,
 )
 from ndp.rl.progress import TrainProgress, episode_charts, last_update
-from ndp.runs import RunDir, load_checkpoint, save_checkpoint
-from ndp.runs.resume import check_resume
+from ndp.runs import RunDir
+from ndp.runs.session import (
+    Manifest,
+    RunSession,
+    TrainingDivergedError,
+    checkpoint_due,
+    drive,
+    nonfinite_parameter,
+    seed_everything,
+)
 
-
-class TrainingDivergedError(FloatingPointError):
-    """A loss, gradient or parameter became NaN / Inf; training stopped."""
+__all__ = ["Trainer", "TrainingDivergedError", "make_learner", "resume", "train"]
 
 
 class Trainer:
@@ -78,22 +83,22 @@ class Trainer:
         self.cfg = cfg
         self.spec = task.spec
         self.run_dir = Path(cfg.run_dir or ".")
-        self.run = RunDir(self.run_dir)
+        self.session, ckpt = RunSession.open(
+            self.run_dir,
+            kind="rl",
+            config=cfg,
+            config_from_dict=TrainConfig.from_dict,
+            safe_on_resume=SAFE_ON_RESUME,
+            resume=resume,
+            hint="Try a smaller learning rate or check the task's reward / actions.",
+        )
+        self.run = self.session.run
         self.ckpt_path = self.run.checkpoint
-        ckpt = None
-        if resume:
-            self.run.open_for_resume()
-            ckpt = load_checkpoint(self.ckpt_path, kind="rl")
-            saved = TrainConfig.from_dict(ckpt["config"])
-            check_resume(saved, cfg, SAFE_ON_RESUME, self.run.path)
+        if ckpt is not None:
             check_budget_not_below(int(ckpt["update"]), cfg)
-        else:
-            self.run.create()
         say_budget(cfg)
         torch.set_num_threads(cfg.torch_threads)
-        random.seed(cfg.seed)
-        np.random.seed(cfg.seed)  # noqa: NPY002  (third-party code may use it)
-        torch.manual_seed(cfg.seed)
+        seed_everything(cfg.seed)
 
         self.k = cfg.k
         self.num_envs = cfg.num_envs
@@ -125,11 +130,10 @@ class Trainer:
         self.high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
         self.update = 0
         self.global_step = 0
-        self.last_ckpt_update: int | None = None
         if ckpt is not None:
-            self._load_state(ckpt)
-        self.run.write_config(cfg.to_dict())
-        self.run.record_session("resume" if resume else "start")
+            self.load_state_dict(ckpt)
+            self.session.restored(ckpt, self.update)
+        self.session.start(cfg.to_dict(), rl_manifest(cfg, self.global_step))
         # Episode bookkeeping.
         self._episodes = EpisodeTracker(cfg.num_envs)
         obs, info = self.envs.reset(seed=env_seeds(cfg.seed, cfg.num_envs, epoch=self.update))
@@ -137,36 +141,38 @@ class Trainer:
         self._y0, self._dy0 = _robot_state(info, cfg.num_envs, cfg.policy.dmp_state)
 
     # ----------------------------------------------------------------------- state
+    @property
+    def step(self) -> int:
+        """Updates done (the :class:`ndp.runs.session.Learner` counter)."""
+        return self.update
+
+    @property
+    def last_ckpt_update(self) -> int | None:
+        """The update of the last good checkpoint (None: none yet)."""
+        return self.session.last_saved
+
     def state_dict(self) -> dict[str, Any]:
-        """Everything needed to continue: model, optimiser, normalisers, RNGs, counters, config."""
+        """Everything needed to continue: model, optimiser, normalisers, counters (the session
+        adds the global RNG state and the config)."""
         return {
             "model": self.model.state_dict(),
             "optimizer": self.opt.state_dict(),
             "obs_norm": self.obs_norm.state_dict(),
             "ret_norm": self.ret_norm.state_dict(),
-            "rng": {
-                "torch": torch.get_rng_state(),
-                "numpy": np.random.get_state(),  # noqa: NPY002
-                "python": random.getstate(),
-            },
             "update": self.update,
             "global_step": self.global_step,
-            "config": self.cfg.to_dict(),
             "obs_dim": self.obs_dim,
         }
 
-    def _load_state(self, ckpt: dict[str, Any]) -> None:
+    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
+        """Continue from a checkpoint (the session restores the global RNG state)."""
         self.model.load_state_dict(ckpt["model"])
         self._sync_rollout_model()
         self.opt.load_state_dict(ckpt["optimizer"])
         self.obs_norm.load_state_dict(ckpt["obs_norm"])
         self.ret_norm.load_state_dict(ckpt["ret_norm"])
-        torch.set_rng_state(ckpt["rng"]["torch"])
-        np.random.set_state(ckpt["rng"]["numpy"])  # noqa: NPY002
-        random.setstate(ckpt["rng"]["python"])
         self.update = int(ckpt["update"])
         self.global_step = int(ckpt["global_step"])
-        self.last_ckpt_update = self.update
 
     def _sync_rollout_model(self) -> None:
         if self.rollout_model is not self.model:
@@ -175,25 +181,15 @@ class Trainer:
     def save(self) -> Path:
         """Write the checkpoint atomically (only with finite parameters)."""
         self._check_params("before saving a checkpoint")
-        save_checkpoint(self.ckpt_path, self.state_dict(), kind="rl")
-        self.last_ckpt_update = self.update
-        return self.ckpt_path
+        return self.session.save(self.state_dict(), self.update, self.cfg.to_dict())
 
     def _diverged(self, what: str) -> TrainingDivergedError:
-        last = (
-            f"{self.ckpt_path} (update {self.last_ckpt_update})"
-            if self.last_ckpt_update is not None
-            else "none written yet"
-        )
-        return TrainingDivergedError(
-            f"training stopped at update {self.update + 1}: {what}. The last good checkpoint is "
-            f"kept: {last}. Try a smaller learning rate or check the task's reward / actions."
-        )
+        return self.session.diverged(what, self.update)
 
     def _check_params(self, when: str) -> None:
-        for name, prm in self.model.named_parameters():
-            if not bool(torch.isfinite(prm).all()):
-                raise self._diverged(f"parameter {name} holds NaN/Inf {when}")
+        name = nonfinite_parameter(self.model.named_parameters())
+        if name is not None:
+            raise self._diverged(f"parameter {name} holds NaN/Inf {when}")
 
     # ----------------------------------------------------------------------- rollout
     def collect(self) -> dict[str, Any]:
@@ -379,6 +375,42 @@ class Trainer:
         return out
 
     # ----------------------------------------------------------------------- loop
+    def iterate(self) -> dict[str, float]:
+        """One update: collect T decisions per env, then the PPO epochs; returns its metrics row.
+
+        Raises:
+            TrainingDivergedError: NaN / Inf in a loss, gradient or parameter.
+        """
+        t0 = time.perf_counter()
+        batch = self.collect()
+        t1 = time.perf_counter()
+        stats = self.learn(batch)
+        t2 = time.perf_counter()
+        self.update += 1
+        self.global_step += batch["executed"]
+        with torch.no_grad():
+            std = float(self.model.head.log_std.exp().mean())
+        return {
+            "update": self.update,
+            "global_step": self.global_step,
+            **episode_charts(batch["episodes"]),
+            "charts/env_steps_per_s": batch["executed"] / max(t2 - t0, 1e-9),
+            "charts/learning_rate": float(self.opt.param_groups[0]["lr"]),
+            "losses/policy": stats["policy"],
+            "losses/value": stats["value"],
+            "losses/entropy": stats["entropy"],
+            "losses/approx_kl": stats["approx_kl"],
+            "losses/clipfrac": stats["clipfrac"],
+            "losses/grad_norm": stats["grad_norm"],
+            "losses/explained_variance": stats["explained_variance"],
+            "policy/std": std,
+            "dmp/goal_norm": batch["goal_norm"],
+            "dmp/weight_norm": batch["weight_norm"],
+            **self._ctrl_metrics(batch),
+            "time/rollout_s": t1 - t0,
+            "time/update_s": t2 - t1,
+        }
+
     def train(self, max_updates: int | None = None) -> dict[str, float]:
         """Train until ``cfg.steps`` (or ``max_updates`` more updates); returns the last metrics.
 
@@ -386,45 +418,17 @@ class Trainer:
             TrainingDivergedError: NaN / Inf in a loss, gradient or parameter.
         """
         cfg = self.cfg
-        resumed = self.last_ckpt_update is not None
-        metrics: dict[str, float] = {}
+
+        def save_if_due() -> None:
+            if checkpoint_due(self.update, cfg.checkpoint_every, cfg.num_updates):
+                self.save()
+
         stop = last_update(cfg.num_updates, self.update, max_updates)
         with TrainProgress(
-            self.run_dir, METRICS, cfg, self.update, self.global_step, resumed
+            self.run_dir, METRICS, cfg, self.update, self.global_step, self.session.resumed
         ) as progress:
-            while self.update < stop:
-                t0 = time.perf_counter()
-                batch = self.collect()
-                t1 = time.perf_counter()
-                stats = self.learn(batch)
-                t2 = time.perf_counter()
-                self.update += 1
-                self.global_step += batch["executed"]
-                with torch.no_grad():
-                    std = float(self.model.head.log_std.exp().mean())
-                metrics = {
-                    "update": self.update,
-                    "global_step": self.global_step,
-                    **episode_charts(batch["episodes"]),
-                    "charts/env_steps_per_s": batch["executed"] / max(t2 - t0, 1e-9),
-                    "charts/learning_rate": float(self.opt.param_groups[0]["lr"]),
-                    "losses/policy": stats["policy"],
-                    "losses/value": stats["value"],
-                    "losses/entropy": stats["entropy"],
-                    "losses/approx_kl": stats["approx_kl"],
-                    "losses/clipfrac": stats["clipfrac"],
-                    "losses/grad_norm": stats["grad_norm"],
-                    "losses/explained_variance": stats["explained_variance"],
-                    "policy/std": std,
-                    "dmp/goal_norm": batch["goal_norm"],
-                    "dmp/weight_norm": batch["weight_norm"],
-                    **self._ctrl_metrics(batch),
-                    "time/rollout_s": t1 - t0,
-                    "time/update_s": t2 - t1,
-                }
-                progress.log(metrics)
-                if self.update % cfg.checkpoint_every == 0 or self.update == cfg.num_updates:
-                    self.save()
+            metrics = drive(self, stop, progress.log, save_if_due)
+        self.session.finish(rl_manifest(cfg, self.global_step, self.update))
         return metrics
 
     def _ctrl_metrics(self, batch: dict[str, Any]) -> dict[str, float]:
@@ -464,6 +468,22 @@ def _robot_state(
     return (
         np.asarray(y0, dtype=np.float64).reshape(n, -1),
         np.asarray(dy0, dtype=np.float64).reshape(n, -1),
+    )
+
+
+def rl_manifest(cfg: TrainConfig, global_step: int, update: int = 0) -> Manifest:
+    """The :class:`~ndp.runs.session.Manifest` of a PPO / Dyn-E run at ``update``."""
+    finished = update >= cfg.num_updates
+    return Manifest(
+        kind="rl",
+        task=cfg.task,
+        label=cfg.algo,
+        seed=int(cfg.seed),
+        budget=int(cfg.num_updates * cfg.env_steps_per_update),
+        unit="env_steps",
+        done=int(global_step),
+        finished=finished,
+        reason="budget" if finished else "",
     )
 
 

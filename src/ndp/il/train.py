@@ -49,8 +49,9 @@ from ndp.il.metrics import (
 from ndp.il.models import CNNDMPModel, TrajectoryModel, build_model
 from ndp.il.synthetic import SyntheticConfig
 from ndp.io import atomic_save_npz, atomic_write_text
-from ndp.runs import MetricsLogger, RunDir, save_checkpoint
+from ndp.runs import MetricsLogger, save_checkpoint
 from ndp.runs import load_checkpoint as _load_run_checkpoint
+from ndp.runs.session import Manifest, RunSession, TrainingDivergedError, drive, seed_everything
 
 METRICS = (
     "epoch",
@@ -87,8 +88,10 @@ __all__ = [
 DEFAULT_PENDIGITS = Path(__file__).resolve().parents[4] / "shared" / "data" / "pendigits"
 
 
-class NonFiniteLossError(ValueError):
-    """Raised when the training loss becomes NaN or Inf; the last good checkpoint is kept."""
+class NonFiniteLossError(TrainingDivergedError, ValueError):
+    """Raised when the training loss becomes NaN or Inf; the last good checkpoint is kept (the
+    run session's :class:`~ndp.runs.session.TrainingDivergedError`, and a ValueError as
+    before)."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -207,87 +210,231 @@ def _set_threads(n: int) -> None:
 # --------------------------------------------------------------------------------------------
 
 
+class ImitationLearner:
+    """One model trained on one split, an epoch per :meth:`iterate` (an
+    :class:`ndp.runs.session.Learner`; :func:`train` runs it inside the run session).
+
+    Each epoch: a shuffled pass over the training split; the validation error (when there is a
+    validation split), which keeps ``best.pt`` and counts the epochs without improvement
+    (``patience``); the test error when scheduled (``eval_every``) and at the last epoch, where
+    it scores the best weights when there is a validation split.
+
+    Args:
+        cfg: the run's config (its ``model.frame`` already the data set's).
+        session: the run session (divergence messages, paths).
+        splits: ``(x, y)`` tensors of the train, validation and test splits, on the device.
+    """
+
+    def __init__(
+        self,
+        cfg: TrainConfig,
+        session: RunSession,
+        splits: dict[str, tuple[torch.Tensor, torch.Tensor]],
+        device: torch.device,
+        fresh: bool,
+    ) -> None:
+        self.cfg, self.session = cfg, session
+        (self.x_tr, self.y_tr), (self.x_va, self.y_va), (self.x_te, self.y_te) = (
+            splits["train"],
+            splits["val"],
+            splits["test"],
+        )
+        self.model = build_model(cfg.model).to(device)
+        self.targets = None
+        if isinstance(self.model, CNNDMPModel):
+            self.targets = self.model.fit_targets(self.y_tr.cpu()).to(device)
+            if fresh:
+                self.model.set_target_stats(self.targets)
+        if cfg.encoder_init and fresh:
+            load_encoder(self.model, Path(cfg.encoder_init))
+        self.opt = torch.optim.Adam(self.model.parameters(), lr=cfg.lr)
+        self.gen = torch.Generator().manual_seed(cfg.seed)
+        self.step = 0
+        self.history: list[dict[str, float]] = []
+        self.early: dict[str, Any] = {"best_val": math.inf, "best_epoch": 0, "bad": 0,
+                                      "stopped": False}  # fmt: skip
+        self.best_path = session.run.path / BEST_NAME
+        self.n_train = int(self.x_tr.shape[0])
+        self.steps_per_epoch = math.ceil(self.n_train / cfg.batch_size)
+        if cfg.max_train_batches > 0:
+            self.steps_per_epoch = min(self.steps_per_epoch, cfg.max_train_batches)
+        self.on_batch: Any = None  # progress callback (loss) per batch
+
+    @property
+    def stopped(self) -> bool:
+        """Early-stopped by patience (:func:`ndp.runs.session.drive` ends the loop)."""
+        return bool(self.early["stopped"])
+
+    def state_dict(self) -> dict[str, Any]:
+        """Model, optimiser, epoch, history, shuffling generator, early-stopping state."""
+        return {
+            "model": self.model.state_dict(),
+            "optimizer": self.opt.state_dict(),
+            "epoch": self.step,
+            "history": self.history,
+            "generator": self.gen.get_state(),
+            "torch_rng": torch.get_rng_state(),  # also in the session's "rng" (older readers)
+            "early": dict(self.early),
+        }
+
+    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
+        self.model.load_state_dict(ckpt["model"])
+        self.opt.load_state_dict(ckpt["optimizer"])
+        self.step = int(ckpt["epoch"])
+        self.history = list(ckpt.get("history", []))
+        self.gen.set_state(ckpt["generator"])
+        if "rng" not in ckpt:  # checkpoints written before the run session
+            torch.set_rng_state(ckpt["torch_rng"])
+        self.early.update(ckpt.get("early", {}))
+
+    def iterate(self) -> dict[str, float]:
+        """One epoch; returns its metrics row (``epoch`` first).
+
+        Raises:
+            NonFiniteLossError: the loss became NaN / Inf (the last good checkpoint stays).
+        """
+        cfg, model, epoch = self.cfg, self.model, self.step
+        model.train()
+        t0 = time.perf_counter()
+        device = self.x_tr.device
+        perm = torch.randperm(self.n_train, generator=self.gen).to(device)
+        loss_sum = mse_sum = 0.0
+        seen = 0
+        for step in range(self.steps_per_epoch):
+            idx = perm[step * cfg.batch_size : (step + 1) * cfg.batch_size]
+            xb, yb = self.x_tr[idx], self.y_tr[idx]
+            loss, pred = model.loss(xb, yb, None if self.targets is None else self.targets[idx])
+            if not torch.isfinite(loss):
+                what = f"training loss became {loss.item()} at batch {step + 1}"
+                raise NonFiniteLossError(str(self.session.diverged(what, epoch)))
+            self.opt.zero_grad(set_to_none=True)
+            loss.backward()
+            self.opt.step()
+            b = idx.shape[0]
+            loss_sum += loss.item() * b
+            mse_sum += float(((pred.detach() - yb) ** 2).mean()) * b
+            seen += b
+            if self.on_batch is not None:
+                self.on_batch(epoch + 1, loss.item())
+        dt = time.perf_counter() - t0
+        row: dict[str, float] = {
+            "train/loss": loss_sum / seen,
+            "train/mse_px2": mse_sum / seen,
+            "time/epoch_s": dt,
+            "time/samples_per_s": seen / dt,
+        }
+        early = self.early
+        if self.x_va.shape[0] > 0:
+            val = float(
+                per_sample_mse(
+                    predict(model, self.x_va, self.y_va[:, 0]).cpu(), self.y_va.cpu()
+                ).mean()
+            )
+            row["val/mse_px2"] = val
+            if val < early["best_val"]:
+                early.update(best_val=val, best_epoch=epoch + 1, bad=0)
+                save_checkpoint(self.best_path, {"model": model.state_dict(), "epoch": epoch + 1,
+                                                 "val_mse_px2": val, "config": cfg.as_dict()},
+                                kind="il")  # fmt: skip
+            else:
+                early["bad"] += 1
+            row["val/best_epoch"] = early["best_epoch"]
+            early["stopped"] = cfg.patience > 0 and early["bad"] >= cfg.patience
+        last_epoch = epoch + 1 == cfg.epochs or bool(early["stopped"])
+        scheduled = cfg.eval_every > 0 and (epoch + 1) % cfg.eval_every == 0
+        if (scheduled or last_epoch) and self.x_te.shape[0] > 0:
+            scored = model
+            if last_epoch and self.x_va.shape[0] > 0:  # the test split scores the best weights
+                scored = copy.deepcopy(model)
+                scored.load_state_dict(load_checkpoint(self.best_path)["model"])
+            err = per_sample_mse(predict(scored, self.x_te, self.y_te[:, 0]).cpu(), self.y_te.cpu())
+            row["test/mse_px2"] = float(err.mean())
+            row["test/mse_px2_std"] = float(err.std())
+        self.step = epoch + 1
+        out: dict[str, float] = {"epoch": self.step, **row}
+        self.history.append(out)
+        return out
+
+    def close(self) -> None:
+        pass
+
+
+def il_manifest(cfg: TrainConfig, epoch: int, early_stopped: bool = False) -> Manifest:
+    """The :class:`~ndp.runs.session.Manifest` of an imitation run at ``epoch``."""
+    finished = early_stopped or epoch >= cfg.epochs
+    return Manifest(
+        kind="il",
+        task=cfg.data.source,
+        label=cfg.model.kind,
+        seed=int(cfg.seed),
+        budget=int(cfg.epochs),
+        unit="epochs",
+        done=int(epoch),
+        finished=finished,
+        reason=("early stop" if early_stopped else "budget") if finished else "",
+    )
+
+
 def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> dict[str, Any]:
     """Train a model; returns a summary (final metrics, timings, paths).
 
     Args:
-        cfg: run settings. With ``resume`` the run directory's config.json is used instead
-            except for ``epochs`` (so a run can be extended) and ``progress``.
+        cfg: run settings. With ``resume`` it must equal the run's saved config outside
+            :data:`SAFE_ON_RESUME` (``epochs`` extends the run), as for every trainer
+            (``ndp il train --resume`` builds it from the saved one).
         resume: continue from ``<run_dir>/checkpoint.pt``.
         overwrite: remove an earlier run in ``run_dir`` first (its files are named on stderr);
             without it (and without ``resume``) such a directory is refused.
 
     Raises:
         NonFiniteLossError: the loss became NaN / Inf (the last good checkpoint stays).
-        FileNotFoundError, ValueError: bad data paths or files.
+        FileNotFoundError, ValueError: bad data paths or files; a refused resume.
     """
     from ndp.checks import check_device_available
 
     check_device_available(cfg.device)  # before the run folder is made
-    run = RunDir(cfg.run_dir)
-    run_dir, ckpt_path = run.path, run.checkpoint
-    ckpt = None
-    if resume:
-        run.open_for_resume()
-        ckpt = load_checkpoint(ckpt_path)
-        saved = TrainConfig.from_dict(ckpt["config"])
-        cfg = dataclasses.replace(
-            saved,
-            **{f: getattr(cfg, f) for f in SAFE_ON_RESUME},
-            run_dir=cfg.run_dir,
-        )
-        if cfg.epochs < int(ckpt["epoch"]):
-            raise ValueError(
-                f"epochs: the run has trained {int(ckpt['epoch'])} epochs; --epochs {cfg.epochs} "
-                "would cut its budget below that (give at least that many, or start a new run)"
-            )
-    else:
-        run.create(overwrite=overwrite)
     _set_threads(cfg.threads)
-    torch.manual_seed(cfg.seed)
+    seed_everything(cfg.seed)
     device = torch.device(cfg.device)
-
     data = load_data(cfg.data, cfg.model.n_points, progress=cfg.progress)
-    tr_idx, te_idx = make_split(data, cfg.data)
-    tr_idx, va_idx = validation_split(tr_idx, cfg.val_fraction, cfg.data.split_seed)
-    x_all = torch.from_numpy(data.images)
-    y_all = torch.from_numpy(data.trajs)
-    x_tr, y_tr = x_all[tr_idx].to(device), y_all[tr_idx].to(device)
-    x_te, y_te = x_all[te_idx].to(device), y_all[te_idx].to(device)
-    x_va, y_va = x_all[va_idx].to(device), y_all[va_idx].to(device)
     if cfg.model.frame != data.frame[1]:  # the data set's pixel frame (derived, not chosen)
         cfg = dataclasses.replace(
             cfg, model=dataclasses.replace(cfg.model, frame=float(data.frame[1]))
         )
-
-    model = build_model(cfg.model).to(device)
-    targets = None
-    if isinstance(model, CNNDMPModel):
-        targets = model.fit_targets(y_tr.cpu()).to(device)
-        if ckpt is None:
-            model.set_target_stats(targets)
-    if cfg.encoder_init and ckpt is None:
-        load_encoder(model, Path(cfg.encoder_init))
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
-    start_epoch = 0
-    history: list[dict[str, float]] = []
-    gen = torch.Generator().manual_seed(cfg.seed)
-    early = {"best_val": math.inf, "best_epoch": 0, "bad": 0, "stopped": False}
+    session, ckpt = RunSession.open(
+        cfg.run_dir,
+        kind="il",
+        config=cfg,
+        config_from_dict=TrainConfig.from_dict,
+        safe_on_resume=SAFE_ON_RESUME,
+        resume=resume,
+        unit="epoch",
+        hint="Try a lower --lr.",
+        overwrite=overwrite,
+    )
+    if ckpt is not None and cfg.epochs < int(ckpt["epoch"]):
+        raise ValueError(
+            f"epochs: the run has trained {int(ckpt['epoch'])} epochs; --epochs {cfg.epochs} "
+            "would cut its budget below that (give at least that many, or start a new run)"
+        )
+    tr_idx, te_idx = make_split(data, cfg.data)
+    tr_idx, va_idx = validation_split(tr_idx, cfg.val_fraction, cfg.data.split_seed)
+    x_all = torch.from_numpy(data.images)
+    y_all = torch.from_numpy(data.trajs)
+    splits = {
+        name: (x_all[idx].to(device), y_all[idx].to(device))
+        for name, idx in (("train", tr_idx), ("val", va_idx), ("test", te_idx))
+    }
+    learner = ImitationLearner(cfg, session, splits, device, fresh=ckpt is None)
     if ckpt is not None:
-        model.load_state_dict(ckpt["model"])
-        opt.load_state_dict(ckpt["optimizer"])
-        start_epoch = int(ckpt["epoch"])
-        history = list(ckpt.get("history", []))
-        gen.set_state(ckpt["generator"])
-        torch.set_rng_state(ckpt["torch_rng"])
-        early.update(ckpt.get("early", {}))
+        learner.load_state_dict(ckpt)
+        session.restored(ckpt, learner.step)
+    start_epoch = learner.step
+    run_dir = session.run.path
     done_path = run_dir / DONE_NAME
-    if done_path.exists() and not early["stopped"]:
+    if done_path.exists() and not learner.stopped:
         done_path.unlink()  # a run extended by --epochs is no longer finished
-    best_path = run_dir / BEST_NAME
-
-    run.write_config(cfg.as_dict())
-    run.record_session("resume" if resume else "start")
+    session.start(cfg.as_dict(), il_manifest(cfg, start_epoch, learner.stopped))
     logger = MetricsLogger(
         run_dir,
         METRICS,
@@ -296,124 +443,61 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
         resume_index=start_epoch if ckpt is not None else None,
         resume_step=start_epoch if ckpt is not None else None,
     )
-    n_tr = x_tr.shape[0]
-    steps_per_epoch = math.ceil(n_tr / cfg.batch_size)
-    if cfg.max_train_batches > 0:
-        steps_per_epoch = min(steps_per_epoch, cfg.max_train_batches)
     bar = None
     if cfg.progress:
         from tqdm import tqdm
 
         bar = tqdm(
-            total=(cfg.epochs - start_epoch) * steps_per_epoch,
+            total=(cfg.epochs - start_epoch) * learner.steps_per_epoch,
             desc=f"il {cfg.model.kind}",
             unit="batch",
             dynamic_ncols=True,
         )
+
+        def on_batch(epoch: int, loss: float) -> None:
+            assert bar is not None
+            bar.update(1)
+            bar.set_postfix(epoch=epoch, loss=f"{loss:.3g}")
+
+        learner.on_batch = on_batch
+
+    def save() -> None:  # every epoch
+        session.save(learner.state_dict(), learner.step, cfg.as_dict())
+
     t_run = time.perf_counter()
     row: dict[str, float] = {}
     try:
-        for epoch in range(start_epoch, cfg.epochs):
-            model.train()
-            t0 = time.perf_counter()
-            perm = torch.randperm(n_tr, generator=gen).to(device)
-            loss_sum = mse_sum = 0.0
-            seen = 0
-            for step in range(steps_per_epoch):
-                idx = perm[step * cfg.batch_size : (step + 1) * cfg.batch_size]
-                xb, yb = x_tr[idx], y_tr[idx]
-                loss, pred = model.loss(xb, yb, None if targets is None else targets[idx])
-                if not torch.isfinite(loss):
-                    last = f"epoch {start_epoch_done(ckpt_path)}" if ckpt_path.exists() else "none"
-                    raise NonFiniteLossError(
-                        f"training loss became {loss.item()} at epoch {epoch + 1}, batch "
-                        f"{step + 1}; training stopped. Last good checkpoint: {ckpt_path} "
-                        f"({last}). Try a lower --lr."
-                    )
-                opt.zero_grad(set_to_none=True)
-                loss.backward()
-                opt.step()
-                b = idx.shape[0]
-                loss_sum += loss.item() * b
-                mse_sum += float(((pred.detach() - yb) ** 2).mean()) * b
-                seen += b
-                if bar is not None:
-                    bar.update(1)
-                    bar.set_postfix(epoch=epoch + 1, loss=f"{loss.item():.3g}")
-            dt = time.perf_counter() - t0
-            row = {
-                "train/loss": loss_sum / seen,
-                "train/mse_px2": mse_sum / seen,
-                "time/epoch_s": dt,
-                "time/samples_per_s": seen / dt,
-            }
-            if x_va.shape[0] > 0:
-                val = float(
-                    per_sample_mse(predict(model, x_va, y_va[:, 0]).cpu(), y_va.cpu()).mean()
-                )
-                row["val/mse_px2"] = val
-                if val < early["best_val"]:
-                    early.update(best_val=val, best_epoch=epoch + 1, bad=0)
-                    save_checkpoint(best_path, {"model": model.state_dict(), "epoch": epoch + 1,
-                                                "val_mse_px2": val, "config": cfg.as_dict()},
-                                    kind="il")  # fmt: skip
-                else:
-                    early["bad"] += 1
-                row["val/best_epoch"] = early["best_epoch"]
-                early["stopped"] = cfg.patience > 0 and early["bad"] >= cfg.patience
-            last_epoch = epoch + 1 == cfg.epochs or bool(early["stopped"])
-            scheduled = cfg.eval_every > 0 and (epoch + 1) % cfg.eval_every == 0
-            if (scheduled or last_epoch) and x_te.shape[0] > 0:
-                scored = model
-                if last_epoch and x_va.shape[0] > 0:  # the test split scores the best weights
-                    scored = copy.deepcopy(model)
-                    scored.load_state_dict(load_checkpoint(best_path)["model"])
-                err = per_sample_mse(predict(scored, x_te, y_te[:, 0]).cpu(), y_te.cpu())
-                row["test/mse_px2"] = float(err.mean())
-                row["test/mse_px2_std"] = float(err.std())
-            logger.log({"epoch": epoch + 1, **row})
-            history.append({"epoch": epoch + 1, **row})
-            save_checkpoint(
-                ckpt_path,
-                {
-                    "model": model.state_dict(),
-                    "optimizer": opt.state_dict(),
-                    "epoch": epoch + 1,
-                    "config": cfg.as_dict(),
-                    "history": history,
-                    "generator": gen.get_state(),
-                    "torch_rng": torch.get_rng_state(),
-                    "early": dict(early),
-                },
-                kind="il",
-            )
-            if last_epoch:
-                break
+        if not learner.stopped:
+            row = drive(learner, cfg.epochs, logger.log, save)
     finally:
         if bar is not None:
             bar.close()
         logger.close()
-    last = int(history[-1]["epoch"]) if history else start_epoch
+    early = learner.early
+    last = learner.step
+    row = {k: v for k, v in row.items() if k != "epoch"}
+    manifest = il_manifest(cfg, last, learner.stopped)
     done = {
         "finished": True,
         "epoch": last,
-        "reason": "early stop" if early["stopped"] else "budget",
+        "reason": manifest.reason,
         "best_epoch": early["best_epoch"] or None,
         "best_val_mse_px2": early["best_val"] if early["best_epoch"] else None,
         "train_wall_s": time.perf_counter() - t_run,
     }
-    if last >= cfg.epochs or early["stopped"]:
+    if manifest.finished:
         atomic_write_text(done_path, json.dumps(done, indent=1) + "\n")
+    session.finish(manifest)
     return {
         "run_dir": str(run_dir),
-        "checkpoint": str(ckpt_path),
-        "stopped_early": bool(early["stopped"]),
+        "checkpoint": str(session.run.checkpoint),
+        "stopped_early": learner.stopped,
         "best_epoch": early["best_epoch"] or None,
         "epochs": cfg.epochs,
         "train_wall_s": time.perf_counter() - t_run,
         "final": row,
-        "n_train": int(n_tr),
-        "n_test": int(x_te.shape[0]),
+        "n_train": learner.n_train,
+        "n_test": int(learner.x_te.shape[0]),
     }
 
 
@@ -430,14 +514,6 @@ def load_encoder(model: TrajectoryModel, path: Path) -> None:
         model.encoder.load_state_dict(enc)
     except RuntimeError as exc:
         raise ValueError(f"encoder weights in {path} do not fit this model: {exc}") from exc
-
-
-def start_epoch_done(ckpt_path: Path) -> int:
-    """Epoch stored in an existing checkpoint (0 if unreadable)."""
-    try:
-        return int(load_checkpoint(ckpt_path)["epoch"])
-    except (FileNotFoundError, ValueError, KeyError):
-        return 0
 
 
 # --------------------------------------------------------------------------------------------

@@ -281,10 +281,11 @@ def drive(
     log: Callable[[dict[str, float]], None],
     save_if_due: Callable[[], None],
 ) -> dict[str, float]:
-    """The loop every trainer runs: iterate until ``learner.step`` reaches ``stop``, log each
-    row, then checkpoint when due; returns the last row (empty when nothing ran)."""
+    """The loop every trainer runs: iterate until ``learner.step`` reaches ``stop`` (or the
+    learner says it ``stopped``, e.g. early stopping), log each row, then checkpoint when due;
+    returns the last row (empty when nothing ran)."""
     metrics: dict[str, float] = {}
-    while learner.step < stop:
+    while learner.step < stop and not getattr(learner, "stopped", False):
         metrics = learner.iterate()
         log(metrics)
         save_if_due()

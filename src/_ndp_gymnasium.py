@@ -17,12 +17,15 @@ import sys
 
 # Python runs this at every start-up: import nothing beyond os and sys (importlib.abc and typing
 # cost tens of milliseconds); the finder and loader are duck-typed.
+TYPE_CHECKING = False
+if TYPE_CHECKING:
+    from typing import Any
 
 
 class _Loader:
     """gymnasium's own loader, plus the registration once the module has executed."""
 
-    def __init__(self, loader: object) -> None:
+    def __init__(self, loader: Any) -> None:
         self._loader = loader
 
     def create_module(self, spec: object) -> object:
@@ -75,7 +78,7 @@ def install() -> None:
     if os.environ.get("NDP_NO_GYMNASIUM_HOOK") or "gymnasium" in sys.modules:
         return
     remove()
-    sys.meta_path.insert(0, _GymnasiumFinder())
+    sys.meta_path.insert(0, _GymnasiumFinder())  # type: ignore[arg-type]  # duck-typed
 
 
 install()

@@ -17,7 +17,7 @@ _UMASK = os.umask(0)
 os.umask(_UMASK)
 
 
-def atomic_write(path: str | os.PathLike, write: Callable[[BinaryIO], Any]) -> None:
+def atomic_write(path: str | os.PathLike[str], write: Callable[[BinaryIO], Any]) -> None:
     """Call ``write(f)`` on a temporary binary file, then atomically rename it to ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -42,7 +42,7 @@ TMP_GLOB = ".*.tmp"
 """Pattern of the temporary files :func:`atomic_write` creates (``.<name>.<random>.tmp``)."""
 
 
-def remove_stale_tmp(folder: str | os.PathLike) -> list[Path]:
+def remove_stale_tmp(folder: str | os.PathLike[str]) -> list[Path]:
     """Delete temporary files a killed :func:`atomic_write` left in ``folder``; returns them."""
     folder = Path(folder)
     removed = []
@@ -54,17 +54,17 @@ def remove_stale_tmp(folder: str | os.PathLike) -> list[Path]:
     return removed
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes | memoryview) -> None:
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes | memoryview) -> None:
     """Atomic binary write; see :func:`atomic_write`."""
     atomic_write(path, lambda f: f.write(data))
 
 
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
     """Atomic text write (UTF-8); see :func:`atomic_write`."""
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
-def atomic_torch_save(obj: Any, path: str | os.PathLike) -> None:
+def atomic_torch_save(obj: Any, path: str | os.PathLike[str]) -> None:
     """``torch.save(obj)`` atomically; see :func:`atomic_write`.
 
     The object is serialised in memory first and then written: a full disk then fails in the
@@ -79,7 +79,7 @@ def atomic_torch_save(obj: Any, path: str | os.PathLike) -> None:
     atomic_write_bytes(path, buf.getbuffer())
 
 
-def atomic_save_npz(path: str | os.PathLike, **arrays: Any) -> None:
+def atomic_save_npz(path: str | os.PathLike[str], **arrays: Any) -> None:
     """``numpy.savez_compressed`` atomically; see :func:`atomic_write`."""
     import io
 

@@ -51,7 +51,7 @@ def parse_config(
     """
     import tyro
 
-    return tyro.cli(
+    parsed = tyro.cli(
         cls,
         args=list(args),
         prog=prog,
@@ -59,6 +59,8 @@ def parse_config(
         default=default,
         config=(tyro.conf.OmitArgPrefixes,),
     )
+    assert parsed is not None  # tyro returns the parsed instance (or exits)
+    return parsed
 
 
 def changed_fields(old: Any, new: Any, prefix: str = "") -> list[str]:

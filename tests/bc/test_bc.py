@@ -72,9 +72,22 @@ def test_cloned_policy_seeds_an_rl_run(tmp_path, toy_demos):
     run = tmp_path / "bc"
     train_bc(BCConfig(demos=str(toy_demos), run_dir=str(run), epochs=2, progress=False,
                       tensorboard=False))  # fmt: skip
+    from ndp.runs.session import read_manifest
+
+    m = read_manifest(run)  # a cloning run, finished, in the run session's manifest
+    assert (m.kind, m.label, m.unit, m.budget, m.done, m.finished) == (
+        "bc",
+        "ndp",
+        "epochs",
+        2,
+        2,
+        True,
+    )
     rc = ndp_main(["rl", "train", "--resume", str(run), "--steps", "4000", "--no-progress",
                    "--vector", "sync"])  # fmt: skip
     assert rc == 0
+    m = read_manifest(run)  # now the PPO fine-tuning run it seeded
+    assert (m.kind, m.label, m.unit, m.finished) == ("rl", "ndp", "env_steps", True)
     from ndp.runs import read_metrics
 
     assert [r["update"] for r in read_metrics(run)] == [1.0, 2.0]

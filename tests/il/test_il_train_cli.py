@@ -94,7 +94,9 @@ def test_nan_loss_stops_and_keeps_last_good_checkpoint(tmp_path: Path, monkeypat
         return (pred * float("nan")).mean(), pred
 
     monkeypatch.setattr(models.NDPModel, "loss", nan_loss)
-    with pytest.raises(NonFiniteLossError, match=r"loss became nan.*last good checkpoint is kept.*epoch 1"):
+    with pytest.raises(
+        NonFiniteLossError, match=r"loss became nan.*last good checkpoint is kept.*epoch 1"
+    ):
         train(_tiny(tmp_path, epochs=3), resume=True)
     kept = load_checkpoint(tmp_path / "run")
     assert kept["epoch"] == 1
@@ -364,7 +366,13 @@ def test_early_stopping_on_a_validation_split_keeps_the_best_weights(tmp_path, c
     from ndp.runs.session import read_manifest
 
     m = read_manifest(run)  # the run session's manifest says the same
-    assert (m.kind, m.task, m.label, m.unit, m.budget) == ("il", "synthetic", "cnn", "epochs", 40)
+    assert (m.kind, m.task, m.label, m.unit, m.budget) == (
+        "il",
+        "synthetic-64",
+        "cnn",
+        "epochs",
+        40,
+    )
     assert m.finished and m.reason == "early stop" and m.done == len(rows)
     assert main(["il", "train", *argv[2:-6], "--patience", "2", "--out", str(tmp_path / "x"),
                  "--val-fraction", "0"]) == 2  # fmt: skip

@@ -195,3 +195,24 @@ def test_ppo_and_dyne_runs_write_run_json_and_finish_it(tmp_path, algo):
     assert (m.kind, m.task, m.label, m.seed, m.unit) == ("rl", "point-mass", algo, 1, "env_steps")
     assert m.finished and m.reason == "budget" and m.budget == 520  # rounded up to whole decisions
     assert json.loads((tmp_path / "r" / MANIFEST_NAME).read_text())["done"] == m.done > 0
+
+
+def test_sweeps_and_reports_read_what_run_json_says(tmp_path):
+    """A run in a folder whose name says nothing is identified by its run.json, and run.json's
+    ``finished`` is what a sweep counts (the older records are the fallback)."""
+    from ndp.experiments.report import run_info
+    from ndp.experiments.study import is_finished
+
+    run = tmp_path / "my-favourite-run"
+    run.mkdir()
+    (run / "config.json").write_text(json.dumps({"algo": "ndp", "steps": 1000}))
+    (run / "metrics.csv").write_text("update,global_step\n1,1000\n")
+    m = Manifest("rl", "soccer-v3", "ndp", 7, 1000, "env_steps", 1000, False)
+    write_manifest(run, m)
+    info = run_info(run)
+    assert info is not None and (info.task, info.seed, info.label) == ("soccer-v3", 7, "ndp")
+    assert not is_finished(run)
+    write_manifest(run, dataclasses.replace(m, finished=True, reason="budget"))
+    assert is_finished(run)
+    (run / MANIFEST_NAME).write_text("not json")  # unreadable: the older records decide
+    assert not is_finished(run)  # no done.json, no checkpoint

@@ -21,7 +21,6 @@ import copy
 import dataclasses
 import json
 import math
-import random
 import sys
 import time
 from dataclasses import dataclass, field
@@ -110,6 +109,98 @@ def _windows(episode: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     return idx, mask
 
 
+class CloningLearner:
+    """Behaviour cloning, an epoch per :meth:`iterate` (an :class:`ndp.runs.session.Learner`):
+    Adam on the mean squared error of the policy's mean sub-actions against the demonstrated
+    ones (the actor only: not the critic, not the exploration std).
+
+    Tensors (S recorded steps, k sub-steps, A actions, O observations, D DMP DoF): ``obs``
+    [S, O] normalised, ``y0`` / ``dy0`` [S, D], ``target`` [S, k, A], ``mask`` [S, k, 1] (the
+    sub-steps inside the episode), ``train_idx`` / ``val_idx`` the steps of each split.
+    """
+
+    def __init__(self, model: Any, session: Any, *, obs: Any, y0: Any, dy0: Any, target: Any,
+                 mask: Any, train_idx: Any, val_idx: Any, cfg: BCConfig) -> None:  # fmt: skip
+        import torch
+
+        self.model, self.session, self.cfg = model, session, cfg
+        self.obs, self.y0, self.dy0, self.target, self.mask = obs, y0, dy0, target, mask
+        self.train_idx, self.val_idx = train_idx, val_idx
+        params = [q for name, q in model.named_parameters()
+                  if not name.startswith("critic") and not name.endswith("log_std")]  # fmt: skip
+        self.opt = torch.optim.Adam(params, lr=cfg.lr)
+        self.gen = torch.Generator().manual_seed(cfg.seed)
+        self.step = 0
+
+    def loss_of(self, sel: Any) -> tuple[Any, Any]:
+        """Mean squared action error over the selected steps' valid sub-steps, and the
+        per-entry squared errors [n, k, A]."""
+        dist, _ = self.model.distribution(self.obs[sel], self.y0[sel], self.dy0[sel])
+        err = (dist.mean - self.target[sel]) ** 2 * self.mask[sel]
+        return err.sum() / (self.mask[sel].sum() * self.target.shape[-1]).clamp(min=1.0), err
+
+    def iterate(self) -> dict[str, float]:
+        """One pass over the training steps; returns the epoch's row.
+
+        Raises:
+            TrainingDivergedError: the loss became NaN / Inf.
+        """
+        import torch
+
+        t0 = time.perf_counter()
+        tr = self.train_idx
+        perm = tr[torch.randperm(len(tr), generator=self.gen)]
+        total, seen = 0.0, 0
+        for lo in range(0, len(perm), self.cfg.batch_size):
+            sel = perm[lo : lo + self.cfg.batch_size]
+            loss, _ = self.loss_of(sel)
+            if not bool(torch.isfinite(loss)):
+                raise self.session.diverged(f"the cloning loss became {float(loss)}", self.step)
+            self.opt.zero_grad(set_to_none=True)
+            loss.backward()
+            self.opt.step()
+            total += float(loss.detach()) * len(sel)
+            seen += len(sel)
+        with torch.no_grad():
+            val = float(self.loss_of(self.val_idx)[0]) if len(self.val_idx) else math.nan
+        self.step += 1
+        return {"epoch": self.step, "train/loss": total / max(seen, 1), "val/loss": val,
+                "time/epoch_s": time.perf_counter() - t0}  # fmt: skip
+
+    def set_exploration_std(self) -> None:
+        """The exploration std for stochastic use and RL fine-tuning: the fit's per-dimension
+        error on the training steps (clamped to [0.05, 1])."""
+        import torch
+
+        with torch.no_grad():
+            _, err = self.loss_of(self.train_idx)
+            per_dim = err.sum(dim=(0, 1)) / self.mask[self.train_idx].sum().clamp(min=1.0)
+            self.model.head.log_std.copy_(per_dim.sqrt().clamp(0.05, 1.0).log())
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"model": self.model.state_dict(), "optimizer": self.opt.state_dict(),
+                "epoch": self.step, "generator": self.gen.get_state()}  # fmt: skip
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.model.load_state_dict(state["model"])
+        self.opt.load_state_dict(state["optimizer"])
+        self.step = int(state["epoch"])
+        self.gen.set_state(state["generator"])
+
+    def close(self) -> None:
+        pass
+
+
+def bc_manifest(cfg: BCConfig, task: str, epoch: int) -> Any:
+    """The :class:`~ndp.runs.session.Manifest` of a cloning run at ``epoch``."""
+    from ndp.runs.session import Manifest
+
+    finished = epoch >= cfg.epochs
+    return Manifest(kind="bc", task=task, label=cfg.model, seed=int(cfg.seed),
+                    budget=int(cfg.epochs), unit="epochs", done=int(epoch), finished=finished,
+                    reason="budget" if finished else "")  # fmt: skip
+
+
 def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
     """Clone the demonstrations of ``cfg.demos``; returns a summary (losses, sizes, paths).
 
@@ -124,7 +215,9 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
     from ndp.rl.envs import resolve_task
     from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
     from ndp.rl.optim import FlatAdam
-    from ndp.runs import MetricsLogger, RunDir, save_checkpoint
+    from ndp.rl.trainer import ppo_state
+    from ndp.runs import MetricsLogger
+    from ndp.runs.session import RunSession, drive, seed_everything
 
     if not cfg.demos:
         raise ValueError("demos: expected a demonstrations file (--demos FILE)")
@@ -169,10 +262,20 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
             "metrics.csv, null in the summary); give more episodes for a validation split",
             file=sys.stderr,
         )
-    run = RunDir(cfg.run_dir)
-    run.create(overwrite=overwrite, resumable=False)  # ndp il bc has no --resume
-    run.write_config(rl_cfg.to_dict())
-    run.record_session("start")
+    session, _ = RunSession.open(
+        cfg.run_dir,
+        kind="rl",  # the run is an RL run at update 0 (see the module docstring)
+        config=rl_cfg,
+        config_from_dict=TrainConfig.from_dict,
+        safe_on_resume=(),
+        resume=False,  # ndp il bc has no --resume
+        unit="epoch",
+        hint="Try a lower --lr.",
+        overwrite=overwrite,
+        resumable=False,
+    )
+    run = session.run
+    session.start(rl_cfg.to_dict(), bc_manifest(cfg, spec.name, 0))
     from ndp.io import atomic_write_text
 
     meta = {"bc": cfg.to_dict(), "demos": str(cfg.demos), "episodes": demos.n_episodes,
@@ -180,94 +283,60 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
     atomic_write_text(run.path / "bc.json", json.dumps(meta, indent=2, default=str) + "\n")
 
     torch.set_num_threads(cfg.threads)
-    random.seed(cfg.seed)
-    np.random.seed(cfg.seed)  # noqa: NPY002
-    torch.manual_seed(cfg.seed)
+    seed_everything(cfg.seed)
     model = build_actor_critic(obs_dim, spec, rl_cfg.policy)
     k = rl_cfg.k
     p = rl_cfg.ppo
     obs_norm = ObsNormalizer(obs_dim, p.clip_obs, p.norm_obs)
     obs_norm.rms.update(demos.obs)
     obs_norm.rms.var = np.maximum(obs_norm.rms.var, cfg.obs_std_floor**2)
-    obs_n = torch.from_numpy(obs_norm(demos.obs))
     commanded = rl_cfg.policy.dmp_state == "commanded"
-    y0 = torch.as_tensor(demos.cmd_pos if commanded else demos.robot_pos, dtype=torch.float32)
-    dy0 = torch.as_tensor(demos.cmd_vel if commanded else demos.robot_vel, dtype=torch.float32)
     idx, mask = _windows(demos.episode, k)
-    target = torch.as_tensor(demos.actions[idx], dtype=torch.float32)  # [S, k, A]
-    mask_t = torch.as_tensor(mask, dtype=torch.float32).unsqueeze(-1)  # [S, k, 1]
-
     rng = np.random.default_rng(cfg.seed)
     n_ep = demos.n_episodes
     n_val = round(cfg.val_fraction * n_ep) if n_ep >= 2 else 0
     val_eps = set(rng.choice(n_ep, size=n_val, replace=False).tolist()) if n_val else set()
     is_val = np.isin(demos.episode, list(val_eps))
-    tr = torch.as_tensor(np.flatnonzero(~is_val))
-    va = torch.as_tensor(np.flatnonzero(is_val))
-    params = [q for name, q in model.named_parameters()
-              if not name.startswith("critic") and not name.endswith("log_std")]  # fmt: skip
-    opt = torch.optim.Adam(params, lr=cfg.lr)
-
-    def loss_of(sel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        dist, _ = model.distribution(obs_n[sel], y0[sel], dy0[sel])
-        err = (dist.mean - target[sel]) ** 2 * mask_t[sel]
-        return err.sum() / (mask_t[sel].sum() * target.shape[-1]).clamp(min=1.0), err
+    learner = CloningLearner(
+        model,
+        session,
+        obs=torch.from_numpy(obs_norm(demos.obs)),
+        y0=torch.as_tensor(demos.cmd_pos if commanded else demos.robot_pos, dtype=torch.float32),
+        dy0=torch.as_tensor(demos.cmd_vel if commanded else demos.robot_vel, dtype=torch.float32),
+        target=torch.as_tensor(demos.actions[idx], dtype=torch.float32),  # [S, k, A]
+        mask=torch.as_tensor(mask, dtype=torch.float32).unsqueeze(-1),  # [S, k, 1]
+        train_idx=torch.as_tensor(np.flatnonzero(~is_val)),
+        val_idx=torch.as_tensor(np.flatnonzero(is_val)),
+        cfg=cfg,
+    )
+    tr, va = learner.train_idx, learner.val_idx
 
     from tqdm import tqdm
 
     bar = tqdm(total=cfg.epochs, disable=not cfg.progress, desc=f"bc {cfg.model} {spec.name}")
-    gen = torch.Generator().manual_seed(cfg.seed)
-    row: dict[str, float] = {}
     t_run = time.perf_counter()
+
+    def log_row(row: dict[str, float]) -> None:
+        log.log(row)
+        bar.update(1)
+        bar.set_postfix(loss=f"{row['train/loss']:.4f}")
+
     with MetricsLogger(run.path, BC_METRICS, step="epoch", tensorboard=cfg.tensorboard,
                        filename="bc_metrics.csv", tb_dir="tb_bc") as log:  # fmt: skip
-        for epoch in range(cfg.epochs):
-            t0 = time.perf_counter()
-            perm = tr[torch.randperm(len(tr), generator=gen)]
-            total, seen = 0.0, 0
-            for lo in range(0, len(perm), cfg.batch_size):
-                sel = perm[lo : lo + cfg.batch_size]
-                loss, _ = loss_of(sel)
-                if not bool(torch.isfinite(loss)):
-                    raise FloatingPointError(
-                        f"bc: the loss became {float(loss)} at epoch {epoch + 1}; try a lower --lr"
-                    )
-                opt.zero_grad(set_to_none=True)
-                loss.backward()
-                opt.step()
-                total += float(loss.detach()) * len(sel)
-                seen += len(sel)
-            with torch.no_grad():
-                val = float(loss_of(va)[0]) if len(va) else math.nan
-            row = {"epoch": epoch + 1, "train/loss": total / max(seen, 1), "val/loss": val,
-                   "time/epoch_s": time.perf_counter() - t0}  # fmt: skip
-            log.log(row)
-            bar.update(1)
-            bar.set_postfix(loss=f"{row['train/loss']:.4f}")
+        row = drive(learner, cfg.epochs, log_row, lambda: None)  # one checkpoint, at the end
     bar.close()
-    with torch.no_grad():  # exploration std for stochastic use / RL fine-tuning: the fit's error
-        _, err = loss_of(tr)
-        per_dim = err.sum(dim=(0, 1)) / mask_t[tr].sum().clamp(min=1.0)
-        model.head.log_std.copy_(per_dim.sqrt().clamp(0.05, 1.0).log())
-    state = {
-        "model": model.state_dict(),
-        "optimizer": FlatAdam(copy.deepcopy(model), lr=p.lr, eps=p.adam_eps).state_dict(),
-        "obs_norm": obs_norm.state_dict(),
-        "ret_norm": ReturnNormalizer(
-            rl_cfg.num_envs, p.gamma, p.clip_reward, p.norm_return
-        ).state_dict(),
-        "rng": {
-            "torch": torch.get_rng_state(),
-            "numpy": np.random.get_state(),  # noqa: NPY002
-            "python": random.getstate(),
-        },
-        "update": 0,
-        "global_step": 0,
-        "config": rl_cfg.to_dict(),
-        "obs_dim": obs_dim,
-        "bc": meta,
-    }
-    save_checkpoint(run.checkpoint, state, kind="rl")
+    learner.set_exploration_std()
+    state = ppo_state(
+        model,
+        FlatAdam(copy.deepcopy(model), lr=p.lr, eps=p.adam_eps),
+        obs_norm,
+        ReturnNormalizer(rl_cfg.num_envs, p.gamma, p.clip_reward, p.norm_return),
+        update=0,
+        global_step=0,
+        obs_dim=obs_dim,
+    )
+    session.save({**state, "bc": meta}, 0, rl_cfg.to_dict())
+    session.finish(bc_manifest(cfg, spec.name, learner.step))
     return {
         "run_dir": str(run.path),
         "algo": rl_cfg.algo,

@@ -46,7 +46,9 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.study import final_success, is_finished, smooth, success_area
+from ndp.il.config import data_task_name
 from ndp.runs import metrics_path, read_metrics, run_commits
+from ndp.runs.session import Manifest, read_manifest
 
 
 class MissingSeedsError(ValueError):
@@ -112,12 +114,13 @@ def find_run_dirs(paths: Sequence[str | Path]) -> list[Path]:
     return uniq
 
 
-def _il_task(data: dict[str, Any]) -> str:
-    src = data.get("source", "synthetic")
-    if src == "synthetic" and data.get("split") in ("paper", "auto"):
-        n = int(data.get("n_train", 10000))
-        return "synthetic" if n == 10000 else f"synthetic-{n}"
-    return str(src)
+def _manifest(path: Path) -> Manifest | None:
+    """The run's run.json, None when it has none (older runs) or it is unreadable (the other
+    records then identify the run)."""
+    try:
+        return read_manifest(path)
+    except ValueError:
+        return None
 
 
 def run_info(path: Path) -> RunInfo | None:
@@ -136,12 +139,15 @@ def run_info(path: Path) -> RunInfo | None:
         "il" if str(algo).startswith("il-") or is_il else "sb3" if algo == "sb3-ppo" else "rl"
     )
     task, seed = arm.get("task"), arm.get("seed")
-    if task is None or seed is None:
+    manifest = _manifest(path)
+    if (task is None or seed is None) and manifest is not None:
+        task, seed = manifest.task, manifest.seed  # what the run says it is (run.json)
+    if task is None or seed is None:  # runs written before run.json
         m = re.fullmatch(rf"(.+)-{re.escape(str(label))}-s(\d+)", path.name)
         if m:
             task, seed = m.group(1), int(m.group(2))
         elif kind == "il" and cfg:
-            task, seed = _il_task(cfg.get("data", {})), cfg.get("seed")
+            task, seed = data_task_name(cfg.get("data", {})), cfg.get("seed")
         elif cfg:
             task, seed = cfg.get("task"), cfg.get("seed")
     if task is None or seed is None:

@@ -11,7 +11,9 @@ true at any step of the episode and read when that env's episode ends (a callbac
 every env's infos into one list miscounts when several envs end at the same step). One row per
 rollout goes to ``<run_dir>/metrics.csv`` with the keys ``update``, ``global_step``,
 ``charts/episodes``, ``charts/success_any``, ``charts/episode_return`` (this package's metric
-names, docs/metrics.md), and ``done.json`` is written atomically at the end. A killed run is
+names, docs/metrics.md), and ``done.json`` is written atomically at the end. The run directory
+is made by the run session like every trainer's (:mod:`ndp.runs.session`: refused over another
+run, ``config.json`` (:class:`SB3RunConfig`), provenance, ``run.json``). A killed run is
 restarted from scratch (SB3 runs are short; nothing partial is reported as finished).
 
 Usage::
@@ -22,17 +24,16 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import csv
+import dataclasses
 import json
 import math
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from ndp.runs import METRICS_NAME
 
 FIELDS = (
     "update",
@@ -108,6 +109,28 @@ def make_sb3_ppo(venv: Any, seed: int, num_envs: int) -> Any:
     )
 
 
+@dataclass(frozen=True)
+class SB3RunConfig:
+    """The reference run's settings (its ``config.json``)."""
+
+    task: str
+    """The per-step task (``push-v3``)."""
+    steps: int
+    """Env steps (SB3's ``total_timesteps``)."""
+    seed: int = 0
+    """Seed of SB3, its envs and torch."""
+    num_envs: int = 4
+    """Envs of the ``DummyVecEnv``."""
+    horizon: int | None = None
+    """Episode length in env steps (None: the task's)."""
+    run_dir: str = ""
+    """Where the run is (never compared on a restart)."""
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> SB3RunConfig:
+        return cls(**d)
+
+
 def train_sb3(
     task: str, steps: int, seed: int, run_dir: Path, num_envs: int = 4, horizon: int | None = None
 ) -> Path:
@@ -119,10 +142,29 @@ def train_sb3(
     from ndp.io import atomic_write_text
     from ndp.rl.config import PPOConfig
     from ndp.rl.envs import resolve_task
+    from ndp.runs import MetricsLogger
+    from ndp.runs.session import Manifest, RunSession
 
     torch.set_num_threads(1)
     run_dir = Path(run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
+    cfg = SB3RunConfig(task, int(steps), int(seed), int(num_envs), horizon, str(run_dir))
+    session, _ = RunSession.open(
+        run_dir,
+        kind="sb3",
+        config=cfg,
+        config_from_dict=SB3RunConfig.from_dict,
+        safe_on_resume=(),
+        resume=False,
+        resumable=False,
+    )
+
+    def manifest(done: int) -> Manifest:
+        end = done >= steps
+        return Manifest(kind="sb3", task=task, label="sb3-ppo", seed=int(seed),
+                        budget=int(steps), unit="env_steps", done=int(done), finished=end,
+                        reason="budget" if end else "")  # fmt: skip
+
+    session.start(dataclasses.asdict(cfg), manifest(0))
     p = PPOConfig()
     h = resolve_task(task)
     venv = DummyVecEnv([lambda: h.make(horizon=horizon) for _ in range(num_envs)])
@@ -130,10 +172,7 @@ def train_sb3(
     venv = VecNormalize(venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
     model = make_sb3_ppo(venv, seed, num_envs)
     counter = EpisodeCounter(num_envs)
-    path = run_dir / METRICS_NAME
-    fh = path.open("w", newline="")
-    writer = csv.DictWriter(fh, fieldnames=FIELDS)
-    writer.writeheader()
+    log = MetricsLogger(run_dir, FIELDS, step="global_step", tensorboard=False)
     t0 = time.perf_counter()
 
     class _Log(BaseCallback):
@@ -149,7 +188,7 @@ def train_sb3(
         def _on_rollout_end(self) -> None:
             self.update += 1
             n, succ, ret = counter.pop()
-            writer.writerow(
+            log.log(
                 {
                     "update": self.update,
                     "global_step": self.num_timesteps,
@@ -159,12 +198,11 @@ def train_sb3(
                     "time/wall_s": time.perf_counter() - t0,
                 }
             )
-            fh.flush()
 
     try:
         model.learn(total_timesteps=steps, callback=_Log())
     finally:
-        fh.close()
+        log.close()
         venv.close()
     atomic_write_text(
         run_dir / "done.json",
@@ -180,6 +218,7 @@ def train_sb3(
         )
         + "\n",
     )
+    session.finish(manifest(int(model.num_timesteps)))
     return run_dir
 
 

@@ -187,6 +187,15 @@ def is_finished(run: Path, arm: Arm | None = None, kind: str | None = None) -> b
     kind = kind or (arm.kind if arm is not None else "rl")
     if kind == "il" and not (run / "eval.json").is_file():
         return False  # an imitation run counts once trained and evaluated
+    from ndp.runs.session import read_manifest
+
+    try:
+        manifest = read_manifest(run)
+    except ValueError:
+        manifest = None  # unreadable: the other records decide
+    if manifest is not None:
+        return manifest.finished  # what the run says (run.json, written by its session)
+    # runs written before run.json
     if (run / "done.json").is_file():
         return True
     ckpt = run / "checkpoint.pt"

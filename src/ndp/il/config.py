@@ -244,3 +244,14 @@ class TrainConfig:
             return cls(**d)
         except TypeError as exc:
             raise ValueError(f"config: {exc}") from None
+
+
+def data_task_name(data: dict[str, object]) -> str:
+    """The task name of an imitation run in tables and run.json, from its ``data`` config (as
+    in config.json): ``synthetic`` (the paper's 10,000 training digits), ``synthetic-<n>``
+    (another training size), else the source (``pendigits``, ``npz``)."""
+    src = str(data.get("source", "synthetic"))
+    if src == "synthetic" and data.get("split") in ("paper", "auto"):
+        n = int(str(data.get("n_train", 10000)))
+        return "synthetic" if n == 10000 else f"synthetic-{n}"
+    return src

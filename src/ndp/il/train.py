@@ -28,7 +28,14 @@ from typing import Any
 import numpy as np
 import torch
 
-from ndp.il.config import SAFE_ON_RESUME, SPLITS, DataConfig, ModelConfig, TrainConfig
+from ndp.il.config import (
+    SAFE_ON_RESUME,
+    SPLITS,
+    DataConfig,
+    ModelConfig,
+    TrainConfig,
+    data_task_name,
+)
 from ndp.il.data import (
     DigitData,
     load_npz,
@@ -364,7 +371,7 @@ def il_manifest(cfg: TrainConfig, epoch: int, early_stopped: bool = False) -> Ma
     finished = early_stopped or epoch >= cfg.epochs
     return Manifest(
         kind="il",
-        task=cfg.data.source,
+        task=data_task_name(cfg.as_dict()["data"]),
         label=cfg.model.kind,
         seed=int(cfg.seed),
         budget=int(cfg.epochs),

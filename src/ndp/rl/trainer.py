@@ -154,15 +154,15 @@ class Trainer:
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to continue: model, optimiser, normalisers, counters (the session
         adds the global RNG state and the config)."""
-        return {
-            "model": self.model.state_dict(),
-            "optimizer": self.opt.state_dict(),
-            "obs_norm": self.obs_norm.state_dict(),
-            "ret_norm": self.ret_norm.state_dict(),
-            "update": self.update,
-            "global_step": self.global_step,
-            "obs_dim": self.obs_dim,
-        }
+        return ppo_state(
+            self.model,
+            self.opt,
+            self.obs_norm,
+            self.ret_norm,
+            self.update,
+            self.global_step,
+            self.obs_dim,
+        )
 
     def load_state_dict(self, ckpt: dict[str, Any]) -> None:
         """Continue from a checkpoint (the session restores the global RNG state)."""
@@ -469,6 +469,29 @@ def _robot_state(
         np.asarray(y0, dtype=np.float64).reshape(n, -1),
         np.asarray(dy0, dtype=np.float64).reshape(n, -1),
     )
+
+
+def ppo_state(
+    model: torch.nn.Module,
+    opt: FlatAdam,
+    obs_norm: ObsNormalizer,
+    ret_norm: ReturnNormalizer,
+    update: int,
+    global_step: int,
+    obs_dim: int,
+) -> dict[str, Any]:
+    """The PPO checkpoint's learner state (the run session adds ``rng`` and ``config``): the one
+    layout :class:`Trainer` writes and reads, and behaviour cloning writes for a cloned policy
+    that ``ndp rl train --resume`` fine-tunes."""
+    return {
+        "model": model.state_dict(),
+        "optimizer": opt.state_dict(),
+        "obs_norm": obs_norm.state_dict(),
+        "ret_norm": ret_norm.state_dict(),
+        "update": int(update),
+        "global_step": int(global_step),
+        "obs_dim": int(obs_dim),
+    }
 
 
 def rl_manifest(cfg: TrainConfig, global_step: int, update: int = 0) -> Manifest:

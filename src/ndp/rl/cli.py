@@ -19,8 +19,8 @@ from typing import Any
 
 from ndp.rl.config import TrainConfig
 
-TRAIN_DESCRIPTION = (
-    "Train PPO / PPO-multi / NDP / Dyn-E (--algo dyne: docs/dyne.md). Unset NDP fields come "
+TRAIN_NOTES = (
+    "Unset NDP fields come "
     "from the per-task preset of the task table (ndp.envs.presets); the resolved config is "
     "saved as RUN_DIR/config.json. "
     "--resume RUN_DIR continues a killed run: the other options are then taken from its "
@@ -30,14 +30,32 @@ TRAIN_DESCRIPTION = (
 )
 
 
+def method_lines() -> list[str]:
+    """One line per registered method, ``name: description`` (from :data:`ndp.rl.methods.METHODS`,
+    the one list; help strings and ``ndp rl methods`` are generated from it)."""
+    from ndp.rl.methods import METHODS
+
+    return [f"{m.name}: {m.description}" for m in METHODS.values()]
+
+
+def train_description() -> str:
+    """``ndp rl train --help``'s description, the methods read from the registry."""
+    return "Train a policy with --algo one of: " + "; ".join(method_lines()) + ". " + TRAIN_NOTES
+
+
 def add_subparser(sub: Any) -> None:
     """Register ``rl`` with sub-commands ``train``, ``eval``, ``render`` and ``export``."""
-    rl = sub.add_parser("rl", help="reinforcement learning: PPO, PPO-multi, NDP and Dyn-E")
+    rl = sub.add_parser(
+        "rl", help="reinforcement learning: NDP and its baselines (ndp rl methods lists them)"
+    )
     rl_sub = rl.add_subparsers(dest="rl_command", metavar="SUBCOMMAND")
     rl_sub.required = True
 
     # listed here for `ndp rl --help`; the options are parsed by CONFIG_COMMANDS["rl train"]
     rl_sub.add_parser("train", help="train a policy (ndp rl train --help: every option)")
+
+    ms = rl_sub.add_parser("methods", help="list the registered methods (--algo values)")
+    ms.set_defaults(func=_cmd_methods)
 
     ev = rl_sub.add_parser("eval", help="success of a trained run over N episodes")
     ev.add_argument("run_dir", metavar="RUN_DIR")
@@ -127,7 +145,7 @@ def train_command(argv: list[str]) -> int:
                 saved = load_config(RunDir(resume_dir).config)
                 saved = dataclasses.replace(saved, run_dir=str(resume_dir))
                 cfg = parse_config(
-                    TrainConfig, rest, prog=prog, description=TRAIN_DESCRIPTION, default=saved
+                    TrainConfig, rest, prog=prog, description=train_description(), default=saved
                 )
                 changed = changed_fields(saved, cfg)
                 refused = [f for f in changed if f not in SAFE_ON_RESUME]
@@ -145,7 +163,7 @@ def train_command(argv: list[str]) -> int:
                     )
                     return 0
             else:
-                cfg = parse_config(TrainConfig, rest, prog=prog, description=TRAIN_DESCRIPTION)
+                cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description())
                 run_name = cfg.run_dir or f"runs/{cfg.task}-{cfg.algo}-s{cfg.seed}"
                 metrics = trainer().train(cfg, overwrite=overwrite)
     except FloatingPointError as exc:  # ndp.rl.trainer.TrainingDivergedError
@@ -160,6 +178,12 @@ def train_command(argv: list[str]) -> int:
 
 CONFIG_COMMANDS = {"rl train": train_command}
 """Commands whose options are a typed config (see ndp.cli)."""
+
+
+def _cmd_methods(args: argparse.Namespace) -> int:
+    for line in method_lines():
+        print(line)
+    return 0
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:

@@ -192,9 +192,8 @@ class TrainConfig:
     task: str = "reach-v3"
     """Task name (see ndp.envs.TASKS) or 'point-mass' (the toy task)."""
     algo: str = "ndp"
-    """Method: 'ndp', 'ppo', 'ppo-multi', 'dyne' (Dyn-E: TD3 in a learned action embedding),
-    or 'vices' / 'vices-pos' / 'vices-low-freq' (PPO on the torque-actuated variant of the task
-    under variable impedance control)."""
+    """Method: a name registered in ``ndp.rl.methods`` (this command's description and
+    ``ndp rl methods`` list them, a line each)."""
     steps: int = 500_000
     """Total env steps (sub-steps) to train for."""
     seed: int = 0

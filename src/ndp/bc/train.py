@@ -192,7 +192,7 @@ class CloningLearner:
 
 
 def bc_manifest(cfg: BCConfig, task: str, epoch: int) -> Any:
-    """The :class:`~ndp.runs.session.Manifest` of a cloning run at ``epoch``."""
+    """The :class:`ndp.runs.session.Manifest` of a cloning run at ``epoch``."""
     from ndp.runs.session import Manifest
 
     finished = epoch >= cfg.epochs

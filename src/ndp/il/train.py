@@ -97,7 +97,7 @@ DEFAULT_PENDIGITS = Path(__file__).resolve().parents[4] / "shared" / "data" / "p
 
 class NonFiniteLossError(TrainingDivergedError, ValueError):
     """Raised when the training loss becomes NaN or Inf; the last good checkpoint is kept (the
-    run session's :class:`~ndp.runs.session.TrainingDivergedError`, and a ValueError as
+    run session's :class:`ndp.runs.session.TrainingDivergedError`, and a ValueError as
     before)."""
 
 
@@ -367,7 +367,7 @@ class ImitationLearner:
 
 
 def il_manifest(cfg: TrainConfig, epoch: int, early_stopped: bool = False) -> Manifest:
-    """The :class:`~ndp.runs.session.Manifest` of an imitation run at ``epoch``."""
+    """The :class:`ndp.runs.session.Manifest` of an imitation run at ``epoch``."""
     finished = early_stopped or epoch >= cfg.epochs
     return Manifest(
         kind="il",

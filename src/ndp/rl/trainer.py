@@ -495,7 +495,7 @@ def ppo_state(
 
 
 def rl_manifest(cfg: TrainConfig, global_step: int, update: int = 0) -> Manifest:
-    """The :class:`~ndp.runs.session.Manifest` of a PPO / Dyn-E run at ``update``."""
+    """The :class:`ndp.runs.session.Manifest` of a PPO / Dyn-E run at ``update``."""
     finished = update >= cfg.num_updates
     return Manifest(
         kind="rl",

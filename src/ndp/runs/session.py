@@ -1,6 +1,6 @@
 """The run skeleton every trainer runs inside: what a run does that is not learning.
 
-A trainer is a :class:`Learner` (its state, one :meth:`~Learner.iterate` per update or epoch,
+A trainer is a :class:`Learner` (its state, one :meth:`Learner.iterate` per update or epoch,
 its own metrics); :class:`RunSession` owns the rest, written once:
 
 - create-or-resume: a new run refuses a directory that holds one (:meth:`RunDir.create`); a

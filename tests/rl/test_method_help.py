@@ -20,8 +20,9 @@ def test_a_newly_registered_method_appears_in_the_help_without_editing_it():
     register_method(Method("toy-help", "step", "a method registered by a test"))
     try:
         assert "toy-help: a method registered by a test" in method_lines()
-        assert "toy-help: a method registered by a test" in train_description()
     finally:
         del METHODS["toy-help"]
-    for name in METHODS:
-        assert f"{name}: " in train_description()
+    # the help names no method (it would go stale, and help imports nothing heavy); it points
+    # to the generated list
+    assert "ndp rl methods" in train_description()
+    assert not any(f"'{name}'" in train_description() for name in METHODS)

@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from ndp.experiments.run_kinds import REPORT_KIND, RUN_KINDS, run_kind
 from ndp.experiments.study import final_success, is_finished, smooth, success_area
 from ndp.il.config import data_task_name
 from ndp.runs import metrics_path, read_metrics, run_commits
@@ -135,24 +136,26 @@ def run_info(path: Path) -> RunInfo | None:
         label = str(cfg["model"].get("kind", "ndp"))
     if not label or not algo:
         return None
-    kind = arm.get("kind") or (
-        "il" if str(algo).startswith("il-") or is_il else "sb3" if algo == "sb3-ppo" else "rl"
-    )
-    task, seed = arm.get("task"), arm.get("seed")
     manifest = _manifest(path)
+    kind = arm.get("kind") or (manifest.kind if manifest is not None else None)
+    if kind not in RUN_KINDS:  # older runs, or a cloning run ("bc": an RL run once cloned)
+        kind = (
+            "il" if str(algo).startswith("il-") or is_il else "sb3" if algo == "sb3-ppo" else "rl"
+        )
+    task, seed = arm.get("task"), arm.get("seed")
     if (task is None or seed is None) and manifest is not None:
         task, seed = manifest.task, manifest.seed  # what the run says it is (run.json)
     if task is None or seed is None:  # runs written before run.json
         m = re.fullmatch(rf"(.+)-{re.escape(str(label))}-s(\d+)", path.name)
         if m:
             task, seed = m.group(1), int(m.group(2))
-        elif kind == "il" and cfg:
+        elif run_kind(kind).task_is_dataset and cfg:
             task, seed = data_task_name(cfg.get("data", {})), cfg.get("seed")
         elif cfg:
             task, seed = cfg.get("task"), cfg.get("seed")
     if task is None or seed is None:
         return None
-    steps = arm.get("steps") or (cfg.get("epochs") if kind == "il" else cfg.get("steps"))
+    steps = arm.get("steps") or cfg.get(run_kind(kind).budget_key)
     if not steps:
         return None
     info = RunInfo(path, str(task), str(label), str(algo), int(seed), int(steps), kind)
@@ -167,14 +170,14 @@ def _record_reaches_budget(info: RunInfo) -> bool:
     if not metrics_path(info.path).is_file():
         return False
     rows = read_metrics(info.path)
-    col = "epoch" if info.kind == "il" else "global_step"
+    col = run_kind(info.kind).progress_column
     last = rows[-1].get(col, 0) if rows else 0
     target = info.steps
     done = _json(info.path / "done.json") or {}
     if done.get("reason") == "early stop" and isinstance(done.get("epoch"), int):
         target = done["epoch"]  # stopped on its validation split before the maximum
     if not (rows and last >= target):
-        unit = "epoch" if info.kind == "il" else "env step"
+        unit = run_kind(info.kind).unit.removesuffix("s")
         info.problem = f"metrics.csv ends at {unit} {last:,.0f} of {info.steps:,}"
         return False
     return True
@@ -192,7 +195,7 @@ def _finished(info: RunInfo) -> bool:
                 return False
         # finished by its own account; the record must say so too (a cut metrics.csv does not)
         return _record_reaches_budget(info)
-    if info.kind == "il" and not (path / "eval.json").is_file():
+    if run_kind(info.kind).needs_eval and not (path / "eval.json").is_file():
         return False
     return _record_reaches_budget(info)
 
@@ -344,7 +347,7 @@ def build_cells(
     cells: dict[tuple[str, str], Cell] = {}
     by_kind: dict[str, list[RunInfo]] = {}
     for i in infos:
-        by_kind.setdefault("il" if i.kind == "il" else "rl", []).append(i)
+        by_kind.setdefault(REPORT_KIND[i.kind], []).append(i)
     for group in by_kind.values():
         # the order given (--tasks, --methods), else the order the runs were found in
         task_order = list(dict.fromkeys(i.task for i in group))
@@ -448,8 +451,8 @@ def report(
     cells, expected = build_cells(infos, seeds, tasks, methods)
     if any(c.missing for c in cells) and not allow_missing:
         raise MissingSeedsError(_missing_message(cells, expected))
-    rl_cells = [c for c in cells if c.kind != "il"]
-    il_cells = [c for c in cells if c.kind == "il"]
+    rl_cells = [c for c in cells if REPORT_KIND[c.kind] == "rl"]
+    il_cells = [c for c in cells if REPORT_KIND[c.kind] == "il"]
     top = max((i.steps for c in rl_cells for i in c.runs.values()), default=0)
     for b in budgets or ():
         if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b <= 0:
@@ -460,7 +463,7 @@ def report(
     for c in rl_cells:
         c.numbers = {s: rl_numbers(i, budgets) for s, i in c.runs.items()}
         for s_, i in c.runs.items():
-            ok = eval_episodes and i.kind == "rl"
+            ok = eval_episodes and run_kind(i.kind).evaluable
             c.numbers[s_]["det"] = det_success(i.path, eval_episodes) if ok else math.nan
     for c in il_cells:
         c.numbers = {s: il_numbers(i) for s, i in c.runs.items()}
@@ -532,7 +535,7 @@ def _csv_rows(
             "missing_seeds": " ".join(map(str, c.missing)),
             "budget": " ".join(sorted({str(i.steps) for i in c.runs.values()})),
         }
-        if c.kind == "il":
+        if REPORT_KIND[c.kind] == "il":
             keys = [("test_mse_px2", "mse"), ("test_dtw_px", "dtw")]
         else:
             keys = [(f"success_at_{b}", f"at:{b}") for b in budgets]

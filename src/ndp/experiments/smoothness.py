@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from ndp.experiments.run_kinds import run_kind
+
 
 def mean_squared_jerk(path: np.ndarray, dt: float) -> float:
     """Mean squared jerk of ``path`` [T, D] (or [T]) sampled every ``dt`` seconds (T >= 4).
@@ -188,7 +190,7 @@ def smoothness_of_runs(
     rows = []
     for path in find_run_dirs(paths):
         info = run_info(path)
-        if info is None or info.kind != "rl":
+        if info is None or not run_kind(info.kind).evaluable:
             continue
         if tasks is not None and info.task not in tasks:
             continue

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from ndp.experiments.run_kinds import run_kind
 from ndp.runs import metrics_path, read_metrics
 
 EXTERNAL_METHODS = ("sb3-ppo",)
@@ -73,8 +74,8 @@ class Arm:
             raise ValueError(f"algo: expected one of {', '.join(known)}, got {self.algo!r}")
         if not self.label or not all(c.isalnum() or c in "-_" for c in self.label):
             raise ValueError(f"label: expected letters, digits, '-' or '_', got {self.label!r}")
-        if self.algo == "sb3-ppo" and self.args:
-            raise ValueError("args: the 'sb3-ppo' arm takes no ndp options")
+        if self.args and not run_kind(self.kind).takes_options:
+            raise ValueError(f"args: the {self.algo!r} arm takes no ndp options")
 
     @property
     def kind(self) -> str:
@@ -132,7 +133,7 @@ def arm_conflict(run: Path, arm: Arm, steps: int, task: str | None = None,
     """Why ``run`` cannot hold this arm's run (another arm, budget, task or seed), or None."""
     budget = _config_budget(run, arm)
     if budget is not None and budget != steps:
-        unit = "epochs" if arm.kind == "il" else "env steps"
+        unit = run_kind(arm.kind).unit
         return (
             f"its config.json trains {budget:,} {unit} where this sweep has {steps:,}; a "
             "run is counted only at its own budget"
@@ -163,7 +164,7 @@ def _config_budget(run: Path, arm: Arm) -> int | None:
         return None
     if not isinstance(cfg, dict):
         return None
-    v = cfg.get("epochs" if arm.kind == "il" else "steps")
+    v = cfg.get(run_kind(arm.kind).budget_key)
     return int(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
 
 
@@ -185,8 +186,8 @@ def is_finished(run: Path, arm: Arm | None = None, kind: str | None = None) -> b
     ('rl', 'sb3', 'il') stands for the arm where only that is known."""
     run = Path(run)
     kind = kind or (arm.kind if arm is not None else "rl")
-    if kind == "il" and not (run / "eval.json").is_file():
-        return False  # an imitation run counts once trained and evaluated
+    if run_kind(kind).needs_eval and not (run / "eval.json").is_file():
+        return False  # e.g. an imitation run counts once trained and evaluated
     from ndp.runs.session import read_manifest
 
     try:
@@ -243,7 +244,8 @@ def prepare_run(run: Path, arm: Arm) -> None:
     """Before (re)starting a run: remove a partial log that nothing can resume from (an SB3 run,
     or a run killed before its first checkpoint), so the trainer starts it afresh."""
     log_file = metrics_path(run)
-    if log_file.is_file() and (arm.kind == "sb3" or not (run / "checkpoint.pt").is_file()):
+    resumable = run_kind(arm.kind).resumable
+    if log_file.is_file() and (not resumable or not (run / "checkpoint.pt").is_file()):
         log_file.unlink()
 
 

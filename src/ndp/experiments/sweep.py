@@ -52,6 +52,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
+from ndp.experiments.run_kinds import RUN_KINDS, config_class, run_kind
 from ndp.experiments.study import (
     EXTERNAL_METHODS,
     IL_METHODS,
@@ -820,7 +821,7 @@ def check_tasks(tasks: Sequence[str], kind: str = "rl") -> list[str]:
     the close matches."""
     out = []
     for t in tasks:
-        if kind == "il":
+        if run_kind(kind).task_is_dataset:
             il_data_args(t)
             out.append(t)
             continue
@@ -834,13 +835,7 @@ def check_tasks(tasks: Sequence[str], kind: str = "rl") -> list[str]:
 
 
 def _config_class(kind: str) -> type:
-    if kind == "il":
-        from ndp.il.cli import TrainCommand
-
-        return TrainCommand
-    from ndp.rl.config import TrainConfig
-
-    return TrainConfig
+    return config_class(run_kind(kind))
 
 
 def train_options(kind: str = "rl") -> dict[str, str]:
@@ -876,22 +871,9 @@ def train_options(kind: str = "rl") -> dict[str, str]:
     return out
 
 
-RESERVED = {
-    "rl": ("--task", "--algo", "--seed", "--steps", "--run-dir", "--resume", "--overwrite"),
-    "il": (
-        "--data",
-        "--split",
-        "--n-train",
-        "--model",
-        "--seed",
-        "--epochs",
-        "--run-dir",
-        "--out",
-        "--resume",
-        "--overwrite",
-    ),
-}
-"""Options the sweep sets itself (per run: task / data set, method, seed, budget, directory)."""
+RESERVED = {name: kind.reserved for name, kind in RUN_KINDS.items() if kind.takes_options}
+"""Options the sweep sets itself (per run: task / data set, method, seed, budget, directory;
+:attr:`ndp.experiments.run_kinds.RunKind.reserved`)."""
 
 
 class UnknownOptionError(ValueError):
@@ -914,10 +896,10 @@ def check_arms(arms: Sequence[Arm], tasks: Sequence[str] = (), study: str = "") 
     where = f"{study}: " if study else ""
     opts_cache: dict[str, dict[str, str]] = {}
     for arm in arms:
-        if arm.kind == "sb3":
+        if not run_kind(arm.kind).takes_options:
             continue
         opts = opts_cache.setdefault(arm.kind, train_options(arm.kind))
-        prog = "ndp il train" if arm.kind == "il" else "ndp rl train"
+        prog = run_kind(arm.kind).prog
         for name in _option_names(arm.args):
             if name in RESERVED[arm.kind]:
                 raise ValueError(
@@ -935,7 +917,7 @@ def check_arms(arms: Sequence[Arm], tasks: Sequence[str] = (), study: str = "") 
                     name,
                 )
     for arm in arms:
-        if arm.kind == "sb3":
+        if not run_kind(arm.kind).takes_options:
             continue
         for task in tasks or ("point-mass",):
             _parse_arm(arm, task)
@@ -1038,7 +1020,7 @@ def apply_overrides(
     for key, argvs in overrides:
         nxt = []
         for arm in out:
-            if arm.kind == "sb3":
+            if not run_kind(arm.kind).takes_options:
                 nxt.append(arm)
                 continue
             for argv in argvs:
@@ -1050,7 +1032,8 @@ def apply_overrides(
         out = nxt
     if extra:
         out = [
-            a if a.kind == "sb3" else dataclasses.replace(a, args=(*a.args, *extra)) for a in out
+            dataclasses.replace(a, args=(*a.args, *extra)) if run_kind(a.kind).takes_options else a
+            for a in out
         ]
     return out
 

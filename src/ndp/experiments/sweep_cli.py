@@ -21,6 +21,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ndp.experiments.run_kinds import run_kind
+
 SWEEP_DESCRIPTION = (
     "Run a grid of training runs: a named STUDY, or --tasks x --methods x --seeds x overrides "
     "(-o KEY=V1,V2: several values make a grid axis). Every run is an ordinary run directory "
@@ -42,7 +44,7 @@ def _study_epilog() -> str:
 
     lines = ["studies (docs/experiments.md):"]
     for s in STUDIES.values():
-        unit = "epochs" if s.kind == "il" else "env steps"
+        unit = run_kind(s.kind).unit
         lines.append(
             f"  {s.name:<12} {s.title} (default {s.steps:,} {unit}, seeds "
             f"{' '.join(map(str, s.seeds))})"
@@ -244,7 +246,7 @@ def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
         arms = [Arm(m, m) for m in methods]
         tasks = list(args.tasks)
         seeds = args.seeds if args.seeds is not None else [0]
-        steps = args.steps if args.steps is not None else (71 if kind == "il" else 300_000)
+        steps = args.steps if args.steps is not None else run_kind(kind).default_budget
         budgets = None
     if steps < 1:
         raise ValueError(f"--steps: expected a budget >= 1, got {steps}")
@@ -352,7 +354,7 @@ def sweep_command(argv: list[str]) -> int:
         from ndp.experiments.studies import get_study
 
         cmd = "ndp sweep " + shlex.join(argv)
-        unit = "epochs" if g["kind"] == "il" else "env steps"
+        unit = run_kind(g["kind"]).unit
         dirs = [j.run_dir for j in jobs if j.run_dir.is_dir()]
         out = report(
             dirs,
@@ -378,7 +380,7 @@ def _list_studies() -> int:
         print("  arms: " + ", ".join(f"{a.label} ({' '.join(a.args) or a.algo})" for a in keep))
         if pending:
             print("  not yet available: " + ", ".join(f"{a.label} ({why})" for a, why in pending))
-        unit = "epochs" if s.kind == "il" else "env steps"
+        unit = run_kind(s.kind).unit
         print(f"  seeds {' '.join(map(str, s.seeds))}, {s.steps:,} {unit} per run\n")
     return 0
 

@@ -39,8 +39,12 @@ def method_lines() -> list[str]:
 
 
 def train_description() -> str:
-    """``ndp rl train --help``'s description, the methods read from the registry."""
-    return "Train a policy with --algo one of: " + "; ".join(method_lines()) + ". " + TRAIN_NOTES
+    """``ndp rl train --help``'s description. It names no method: the list is the registry's
+    (``ndp rl methods``), which imports torch, and help imports nothing heavy."""
+    return (
+        "Train a policy with --algo a registered method (ndp rl methods lists them, a line "
+        "each). " + TRAIN_NOTES
+    )
 
 
 def add_subparser(sub: Any) -> None:

@@ -36,7 +36,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ndp.experiments.study import Arm, add_study_arguments, run_study
+from ndp.experiments.grid import add_study_arguments, run_study
+from ndp.experiments.study import Arm
 
 COMMANDED = ("--dmp-state", "commanded", "--dmp-velocity", "zero")
 """The frame the handicap fixes were measured from (the default before the per-task frame)."""

@@ -22,7 +22,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ndp.experiments.study import Arm, add_study_arguments, run_study
+from ndp.experiments.grid import add_study_arguments, run_study
+from ndp.experiments.study import Arm
 
 TASKS = ["reach-v3", "push-v3", "window-close-v3", "drawer-open-v3", "button-press-v3"]
 

@@ -389,9 +389,9 @@ def test_overrides_make_grid_axes():
 
 
 def test_run_grid_of_the_benchmarks_runs_on_the_sweep(tmp_path, monkeypatch):
-    """ndp.experiments.study.run_grid (benchmarks/ndp_ablation.py, ppo_vs_sb3.py) goes through
+    """ndp.experiments.grid.run_grid (benchmarks/ndp_ablation.py, ppo_vs_sb3.py) goes through
     the sweep: every run once, seed-major, a failure raised after the others finished."""
-    from ndp.experiments.study import run_grid
+    from ndp.experiments.grid import run_grid
 
     ran = []
 

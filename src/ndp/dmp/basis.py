@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import torch
 
-from ndp.dmp.config import DMPConfig
+if TYPE_CHECKING:  # annotations only: config validates kinds against this module's table
+    from ndp.dmp.config import DMPConfig
 
 RBF_FUNCTIONS: dict[str, Callable[[torch.Tensor], torch.Tensor]] = {
     "gaussian": lambda he: torch.exp(-he),

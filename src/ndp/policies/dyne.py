@@ -25,8 +25,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from ndp.policies.base import ActionHead
 from ndp.policies.distributions import SubActionGaussian
-from ndp.policies.heads import ActionHead
 
 HIDDEN = 400
 """Width of every embedding network's hidden layers (the original's)."""

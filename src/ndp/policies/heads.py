@@ -37,25 +37,8 @@ from torch import nn
 
 from ndp.dmp import DMPConfig, DMPLayer
 from ndp.dmp.integrate import recording
-from ndp.policies.distributions import ParamGaussian, PolicyDistribution, SubActionGaussian
-
-
-class ActionHead(nn.Module):
-    """Base class. Subclasses set ``k``, ``action_dim``, ``n_params`` and ``needs_robot_state``."""
-
-    k: int
-    action_dim: int
-    n_params: int
-    needs_robot_state: bool = False
-
-    def distribution(
-        self,
-        raw: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
-    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
-        """Map the actor output [B, P] to a distribution over [B, k, A] plus diagnostics."""
-        raise NotImplementedError
+from ndp.policies.base import ActionHead
+from ndp.policies.distributions import ParamGaussian, SubActionGaussian
 
 
 class StepHead(ActionHead):

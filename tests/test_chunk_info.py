@@ -56,3 +56,24 @@ def test_no_reader_spells_the_keys_itself():
             if isinstance(node, ast.Constant) and node.value in keys and id(node) not in docs:
                 bad.append(f"{rel}:{node.lineno}")
     assert not bad, bad
+
+
+def test_the_step_info_is_the_schema_key_by_key_with_its_shapes_and_dtypes():
+    """ChunkInfo is the one declaration of the step info: the env builds its info from it, and
+    the worker vector env's shared arrays come from info_schema (the same shapes and dtypes)."""
+    from ndp.chunk_info import CHUNK_INFO_KEYS, info_schema
+
+    env = ndp.make_env("push-v3", k=5)
+    env.reset(seed=0)
+    *_, info = env.step(np.zeros((5, 4)))
+    env.close()
+    assert tuple(info) == CHUNK_INFO_KEYS
+    schema = info_schema(5, 4)
+    for key, (shape, dtype) in schema.items():
+        value = np.asarray(info[key])
+        assert value.shape == shape, key
+        assert np.can_cast(value.dtype, dtype, "same_kind"), (key, value.dtype, dtype)
+    assert schema["robot_pos"][0] == (6, 4) and schema["n_substeps"] == ((), np.int64)
+    from ndp.envs import vector
+
+    assert vector.info_schema is info_schema  # the vector env derives its arrays from it

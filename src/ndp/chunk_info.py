@@ -1,5 +1,6 @@
-"""The protocol between the chunked env and everything that reads its ``info``: the keys of
-the DMP start, in one place.
+"""The protocol between the chunked env and everything that reads its ``info``: the step
+info's schema (:class:`ChunkInfo`, from which the vector envs derive their shared arrays,
+:func:`info_schema`) and the keys of the DMP start, in one place.
 
 :class:`ndp.envs.ChunkedEnv` reports the robot state a DMP can start from in two frames
 (docs/envs.md): the **measured** state (``dmp_y0`` / ``dmp_dy0``: the robot as MuJoCo has it)
@@ -12,9 +13,85 @@ are named nowhere else. This module imports nothing heavy (no gymnasium, no torc
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+
+def _f(shape: tuple[str, ...], dtype: Any, doc: str) -> dict[str, Any]:
+    """A :class:`ChunkInfo` field's metadata: its per-env shape in the symbols ``k``
+    (sub-steps), ``k+1`` and ``D`` (DMP DoF), its dtype and what it is."""
+    return {"shape": shape, "dtype": dtype, "doc": doc}
+
+
+@dataclass(frozen=True)
+class ChunkInfo:
+    """The info of one :class:`ndp.envs.ChunkedEnv` step, key by key (``as_dict()`` is the
+    gymnasium info dict; units physical; k sub-steps, D DMP DoF)."""
+
+    sub_rewards: np.ndarray = field(
+        metadata=_f(("k",), np.float64, "sub-step rewards, stale-world rule applied")
+    )
+    sub_rewards_live: np.ndarray = field(
+        metadata=_f(("k",), np.float64, "sub-step rewards of the live world")
+    )
+    sub_mask: np.ndarray = field(metadata=_f(("k",), np.float64, "1 for the sub-steps that ran"))
+    sub_success: np.ndarray = field(
+        metadata=_f(("k",), np.float64, "the task's success flag per sub-step")
+    )
+    success: bool = field(metadata=_f((), np.bool_, "success at the decision's last sub-step"))
+    success_decision: bool = field(
+        metadata=_f((), np.bool_, "success at any sub-step of the decision")
+    )
+    success_any: bool = field(
+        metadata=_f((), np.bool_, "success at any step of the episode so far")
+    )
+    robot_pos: np.ndarray = field(
+        metadata=_f(("k+1", "D"), np.float64, "measured state before and after each sub-step")
+    )
+    robot_vel: np.ndarray = field(metadata=_f(("k+1", "D"), np.float64, "its velocity"))
+    dmp_y0: np.ndarray = field(
+        metadata=_f(("D",), np.float64, "measured DMP start of the next decision")
+    )
+    dmp_dy0: np.ndarray = field(metadata=_f(("D",), np.float64, "its velocity"))
+    cmd_y0: np.ndarray = field(
+        metadata=_f(("D",), np.float64, "commanded DMP start of the next decision")
+    )
+    cmd_dy0: np.ndarray = field(metadata=_f(("D",), np.float64, "its velocity"))
+    n_substeps: int = field(
+        metadata=_f((), np.int64, "sub-steps that ran (< k when the episode ended)")
+    )
+    sim_unstable: bool = field(
+        metadata=_f((), np.bool_, "the simulator became unstable (episode truncated)")
+    )
+    ctrl_gains_clipped: int = field(metadata=_f((), np.int64, "torque tasks: gain entries clipped"))
+    ctrl_torque_saturated: int = field(
+        metadata=_f((), np.int64, "torque tasks: saturated torque entries")
+    )
+    ctrl_nonfinite: int = field(
+        metadata=_f((), np.int64, "torque tasks: non-finite torques replaced")
+    )
+
+    def as_dict(self) -> dict[str, Any]:
+        """The gymnasium info dict (the same objects, not copies)."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+
+CHUNK_INFO_KEYS = tuple(f.name for f in dataclasses.fields(ChunkInfo))
+"""Every key of a chunked step's info, in order."""
+
+
+def info_schema(k: int, dof: int) -> dict[str, tuple[tuple[int, ...], Any]]:
+    """Key -> (per-env shape, dtype) of :class:`ChunkInfo` for ``k`` sub-steps and ``dof`` DMP
+    DoF (the shared arrays of :class:`ndp.envs.vector.WorkerVectorEnv`)."""
+    size = {"k": int(k), "k+1": int(k) + 1, "D": int(dof)}
+    return {
+        f.name: (tuple(size[s] for s in f.metadata["shape"]), f.metadata["dtype"])
+        for f in dataclasses.fields(ChunkInfo)
+    }
+
 
 DMP_FRAMES = ("commanded", "measured")
 """The frames a DMP can start from (``PolicyConfig.dmp_state``)."""

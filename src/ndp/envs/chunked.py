@@ -24,6 +24,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from ndp.chunk_info import ChunkInfo
 from ndp.envs.base import CTRL_INFO
 
 
@@ -175,22 +176,22 @@ class ChunkedEnv(gym.Wrapper):
         cpos, cvel = (np.asarray(x, dtype=np.float64) for x in self._command_state())
         success_decision = bool(sub_succ[:n].any())
         self._success_any = self._success_any or success_decision
-        out = {
-            "sub_rewards": sub_r,
-            "sub_rewards_live": sub_live,
-            "sub_mask": mask,
-            "sub_success": sub_succ,
-            "success": bool(sub_succ[n - 1]),
-            "success_decision": success_decision,
-            "success_any": self._success_any,
-            "robot_pos": rpos,
-            "robot_vel": rvel,
-            "dmp_y0": rpos[n].copy(),
-            "dmp_dy0": rvel[n].copy(),
-            "cmd_y0": cpos,
-            "cmd_dy0": cvel,
-            "n_substeps": n,
-            "sim_unstable": unstable,
+        out = ChunkInfo(
+            sub_rewards=sub_r,
+            sub_rewards_live=sub_live,
+            sub_mask=mask,
+            sub_success=sub_succ,
+            success=bool(sub_succ[n - 1]),
+            success_decision=success_decision,
+            success_any=self._success_any,
+            robot_pos=rpos,
+            robot_vel=rvel,
+            dmp_y0=rpos[n].copy(),
+            dmp_dy0=rvel[n].copy(),
+            cmd_y0=cpos,
+            cmd_dy0=cvel,
+            n_substeps=n,
+            sim_unstable=unstable,
             **ctrl,
-        }
+        ).as_dict()
         return obs, float(sub_r.sum()), bool(terminated), bool(truncated), out

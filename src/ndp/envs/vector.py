@@ -30,34 +30,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ndp.chunk_info import info_schema  # the step info's arrays, from its schema
+
 
 class WorkerError(RuntimeError):
     """An env worker failed or died."""
-
-
-def info_schema(k: int, dof: int) -> dict[str, tuple[tuple[int, ...], type]]:
-    """Key -> (per-env shape, dtype) of :class:`ndp.envs.ChunkedEnv`'s step info."""
-    f, b = np.float64, np.bool_
-    return {
-        "sub_rewards": ((k,), f),
-        "sub_rewards_live": ((k,), f),
-        "sub_mask": ((k,), f),
-        "sub_success": ((k,), f),
-        "success": ((), b),
-        "success_decision": ((), b),
-        "success_any": ((), b),
-        "robot_pos": ((k + 1, dof), f),
-        "robot_vel": ((k + 1, dof), f),
-        "dmp_y0": ((dof,), f),
-        "dmp_dy0": ((dof,), f),
-        "cmd_y0": ((dof,), f),
-        "cmd_dy0": ((dof,), f),
-        "n_substeps": ((), np.int64),
-        "sim_unstable": ((), b),
-        "ctrl_gains_clipped": ((), np.int64),
-        "ctrl_torque_saturated": ((), np.int64),
-        "ctrl_nonfinite": ((), np.int64),
-    }
 
 
 class _Shared:

@@ -19,6 +19,8 @@ from ndp.cli import main
 from ndp.experiments import sweep as sw
 from ndp.experiments.studies import STUDIES, get_study
 from ndp.experiments.study import Arm, il_data_args
+from ndp.experiments.sweep import driver as sw_driver
+from ndp.experiments.sweep import runner as sw_runner
 
 # two updates of 512 env steps per run (NDP: 520, k = 5): a few seconds each, mostly start-up
 TINY = ["--tasks", "point-mass", "--steps", "1024", "-o", "steps_per_update=512"]
@@ -204,9 +206,9 @@ def test_failed_run_is_retried_once_then_reported(tmp_path, monkeypatch, capsys)
 
 def test_a_locked_run_is_not_trained_twice(tmp_path):
     (job,) = sw.make_jobs(["point-mass"], [Arm("ppo", "ppo")], [0], 512, tmp_path)
-    held = sw._RunLock.take(job.run_dir)
+    held = sw_runner._RunLock.take(job.run_dir)
     try:
-        assert isinstance(held, sw._RunLock)
+        assert isinstance(held, sw_runner._RunLock)
         out = sw.execute(job)
         assert out.status == "busy" and "being trained by pid" in out.error
         assert sw.job_state(job) == "running"
@@ -220,12 +222,12 @@ def test_a_sweep_waits_for_a_run_another_process_trains_then_takes_it_over(
 ):
     """Two sweeps over one directory: a run held by another process is polled after this
     sweep's own runs; when that process goes away unfinished, this sweep continues it."""
-    monkeypatch.setattr(sw, "BUSY_POLL_S", 0.2)
+    monkeypatch.setattr(sw_driver, "BUSY_POLL_S", 0.2)  # where the driver reads it
     held_job, free_job = sw.make_jobs(
         ["point-mass"], [Arm("ppo", "ppo")], [0, 1], 512, tmp_path, vector="sync"
     )
-    held = sw._RunLock.take(held_job.run_dir)
-    assert isinstance(held, sw._RunLock)
+    held = sw_runner._RunLock.take(held_job.run_dir)
+    assert isinstance(held, sw_runner._RunLock)
     released = threading.Timer(3.0, held.close)  # "the other sweep" dies after 3 s
     released.start()
     try:
@@ -244,7 +246,7 @@ def test_a_sweep_waits_for_a_run_another_process_trains_then_takes_it_over(
 
 def test_no_wait_busy_reports_the_run_as_busy_not_failed(tmp_path, capsys):
     (job,) = sw.make_jobs(["point-mass"], [Arm("ppo", "ppo")], [0], 512, tmp_path)
-    held = sw._RunLock.take(job.run_dir)
+    held = sw_runner._RunLock.take(job.run_dir)
     try:
         res = sw.run_sweep([job], workers=1, wait_busy=False)
     finally:
@@ -461,6 +463,6 @@ def test_a_failed_run_shows_the_trainers_reason_not_the_parser_box(tmp_path):
         "│ For full helptext, see ndp rl train --help │\n"
         "╰────────────────────────────────╯\n"
     )
-    tail = sw._log_tail(log, 0)
+    tail = sw_runner._log_tail(log, 0)
     assert "Error parsing --lr: could not convert string to float: 'abc'" in tail
     assert "╭" not in tail and "│" not in tail

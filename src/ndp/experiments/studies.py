@@ -267,6 +267,34 @@ RELEASE_CONDITIONS = (
 """The conditions of the release-conditions study, each a method -> arm map over shared runs."""
 
 
+RELEASE_1M_TASKS = ("push-v3", "throw")
+"""The 1M-step stage of the release-conditions study: a Meta-World task and a Jaco task."""
+
+
+def _release_1m_arms() -> tuple[ArmSpec, ...]:
+    """Fair arms of the three methods, and NDP / PPO-multi on one fixed goal per run (v2
+    rewards: Throw has no v1 reward, and the 300k screen isolates the goals as the condition
+    that moves NDP against PPO)."""
+    fair = tuple(ArmSpec(m, m, (), "fair: v2 rewards, random goals") for m in RELEASE_METHODS)
+    fixed = tuple(
+        ArmSpec(m + "-fixed", m, RELEASE_FIXED, "v2 rewards, one fixed goal per run")
+        for m in ("ndp", "ppo-multi")
+    )
+    return fair + fixed
+
+
+RELEASE_1M_CONDITIONS = (
+    Condition("fair", "v2 rewards, random goals for every method (our default)",
+              tuple((m, m) for m in RELEASE_METHODS)),
+    Condition("release-goals",
+              "the release's goal condition alone: fixed goals for NDP and PPO-multi, random "
+              "goals for PPO (v2 rewards)",
+              (("ndp", "ndp-fixed"), ("ppo-multi", "ppo-multi-fixed"), ("ppo", "ppo")),
+              True),
+)  # fmt: skip
+"""The conditions of release-goals-1m (release-goals is UNEQUAL on purpose, and labelled so)."""
+
+
 DIGITS_TASKS = ("pendigits", "synthetic-300", "synthetic-1000", "synthetic-3000", "synthetic")
 
 
@@ -365,6 +393,23 @@ STUDIES: dict[str, Study] = {
             arms=_release_arms,
             steps=300_000,
             conditions=RELEASE_CONDITIONS,
+        ),
+        Study(
+            name="release-goals-1m",
+            title="The release's goal condition at 1M env steps: NDP vs PPO-multi vs PPO",
+            doc=(
+                "push-v3 and throw x NDP, PPO-multi, PPO at 1M env steps (3.3x the screen), "
+                "under two conditions that share the PPO runs: fair (v2 rewards, random goals "
+                "for every method) and release-goals (one fixed goal per run for NDP and "
+                "PPO-multi, random goals for PPO: the release's UNEQUAL condition, reproduced "
+                "on purpose and labelled so; v2 rewards, since Throw has no v1 reward). It asks "
+                "whether the 300k screen's reading (only unequal goals put NDP ahead of PPO) "
+                "holds with a larger budget. Report with --conditions."
+            ),
+            tasks=lambda: RELEASE_1M_TASKS,
+            arms=_release_1m_arms,
+            steps=1_000_000,
+            conditions=RELEASE_1M_CONDITIONS,
         ),
         Study(
             name="digits-data",

@@ -324,8 +324,21 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "ablations",
         "digits-data",
         "release-conditions",
+        "release-goals-1m",
         "digits-converged",
     }
+    for name in ("release-conditions", "release-goals-1m"):  # every condition's arms exist
+        st = get_study(name)
+        arms = {a.label: a for a in st.arm_specs()}
+        sw.check_arms([a.arm() for a in arms.values()], list(st.task_list()), name)
+        for cond in st.conditions:
+            assert [m for m, _ in cond.methods] == ["ndp", "ppo-multi", "ppo"]
+            assert all(lb in arms and arms[lb].algo == m for m, lb in cond.methods)
+        assert [c.name for c in st.conditions if c.unequal] == ["release-goals"]
+    g1m = get_study("release-goals-1m")
+    assert g1m.steps == 1_000_000 and g1m.task_list() == ("push-v3", "throw")
+    assert dict(g1m.conditions[1].methods) == {"ndp": "ndp-fixed", "ppo-multi": "ppo-multi-fixed",
+                                               "ppo": "ppo"}  # fmt: skip
     rc = get_study("release-conditions")
     arms = {a.label: a for a in rc.arm_specs()}
     assert len(arms) == 12 and rc.task_list() == ("push-v3", "soccer-v3", "faucet-open-v3")

@@ -61,6 +61,7 @@ from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.progress import TrainProgress, episode_charts, last_update
 from ndp.rl.trainer import rl_manifest
 from ndp.runs.session import (
+    CountsUpdates,
     RunSession,
     TrainingDivergedError,
     checkpoint_due,
@@ -290,7 +291,7 @@ def _soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
 
 
 # --------------------------------------------------------------------------- learner
-class DyneLearner:
+class DyneLearner(CountsUpdates):
     """Dyn-E on the shared run infrastructure (see the module docstring).
 
     Args:
@@ -364,16 +365,6 @@ class DyneLearner:
         self._state = _robot_state(info, self.E)
 
     # ----------------------------------------------------------------------- state
-    @property
-    def step(self) -> int:
-        """Iterations done (the :class:`ndp.runs.session.Learner` counter)."""
-        return self.update
-
-    @property
-    def last_ckpt_update(self) -> int | None:
-        """The iteration of the last good checkpoint (None: none yet)."""
-        return self.session.last_saved
-
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to continue (the session adds the global RNG state and config)."""
         return {

@@ -55,6 +55,7 @@ from ndp.rl.ppo import (
 from ndp.rl.progress import TrainProgress, episode_charts, last_update
 from ndp.runs import RunDir
 from ndp.runs.session import (
+    CountsUpdates,
     Manifest,
     RunSession,
     TrainingDivergedError,
@@ -67,7 +68,7 @@ from ndp.runs.session import (
 __all__ = ["Trainer", "TrainingDivergedError", "make_learner", "resume", "train"]
 
 
-class Trainer:
+class Trainer(CountsUpdates):
     """PPO over chunked decisions; the method is only the actor-critic's action head.
 
     Args:
@@ -141,16 +142,6 @@ class Trainer:
         self._y0, self._dy0 = _robot_state(info, cfg.num_envs, cfg.policy.dmp_state)
 
     # ----------------------------------------------------------------------- state
-    @property
-    def step(self) -> int:
-        """Updates done (the :class:`ndp.runs.session.Learner` counter)."""
-        return self.update
-
-    @property
-    def last_ckpt_update(self) -> int | None:
-        """The update of the last good checkpoint (None: none yet)."""
-        return self.session.last_saved
-
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to continue: model, optimiser, normalisers, counters (the session
         adds the global RNG state and the config)."""

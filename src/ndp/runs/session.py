@@ -178,6 +178,24 @@ class Learner(Protocol):
         ...
 
 
+class CountsUpdates:
+    """Mixin of RL learners that count ``update`` and keep a :class:`RunSession` as
+    ``session``: the :class:`Learner` counter and the last good checkpoint's update."""
+
+    session: RunSession
+    update: int
+
+    @property
+    def step(self) -> int:
+        """Updates done (the :class:`Learner` counter)."""
+        return self.update
+
+    @property
+    def last_ckpt_update(self) -> int | None:
+        """The update of the last good checkpoint (None: none yet)."""
+        return self.session.last_saved
+
+
 class RunSession:
     """One run directory's session: create-or-resume, checkpoints, divergence, manifest.
 

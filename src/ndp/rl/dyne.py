@@ -54,20 +54,18 @@ from ndp.nets.mlp import MLP
 from ndp.policies import build_actor_critic
 from ndp.policies.dyne import ActionDecoder, DyneHead, SequenceEmbedding
 from ndp.rl import envs as rl_envs
-from ndp.rl.config import SAFE_ON_RESUME, DyneConfig, TrainConfig
+from ndp.rl.config import DyneConfig, TrainConfig
 from ndp.rl.logger import METRICS
 from ndp.rl.methods import DYNE_METRICS
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.progress import TrainProgress, episode_charts, last_update
-from ndp.rl.trainer import rl_manifest
+from ndp.rl.trainer import open_rl_session, rl_manifest
 from ndp.runs.session import (
     CountsUpdates,
-    RunSession,
     TrainingDivergedError,
     checkpoint_due,
     drive,
     nonfinite_parameter,
-    seed_everything,
 )
 
 DEFAULT_EXPLORE_STEPS = 50_000
@@ -304,18 +302,10 @@ class DyneLearner(CountsUpdates):
         cfg = resolve_dyne_config(cfg)
         check_budget(cfg)  # before any env is built
         self.cfg, self.spec = cfg, task.spec
-        self.session, ckpt = RunSession.open(
-            cfg.run_dir or ".",
-            kind="rl",
-            config=cfg,
-            config_from_dict=TrainConfig.from_dict,
-            safe_on_resume=SAFE_ON_RESUME,
-            resume=resume,
-            hint="Try smaller --actor-lr / --critic-lr or check the task's reward.",
+        self.session, ckpt = open_rl_session(
+            cfg, resume, "Try smaller --actor-lr / --critic-lr or check the task's reward."
         )
         self.run = self.session.run
-        torch.set_num_threads(cfg.torch_threads)
-        seed_everything(cfg.seed)
         self.rng = np.random.default_rng(cfg.seed)
         self.gen = torch.Generator().manual_seed(cfg.seed)
 

@@ -84,22 +84,14 @@ class Trainer(CountsUpdates):
         self.cfg = cfg
         self.spec = task.spec
         self.run_dir = Path(cfg.run_dir or ".")
-        self.session, ckpt = RunSession.open(
-            self.run_dir,
-            kind="rl",
-            config=cfg,
-            config_from_dict=TrainConfig.from_dict,
-            safe_on_resume=SAFE_ON_RESUME,
-            resume=resume,
-            hint="Try a smaller learning rate or check the task's reward / actions.",
+        self.session, ckpt = open_rl_session(
+            cfg, resume, "Try a smaller learning rate or check the task's reward / actions."
         )
         self.run = self.session.run
         self.ckpt_path = self.run.checkpoint
         if ckpt is not None:
             check_budget_not_below(int(ckpt["update"]), cfg)
         say_budget(cfg)
-        torch.set_num_threads(cfg.torch_threads)
-        seed_everything(cfg.seed)
 
         self.k = cfg.k
         self.num_envs = cfg.num_envs
@@ -460,6 +452,26 @@ def _robot_state(
         np.asarray(y0, dtype=np.float64).reshape(n, -1),
         np.asarray(dy0, dtype=np.float64).reshape(n, -1),
     )
+
+
+def open_rl_session(
+    cfg: TrainConfig, resume: bool, hint: str
+) -> tuple[RunSession, dict[str, Any] | None]:
+    """The run session of an RL learner (PPO, Dyn-E, a registered learner): create or resume
+    ``cfg.run_dir`` under the RL resume rule (:data:`SAFE_ON_RESUME`), then set the torch
+    threads and seed every generator. Returns the session and the checkpoint (None: new run)."""
+    session, ckpt = RunSession.open(
+        cfg.run_dir or ".",
+        kind="rl",
+        config=cfg,
+        config_from_dict=TrainConfig.from_dict,
+        safe_on_resume=SAFE_ON_RESUME,
+        resume=resume,
+        hint=hint,
+    )
+    torch.set_num_threads(cfg.torch_threads)
+    seed_everything(cfg.seed)
+    return session, ckpt
 
 
 def ppo_state(

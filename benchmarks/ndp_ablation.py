@@ -37,61 +37,12 @@ import argparse
 import sys
 
 from ndp.experiments.grid import add_study_arguments, run_study
+from ndp.experiments.studies import get_study
 from ndp.experiments.study import Arm
 
-COMMANDED = ("--dmp-state", "commanded", "--dmp-velocity", "zero")
-"""The frame the handicap fixes were measured from (the default before the per-task frame)."""
-
-ARMS = [
-    Arm("ndp", "ndp", (), "default NDP head"),
-    Arm("ppo", "ppo", (), "PPO, one action per step"),
-    Arm("ppo-multi", "ppo-multi", (), "PPO-multi, k raw actions per decision"),
-    Arm("ndp-commanded", "ndp", COMMANDED, "commanded frame at rest"),
-    Arm("ndp-meanclip", "ndp", (*COMMANDED, "--mean-clip"), "means clipped before the noise"),
-    Arm("ndp-goalforcing", "ndp", (*COMMANDED, "--forcing", "goal"), "f proportional to (g - y0)"),
-    Arm("ndp-gs1", "ndp", (*COMMANDED, "--goal-scale", "1"), "goal bound = k-step reach"),
-    Arm(
-        "ndp-gripdmp",
-        "ndp",
-        (*COMMANDED, "--absolute-mode", "dmp"),
-        "gripper DMP from the sampled command",
-    ),
-    Arm(
-        "ndp-velstate",
-        "ndp",
-        ("--dmp-state", "commanded", "--dmp-velocity", "state"),
-        "commanded frame starting with its velocity",
-    ),
-    Arm("ndp-paramnoise", "ndp", (*COMMANDED, "--param-noise"), "parameter-space exploration"),
-    Arm(
-        "ndp-v0",
-        "ndp",
-        (
-            "--mean-clip",
-            "--forcing",
-            "goal",
-            "--goal-scale",
-            "1",
-            "--absolute-mode",
-            "dmp",
-            "--dmp-state",
-            "measured",
-            "--dmp-velocity",
-            "state",
-        ),
-        "every fix off (first release's head)",
-    ),
-]
-"""The default arms (in this order)."""
-
-EXTRA_ARMS = [
-    Arm(
-        "ndp-measured",
-        "ndp",
-        ("--dmp-state", "measured", "--dmp-velocity", "state"),
-        "DMP from the measured robot and its velocity (= ndp on Meta-World)",
-    ),
-]
+ARMS = [a.arm() for a in get_study("ndp-head-ablation").arm_specs() if a.in_default]
+"""The default arms (in this order): the named study ``ndp-head-ablation``'s."""
+EXTRA_ARMS = [a.arm() for a in get_study("ndp-head-ablation").arm_specs() if not a.in_default]
 """Arms run only when named with --arms."""
 
 

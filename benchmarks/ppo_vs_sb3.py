@@ -23,9 +23,10 @@ import argparse
 import sys
 
 from ndp.experiments.grid import add_study_arguments, run_study
+from ndp.experiments.studies import get_study
 from ndp.experiments.study import Arm
 
-TASKS = ["reach-v3", "push-v3", "window-close-v3", "drawer-open-v3", "button-press-v3"]
+TASKS = list(get_study("ppo-vs-sb3").task_list())  # the named study ppo-vs-sb3
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,10 +35,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--label", default="ppo", help="label of our PPO arm (with extra options)")
     add_study_arguments(p, "runs/ppo_vs_sb3", "docs/results/ppo_vs_sb3", 150_000)
     args = p.parse_args(argv)
-    arms = [
-        Arm(args.label, "ppo", tuple(args.extra), "this package's PPO (k = 1)"),
-        Arm("sb3-ppo", "sb3-ppo", (), "Stable-Baselines3 2.x PPO"),
-    ]
+    ours, sb3 = (a.arm() for a in get_study("ppo-vs-sb3").arm_specs())
+    arms = [Arm(args.label, ours.algo, tuple(args.extra), ours.note), sb3]
     cmd = "python benchmarks/ppo_vs_sb3.py " + " ".join(argv if argv is not None else sys.argv[1:])
     intro = [f"Our PPO options: `{' '.join(args.extra) or '(defaults)'}`.", ""]
     run_study(args, args.tasks, arms, "Our PPO vs SB3 PPO", intro, cmd)

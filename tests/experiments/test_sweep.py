@@ -326,7 +326,12 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "release-conditions",
         "release-goals-1m",
         "digits-converged",
+        "ndp-head-ablation",
+        "ppo-vs-sb3",
     }
+    for name in ("ndp-head-ablation", "ppo-vs-sb3"):  # the benchmarks' grids, as named studies
+        st = get_study(name)
+        sw.check_arms([a.arm() for a in st.arm_specs()], list(st.task_list()), name)
     for name in ("release-conditions", "release-goals-1m"):  # every condition's arms exist
         st = get_study(name)
         arms = {a.label: a for a in st.arm_specs()}

@@ -267,6 +267,47 @@ RELEASE_CONDITIONS = (
 """The conditions of the release-conditions study, each a method -> arm map over shared runs."""
 
 
+HEAD_ABLATION_COMMANDED = ("--dmp-state", "commanded", "--dmp-velocity", "zero")
+"""The frame the NDP head's handicap fixes were measured from (the default before the
+per-task frame)."""
+
+
+def _head_ablation_arms() -> tuple[ArmSpec, ...]:
+    """The NDP head ablation (docs/results/ndp_ablation_*): each fix of the first release's
+    head switched off alone, from the commanded frame at rest; ``ndp-v0`` has every fix off."""
+    c = HEAD_ABLATION_COMMANDED
+    v0 = ("--mean-clip", "--forcing", "goal", "--goal-scale", "1", "--absolute-mode", "dmp",
+          "--dmp-state", "measured", "--dmp-velocity", "state")  # fmt: skip
+    return (
+        ArmSpec("ndp", "ndp", (), "default NDP head"),
+        ArmSpec("ppo", "ppo", (), "PPO, one action per step"),
+        ArmSpec("ppo-multi", "ppo-multi", (), "PPO-multi, k raw actions per decision"),
+        ArmSpec("ndp-commanded", "ndp", c, "commanded frame at rest"),
+        ArmSpec("ndp-meanclip", "ndp", (*c, "--mean-clip"), "means clipped before the noise"),
+        ArmSpec("ndp-goalforcing", "ndp", (*c, "--forcing", "goal"), "f proportional to (g - y0)"),
+        ArmSpec("ndp-gs1", "ndp", (*c, "--goal-scale", "1"), "goal bound = k-step reach"),
+        ArmSpec("ndp-gripdmp", "ndp", (*c, "--absolute-mode", "dmp"),
+                "gripper DMP from the sampled command"),
+        ArmSpec("ndp-velstate", "ndp", ("--dmp-state", "commanded", "--dmp-velocity", "state"),
+                "commanded frame starting with its velocity"),
+        ArmSpec("ndp-paramnoise", "ndp", (*c, "--param-noise"), "parameter-space exploration"),
+        ArmSpec("ndp-v0", "ndp", v0, "every fix off (first release's head)"),
+        ArmSpec("ndp-measured", "ndp", ("--dmp-state", "measured", "--dmp-velocity", "state"),
+                "DMP from the measured robot and its velocity (= ndp on Meta-World)",
+                in_default=False),
+    )  # fmt: skip
+
+
+PPO_VS_SB3_TASKS = ("reach-v3", "push-v3", "window-close-v3", "drawer-open-v3", "button-press-v3")
+
+
+def _ppo_vs_sb3_arms() -> tuple[ArmSpec, ...]:
+    return (
+        ArmSpec("ppo", "ppo", (), "this package's PPO (k = 1)"),
+        ArmSpec("sb3-ppo", "sb3-ppo", (), "Stable-Baselines3 2.x PPO"),
+    )
+
+
 RELEASE_1M_TASKS = ("push-v3", "throw")
 """The 1M-step stage of the release-conditions study: a Meta-World task and a Jaco task."""
 
@@ -393,6 +434,34 @@ STUDIES: dict[str, Study] = {
             arms=_release_arms,
             steps=300_000,
             conditions=RELEASE_CONDITIONS,
+        ),
+        Study(
+            name="ndp-head-ablation",
+            title="NDP head ablation: each fix of the first release's head off alone",
+            doc=(
+                "push-v3 and the toy point-mass x the default NDP head, PPO, PPO-multi and the "
+                "NDP head with one fix off at a time from the commanded frame at rest (mean "
+                "clip, goal-proportional forcing, goal bound, gripper DMP, start velocity, "
+                "parameter noise) and with every fix off (ndp-v0); ndp-measured only with "
+                "--arms. The tables of docs/results/ndp_ablation_*.md were made with "
+                "benchmarks/ndp_ablation.py, which runs these arms."
+            ),
+            tasks=lambda: ("push-v3", "point-mass"),
+            arms=_head_ablation_arms,
+            steps=300_000,
+        ),
+        Study(
+            name="ppo-vs-sb3",
+            title="Our PPO vs Stable-Baselines3's PPO on five Meta-World tasks",
+            doc=(
+                "reach-v3, push-v3, window-close-v3, drawer-open-v3, button-press-v3 x this "
+                "package's PPO (k = 1) and SB3's PPO with the same hyperparameters "
+                "(ndp.experiments.sb3_ppo). docs/results/ppo_vs_sb3.md was made with "
+                "benchmarks/ppo_vs_sb3.py, which runs these arms."
+            ),
+            tasks=lambda: PPO_VS_SB3_TASKS,
+            arms=_ppo_vs_sb3_arms,
+            steps=150_000,
         ),
         Study(
             name="release-goals-1m",

@@ -16,6 +16,7 @@ from ndp.envs.factory import (
     fixed_goal_seed,
     make_env,
     register_envs,
+    register_task,
     register_torque_envs,
     task_options,
 )
@@ -47,6 +48,7 @@ __all__ = [
     "get_task_spec",
     "make_env",
     "register_envs",
+    "register_task",
     "register_torque_envs",
     "substep_factors",
     "task_options",

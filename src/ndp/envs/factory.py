@@ -253,3 +253,38 @@ def write_gym_id_table() -> None:
     from ndp.io import atomic_write_text
 
     atomic_write_text(TABLE, json.dumps(gym_id_table(), indent=1) + "\n")
+
+
+def register_task(spec: Any, make: Callable[..., gym.Env] | None = None) -> list[str]:
+    """Add a task, and with ``make`` its robot family, so that everything built on the task
+    table works on it: ``ndp.make_env(name, k)``, ``ndp rl train --task NAME`` (every method),
+    evaluation, export, sweeps, and its gymnasium ids. A new robot family is one module that
+    defines its env and calls this once per task.
+
+    Args:
+        spec: the task's :class:`ndp.envs.spec.TaskSpec` row (its ``family`` names the family;
+            ``ndp`` its NDP preset, else the default one).
+        make: ``(spec, horizon, render_mode, **kw) -> env`` for a family not yet in
+            :data:`FAMILIES` (the env: an :class:`ndp.envs.base.NDPEnv`, which the chunked env
+            reads the robot state and the stale-world reward from); None: the family's
+            existing factory.
+
+    Returns:
+        The gymnasium ids registered (per-step and chunked).
+
+    Raises:
+        ValueError: the name, an alias or the env id is taken, or the family has no factory.
+    """
+    from ndp.envs.spec import add_task
+
+    if make is None and spec.family not in FAMILIES:
+        raise ValueError(
+            f"make: family {spec.family!r} has no env factory yet ({', '.join(FAMILIES)}); "
+            "pass make=(spec, horizon, render_mode, **kw) -> env"
+        )
+    if make is not None and spec.family in FAMILIES and FAMILIES[spec.family] is not make:
+        raise ValueError(f"family: {spec.family!r} already has an env factory")
+    add_task(spec)
+    if make is not None:
+        FAMILIES[spec.family] = make
+    return register(expand({spec.name: (spec.env_id, spec.horizon)}, CHUNKED_KS))

@@ -43,7 +43,9 @@ from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metawor
 from ndp.envs.presets import DEFAULT as DEFAULT_PRESET
 from ndp.envs.presets import NDP_PRESETS, NDPPreset
 
-Family = Literal["metaworld", "jaco", "toy"]
+Family = str
+"""A robot family: ``"metaworld"``, ``"jaco"``, ``"toy"``, or one added with
+:func:`ndp.envs.factory.register_task`."""
 
 
 @dataclass(frozen=True)
@@ -376,6 +378,22 @@ def torque_variant(
     if name not in TORQUE_TASKS:
         raise ValueError(f"task: {spec.name!r} has no torque-actuated variant {name!r}")
     return TORQUE_TASKS[name]
+
+
+def add_task(spec: TaskSpec) -> TaskSpec:
+    """Add a row to :data:`TASKS` (and its names to the lookup of :func:`get_task_spec`);
+    :func:`ndp.envs.factory.register_task` is the public way, which also gives the family its
+    env factory and registers the gymnasium ids.
+
+    Raises:
+        ValueError: the name, an alias or the env id already names a task.
+    """
+    for n in (spec.name, *spec.aliases, spec.env_id):
+        if n in TASKS or n in _ALIASES:
+            raise ValueError(f"name: {n!r} already names a task ({_ALIASES.get(n, n)})")
+    TASKS[spec.name] = spec
+    _ALIASES.update({a: spec.name for a in (*spec.aliases, spec.env_id)})
+    return spec
 
 
 def get_task_spec(name: str) -> TaskSpec:

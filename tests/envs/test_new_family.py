@@ -1,0 +1,132 @@
+"""A stranger adds a robot family in one module: an env on NDPEnv, a TaskSpec row and one
+``ndp.envs.register_task`` call; then every method trains on it, the chunked env, gymnasium's
+ids and evaluation work unchanged. (Written as an outside user would, with the public API.)"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+import pytest
+
+gym = pytest.importorskip("gymnasium")
+
+import ndp  # noqa: E402
+from ndp.envs import TASKS, TaskSpec, register_task  # noqa: E402
+from ndp.envs.base import NDPEnv, defer_seed  # noqa: E402
+from ndp.envs.factory import FAMILIES  # noqa: E402
+
+STEP = 0.05  # m per unit action
+
+
+class SliderEnv(NDPEnv):
+    """A block on a 1-D rail pushed towards a random target (obs: x, v, target)."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+
+    def __init__(self, horizon: int = 40, render_mode: str | None = None) -> None:
+        self._setup(horizon, render_mode, action_dim=1)
+        self._set_fixed_goal(None)
+        self.observation_space = gym.spaces.Box(-2.0, 2.0, shape=(3,), dtype=np.float64)
+        self._x = self._v = self._target = 0.0
+        self._steps = 0
+
+    def robot_state(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.array([self._x]), np.array([self._v])
+
+    def world_snapshot(self) -> np.ndarray:
+        return np.array([self._target])
+
+    def stale_reward(self, snapshot: np.ndarray, action: Any = None) -> float:
+        return -abs(float(snapshot[0]) - self._x)
+
+    def _obs(self) -> np.ndarray:
+        return np.array([self._x, self._v, self._target])
+
+    def _info(self) -> dict[str, Any]:
+        pos, vel = self.robot_state()
+        return {"success": abs(self._target - self._x) < 0.05, "robot_pos": pos, "robot_vel": vel}
+
+    def reset(self, *, seed: int | None = None, options: Any = None) -> tuple[np.ndarray, dict]:
+        self._reset_rng(seed)
+        rng = self._task_rng()
+        self._x, self._v, self._target = 0.0, 0.0, float(rng.uniform(-0.5, 0.5))
+        self._steps = 0
+        return self._obs(), self._info()
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        a = float(np.clip(np.asarray(action, dtype=np.float64).reshape(1)[0], -1, 1))
+        new = self._x + STEP * a
+        self._v, self._x = (new - self._x) / 0.05, new
+        self._steps += 1
+        return (
+            self._obs(),
+            -abs(self._target - self._x),
+            False,
+            self._steps >= self.horizon,
+            self._info(),
+        )
+
+
+def _make(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> SliderEnv:
+    env = SliderEnv(horizon=horizon, render_mode=render_mode)
+    defer_seed(env, kw.get("seed"))
+    return env
+
+
+SPEC = TaskSpec(name="slider", family="rail", env_id="ndp/Slider-v0", dmp_dofs=1,
+                dof_names=("x",), dof_units=("m",), y0_source="the block (m, m/s)",
+                action_dim=1, action_low=(-1.0,), action_high=(1.0,), action_scale=(STEP,),
+                action_absolute=(False,), horizon=40, control_dt=0.05, sim_dt=0.05,
+                obs_dim=3)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def slider():
+    ids = register_task(SPEC, _make)
+    yield ids
+    # leave the table, the names and gymnasium's registry as they were for the other tests
+    from ndp.envs import spec as spec_module
+
+    TASKS.pop("slider")
+    FAMILIES.pop("rail")
+    spec_module._ALIASES.pop("ndp/Slider-v0")
+    for i in ids:
+        gym.registry.pop(i)
+
+
+def test_a_new_family_is_one_registration_and_everything_works_on_it(slider, tmp_path):
+    assert slider == ["ndp/Slider-v0", "ndp/slider-k5"]
+    env = ndp.make_env("slider", k=5)  # the chunked env with the stale-world rule
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (3,) and info["dmp_y0"].shape == (1,)
+    *_, info = env.step(np.ones((5, 1)))
+    assert info["robot_pos"].shape == (6, 1) and info["n_substeps"] == 5
+    env.close()
+    per_step = gym.make("ndp/Slider-v0")
+    assert per_step.spec.max_episode_steps == 40
+    per_step.close()
+    # every on-policy method trains on it with the shared trainer
+    from ndp.rl.config import PPOConfig, TrainConfig
+    from ndp.rl.evaluate import evaluate
+    from ndp.rl.trainer import train
+
+    for algo in ("ndp", "ppo", "ppo-multi"):
+        run = tmp_path / algo
+        cfg = TrainConfig(task="slider", algo=algo, steps=400, seed=0, run_dir=str(run),
+                          progress=False, tensorboard=False, vector="sync",
+                          ppo=PPOConfig(steps_per_update=200, minibatches=2))  # fmt: skip
+        metrics = train(cfg)
+        assert metrics["update"] == 2
+        out = evaluate(run, episodes=2)
+        assert 0.0 <= out["success_any"] <= 1.0
+
+
+def test_a_taken_name_or_a_family_without_a_factory_is_refused(slider):
+    with pytest.raises(ValueError, match="'slider' already names a task"):
+        register_task(SPEC, _make)
+    other = TaskSpec(**{**SPEC.__dict__, "name": "slider-2", "env_id": "ndp/Slider2-v0",
+                        "family": "nowhere", "controller": None, "ndp": None})  # fmt: skip
+    with pytest.raises(ValueError, match="family 'nowhere' has no env factory"):
+        register_task(other)
+    assert "slider-2" not in TASKS

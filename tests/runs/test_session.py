@@ -216,3 +216,23 @@ def test_sweeps_and_reports_read_what_run_json_says(tmp_path):
     assert is_finished(run)
     (run / MANIFEST_NAME).write_text("not json")  # unreadable: the older records decide
     assert not is_finished(run)  # no done.json, no checkpoint
+
+
+def test_one_train_call_resolves_its_config_once(tmp_path, monkeypatch):
+    pytest.importorskip("gymnasium")
+    from ndp.rl import trainer as trainer_module
+    from ndp.rl.config import PPOConfig, TrainConfig
+    from ndp.rl.config import resolve_config as real
+
+    calls = []
+
+    def counting(cfg, spec=None):
+        calls.append(cfg.algo)
+        return real(cfg, spec)
+
+    monkeypatch.setattr(trainer_module, "resolve_config", counting)
+    cfg = TrainConfig(task="point-mass", algo="ndp", steps=256, run_dir=str(tmp_path / "r"),
+                      progress=False, tensorboard=False, vector="sync",
+                      ppo=PPOConfig(steps_per_update=256, minibatches=2))  # fmt: skip
+    trainer_module.train(cfg, overwrite=True)
+    assert calls == ["ndp"]

@@ -74,11 +74,12 @@ class Trainer(CountsUpdates):
     Args:
         cfg: run configuration (resolved here against the task before any env is built).
         resume: continue from ``cfg.run_dir``'s checkpoint (same config required).
+        resolved: ``cfg`` is already :func:`ndp.rl.config.resolve_config`'s output.
     """
 
-    def __init__(self, cfg: TrainConfig, resume: bool = False) -> None:
-        task = resolve_task(cfg.task)
-        cfg = resolve_config(cfg, task.spec)
+    def __init__(self, cfg: TrainConfig, resume: bool = False, resolved: bool = False) -> None:
+        if not resolved:  # train() / resume() resolve once and say so
+            cfg = resolve_config(cfg)
         # the row the method runs (VICES: the torque variant) with the run's task options
         task = resolve_task(cfg.task, **cfg.env_options())
         self.cfg = cfg
@@ -543,16 +544,17 @@ def check_budget_not_below(done_updates: int, cfg: TrainConfig) -> None:
         )
 
 
-def make_learner(cfg: TrainConfig, resume: bool = False) -> Any:
+def make_learner(cfg: TrainConfig, resume: bool = False, resolved: bool = False) -> Any:
     """The learner of ``cfg.algo``: its registered :attr:`ndp.rl.methods.Method.learner`, else
-    :class:`Trainer`."""
+    :class:`Trainer`; ``cfg`` is resolved here unless ``resolved`` (once per run either way)."""
     from ndp.rl.methods import METHODS
 
+    if not resolved:
+        cfg = resolve_config(cfg)
     build = METHODS[cfg.algo].learner
     if build is None:
-        return Trainer(cfg, resume=resume)
-    task = resolve_task(cfg.task)
-    return build(resolve_config(cfg, task.spec), resume)
+        return Trainer(cfg, resume=resume, resolved=True)
+    return build(cfg, resume)
 
 
 def train(
@@ -562,9 +564,10 @@ def train(
 
     ``overwrite``: remove an earlier run in the run directory first (its files are named on
     stderr); without it such a directory is refused."""
+    cfg = resolve_config(cfg)  # once: the learner gets it resolved
     if overwrite:
-        RunDir(resolve_config(cfg).run_dir or ".").create(overwrite=True)
-    trainer = make_learner(cfg)
+        RunDir(cfg.run_dir or ".").create(overwrite=True)
+    trainer = make_learner(cfg, resolved=True)
     try:
         return trainer.train(max_updates)
     finally:

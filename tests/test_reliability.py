@@ -80,11 +80,12 @@ def test_il_kill_between_metrics_and_checkpoint_leaves_no_duplicate_rows(tmp_pat
     resumed run rewrites that epoch once (no 1, 2, 3, 3, 4)."""
     from ndp.il import train as il_train
     from ndp.il.config import DataConfig, TrainConfig
+    from ndp.runs import session  # every trainer's checkpoint is written by its run session
 
     cfg = TrainConfig(run_dir=str(tmp_path / "r"), epochs=3, batch_size=20, threads=1,
                       progress=False, data=DataConfig(data_dir=str(tmp_path / "d"), n_samples=60,
                                                       n_train=40, n_test=20))  # fmt: skip
-    real = il_train.save_checkpoint
+    real = session.save_checkpoint
     calls = []
 
     def dies_at_second(path, state, kind):
@@ -93,10 +94,10 @@ def test_il_kill_between_metrics_and_checkpoint_leaves_no_duplicate_rows(tmp_pat
             raise KeyboardInterrupt  # as if killed during the write
         real(path, state, kind=kind)
 
-    monkeypatch.setattr(il_train, "save_checkpoint", dies_at_second)
+    monkeypatch.setattr(session, "save_checkpoint", dies_at_second)
     with pytest.raises(KeyboardInterrupt):
         il_train.train(cfg)
-    monkeypatch.setattr(il_train, "save_checkpoint", real)
+    monkeypatch.setattr(session, "save_checkpoint", real)
     assert [r["epoch"] for r in read_metrics(tmp_path / "r")] == [1, 2]
     assert load_checkpoint(tmp_path / "r", kind="il")["epoch"] == 1
     il_train.train(cfg, resume=True)

@@ -108,7 +108,7 @@ def unpack(archive: Path, runs_dir: Path) -> tuple[list[str], list[str]]:
         raise FileNotFoundError(f"unpack: no such archive {archive}")
     with tarfile.open(archive, "r:gz") as tf:
         members = tf.getmembers()
-        names = {}
+        names: dict[str, list[tarfile.TarInfo]] = {}
         for m in members:
             names.setdefault(_check_member(m, archive), []).append(m)
         restored, kept = [], []

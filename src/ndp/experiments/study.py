@@ -114,7 +114,9 @@ _ARM_KEYS = ("label", "algo", "args", "steps")
 recorded for reports and compared when both records have them)."""
 
 
-def arm_record(arm: Arm, steps: int, task: str | None = None, seed: int | None = None) -> dict:
+def arm_record(
+    arm: Arm, steps: int, task: str | None = None, seed: int | None = None
+) -> dict[str, Any]:
     """What ``arm.json`` holds: the arm, its budget, and (newer records) the task and seed."""
     rec: dict[str, Any] = {
         "label": arm.label,

@@ -88,7 +88,7 @@ class ModelConfig:
             scale_by_goal=self.forcing_param != "amplitude",
         )
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain-dict form (JSON-serialisable)."""
         d = asdict(self)
         d["head_hidden"] = list(self.head_hidden)

@@ -103,4 +103,5 @@ class MLP(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Map ``x`` [B, in_dim] to [B, out_dim]."""
-        return self.net(x)
+        out: torch.Tensor = self.net(x)
+        return out

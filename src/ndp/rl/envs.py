@@ -217,7 +217,7 @@ class FrameRecorder(gym.Wrapper):
         self.frames.append(np.asarray(self.env.render()))
         return out
 
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
         out = self.env.step(action)
         self.frames.append(np.asarray(self.env.render()))
         return out

@@ -81,5 +81,5 @@ CONFIG_COMMANDS = {"il collect": collect_command, "il bc": bc_command}
 """Commands whose options are a typed config (see ndp.cli)."""
 
 
-def add_subparser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Nothing to add: ``ndp il`` lists ``collect`` and ``bc`` (ndp.il.cli)."""

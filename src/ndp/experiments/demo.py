@@ -129,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_subparser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("demo", help="run the quick-start demo (DMP plot, digit writing, RL)")
     p.add_argument("--out", default="runs/demo", help="output directory (default runs/demo)")
     p.add_argument("--full", action="store_true", help="longer runs instead of the quick ones")

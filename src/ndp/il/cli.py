@@ -183,7 +183,7 @@ CONFIG_COMMANDS = {"il train": train_command, "il eval": eval_command, "il floor
 """Commands whose options are a typed config (see ndp.cli)."""
 
 
-def add_subparser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_subparser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``il`` (listing only: its commands are parsed by :data:`CONFIG_COMMANDS`)."""
     il = sub.add_parser("il", help="imitation learning: image -> pen trajectory (digits)")
     il_sub = il.add_subparsers(dest="il_command", metavar="{train,eval,floor,collect,bc}")

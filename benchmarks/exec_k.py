@@ -25,7 +25,7 @@ from typing import Any
 
 
 def write_table(rows: list[dict[str, Any]], out: Path, prov: dict[str, str]) -> list[str]:
-    """Write ``out.csv`` and ``out.md`` from :func:`ndp.rl.exec_k.exec_k_table` rows; returns
+    """Write ``out.csv`` and ``out.md`` from :func:`ndp.rl.evaluate.exec_k_table` rows; returns
     the Markdown lines."""
     from ndp.io import atomic_write_text
 
@@ -94,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
 
     torch.set_num_threads(1)
     from ndp.provenance import git_commit
-    from ndp.rl.exec_k import exec_k_table
+    from ndp.rl.evaluate import exec_k_table
 
     rows = exec_k_table(
         args.runs, args.exec_k, args.episodes, args.seed, every=args.every, ndp_hold=args.ndp_hold

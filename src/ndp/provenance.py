@@ -49,6 +49,28 @@ def versions() -> dict[str, str]:
     return out
 
 
+def installed_versions() -> dict[str, str]:
+    """Installed versions (package metadata, nothing imported) of the package and of what a
+    trained policy needs to run or be rebuilt: torch, numpy and the simulators."""
+    from importlib import metadata
+
+    out = {}
+    for name in (
+        "neural-dynamic-policies",
+        "torch",
+        "numpy",
+        "gymnasium",
+        "mujoco",
+        "metaworld",
+        "dm_control",
+    ):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
 def provenance(argv: list[str] | None = None) -> dict[str, Any]:
     """Where a run session comes from: time, command line, commit, dirty flag, host, versions."""
     return {

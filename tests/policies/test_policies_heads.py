@@ -9,7 +9,8 @@ import torch
 
 from ndp.dmp import DMPConfig, dmp_rollout
 from ndp.envs import get_task_spec
-from ndp.envs.point_mass import ACTION_SCALE, CONTROL_DT, point_mass_spec
+from ndp.envs.point_mass import ACTION_SCALE, CONTROL_DT
+from ndp.envs.spec import toy_spec as point_mass_spec
 from ndp.policies import (
     ParamGaussian,
     PolicyConfig,

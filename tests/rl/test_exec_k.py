@@ -22,8 +22,8 @@ from ndp.envs.jaco import ARM_DELTA, FRAME_SKIP
 from ndp.policies import PolicyConfig, build_actor_critic
 from ndp.rl.config import PPOConfig, TrainConfig, resolve_config
 from ndp.rl.envs import resolve_task
-from ndp.rl.evaluate import evaluate_policy
-from ndp.rl.exec_k import dmp_steps_at, exec_k_table, exec_k_values
+from ndp.rl.evaluate import evaluate_policy, exec_k_table
+from ndp.rl.exec_k import dmp_steps_at, exec_k_values
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.policy import Policy
 from ndp.rl.trainer import train

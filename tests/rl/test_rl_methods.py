@@ -78,6 +78,20 @@ def test_registry_rejects_duplicates_and_unknown_heads():
     assert set(METHODS) >= {"ppo", "ppo-multi", "ndp"}
 
 
+def test_a_learner_entry_point_is_checked_at_registration_and_imported_at_build():
+    for bad in ("ndp.rl.dyne.DyneLearner", ":x", "ndp.rl.dyne:", "not a module:x"):
+        with pytest.raises(ValueError, match="learner: expected a callable or an entry point"):
+            Method("x", "step", "bad entry point", learner=bad)
+    m = Method("x", "step", "missing", learner="ndp.rl.no_such_module:Learner")
+    with pytest.raises(ValueError, match="learner: method 'x' names .*no_such_module"):
+        m.build_learner(None, False)
+    got = Method("x", "step", "ok", learner="collections:namedtuple")
+    assert got.build_learner("P", ["a"])._fields == ("a",)  # the entry point, called
+    assert Method("x", "step", "shared trainer").build_learner(None, False) is None
+    # the built-in that uses one names a real class (not imported by the registry itself)
+    assert METHODS["dyne"].learner == "ndp.rl.dyne:DyneLearner"
+
+
 class RandomSearch:
     """A toy off-policy-style learner (hill climbing on the actor's weights) that uses only the
     public seams: the resolved config, ``make_vector_env``, ``ndp.runs``, the policy checkpoint

@@ -42,7 +42,8 @@ def test_point_mass_passes_gymnasium_check_env():
 
 def test_point_mass_seeded_spec_and_bounded_inverse_controller():
     from ndp.envs import TaskSpec
-    from ndp.envs.point_mass import make_point_mass_env, point_mass_spec
+    from ndp.envs.point_mass import make_point_mass_env
+    from ndp.envs.spec import toy_spec as point_mass_spec
 
     spec = point_mass_spec()
     assert isinstance(spec, TaskSpec) and spec.dmp_dofs == spec.action_dim == 2

@@ -19,22 +19,19 @@ Reward: minus the distance to the goal (m). Success: distance below ``SUCCESS_RA
 Episodes are truncated at ``horizon`` steps; with ``terminate_on_success=True`` they terminate on
 success (used by tests of the termination / truncation distinction).
 
-:func:`point_mass_spec` returns the task's :class:`ndp.envs.spec.TaskSpec` (a row of
+:func:`ndp.envs.spec.toy_spec` returns the task's :class:`ndp.envs.spec.TaskSpec` (a row of
 ``ndp.envs.TASKS``); its inverse controller maps DMP trajectory points to bounded displacement
 actions like every delta-controlled task.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
 
 from ndp.envs.base import NDPEnv, defer_seed
-
-if TYPE_CHECKING:
-    from ndp.envs.spec import TaskSpec
 
 ACTION_SCALE = 0.05
 """Displacement (m) per env step for an action of 1."""
@@ -48,21 +45,6 @@ MAX_GOAL_OFFSET = 0.5
 """The goal is the start plus an offset drawn uniformly in ``[-0.5, 0.5]^D`` (then clipped)."""
 DEFAULT_HORIZON = 50
 """Env steps per episode."""
-
-
-def point_mass_spec(dim: int = 2, horizon: int = DEFAULT_HORIZON) -> TaskSpec:
-    """The toy task's spec (its row of the task table, built in :mod:`ndp.envs.spec`).
-
-    Args:
-        dim: 2 or 3 (space dimension = DMP DoF = action size).
-        horizon: env steps per episode.
-
-    Returns:
-        The task's ``ndp.envs.TaskSpec``.
-    """
-    from ndp.envs.spec import toy_spec
-
-    return toy_spec(dim, horizon)
 
 
 class PointMassEnv(NDPEnv):

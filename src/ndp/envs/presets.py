@@ -64,15 +64,6 @@ NDP_PRESETS: dict[str, NDPPreset] = {
 """Task name (canonical, as in ``ndp.envs.TASKS``) -> preset."""
 
 
-def ndp_preset(task: str) -> NDPPreset:
-    """The preset of a task (name or alias), as its task-table row holds it."""
-    from ndp.envs.spec import get_task_spec
-
-    preset = get_task_spec(task).ndp
-    assert preset is not None  # every row gets one in TaskSpec.__post_init__
-    return preset
-
-
 def preset_of(spec: object) -> NDPPreset:
     """The preset of a task spec: its ``ndp`` field, else its name's row (or ``DEFAULT``), for
     spec-like objects without one."""

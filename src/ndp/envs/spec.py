@@ -216,6 +216,13 @@ def toy_spec(dim: int = 2, horizon: int | None = None) -> TaskSpec:
     )
 
 
+def ndp_preset(task: str) -> NDPPreset:
+    """The NDP preset of a task (name or alias), as its task-table row holds it."""
+    preset = get_task_spec(task).ndp
+    assert preset is not None  # every row gets one in TaskSpec.__post_init__
+    return preset
+
+
 def frame_skip(spec: TaskSpec) -> int:
     """Simulator steps per env step, ``control_dt / sim_dt``: Meta-World 5, Jaco 10, the toy
     point mass 1 (it has no finer simulator step).

@@ -451,3 +451,32 @@ def _per_dof(value: Any, d: int) -> np.ndarray:
     if arr.size != d:
         raise ValueError(f"spec: expected {d} values per DMP DoF, got {arr.size}")
     return arr
+
+
+class HoldHead(ActionHead):
+    """One raw action per decision, executed for the k sub-steps (the env holds its target).
+
+    A diagonal Gaussian over the action [A] with a learned, state-independent log std; one
+    log-prob per decision (``per_decision``); the k sub-actions [B, k, A] are the sample
+    repeated.
+    """
+
+    def __init__(self, k: int, action_dim: int, init_log_std: float = 0.0) -> None:
+        super().__init__()
+        self.k = int(k)
+        self.action_dim = int(action_dim)
+        self.n_params = self.action_dim
+        self.log_std = nn.Parameter(torch.full((self.action_dim,), float(init_log_std)))
+
+    def distribution(self, raw, y0=None, dy0=None):
+        k = self.k
+
+        def repeat(z: torch.Tensor) -> torch.Tensor:
+            return z.unsqueeze(1).expand(-1, k, -1).contiguous()
+
+        return ParamGaussian(raw, self.log_std, repeat), {}
+
+
+@register_head("hold")
+def _build_hold(cfg: Any, spec: Any) -> ActionHead:
+    return HoldHead(cfg.k, spec.action_dim, cfg.init_log_std)

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ndp.rl.envs import FrameRecorder
+from ndp.rl.exec_k import exec_k_values
 from ndp.rl.policy import Policy, load_policy
 
 __all__ = ["Policy", "evaluate", "evaluate_policy", "load_policy", "render"]
@@ -198,3 +201,83 @@ def render(
         "fps": fps,
         **result,
     }
+
+
+EXEC_K_TABLE_KEYS = (
+    "run",
+    "task",
+    "algo",
+    "k",
+    "exec_k",
+    "m",
+    "execution",
+    "episodes",
+    "deterministic",
+    "success_any",
+    "success_final",
+    "episode_return",
+    "episode_length",
+    "episode_seconds",
+    "seconds",
+)
+"""Columns of :func:`exec_k_table` rows."""
+
+
+def exec_k_table(
+    run_dirs: Sequence[str | Path],
+    values: Sequence[int] | None = None,
+    episodes: int = 20,
+    seed: int = 10_000,
+    deterministic: bool = True,
+    every: bool = False,
+    ndp_hold: bool = False,
+) -> list[dict[str, Any]]:
+    """Success vs K2 for trained runs: one :func:`ndp.rl.evaluate.evaluate` per run and K2.
+
+    Args:
+        run_dirs: training run (or export) directories.
+        values: K2 values evaluated for every run (each must be allowed for each run); None:
+            per run, the trained k and the finest ``k * m_max`` (:func:`exec_k_values`), or
+            every allowed K2 with ``every``.
+        episodes: episodes per run and K2 (the same seeds ``seed ..`` for every K2).
+        seed: first episode seed.
+        deterministic: act with the mode (else sample).
+        every: with ``values`` None, every K2 of :func:`exec_k_values` (Jaco: k, 2k, 5k, 10k).
+        ndp_hold: for NDP runs at K2 > k, also a row with the trained k sub-actions held for m
+            env steps (``at_exec_k(..., hold=True)``).
+
+    Returns:
+        One dict per (run, K2, execution) with the keys of :data:`EXEC_K_TABLE_KEYS` (means over
+        episodes; ``execution``: ``"trained"`` at m = 1, ``"dmp"`` for NDP's DMP sampled at K2,
+        ``"hold"`` for held sub-actions; ``seconds``: wall time of that evaluation).
+    """
+    rows = []
+    for run in run_dirs:
+        trained = load_policy(run)
+        allowed = exec_k_values(trained)
+        if values is not None:
+            ks = list(values)
+        else:
+            ks = list(allowed) if every else sorted({allowed[0], allowed[-1]})
+        is_ndp = trained.cfg.policy.head == "ndp"
+        for k2 in ks:
+            variants = [False, True] if (is_ndp and ndp_hold and k2 != trained.cfg.k) else [False]
+            for hold in variants:
+                pol = trained.at_exec_k(k2, hold=hold)
+                t0 = time.perf_counter()
+                ev = evaluate_policy(pol, episodes, deterministic, seed)
+                if pol.substeps == 1:
+                    execution = "trained"
+                else:
+                    execution = "dmp" if (is_ndp and not hold) else "hold"
+                row = {
+                    "run": str(run),
+                    "task": trained.cfg.task,
+                    "algo": trained.cfg.algo,
+                    "k": trained.cfg.k,
+                    "execution": execution,
+                    **ev,
+                    "seconds": time.perf_counter() - t0,
+                }
+                rows.append({key: row[key] for key in EXEC_K_TABLE_KEYS})
+    return rows

@@ -10,10 +10,16 @@ resolved config and builds its envs with :func:`ndp.rl.envs.make_vector_env`, wr
 with :mod:`ndp.runs` and leaves a checkpoint with the keys of :data:`POLICY_CHECKPOINT_KEYS`;
 ``ndp rl eval / render / export`` and ``ndp.load_policy`` then work on its runs unchanged
 (``tests/rl/test_rl_methods.py`` registers a toy random-search learner and evaluates it).
+
+Every built-in method is registered below (``ppo``, ``ppo-multi``, ``ndp``, ``dyne``, ``vices``,
+``vices-pos``, ``vices-low-freq``). The registry imports no learner and no trainer: Dyn-E's
+learner is named by its entry point, so the learners and the config may import the registry
+without an import circle (``tests/test_import_graph.py``).
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -63,10 +69,39 @@ class Method:
     task_variant: Callable[[Any], Any] | None = None
     """``task spec -> the task-table row this method runs on`` (VICES: the torque-actuated
     variant of the requested task, ``ndp.envs.torque_variant``); None: the requested row."""
-    learner: Callable[[Any, bool], Any] | None = None
+    learner: Callable[[Any, bool], Any] | str | None = None
     """``learner(resolved TrainConfig, resume) -> object with train(max_updates=None) -> last
-    metrics and close()``, for a method with its own learning loop (off-policy, evolution, ...);
-    None: the shared PPO trainer (:class:`ndp.rl.trainer.Trainer`)."""
+    metrics and close()``, for a method with its own learning loop (off-policy, evolution, ...),
+    or its entry point ``"package.module:name"`` (imported at the first :meth:`build_learner`,
+    as gymnasium's registry imports an env's ``entry_point``: the registry imports no learner,
+    so a learner module may import the registry and the config); None: the shared PPO trainer
+    (:class:`ndp.rl.trainer.Trainer`)."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.learner, str):
+            mod, sep, attr = self.learner.partition(":")
+            if not (sep and mod and attr and all(p.isidentifier() for p in mod.split("."))):
+                raise ValueError(
+                    f"learner: expected a callable or an entry point 'package.module:name', "
+                    f"got {self.learner!r}"
+                )
+
+    def build_learner(self, cfg: Any, resume: bool) -> Any:
+        """The learner of a resolved config (``learner`` called, its entry point imported
+        first); None when the method trains with the shared PPO trainer."""
+        if self.learner is None:
+            return None
+        build = self.learner
+        if isinstance(build, str):
+            mod, _, attr = build.partition(":")
+            try:
+                build = getattr(importlib.import_module(mod), attr)
+            except (ImportError, AttributeError) as e:
+                raise ValueError(
+                    f"learner: method {self.name!r} names {self.learner!r}, which does not "
+                    f"import ({e})"
+                ) from e
+        return build(cfg, resume)
 
 
 POLICY_CHECKPOINT_KEYS = ("model", "obs_norm", "obs_dim", "config", "update", "global_step")
@@ -129,12 +164,6 @@ def resolve_dyne(policy: Any, spec: Any) -> dict[str, Any]:
     return out
 
 
-def _dyne_learner(cfg: Any, resume: bool) -> Any:
-    from ndp.rl.dyne import DyneLearner  # torch and the simulators only once it trains
-
-    return DyneLearner(cfg, resume)
-
-
 register_method(
     Method(
         "dyne",
@@ -142,11 +171,63 @@ register_method(
         "Dyn-E: TD3 in a learned, dynamics-aware embedding of k-action sequences",
         resolve=resolve_dyne,
         metrics=DYNE_METRICS,
-        learner=_dyne_learner,
+        learner="ndp.rl.dyne:DyneLearner",  # torch and the simulators only once it trains
     )
 )
 
 
-from ndp.rl import vices as _vices  # noqa: E402  (registers vices, vices-pos, vices-low-freq)
+# --------------------------------------------------------------------------------------------
+# VICES (Martin-Martin et al., IROS 2019) and its two ablations: PPO on the torque-actuated
+# variant of the task (ndp.envs.TORQUE_TASKS), actions = target displacement + stiffness (and
+# optionally damping) of the impedance controller of ndp.envs.impedance, which computes torques
+# at every simulator step (docs/vices.md). The requested task may be a position-controlled row
+# (its torque variant is used) or a torque row (the method's space and period still apply).
 
-del _vices
+LOW_FREQ_K = 5
+"""Env steps per decision of ``vices-low-freq`` (NDP's k)."""
+
+
+def _torque_variant(space: str | None = None, period: int = 1) -> Any:
+    def variant(spec: Any) -> Any:
+        from ndp.envs import torque_variant
+
+        return torque_variant(spec, space=space, period=period)
+
+    return variant
+
+
+def _resolve_low_freq(policy: Any, spec: Any) -> dict[str, Any]:
+    """``k`` = the torque row's decision period (5)."""
+    return {**no_dmp(policy, spec), "k": int(spec.controller.period)}
+
+
+register_method(
+    Method(
+        "vices",
+        "step",
+        "VICES: PPO on the torque-actuated task, actions = target displacement + stiffness "
+        "of an impedance controller at the simulator rate (OSC on Meta-World, joint space on "
+        "Throw / Pick)",
+        task_variant=_torque_variant(None, 1),
+        metrics=("ctrl/gains_clipped", "ctrl/torque_saturated", "ctrl/nonfinite"),
+    )
+)
+register_method(
+    Method(
+        "vices-pos",
+        "step",
+        "VICES in end-effector space on every task (OSC; the Throw / Pick ablation)",
+        task_variant=_torque_variant("osc", 1),
+        metrics=("ctrl/gains_clipped", "ctrl/torque_saturated", "ctrl/nonfinite"),
+    )
+)
+register_method(
+    Method(
+        "vices-low-freq",
+        "hold",
+        f"VICES deciding once per k = {LOW_FREQ_K} env steps (as NDP), target and gains held",
+        resolve=_resolve_low_freq,
+        task_variant=_torque_variant(None, LOW_FREQ_K),
+        metrics=("ctrl/gains_clipped", "ctrl/torque_saturated", "ctrl/nonfinite"),
+    )
+)

@@ -211,8 +211,7 @@ def _verify(policy: Policy, module: DecisionModule, data: bytes) -> None:
 def onnx_metadata_of(policy: Policy) -> dict[str, str]:
     """The ``metadata_props`` of a policy's ONNX file (every value a string; JSON where it is
     not one)."""
-    from ndp.provenance import git_commit
-    from ndp.rl.policy import _versions
+    from ndp.provenance import git_commit, installed_versions
 
     spec, head = policy.spec, policy.model.head
     ky, kdy = policy.state_keys
@@ -236,7 +235,7 @@ def onnx_metadata_of(policy: Policy) -> dict[str, str]:
         "action_low": np.asarray(spec.action_low, dtype=np.float64).tolist(),
         "action_high": np.asarray(spec.action_high, dtype=np.float64).tolist(),
         "config": policy.cfg.to_dict(),
-        "versions": _versions(),
+        "versions": installed_versions(),
         "commit": git_commit(),
     }
     return {k: v if isinstance(v, str) else json.dumps(v) for k, v in meta.items()}

@@ -589,32 +589,12 @@ def cached_evaluation(run_dir: Path) -> dict[str, Any] | None:
     }
 
 
-def _versions() -> dict[str, str]:
-    from importlib import metadata
-
-    out = {}
-    for name in (
-        "neural-dynamic-policies",
-        "torch",
-        "numpy",
-        "gymnasium",
-        "mujoco",
-        "metaworld",
-        "dm_control",
-    ):
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = "not installed"
-    return out
-
-
 def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | None = None) -> Path:
     from safetensors.torch import save
 
     from ndp.io import atomic_write_bytes, atomic_write_text
     from ndp.policies.task import spec_record
-    from ndp.provenance import git_commit
+    from ndp.provenance import git_commit, installed_versions
     from ndp.rl.card import model_card
 
     if policy.substeps != 1:
@@ -639,7 +619,7 @@ def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | No
             "var": norm["var"].tolist(),
             "count": float(norm["count"]),
         },
-        "versions": _versions(),
+        "versions": installed_versions(),
         "commit": git_commit(),
         "spec": spec_record(policy.spec),
     }

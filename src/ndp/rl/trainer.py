@@ -551,10 +551,8 @@ def make_learner(cfg: TrainConfig, resume: bool = False, resolved: bool = False)
 
     if not resolved:
         cfg = resolve_config(cfg)
-    build = METHODS[cfg.algo].learner
-    if build is None:
-        return Trainer(cfg, resume=resume, resolved=True)
-    return build(cfg, resume)
+    learner = METHODS[cfg.algo].build_learner(cfg, resume)
+    return Trainer(cfg, resume=resume, resolved=True) if learner is None else learner
 
 
 def train(

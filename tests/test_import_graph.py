@@ -126,3 +126,65 @@ def test_no_new_import_circle_and_the_known_ones_are_still_there():
     assert not new, f"new import circles: {[sorted(c) for c in new]}"
     gone = KNOWN - found
     assert not gone, f"circles broken (remove them from KNOWN): {[sorted(c) for c in gone]}"
+
+
+LAYERS = {
+    # foundations: files, checks, provenance, protocols, data tables
+    "io": 0,
+    "checks": 0,
+    "provenance": 0,
+    "chunk_info": 0,
+    "gym_ids": 0,
+    "zoo": 0,
+    # numerical core and run infrastructure
+    "dmp": 1,
+    "nets": 1,
+    "runs": 1,
+    # the data flow: environments -> policies -> learners -> studies -> command line
+    "envs": 2,
+    "policies": 3,
+    "rl": 4,
+    "il": 4,
+    "bc": 5,
+    "sb3": 5,
+    "experiments": 6,
+    "cli": 7,
+    "": 7,  # the package facade (ndp/__init__.py)
+}
+"""Each top-level part of ``src/ndp`` and its layer (docs/design: data flow first); a part may
+import only parts of a lower layer."""
+
+
+def _part(module: str) -> str:
+    return module.split(".")[1] if "." in module else ""
+
+
+def upward_imports(graph: dict[str, set[str]]) -> list[str]:
+    """``"a -> b"`` for each import of a part of the same or a higher layer."""
+    return sorted(
+        f"{m} -> {t}"
+        for m, targets in graph.items()
+        for t in targets
+        if _part(m) != _part(t) and LAYERS[_part(t)] >= LAYERS[_part(m)]
+    )
+
+
+def test_every_import_between_parts_goes_down_a_layer():
+    graph = import_graph()
+    missing = {_part(m) for m in graph} - set(LAYERS)
+    assert not missing, f"parts of src/ndp without a layer (add them to LAYERS): {missing}"
+    upward = upward_imports(graph)
+    assert not upward, f"imports that do not go down a layer: {upward}"
+
+
+def test_the_layer_check_sees_an_upward_and_a_sideways_import():
+    graph = {
+        "ndp.dmp.layer": {"ndp.rl.trainer", "ndp.io"},
+        "ndp.rl.trainer": {"ndp.il.train"},
+        "ndp.il.train": set(),
+        "ndp.io": set(),
+    }
+    assert upward_imports(graph) == [
+        "ndp.dmp.layer -> ndp.rl.trainer",
+        "ndp.rl.trainer -> ndp.il.train",
+    ]

@@ -17,8 +17,9 @@ import pytest
 
 from ndp.cli import main
 from ndp.experiments import sweep as sw
+from ndp.experiments.run_kinds import il_data_args
 from ndp.experiments.studies import STUDIES, get_study
-from ndp.experiments.study import Arm, il_data_args
+from ndp.experiments.study import Arm
 from ndp.experiments.sweep import driver as sw_driver
 from ndp.experiments.sweep import runner as sw_runner
 

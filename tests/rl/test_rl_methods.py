@@ -83,7 +83,7 @@ def test_a_learner_entry_point_is_checked_at_registration_and_imported_at_build(
         with pytest.raises(ValueError, match="learner: expected a callable or an entry point"):
             Method("x", "step", "bad entry point", learner=bad)
     m = Method("x", "step", "missing", learner="ndp.rl.no_such_module:Learner")
-    with pytest.raises(ValueError, match="learner: method 'x' names .*no_such_module"):
+    with pytest.raises(ValueError, match=r"learner: method 'x' names .*no_such_module"):
         m.build_learner(None, False)
     got = Method("x", "step", "ok", learner="collections:namedtuple")
     assert got.build_learner("P", ["a"])._fields == ("a",)  # the entry point, called

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from ndp.experiments.run_kinds import REPORT_KIND, RUN_KINDS, run_kind
+from ndp.experiments.run_kinds import REPORT_KIND, RUN_KINDS, kind_of_algo, run_kind
 from ndp.experiments.study import final_success, is_finished, smooth, success_area
 from ndp.il.config import data_task_name
 from ndp.runs import metrics_path, read_metrics, run_commits
@@ -124,6 +124,14 @@ def _manifest(path: Path) -> Manifest | None:
         return None
 
 
+def _kind_of_method(algo: str) -> str:
+    """The run kind of a method named by an older run; "rl" for one no longer registered."""
+    try:
+        return kind_of_algo(algo).name
+    except ValueError:
+        return "rl"
+
+
 def run_info(path: Path) -> RunInfo | None:
     """Identify a run (None: not enough to say which task / method / seed it is)."""
     arm = _json(path / "arm.json") or {}
@@ -139,9 +147,7 @@ def run_info(path: Path) -> RunInfo | None:
     manifest = _manifest(path)
     kind = arm.get("kind") or (manifest.kind if manifest is not None else None)
     if kind not in RUN_KINDS:  # older runs, or a cloning run ("bc": an RL run once cloned)
-        kind = (
-            "il" if str(algo).startswith("il-") or is_il else "sb3" if algo == "sb3-ppo" else "rl"
-        )
+        kind = "il" if is_il else _kind_of_method(str(algo))
     task, seed = arm.get("task"), arm.get("seed")
     if (task is None or seed is None) and manifest is not None:
         task, seed = manifest.task, manifest.seed  # what the run says it is (run.json)

@@ -9,7 +9,154 @@ kind its :class:`ndp.runs.session.Manifest` names).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import re
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+EXTERNAL_METHODS = ("sb3-ppo",)
+"""Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``)."""
+IL_METHODS = {"il-ndp": "ndp", "il-cnn": "cnn", "il-cnn-dmp": "cnn-dmp"}
+"""Imitation arms (``ndp il train --model VALUE``); their "task" is a data set
+(:func:`il_data_args`) and their budget is in epochs."""
+IL_DATASETS = ("pendigits", "synthetic", "synthetic-N")
+"""Data sets an imitation arm trains on: Pendigits with the writer-disjoint split, the synthetic
+set with the paper's split (10,000 training digits), or its first N training digits."""
+
+
+def il_data_args(task: str) -> list[str]:
+    """The ``ndp il train`` data options of an imitation "task" (a data set, :data:`IL_DATASETS`).
+
+    Raises:
+        ValueError: not a known data set (the message names the known ones).
+    """
+    if task == "pendigits":
+        return ["--data", "pendigits", "--split", "writer"]
+    if task == "synthetic":
+        return ["--data", "synthetic", "--split", "paper"]
+    m = re.fullmatch(r"synthetic-([1-9][0-9]*)", task)
+    if m:
+        return ["--data", "synthetic", "--split", "paper", "--n-train", m.group(1)]
+    raise ValueError(
+        f"task: unknown imitation data set {task!r}; expected 'pendigits', 'synthetic' (all "
+        "training digits) or 'synthetic-N' (the first N training digits)"
+    )
+
+
+# ------------------------------------------------------------------ per-kind behaviour
+# Each row of RUN_KINDS names these functions; nothing else in the experiment layer branches
+# on a kind's name.
+
+
+def _rl_algos() -> tuple[str, ...]:
+    from ndp.rl.methods import METHODS
+
+    return tuple(METHODS)
+
+
+def _rl_command(
+    task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
+) -> list[str]:
+    rl_train = [sys.executable, "-m", "ndp.cli", "rl", "train"]
+    if (run / "checkpoint.pt").is_file():
+        return [*rl_train, "--resume", str(run), "--no-progress"]
+    return [*rl_train, "--task", task, "--algo", arm.algo, "--seed", str(seed),
+            "--steps", str(steps), "--num-envs", str(num_envs), "--run-dir", str(run),
+            "--no-progress", "--no-tensorboard", "--vector", vector, *arm.args]  # fmt: skip
+
+
+def _rl_argv(task: str, arm: Any) -> list[str]:
+    return ["--task", task, "--algo", arm.algo, *arm.args]
+
+
+def _rl_check(cfg: Any) -> None:
+    from ndp.rl.config import resolve_config
+
+    resolve_config(cfg)
+
+
+def _rl_checkpoint_finished(run: Path) -> bool:
+    from ndp.rl.config import TrainConfig
+    from ndp.runs import load_checkpoint
+
+    state = load_checkpoint(run / "checkpoint.pt", kind="rl")
+    return int(state["update"]) >= TrainConfig.from_dict(state["config"]).num_updates
+
+
+def _il_algos() -> tuple[str, ...]:
+    return tuple(IL_METHODS)
+
+
+def _il_command(
+    task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
+) -> list[str]:
+    il_train = [sys.executable, "-m", "ndp.cli", "il", "train"]
+    if (run / "checkpoint.pt").is_file():
+        return [*il_train, "--resume", str(run), "--no-progress"]
+    return [*il_train, *il_data_args(task), "--model", IL_METHODS[arm.algo],
+            "--seed", str(seed), "--epochs", str(steps), "--run-dir", str(run),
+            "--no-progress", "--no-tensorboard", "--threads", "1", *arm.args]  # fmt: skip
+
+
+def _il_argv(task: str, arm: Any) -> list[str]:
+    return [*il_data_args(task), "--model", IL_METHODS[arm.algo], *arm.args]
+
+
+def _il_check(cfg: Any) -> None:
+    if cfg.config.data.source != "pendigits":
+        return
+    from ndp.il.train import DEFAULT_PENDIGITS
+
+    given = cfg.config.data.pendigits_path
+    path = Path(given) if given else DEFAULT_PENDIGITS / "pendigits-train"
+    if not path.is_file():
+        raise ValueError(
+            f"data: the Pendigits file {path} does not exist (give its path with "
+            "-o pendigits_path=FILE)"
+        )
+
+
+def _il_checkpoint_finished(run: Path) -> bool:
+    from ndp.runs import load_checkpoint
+
+    state = load_checkpoint(run / "checkpoint.pt", kind="il")
+    return int(state["epoch"]) >= int(state["config"]["epochs"])
+
+
+def _sb3_algos() -> tuple[str, ...]:
+    return EXTERNAL_METHODS
+
+
+def _sb3_command(
+    task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
+) -> list[str]:
+    return [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task,
+            "--steps", str(steps), "--seed", str(seed), "--num-envs", str(num_envs),
+            "--run-dir", str(run)]  # fmt: skip
+
+
+def _no_command(
+    task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
+) -> list[str]:
+    raise ValueError(f"arm {arm.label!r}: its run kind names no command")
+
+
+def _no_algos() -> tuple[str, ...]:
+    return ()
+
+
+def _no_argv(task: str, arm: Any) -> list[str]:
+    return []
+
+
+def _no_check(cfg: Any) -> None:
+    return None
+
+
+def _never_from_checkpoint(run: Path) -> bool:
+    return False
 
 
 @dataclass(frozen=True)
@@ -44,6 +191,18 @@ class RunKind:
     reserved: tuple[str, ...] = ()
     """Options the sweep sets itself for every run (task / data set, method, seed, budget,
     directory); an arm may not give them."""
+    algos: Callable[[], Sequence[str]] = field(default=_no_algos)
+    """The arm methods (``Arm.algo``) this kind trains (an arm's kind is the row that lists its
+    method)."""
+    command: Callable[[str, Any, int, int, Path, int, str], list[str]] = field(default=_no_command)
+    """``(task, arm, seed, budget, run dir, num_envs, vector) -> argv`` that starts the run, or
+    resumes it from its checkpoint."""
+    argv: Callable[[str, Any], list[str]] = field(default=_no_argv)
+    """``(task, arm) -> the arm's options`` as ``prog`` parses them (the sweep's checks)."""
+    check: Callable[[Any], None] = field(default=_no_check)
+    """Further checks of a parsed config before anything runs (a ValueError naming the field)."""
+    checkpoint_finished: Callable[[Path], bool] = field(default=_never_from_checkpoint)
+    """For runs written before ``run.json``: whether the checkpoint completed the budget."""
 
 
 RUN_KINDS: dict[str, RunKind] = {
@@ -58,6 +217,11 @@ RUN_KINDS: dict[str, RunKind] = {
             "ndp rl train",
             evaluable=True,
             config_class="ndp.rl.config:TrainConfig",
+            algos=_rl_algos,
+            command=_rl_command,
+            argv=_rl_argv,
+            check=_rl_check,
+            checkpoint_finished=_rl_checkpoint_finished,
             reserved=(
                 "--task",
                 "--algo",
@@ -78,6 +242,11 @@ RUN_KINDS: dict[str, RunKind] = {
             needs_eval=True,
             task_is_dataset=True,
             config_class="ndp.il.cli:TrainCommand",
+            algos=_il_algos,
+            command=_il_command,
+            argv=_il_argv,
+            check=_il_check,
+            checkpoint_finished=_il_checkpoint_finished,
             reserved=(
                 "--data",
                 "--split",
@@ -100,6 +269,8 @@ RUN_KINDS: dict[str, RunKind] = {
             "",
             takes_options=False,
             resumable=False,
+            algos=_sb3_algos,
+            command=_sb3_command,
         ),
     )
 }
@@ -119,6 +290,18 @@ def config_class(kind: RunKind) -> type:
     module, name = kind.config_class.split(":")
     cls: type = getattr(importlib.import_module(module), name)
     return cls
+
+
+def kind_of_algo(algo: str) -> RunKind:
+    """The run kind that trains arms of method ``algo`` (a ValueError naming the known methods
+    otherwise)."""
+    known: list[str] = []
+    for kind in RUN_KINDS.values():
+        algos = list(kind.algos())
+        if algo in algos:
+            return kind
+        known += algos
+    raise ValueError(f"algo: expected one of {', '.join(known)}, got {algo!r}")
 
 
 def run_kind(name: str) -> RunKind:

@@ -26,8 +26,8 @@ FLOOR_N = (10, 20, 30)
 
 def data_config(task: str) -> Any:
     """The ``DataConfig`` of an imitation study's "task" (a data set name, as
-    :func:`ndp.experiments.study.il_data_args` reads it)."""
-    from ndp.experiments.study import il_data_args
+    :func:`ndp.experiments.run_kinds.il_data_args` reads it)."""
+    from ndp.experiments.run_kinds import il_data_args
     from ndp.il.config import DataConfig
 
     args = il_data_args(task)

@@ -3,7 +3,8 @@
 An :class:`Arm` is one configuration: a method (``ndp``, ``ppo``, ``ppo-multi``, or ``sb3-ppo``,
 Stable-Baselines3's PPO, see :mod:`ndp.experiments.sb3_ppo`) plus extra ``ndp rl train`` options;
 or an imitation model (``il-ndp``, ``il-cnn``, ``il-cnn-dmp``: ``ndp il train --model ...`` on the
-data set the "task" names, see :data:`IL_METHODS` and :func:`il_data_args`).
+data set the "task" names, see :data:`ndp.experiments.run_kinds.IL_METHODS` and
+:func:`ndp.experiments.run_kinds.il_data_args`).
 Every (task, arm, seed) is one ordinary run in ``<runs_dir>/<task>-<label>-s<seed>``:
 
 - a finished run is reused, an interrupted ``ndp rl train`` run is resumed from its checkpoint
@@ -25,9 +26,7 @@ from __future__ import annotations
 
 import json
 import math
-import re
 import subprocess
-import sys
 import time
 import warnings
 from collections.abc import Sequence
@@ -37,17 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from ndp.experiments.run_kinds import run_kind
+from ndp.experiments.run_kinds import kind_of_algo, run_kind
 from ndp.runs import metrics_path, read_metrics
-
-EXTERNAL_METHODS = ("sb3-ppo",)
-"""Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``)."""
-IL_METHODS = {"il-ndp": "ndp", "il-cnn": "cnn", "il-cnn-dmp": "cnn-dmp"}
-"""Imitation arms (``ndp il train --model VALUE``); their "task" is a data set
-(:func:`il_data_args`) and their budget is in epochs."""
-IL_DATASETS = ("pendigits", "synthetic", "synthetic-N")
-"""Data sets an imitation arm trains on: Pendigits with the writer-disjoint split, the synthetic
-set with the paper's split (10,000 training digits), or its first N training digits."""
 
 
 @dataclass(frozen=True)
@@ -67,11 +57,7 @@ class Arm:
     the RL NDP head"): named when its options are refused (ndp.experiments.sweep.check_arms)."""
 
     def __post_init__(self) -> None:
-        from ndp.rl.methods import METHODS as RL_METHODS
-
-        known = [*RL_METHODS, *EXTERNAL_METHODS, *IL_METHODS]
-        if self.algo not in known:
-            raise ValueError(f"algo: expected one of {', '.join(known)}, got {self.algo!r}")
+        kind_of_algo(self.algo)  # a ValueError naming the known methods
         if not self.label or not all(c.isalnum() or c in "-_" for c in self.label):
             raise ValueError(f"label: expected letters, digits, '-' or '_', got {self.label!r}")
         if self.args and not run_kind(self.kind).takes_options:
@@ -79,29 +65,9 @@ class Arm:
 
     @property
     def kind(self) -> str:
-        """'rl' (``ndp rl train``), 'sb3' (the SB3 reference) or 'il' (``ndp il train``)."""
-        if self.algo in IL_METHODS:
-            return "il"
-        return "sb3" if self.algo == "sb3-ppo" else "rl"
-
-
-def il_data_args(task: str) -> list[str]:
-    """The ``ndp il train`` data options of an imitation "task" (a data set, :data:`IL_DATASETS`).
-
-    Raises:
-        ValueError: not a known data set (the message names the known ones).
-    """
-    if task == "pendigits":
-        return ["--data", "pendigits", "--split", "writer"]
-    if task == "synthetic":
-        return ["--data", "synthetic", "--split", "paper"]
-    m = re.fullmatch(r"synthetic-([1-9][0-9]*)", task)
-    if m:
-        return ["--data", "synthetic", "--split", "paper", "--n-train", m.group(1)]
-    raise ValueError(
-        f"task: unknown imitation data set {task!r}; expected 'pendigits', 'synthetic' (all "
-        "training digits) or 'synthetic-N' (the first N training digits)"
-    )
+        """The run kind that trains it (:func:`ndp.experiments.run_kinds.kind_of_algo`): 'rl'
+        (``ndp rl train``), 'sb3' (the SB3 reference) or 'il' (``ndp il train``)."""
+        return kind_of_algo(self.algo).name
 
 
 def run_dir(runs_dir: Path, task: str, arm: Arm, seed: int) -> Path:
@@ -204,42 +170,17 @@ def is_finished(run: Path, arm: Arm | None = None, kind: str | None = None) -> b
     ckpt = run / "checkpoint.pt"
     if not ckpt.is_file() or not (run / "config.json").is_file():
         return False
-    from ndp.runs import load_checkpoint
-
-    if kind == "il":
-        if not (run / "eval.json").is_file():
-            return False
-        state = load_checkpoint(ckpt, kind="il")
-        return int(state["epoch"]) >= int(state["config"]["epochs"])
-    from ndp.rl.config import TrainConfig
-
-    state = load_checkpoint(ckpt, kind="rl")
-    return int(state["update"]) >= TrainConfig.from_dict(state["config"]).num_updates
+    return run_kind(kind).checkpoint_finished(run)
 
 
 def train_command(
     task: str, arm: Arm, seed: int, steps: int, run: Path, num_envs: int = 4, vector: str = "auto"
 ) -> list[str]:
-    """The command that trains (or resumes) one run (``vector``: its vector env kind).
+    """The command that trains (or resumes) one run (``vector``: its vector env kind): the
+    arm's run kind builds it (:attr:`ndp.experiments.run_kinds.RunKind.command`).
 
     An imitation arm's ``steps`` is its budget in epochs and ``task`` its data set."""
-    if arm.kind == "il":
-        il_train = [sys.executable, "-m", "ndp.cli", "il", "train"]
-        if (run / "checkpoint.pt").is_file():
-            return [*il_train, "--resume", str(run), "--no-progress"]
-        return [*il_train, *il_data_args(task), "--model", IL_METHODS[arm.algo],
-                "--seed", str(seed), "--epochs", str(steps), "--run-dir", str(run),
-                "--no-progress", "--no-tensorboard", "--threads", "1", *arm.args]  # fmt: skip
-    if arm.algo == "sb3-ppo":
-        return [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task,
-                "--steps", str(steps), "--seed", str(seed), "--num-envs", str(num_envs),
-                "--run-dir", str(run)]  # fmt: skip
-    rl_train = [sys.executable, "-m", "ndp.cli", "rl", "train"]
-    if (run / "checkpoint.pt").is_file():
-        return [*rl_train, "--resume", str(run), "--no-progress"]
-    return [*rl_train, "--task", task, "--algo", arm.algo, "--seed", str(seed),
-            "--steps", str(steps), "--num-envs", str(num_envs), "--run-dir", str(run),
-            "--no-progress", "--no-tensorboard", "--vector", vector, *arm.args]  # fmt: skip
+    return run_kind(arm.kind).command(task, arm, seed, steps, run, num_envs, vector)
 
 
 def prepare_run(run: Path, arm: Arm) -> None:

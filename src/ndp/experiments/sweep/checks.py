@@ -14,15 +14,8 @@ import typing
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
-from ndp.experiments.run_kinds import RUN_KINDS, config_class, run_kind
-from ndp.experiments.study import (
-    EXTERNAL_METHODS,
-    IL_METHODS,
-    Arm,
-    arm_conflict,
-    il_data_args,
-    is_finished,
-)
+from ndp.experiments.run_kinds import RUN_KINDS, config_class, il_data_args, run_kind
+from ndp.experiments.study import Arm, arm_conflict, is_finished
 from ndp.experiments.sweep.jobs import FAILED_NAME, Job
 from ndp.experiments.sweep.runner import is_busy
 
@@ -41,9 +34,7 @@ def close_hint(value: str, known: Iterable[str], n: int = 4) -> str:
 
 def known_methods() -> list[str]:
     """Every method an arm may name: the trainer's registry, the SB3 reference, imitation."""
-    from ndp.rl.methods import METHODS
-
-    return [*METHODS, *EXTERNAL_METHODS, *IL_METHODS]
+    return [algo for kind in RUN_KINDS.values() for algo in kind.algos()]
 
 
 def check_methods(methods: Sequence[str]) -> list[str]:
@@ -57,7 +48,7 @@ def check_methods(methods: Sequence[str]) -> list[str]:
 
 def check_tasks(tasks: Sequence[str], kind: str = "rl") -> list[str]:
     """Canonical task names ('rl': ndp.envs.TASKS; 'il': data sets, see
-    :func:`ndp.experiments.study.il_data_args`); an unknown one is a ValueError naming it and
+    :func:`ndp.experiments.run_kinds.il_data_args`); an unknown one is a ValueError naming it and
     the close matches."""
     out = []
     for t in tasks:
@@ -166,30 +157,13 @@ def check_arms(arms: Sequence[Arm], tasks: Sequence[str] = (), study: str = "") 
 def _parse_arm(arm: Arm, task: str) -> None:
     from ndp.runs.cli import parse_config
 
-    if arm.kind == "il":
-        argv = [*il_data_args(task), "--model", IL_METHODS[arm.algo], *arm.args]
-        prog = "ndp il train"
-    else:
-        argv = ["--task", task, "--algo", arm.algo, *arm.args]
-        prog = "ndp rl train"
+    kind = run_kind(arm.kind)
+    argv, prog = kind.argv(task, arm), kind.prog
     err = io.StringIO()
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err):
-            cfg = parse_config(_config_class(arm.kind), argv, prog=prog)
-        if arm.kind == "rl":
-            from ndp.rl.config import resolve_config
-
-            resolve_config(cfg)
-        elif cfg.config.data.source == "pendigits":
-            from ndp.il.train import DEFAULT_PENDIGITS
-
-            given = cfg.config.data.pendigits_path
-            path = Path(given) if given else DEFAULT_PENDIGITS / "pendigits-train"
-            if not path.is_file():
-                raise ValueError(
-                    f"data: the Pendigits file {path} does not exist (give its path with "
-                    "-o pendigits_path=FILE)"
-                )
+            cfg = parse_config(config_class(kind), argv, prog=prog)
+        kind.check(cfg)
     except SystemExit:
         rows = [ln.strip(" │╭╰─╮╯|-") for ln in err.getvalue().splitlines()]
         text = " ".join(r for r in rows if r and not r.startswith("For full helptext"))

@@ -329,8 +329,10 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "digits-converged",
         "ndp-head-ablation",
         "ppo-vs-sb3",
+        "il-robot",
     }
-    for name in ("ndp-head-ablation", "ppo-vs-sb3"):  # the benchmarks' grids, as named studies
+    # the benchmarks' grids, as named studies
+    for name in ("ndp-head-ablation", "ppo-vs-sb3", "il-robot"):
         st = get_study(name)
         sw.check_arms([a.arm() for a in st.arm_specs()], list(st.task_list()), name)
     for name in ("release-conditions", "release-goals-1m"):  # every condition's arms exist
@@ -341,6 +343,9 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
             assert [m for m, _ in cond.methods] == ["ndp", "ppo-multi", "ppo"]
             assert all(lb in arms and arms[lb].algo == m for m, lb in cond.methods)
         assert [c.name for c in st.conditions if c.unequal] == ["release-goals"]
+    bc = get_study("il-robot")
+    labels = [a.label for a in bc.arm_specs() if a.in_default]
+    assert labels == [f"{m}-n{n}" for n in (25, 100, 400) for m in ("ndp", "nn")]
     g1m = get_study("release-goals-1m")
     assert g1m.steps == 1_000_000 and g1m.task_list() == ("push-v3", "throw")
     assert dict(g1m.conditions[1].methods) == {"ndp": "ndp-fixed", "ppo-multi": "ppo-multi-fixed",

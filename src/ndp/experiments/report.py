@@ -173,18 +173,20 @@ def run_info(path: Path) -> RunInfo | None:
 def _record_reaches_budget(info: RunInfo) -> bool:
     """The run's metrics.csv reaches its budget (RL: the last row's ``global_step`` >= the
     budget; imitation: the last ``epoch``); a file cut short records less than ran."""
-    if not metrics_path(info.path).is_file():
+    kind = run_kind(info.kind)
+    log = info.path / kind.metrics_file if kind.metrics_file else metrics_path(info.path)
+    if not log.is_file():
         return False
-    rows = read_metrics(info.path)
-    col = run_kind(info.kind).progress_column
+    rows = read_metrics(log)
+    col = kind.progress_column
     last = rows[-1].get(col, 0) if rows else 0
     target = info.steps
     done = _json(info.path / "done.json") or {}
     if done.get("reason") == "early stop" and isinstance(done.get("epoch"), int):
         target = done["epoch"]  # stopped on its validation split before the maximum
     if not (rows and last >= target):
-        unit = run_kind(info.kind).unit.removesuffix("s")
-        info.problem = f"metrics.csv ends at {unit} {last:,.0f} of {info.steps:,}"
+        unit = kind.unit.removesuffix("s")
+        info.problem = f"{log.name} ends at {unit} {last:,.0f} of {info.steps:,}"
         return False
     return True
 
@@ -280,6 +282,18 @@ def il_numbers(info: RunInfo) -> dict[str, Any]:
         "stopped_early": done.get("reason") == "early stop",
         "curve": curve,
     }
+
+
+def bc_numbers(info: RunInfo) -> dict[str, Any]:
+    """One behaviour-cloning run's closed-loop evaluation (``eval.json`` of
+    :mod:`ndp.experiments.bc_job`): success, fit (last validation loss), jerk, SPARC."""
+    ev = _json(info.path / "eval.json") or {}
+
+    def num(key: str) -> float:
+        v = ev.get(key)
+        return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
+
+    return {k: num(k) for k in ("success", "val_loss", "jerk", "sparc")}
 
 
 DET_EVAL_FILE = "eval-det-e{episodes}.json"
@@ -459,6 +473,7 @@ def report(
         raise MissingSeedsError(_missing_message(cells, expected))
     rl_cells = [c for c in cells if REPORT_KIND[c.kind] == "rl"]
     il_cells = [c for c in cells if REPORT_KIND[c.kind] == "il"]
+    bc_cells = [c for c in cells if REPORT_KIND[c.kind] == "bc"]
     top = max((i.steps for c in rl_cells for i in c.runs.values()), default=0)
     for b in budgets or ():
         if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b <= 0:
@@ -473,6 +488,8 @@ def report(
             c.numbers[s_]["det"] = det_success(i.path, eval_episodes) if ok else math.nan
     for c in il_cells:
         c.numbers = {s: il_numbers(i) for s, i in c.runs.items()}
+    for c in bc_cells:
+        c.numbers = {s: bc_numbers(i) for s, i in c.runs.items()}
     prov = {
         "command": command,
         "commit": git_commit(),
@@ -485,9 +502,12 @@ def report(
     except (FileExistsError, NotADirectoryError):
         raise OSError(f"out: cannot create {out.parent}: a part of that path is a file") from None
     pngs = _plot_all(rl_cells, il_cells, out, prov) if plots else []
-    rows = _csv_rows(rl_cells, il_cells, budgets, expected, prov)
+    rows = _csv_rows(rl_cells, [*il_cells, *bc_cells], budgets, expected, prov)
     _write_csv(out.with_suffix(".csv"), rows)
     md = _markdown(title, rl_cells, il_cells, budgets, expected, prov, pngs, out, eval_episodes)
+    if bc_cells:
+        at = md.index("", md.index(next(x for x in md if x.startswith("Seeds per cell")))) + 1
+        md[at:at] = _bc_markdown(bc_cells)
     if conditions:
         from ndp.experiments.conditions import conditions_section
 
@@ -543,6 +563,9 @@ def _csv_rows(
         }
         if REPORT_KIND[c.kind] == "il":
             keys = [("test_mse_px2", "mse"), ("test_dtw_px", "dtw")]
+        elif REPORT_KIND[c.kind] == "bc":
+            keys = [("success", "success"), ("fit_val_loss", "val_loss"), ("jerk", "jerk"),
+                    ("sparc", "sparc")]  # fmt: skip
         else:
             keys = [(f"success_at_{b}", f"at:{b}") for b in budgets]
             keys += [
@@ -654,6 +677,30 @@ def _markdown(
     md += [f"![{p.stem}]({p.name})" for p in pngs]
     md += ["", f"CSV: `{out.with_suffix('.csv').name}`."]
     return md
+
+
+def _bc_markdown(cells: Sequence[Cell]) -> list[str]:
+    """The behaviour-cloning table: one row per task and arm (model and demonstration count)."""
+    md = [
+        "Behaviour cloning: closed-loop success (any step) of each cloned policy over its "
+        "evaluation episodes (deterministic, one decision per k env steps, stale-world rule, "
+        "reset seeds disjoint from the demonstrations'); fit: the cloning's last validation "
+        "loss (MSE of the k actions on held-out demonstration episodes); jerk: mean squared "
+        "jerk of the executed arm path (lower is smoother); SPARC (closer to 0 is smoother). "
+        "Means over seeds (+- std for success).",
+        "",
+        "| task | method | n | success | fit | jerk | SPARC |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for c in cells:
+        n = f"{len(c.runs)}" + (f" **{c.marker()}**" if c.missing else "")
+        fit, jerk, sparc = (c.stat(k)[0] for k in ("val_loss", "jerk", "sparc"))
+        md.append(
+            f"| {c.task} | {c.label} | {n} | {_fmt(*c.stat('success'))} | "
+            + " | ".join("-" if math.isnan(v) else f"{v:.3g}" for v in (fit, jerk))
+            + f" | {'-' if math.isnan(sparc) else f'{sparc:.2f}'} |"
+        )
+    return [*md, ""]
 
 
 def _task_grid(

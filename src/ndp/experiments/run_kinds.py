@@ -137,6 +137,41 @@ def _sb3_command(
             "--run-dir", str(run)]  # fmt: skip
 
 
+BC_METHODS = {"bc-ndp": "ndp", "bc-nn": "nn", "bc-nn-step": "nn-step"}
+"""Behaviour-cloning arms (``ndp il bc --model VALUE``, run by :mod:`ndp.experiments.bc_job`);
+their budget is in epochs and their demonstrations are recorded once per task and folder."""
+
+
+BC_DEMOS_EPISODES = 400
+"""Successful expert episodes recorded per task for a folder of cloning runs (the largest
+demonstration count of the ``il-robot`` study; :mod:`ndp.experiments.bc_job`)."""
+
+
+def _bc_algos() -> tuple[str, ...]:
+    return tuple(BC_METHODS)
+
+
+def _bc_command(
+    task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
+) -> list[str]:
+    return [sys.executable, "-m", "ndp.experiments.bc_job", "--task", task, "--",
+            "--model", BC_METHODS[arm.algo], "--seed", str(seed), "--epochs", str(steps),
+            "--run-dir", str(run), "--no-progress", "--no-tensorboard", "--threads", "1",
+            *arm.args]  # fmt: skip
+
+
+def _bc_argv(task: str, arm: Any) -> list[str]:
+    return ["--model", BC_METHODS[arm.algo], *arm.args]
+
+
+def _bc_check(cfg: Any) -> None:
+    if cfg.episodes and cfg.episodes > BC_DEMOS_EPISODES:
+        raise ValueError(
+            f"episodes: {cfg.episodes} demonstrations asked; a study records "
+            f"{BC_DEMOS_EPISODES} per task"
+        )
+
+
 def _no_command(
     task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
@@ -165,7 +200,8 @@ class RunKind:
 
     name: str
     """``"rl"`` (``ndp rl train``: PPO, NDP, PPO-multi, VICES, Dyn-E), ``"il"`` (``ndp il
-    train``: digit writing) or ``"sb3"`` (the Stable-Baselines3 reference)."""
+    train``: digit writing), ``"sb3"`` (the Stable-Baselines3 reference) or ``"bc"``
+    (behaviour cloning on the robot tasks, :mod:`ndp.experiments.bc_job`)."""
     unit: str
     """The budget's unit in messages and tables: ``"env steps"`` or ``"epochs"``."""
     progress_column: str
@@ -201,6 +237,9 @@ class RunKind:
     """``(task, arm) -> the arm's options`` as ``prog`` parses them (the sweep's checks)."""
     check: Callable[[Any], None] = field(default=_no_check)
     """Further checks of a parsed config before anything runs (a ValueError naming the field)."""
+    metrics_file: str = ""
+    """The metrics file whose ``progress_column`` counts the budget (empty: the run's
+    ``metrics.csv``, :func:`ndp.runs.metrics_path`)."""
     checkpoint_finished: Callable[[Path], bool] = field(default=_never_from_checkpoint)
     """For runs written before ``run.json``: whether the checkpoint completed the budget."""
 
@@ -272,13 +311,40 @@ RUN_KINDS: dict[str, RunKind] = {
             algos=_sb3_algos,
             command=_sb3_command,
         ),
+        RunKind(
+            "bc",
+            "epochs",
+            "epoch",
+            "epochs",
+            100,
+            "ndp il bc",
+            resumable=False,
+            needs_eval=True,
+            evaluable=True,
+            config_class="ndp.bc.train:BCConfig",
+            algos=_bc_algos,
+            command=_bc_command,
+            argv=_bc_argv,
+            check=_bc_check,
+            metrics_file="bc_metrics.csv",
+            reserved=(
+                "--demos",
+                "--data",
+                "--model",
+                "--seed",
+                "--epochs",
+                "--run-dir",
+                "--out",
+                "--overwrite",
+            ),
+        ),
     )
 }
 """Run kind name -> :class:`RunKind`."""
 
-REPORT_KIND = {"rl": "rl", "il": "il", "sb3": "rl", "bc": "rl"}
-"""Which table a kind's runs go to: success tables ("rl") or imitation error tables ("il").
-A behaviour-cloning run is an RL run at update 0 once cloned."""
+REPORT_KIND = {"rl": "rl", "il": "il", "sb3": "rl", "bc": "bc"}
+"""Which table a kind's runs go to: success tables ("rl"), imitation error tables ("il") or the
+behaviour-cloning table ("bc": closed-loop success, fit and smoothness of each cloned policy)."""
 
 
 def config_class(kind: RunKind) -> type:

@@ -336,6 +336,36 @@ RELEASE_1M_CONDITIONS = (
 """The conditions of release-goals-1m (release-goals is UNEQUAL on purpose, and labelled so)."""
 
 
+BC_TASKS = ("throw", "pick", "push-v3", "soccer-v3", "faucet-open-v3")
+"""Tasks of the behaviour-cloning study (the paper's five robot tasks, each with a scripted
+expert: ndp.bc.experts)."""
+BC_DEMOS = (25, 100, 400)
+"""Demonstration counts of the behaviour-cloning study (the first n of one recording per task)."""
+
+
+def _bc_arms() -> tuple[ArmSpec, ...]:
+    """NDP and the plain network (the PPO-multi actor) at each demonstration count; the PPO
+    actor (one action per step) and NDP starting from the commanded velocity only by name."""
+    models = (
+        ("ndp", "bc-ndp", (), "NDP: (g, w) -> DMP -> inverse controller -> k actions", True),
+        ("nn", "bc-nn", (), "NN: k raw actions per decision (the PPO-multi actor)", True),
+        ("nn-step", "bc-nn-step", (), "NN: one action per env step (the PPO actor)", False),
+        ("ndp-vstate", "bc-ndp", ("--dmp-velocity", "state"),
+         "NDP whose DMP starts from the commanded velocity", False),
+    )  # fmt: skip
+    return tuple(
+        ArmSpec(
+            f"{label}-n{n}",
+            algo,
+            (*args, "--episodes", str(n)),
+            f"{note}; {n} demos",
+            in_default=default,
+        )
+        for n in BC_DEMOS
+        for label, algo, args, note, default in models
+    )
+
+
 DIGITS_TASKS = ("pendigits", "synthetic-300", "synthetic-1000", "synthetic-3000", "synthetic")
 
 
@@ -479,6 +509,24 @@ STUDIES: dict[str, Study] = {
             arms=_release_1m_arms,
             steps=1_000_000,
             conditions=RELEASE_1M_CONDITIONS,
+        ),
+        Study(
+            name="il-robot",
+            title="Behaviour cloning on the robot tasks: NDP vs NN",
+            doc=(
+                "The five robot tasks x NDP and the plain network (the PPO-multi actor) cloned "
+                "from the first 25 / 100 / 400 successful episodes of one scripted-expert "
+                "recording per task (reset seeds from 0), 100 epochs, 3 seeds; each cloned "
+                "policy evaluated closed loop over 50 episodes with seeds disjoint from the "
+                "demonstrations'. The report gives success, the cloning's validation loss and "
+                "the smoothness (jerk, SPARC) of the executed arm path. nn-step-nN (the PPO "
+                "actor) and ndp-vstate-nN (NDP starting from the commanded velocity) run only "
+                "when named with --arms."
+            ),
+            tasks=lambda: BC_TASKS,
+            arms=_bc_arms,
+            steps=100,
+            kind="bc",
         ),
         Study(
             name="digits-data",

@@ -155,7 +155,7 @@ def report_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="mark cells with missing seeds instead of refusing",
     )
-    p.add_argument("--title", default="Report")
+    p.add_argument("--title", default=None, help="the table's title (default: the study's)")
     p.add_argument(
         "--eval-episodes",
         type=int,
@@ -389,6 +389,7 @@ def report_command(argv: list[str]) -> int:
     """``ndp report RUN_DIRS... [options]``."""
     args = report_parser().parse_args(argv)
     from ndp.experiments.report import report
+    from ndp.experiments.studies import get_study
 
     out = args.out or Path(args.run_dirs[0]) / "report"
     res = report(
@@ -400,7 +401,7 @@ def report_command(argv: list[str]) -> int:
         tasks=args.tasks,
         methods=args.methods,
         allow_missing=args.allow_missing,
-        title=args.title,
+        title=args.title or (get_study(args.study).title if args.study else "Report"),
         plots=not args.no_plots,
         eval_episodes=args.eval_episodes,
         study=args.study,

@@ -56,15 +56,21 @@ def _rl_algos() -> tuple[str, ...]:
     return tuple(METHODS)
 
 
+def _start_or_resume(command: str, run: Path, start: list[str]) -> list[str]:
+    """``ndp COMMAND --resume RUN`` where the run has a checkpoint, else ``ndp COMMAND START``."""
+    prog = [sys.executable, "-m", "ndp.cli", *command.split()]
+    if (run / "checkpoint.pt").is_file():
+        return [*prog, "--resume", str(run), "--no-progress"]
+    return [*prog, *start]
+
+
 def _rl_command(
     task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
-    rl_train = [sys.executable, "-m", "ndp.cli", "rl", "train"]
-    if (run / "checkpoint.pt").is_file():
-        return [*rl_train, "--resume", str(run), "--no-progress"]
-    return [*rl_train, "--task", task, "--algo", arm.algo, "--seed", str(seed),
-            "--steps", str(steps), "--num-envs", str(num_envs), "--run-dir", str(run),
-            "--no-progress", "--no-tensorboard", "--vector", vector, *arm.args]  # fmt: skip
+    start = ["--task", task, "--algo", arm.algo, "--seed", str(seed), "--steps", str(steps),
+             "--num-envs", str(num_envs), "--run-dir", str(run), "--no-progress",
+             "--no-tensorboard", "--vector", vector, *arm.args]  # fmt: skip
+    return _start_or_resume("rl train", run, start)
 
 
 def _rl_argv(task: str, arm: Any) -> list[str]:
@@ -92,12 +98,10 @@ def _il_algos() -> tuple[str, ...]:
 def _il_command(
     task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
-    il_train = [sys.executable, "-m", "ndp.cli", "il", "train"]
-    if (run / "checkpoint.pt").is_file():
-        return [*il_train, "--resume", str(run), "--no-progress"]
-    return [*il_train, *il_data_args(task), "--model", IL_METHODS[arm.algo],
-            "--seed", str(seed), "--epochs", str(steps), "--run-dir", str(run),
-            "--no-progress", "--no-tensorboard", "--threads", "1", *arm.args]  # fmt: skip
+    start = [*il_data_args(task), "--model", IL_METHODS[arm.algo], "--seed", str(seed),
+             "--epochs", str(steps), "--run-dir", str(run), "--no-progress", "--no-tensorboard",
+             "--threads", "1", *arm.args]  # fmt: skip
+    return _start_or_resume("il train", run, start)
 
 
 def _il_argv(task: str, arm: Any) -> list[str]:

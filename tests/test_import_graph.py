@@ -9,6 +9,9 @@ module are the circles.
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import ndp
@@ -188,3 +191,120 @@ def test_the_layer_check_sees_an_upward_and_a_sideways_import():
         "ndp.dmp.layer -> ndp.rl.trainer",
         "ndp.rl.trainer -> ndp.il.train",
     ]
+
+
+# ----------------------------------------------------------------------------- lazy imports
+
+LAZY_DEBT = {
+    "ndp.bc.demos",
+    "ndp.envs.factory",
+    "ndp.envs.spec",
+    "ndp.experiments.diagnose",
+    "ndp.experiments.report",
+    "ndp.experiments.sb3_ppo",
+    "ndp.il.train",
+    "ndp.rl.onnx_export",
+    "ndp.rl.policy",
+    "ndp.rl.trainer",
+}
+"""Modules that still import ndp modules inside functions for no reason the rule below accepts
+(the list only shrinks)."""
+
+
+def _help_path() -> set[str]:
+    """The ndp modules that ``ndp --help`` imports."""
+    code = (
+        "import runpy, sys\n"
+        "sys.argv = ['ndp', '--help']\n"
+        "try:\n"
+        "    runpy.run_module('ndp.cli', run_name='__main__')\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print(' '.join(m for m in sys.modules if m.startswith('ndp')), file=sys.stderr)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return {*out.stderr.strip().splitlines()[-1].split(), "ndp.cli"}
+
+
+def _imports(tree: ast.AST, skip: set[int]) -> Iterator[tuple[ast.AST, list[str], bool]]:
+    """(node, imported names, inside a function) for every import outside TYPE_CHECKING."""
+    local: set[int] = set()
+    for fn in ast.walk(tree):
+        if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            local |= {id(n) for n in ast.walk(fn)}
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.Import):
+            yield node, [a.name for a in node.names], id(node) in local
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            yield node, [node.module], id(node) in local
+
+
+def needless_lazy_imports() -> dict[str, list[str]]:
+    """Per module off the ``ndp --help`` path: its function-local imports of ndp modules that
+    would load no third-party package the module does not load already (moving them to the top
+    costs nothing and shows the dependency)."""
+    mods = _modules()
+
+    def resolve(name: str) -> str | None:
+        while name and name not in mods:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    def with_parents(m: str) -> set[str]:
+        out = {m}
+        while "." in m:
+            m = m.rpartition(".")[0]
+            out.add(m)
+        return out
+
+    trees = {m: ast.parse(f.read_text()) for m, f in mods.items()}
+    top: dict[str, set[str]] = {}
+    third: dict[str, set[str]] = {}
+    for m, tree in trees.items():
+        top[m], third[m] = set(), set()
+        for _, names, local in _imports(tree, _type_checking_nodes(tree)):
+            if local:
+                continue
+            for n in names:
+                root = n.split(".")[0]
+                if root == "ndp":
+                    r = resolve(n)
+                    top[m] |= with_parents(r) - {m} if r else set()
+                elif root not in sys.stdlib_module_names and root != "__future__":
+                    third[m].add(root)
+    memo: dict[str, set[str]] = {}
+
+    def loads(m: str, stack: tuple[str, ...] = ()) -> set[str]:
+        """Third-party packages loaded by importing ``m``."""
+        if m in memo:
+            return memo[m]
+        if m in stack:
+            return set()
+        out = set(third[m])
+        for d in top[m]:
+            out |= loads(d, (*stack, m))
+        memo[m] = out
+        return out
+
+    help_path = _help_path()
+    found: dict[str, list[str]] = {}
+    for m, tree in trees.items():
+        if m in help_path:
+            continue
+        for node, names, local in _imports(tree, _type_checking_nodes(tree)):
+            if not local or not all(n.split(".")[0] == "ndp" for n in names):
+                continue
+            targets = {p for n in names if (r := resolve(n)) for p in with_parents(r)}
+            if not set().union(*(loads(t) for t in targets)) - loads(m):
+                found.setdefault(m, []).append(f"line {node.lineno}: {ast.unparse(node)}")
+    return found
+
+
+def test_function_local_imports_only_where_they_keep_a_dependency_away():
+    found = needless_lazy_imports()
+    new = {m: v for m, v in found.items() if m not in LAZY_DEBT}
+    assert not new, f"import these at the top (nothing heavier loads): {new}"
+    fixed = LAZY_DEBT - set(found)
+    assert not fixed, f"take these off LAZY_DEBT: {sorted(fixed)}"

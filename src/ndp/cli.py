@@ -15,6 +15,8 @@ from collections.abc import Callable, Sequence
 from types import ModuleType
 from typing import Any
 
+from ndp import version
+
 # Sub-command modules, each with ``add_subparser(subparsers) -> None`` that registers a parser
 # whose ``func(args) -> int`` runs the command.
 _COMMAND_MODULES = (
@@ -93,7 +95,6 @@ def _config_command(argv: list[str]) -> tuple[str, Callable[[list[str]], int]] |
 
 def version_line() -> str:
     """``ndp --version``'s line: the installed distribution's version (``ndp.version``)."""
-    from ndp import version
 
     return f"ndp {version()}"
 

@@ -45,7 +45,9 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
+import ndp
 from ndp.chunk_info import DMP_START_KEYS
+from ndp.policies import PolicyConfig, build_head
 
 __all__ = ["NDPPolicy", "ObservationOnly", "RobotStateSpace", "make_env", "with_robot_state"]
 
@@ -135,7 +137,6 @@ def with_robot_state(env: gym.Env, task: str, dmp_state: str | None = None) -> g
 
 def make_env(task: str, k: int = 5, dmp_state: str | None = None, **kwargs: Any) -> gym.Env:
     """``with_robot_state(ndp.make_env(task, k, **kwargs), task, dmp_state)``."""
-    import ndp
 
     return with_robot_state(ndp.make_env(task, k=k, **kwargs), task, dmp_state)
 
@@ -228,7 +229,6 @@ class NDPPolicy(ActorCriticPolicy):
     def _build(self, lr_schedule: Any) -> None:
         """The MLP extractor, the raw-parameter layer, the NDP head, the value layer, SB3's
         orthogonal initialisation and the optimiser."""
-        from ndp.policies import PolicyConfig, build_head
         from ndp.rl.config import TrainConfig, resolve_config
 
         k, a = (int(n) for n in self.action_space.shape)  # type: ignore[misc]

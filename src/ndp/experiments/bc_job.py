@@ -30,6 +30,9 @@ from pathlib import Path
 from typing import Any
 
 from ndp.experiments.run_kinds import BC_DEMOS_EPISODES as DEMOS_EPISODES
+from ndp.io import atomic_write_text
+from ndp.runs import read_metrics
+from ndp.runs.session import read_manifest
 
 EVAL_EPISODES = 50
 """Closed-loop evaluation episodes per run."""
@@ -73,7 +76,6 @@ def ensure_demos(path: Path, task: str, episodes: int = DEMOS_EPISODES) -> Path:
 def last_val_loss(run: Path) -> float:
     """The cloning's fit: validation loss (MSE of the actions) of its last epoch; NaN when not
     logged (no validation split)."""
-    from ndp.runs import read_metrics
 
     try:
         rows = read_metrics(run / "bc_metrics.csv")
@@ -86,9 +88,7 @@ def run_job(task: str, bc_argv: list[str], demos_episodes: int, eval_episodes: i
     """Demonstrations, cloning and evaluation of one run (each step skipped when done)."""
     from ndp.bc.demos import load_demos
     from ndp.bc.train import BCConfig, train_bc
-    from ndp.io import atomic_write_text
     from ndp.runs.cli import parse_config
-    from ndp.runs.session import read_manifest
 
     probe = parse_config(BCConfig, bc_argv, prog="ndp il bc")
     run = Path(probe.run_dir)

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from ndp.experiments.provenance import git_commit
 from ndp.experiments.study import Arm, default_vector, markdown_table, plot, summarise
 from ndp.experiments.sweep import make_jobs, run_sweep
 
@@ -82,8 +83,6 @@ def run_study(
     the command, commit, date and runs directory), ``<out>.png`` and ``<out>.md`` (``intro``
     lines, then success area and final success tables)."""
     import datetime as dt
-
-    from ndp.experiments.provenance import git_commit
 
     if not args.plot_only:
         run_grid(tasks, arms, args.seeds, args.steps, args.runs_dir, args.jobs, vector=args.vector)

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments import stats
+from ndp.experiments.run_kinds import il_data_args
 
 FLOOR_N = (10, 20, 30)
 """Numbers of basis functions of the floor rows (30: the models' DMP)."""
@@ -27,7 +28,6 @@ FLOOR_N = (10, 20, 30)
 def data_config(task: str) -> Any:
     """The ``DataConfig`` of an imitation study's "task" (a data set name, as
     :func:`ndp.experiments.run_kinds.il_data_args` reads it)."""
-    from ndp.experiments.run_kinds import il_data_args
     from ndp.il.config import DataConfig
 
     args = il_data_args(task)

@@ -25,7 +25,9 @@ from typing import Any
 
 import numpy as np
 
+import ndp
 from ndp.experiments.run_kinds import run_kind
+from ndp.io import atomic_write_text
 
 
 def mean_squared_jerk(path: np.ndarray, dt: float) -> float:
@@ -104,7 +106,6 @@ def rollout_paths(
         (paths: one [T + 1, D] array per episode (every env step), success at any step per
         episode, the control step dt).
     """
-    import ndp
 
     policy = ndp.load_policy(run)
     env = policy.make_env()
@@ -139,8 +140,6 @@ def run_smoothness(
     """
     paths, success, dt = rollout_paths(run, episodes, seed)
     if dofs is None:
-        import ndp
-
         names = ndp.load_policy(run).spec.dof_names
         keep = [i for i, n in enumerate(names) if "gripper" not in n and "finger" not in n]
     else:
@@ -183,7 +182,6 @@ def smoothness_of_runs(
     import json
 
     from ndp.experiments.report import find_run_dirs, run_info
-    from ndp.io import atomic_write_text
 
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")

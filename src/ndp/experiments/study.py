@@ -37,7 +37,9 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.run_kinds import kind_of_algo, run_kind
+from ndp.io import atomic_write_text
 from ndp.runs import metrics_path, read_metrics
+from ndp.runs.session import read_manifest
 
 
 @dataclass(frozen=True)
@@ -143,8 +145,6 @@ def _check_arm(run: Path, arm: Arm, steps: int, task: str | None = None,
         raise ValueError(f"runs_dir: {run}: {why}. Use another --runs-dir or label.")
     rec = run / "arm.json"
     if not rec.is_file():  # an existing record is never rewritten (older study code reads it)
-        from ndp.io import atomic_write_text
-
         run.mkdir(parents=True, exist_ok=True)
         atomic_write_text(rec, json.dumps(arm_record(arm, steps, task, seed), indent=1) + "\n")
 
@@ -156,7 +156,6 @@ def is_finished(run: Path, arm: Arm | None = None, kind: str | None = None) -> b
     kind = kind or (arm.kind if arm is not None else "rl")
     if run_kind(kind).needs_eval and not (run / "eval.json").is_file():
         return False  # e.g. an imitation run counts once trained and evaluated
-    from ndp.runs.session import read_manifest
 
     try:
         manifest = read_manifest(run)

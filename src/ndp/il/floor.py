@@ -22,6 +22,7 @@ import torch
 
 from ndp.dmp import DMPLayer, fit_dmp
 from ndp.il.config import DataConfig, ModelConfig
+from ndp.il.metrics import per_sample_mse, summarize
 
 
 def dmp_floor(
@@ -44,7 +45,6 @@ def dmp_floor(
         One dict per N: ``n_basis``, ``n_test``, ``mse_px2`` (mean, std, median, max over
         trajectories), ``fit_s``.
     """
-    from ndp.il.metrics import per_sample_mse, summarize
     from ndp.il.train import load_data, make_split
 
     base = model_cfg or ModelConfig()

@@ -36,9 +36,11 @@ import torch
 from torch import nn
 
 from ndp.dmp import DMPConfig, DMPLayer
-from ndp.dmp.integrate import recording
+from ndp.dmp.controllers import DeltaController
+from ndp.dmp.integrate import _linear_map_f64, check_finite, recording
 from ndp.policies.base import ActionHead
 from ndp.policies.distributions import ParamGaussian, SubActionGaussian
+from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
 
 
 class StepHead(ActionHead):
@@ -200,7 +202,6 @@ class NDPHead(ActionHead):
 
     def _action_map(self, scale: torch.Tensor, absolute: torch.Tensor) -> torch.Tensor:
         """Per DoF, the map [D, N + 3, k] from (w, g, y0, dy0) to the k sub-action means."""
-        from ndp.dmp.integrate import _linear_map_f64
 
         cfg = self.dmp.config
         n, k = cfg.n_basis, self.k
@@ -255,8 +256,6 @@ class NDPHead(ActionHead):
         v = weights * (goal - y0).unsqueeze(-1) if cfg.scale_by_goal else weights
         u = torch.cat((v, torch.stack((goal, y0, dy0_dmp), dim=-1)), dim=-1)  # [B, D, N + 3]
         if self.dmp.check_finite and not recording() and not bool(torch.isfinite(u.sum())):
-            from ndp.dmp.integrate import check_finite
-
             check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0_dmp)
             raise FloatingPointError("inputs: expected finite values, their sum overflows")
         actions = torch.bmm(u.transpose(0, 1), self.action_map).permute(1, 2, 0)  # [B, k, D]
@@ -421,8 +420,6 @@ def _dmp_velocity(cfg: Any, spec: Any) -> str:
 
 @register_head("dyne")
 def _build_dyne(cfg: Any, spec: Any) -> ActionHead:
-    from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
-
     return DyneHead(
         cfg.k, spec.action_dim, _as_tensor(spec.action_low), _as_tensor(spec.action_high)
     )
@@ -435,7 +432,6 @@ def _as_tensor(x: Any) -> torch.Tensor:
 def _linear_controller(spec: Any) -> tuple[torch.Tensor, ...] | None:
     """(scale, absolute, low, high) [D] of a task whose controller is linear (a
     ``DeltaController``), else None (the composed path is used)."""
-    from ndp.dmp.controllers import DeltaController
 
     ctrl = getattr(spec, "controller", None)
     if not isinstance(ctrl, DeltaController) or len(ctrl.scale) != spec.dmp_dofs:

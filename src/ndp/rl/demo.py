@@ -7,6 +7,7 @@ from typing import Any
 
 from ndp.policies import PolicyConfig
 from ndp.rl.config import PPOConfig, TrainConfig
+from ndp.runs import read_metrics
 
 
 def demo_config(out_dir: Path, quick: bool = True) -> TrainConfig:
@@ -45,8 +46,6 @@ def plot_curve(run: Path, out_png: Path, title: str) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from ndp.runs import read_metrics
 
     rows = read_metrics(run)
     x = [r["global_step"] for r in rows]

@@ -27,8 +27,10 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv
 
+from ndp.envs import get_task_spec, make_env, task_options
 from ndp.envs.chunked import ChunkedEnv
-from ndp.envs.factory import RELEASE9
+from ndp.envs.factory import RELEASE9, check_observation
+from ndp.envs.vector import WorkerVectorEnv, default_workers
 
 
 @dataclass(frozen=True)
@@ -50,8 +52,6 @@ def resolve_task(name: str, **options: Any) -> TaskHandle:
     Raises:
         ValueError: unknown name (the message lists close names), or a bad option.
     """
-    from ndp.envs import get_task_spec, make_env, task_options
-    from ndp.envs.factory import check_observation
 
     spec = get_task_spec(name)
     observation = check_observation(spec, options.pop("observation", "full"))
@@ -96,8 +96,6 @@ def make_vector_env(
     ]
     kind, workers = resolve_vector(vector, num_envs, env_workers)
     if kind == "workers":
-        from ndp.envs.vector import WorkerVectorEnv
-
         spec = task.spec
         return WorkerVectorEnv(fns, spec.obs_dim, k, spec.action_dim, spec.dmp_dofs, workers)
     if kind == "async":
@@ -111,7 +109,6 @@ VECTOR_KINDS = ("auto", "sync", "workers", "async")
 
 def resolve_vector(vector: str, num_envs: int, env_workers: int | None) -> tuple[str, int]:
     """(kind, workers) that ``make_vector_env`` builds for ``vector`` ('auto' decided here)."""
-    from ndp.envs.vector import default_workers
 
     if vector not in VECTOR_KINDS:
         raise ValueError(f"vector: expected one of {', '.join(VECTOR_KINDS)}, got {vector!r}")

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ndp.envs.render import check_output_path, write_mp4
 from ndp.rl.envs import FrameRecorder
 from ndp.rl.exec_k import exec_k_values
 from ndp.rl.policy import Policy, load_policy
@@ -168,7 +169,6 @@ def render(
     import os
 
     os.environ.setdefault("MUJOCO_GL", "egl")
-    from ndp.envs.render import check_output_path, write_mp4
 
     target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
     check_output_path(target)  # before rendering anything

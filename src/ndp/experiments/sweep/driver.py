@@ -19,6 +19,8 @@ from ndp.experiments.sweep.backends import make_backend
 from ndp.experiments.sweep.checks import check_plan
 from ndp.experiments.sweep.jobs import BUSY_POLL_S, FAILED_NAME, Job, Outcome, SweepResult
 from ndp.experiments.sweep.progress import Progress, _hms
+from ndp.io import atomic_write_text
+from ndp.runs.signals import exit_code, stop_on_sigterm
 
 # ----------------------------------------------------------------------------- the driver
 
@@ -48,7 +50,6 @@ def run_sweep(
     check_plan(jobs)
     out = out or sys.stdout
     t0 = time.time()
-    from ndp.runs.signals import exit_code, stop_on_sigterm
 
     be = make_backend(backend, workers, address)
     progress = Progress(jobs, out, progress_every)
@@ -124,8 +125,6 @@ def run_sweep(
 
 
 def _write_failed(outcome: Outcome) -> None:
-    from ndp.io import atomic_write_text
-
     with contextlib.suppress(OSError):
         atomic_write_text(
             outcome.job.run_dir / FAILED_NAME,

@@ -13,13 +13,13 @@ from pathlib import Path
 from typing import TextIO
 
 from ndp.experiments.sweep.jobs import Job, Outcome
+from ndp.runs import metrics_path
 
 # ----------------------------------------------------------------------------- progress
 
 
 def run_fraction(job: Job) -> float:
     """How much of its budget a run has done (from the last row of its metrics)."""
-    from ndp.runs import metrics_path
 
     path = metrics_path(job.run_dir)
     try:

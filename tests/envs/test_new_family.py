@@ -1,6 +1,8 @@
-"""A stranger adds a robot family in one module: an env on NDPEnv, a TaskSpec row and one
-``ndp.envs.register_task`` call; then every method trains on it, the chunked env, gymnasium's
-ids and evaluation work unchanged. (Written as an outside user would, with the public API.)"""
+"""A stranger adds a robot family in one module: an env on NDPEnv, a TaskSpec row, one
+``ndp.envs.register_task`` call and, for demonstrations, one
+``ndp.bc.experts.register_expert`` call; then every method trains on it, the chunked env,
+gymnasium's ids, evaluation, demonstrations and behaviour cloning work unchanged. (Written as
+an outside user would, with the public API.)"""
 
 from __future__ import annotations
 
@@ -74,6 +76,20 @@ def _make(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> Slider
     return env
 
 
+class SliderExpert:
+    """Full speed towards the target (obs: x, v, target)."""
+
+    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
+        pass
+
+    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        return np.clip(np.array([(obs[2] - obs[0]) / STEP]), -1.0, 1.0)
+
+
+def _expert(spec: Any) -> SliderExpert:
+    return SliderExpert()
+
+
 SPEC = TaskSpec(name="slider", family="rail", env_id="ndp/Slider-v0", dmp_dofs=1,
                 dof_names=("x",), dof_units=("m",), y0_source="the block (m, m/s)",
                 action_dim=1, action_low=(-1.0,), action_high=(1.0,), action_scale=(STEP,),
@@ -83,8 +99,12 @@ SPEC = TaskSpec(name="slider", family="rail", env_id="ndp/Slider-v0", dmp_dofs=1
 
 @pytest.fixture(scope="module")
 def slider():
+    from ndp.bc.experts import EXPERTS, register_expert
+
     ids = register_task(SPEC, _make)
+    register_expert("rail", _expert)
     yield ids
+    EXPERTS.pop("rail")
     # leave the table, the names and gymnasium's registry as they were for the other tests
     from ndp.envs import spec as spec_module
 
@@ -120,6 +140,25 @@ def test_a_new_family_is_one_registration_and_everything_works_on_it(slider, tmp
         assert metrics["update"] == 2
         out = evaluate(run, episodes=2)
         assert 0.0 <= out["success_any"] <= 1.0
+
+
+def test_its_expert_demonstrates_and_a_policy_is_cloned_from_it(slider, tmp_path):
+    from ndp.bc.demos import collect, save_demos
+    from ndp.bc.train import BCConfig, train_bc
+    from ndp.rl.evaluate import evaluate
+
+    demos = collect("slider", 6, seed=0)
+    assert demos.n_episodes == 6 and demos.episode_success.all()
+    path = save_demos(demos, tmp_path / "slider-demos.npz")
+    run = tmp_path / "bc"
+    out = train_bc(BCConfig(demos=str(path), model="ndp", run_dir=str(run), epochs=2,
+                            progress=False, tensorboard=False))  # fmt: skip
+    assert out["episodes"] == 6
+    assert 0.0 <= evaluate(run, episodes=2)["success_any"] <= 1.0
+    from ndp.bc.experts import register_expert
+
+    with pytest.raises(ValueError, match="'rail' already has a scripted expert"):
+        register_expert("rail", _expert)
 
 
 def test_a_taken_name_or_a_family_without_a_factory_is_refused(slider):

@@ -8,6 +8,7 @@ demonstrator sees the scene), ``obs`` and ``info`` what the per-step env returne
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
@@ -110,8 +111,47 @@ class PickExpert:
         return np.r_[a, fingers]
 
 
+EXPERTS: dict[str, Callable[[Any], Expert]] = {}
+"""Task name or robot family -> ``(task spec) -> a new expert``; a task's own entry wins over
+its family's (:func:`register_expert`)."""
+
+
+def register_expert(name: str, build: Callable[[Any], Expert]) -> None:
+    """Give a task (its canonical name) or a whole robot family (``TaskSpec.family``) a scripted
+    expert, so ``ndp il collect``, ``ndp il bc`` and the ``bc`` run kind work on it.
+
+    Raises:
+        ValueError: ``name`` has an expert already.
+    """
+    if name in EXPERTS:
+        raise ValueError(f"name: {name!r} already has a scripted expert")
+    EXPERTS[name] = build
+
+
+def _point_mass(spec: Any) -> Expert:
+    return PointMassExpert()
+
+
+def _throw(spec: Any) -> Expert:
+    return ThrowExpert()
+
+
+def _pick(spec: Any) -> Expert:
+    return PickExpert()
+
+
+def _metaworld(spec: Any) -> Expert:
+    return MetaWorldExpert(spec.name)
+
+
+register_expert("toy", _point_mass)
+register_expert("throw", _throw)
+register_expert("pick", _pick)
+register_expert("metaworld", _metaworld)
+
+
 def expert_for(task: str) -> Expert:
-    """The scripted expert of a task (canonical name or alias).
+    """The scripted expert of a task (canonical name or alias): its own, else its family's.
 
     Raises:
         ValueError: the task has no expert (one line naming it).
@@ -119,12 +159,7 @@ def expert_for(task: str) -> Expert:
     from ndp.envs.spec import get_task_spec
 
     spec = get_task_spec(task)
-    if spec.name in ("point-mass", "point-mass-3d"):
-        return PointMassExpert()
-    if spec.name == "throw":
-        return ThrowExpert()
-    if spec.name == "pick":
-        return PickExpert()
-    if spec.family == "metaworld":
-        return MetaWorldExpert(spec.name)
-    raise ValueError(f"task: no scripted expert for {spec.name!r}")
+    build = EXPERTS.get(spec.name) or EXPERTS.get(spec.family)
+    if build is None:
+        raise ValueError(f"task: no scripted expert for {spec.name!r}")
+    return build(spec)

@@ -127,6 +127,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--demos-episodes", type=int, default=DEMOS_EPISODES)
     p.add_argument("--eval-episodes", type=int, default=EVAL_EPISODES)
     args = p.parse_args(argv[:cut])
+    for name in ("demos_episodes", "eval_episodes"):
+        if getattr(args, name) < 1:
+            p.error(
+                f"--{name.replace('_', '-')}: expected an integer >= 1, got {getattr(args, name)}"
+            )
     import torch
 
     torch.set_num_threads(1)

@@ -339,6 +339,10 @@ class Cell:
     def marker(self) -> str:
         return f"MISSING seeds {' '.join(map(str, self.missing))}" if self.missing else ""
 
+    def n_seeds_cell(self) -> str:
+        """The table's ``n`` cell: seeds that ran, and the missing ones in bold."""
+        return f"{len(self.runs)}" + (f" **{self.marker()}**" if self.missing else "")
+
 
 def _fmt(m: float, s: float, n: int, digits: int = 2) -> str:
     return "-" if n == 0 or math.isnan(m) else f"{m:.{digits}f} +- {s:.{digits}f}"
@@ -657,7 +661,7 @@ def _markdown(
             vals += [_fmt(*c.stat("area")), _fmt(*c.stat("final")), _fmt(*c.stat("final_last"))]
             vals += [_fmt(*c.stat("return"), 1)]
             vals += [_fmt(*c.stat("det"))] if eval_episodes else []
-            n = f"{len(c.runs)}" + (f" **{c.marker()}**" if c.missing else "")
+            n = c.n_seeds_cell()
             md.append(f"| {c.task} | {c.label} | {n} | " + " | ".join(vals) + " |")
         md.append("")
         md += _over_tasks(rl_cells)
@@ -669,7 +673,7 @@ def _markdown(
             "|---|---|---|---|---|",
         ]
         for c in il_cells:
-            n = f"{len(c.runs)}" + (f" **{c.marker()}**" if c.missing else "")
+            n = c.n_seeds_cell()
             md.append(
                 f"| {c.task} | {c.label} | {n} | {_fmt(*c.stat('mse'))} | {_fmt(*c.stat('dtw'))} |"
             )
@@ -693,7 +697,7 @@ def _bc_markdown(cells: Sequence[Cell]) -> list[str]:
         "|---|---|---|---|---|---|---|",
     ]
     for c in cells:
-        n = f"{len(c.runs)}" + (f" **{c.marker()}**" if c.missing else "")
+        n = c.n_seeds_cell()
         fit, jerk, sparc = (c.stat(k)[0] for k in ("val_loss", "jerk", "sparc"))
         md.append(
             f"| {c.task} | {c.label} | {n} | {_fmt(*c.stat('success'))} | "

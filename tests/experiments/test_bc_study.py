@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from ndp.experiments import studies
+from ndp.experiments import sweep as sw
 from ndp.experiments.bc_job import DEMOS_EPISODES, demos_file
 from ndp.experiments.run_kinds import RUN_KINDS
 from ndp.experiments.study import Arm
@@ -28,6 +31,11 @@ def test_the_bc_kind_is_a_row_of_the_table():
     assert kind.needs_eval and not kind.resumable and kind.unit == "epochs"
     cmd = kind.command("throw", Arm("x", "bc-nn", ("--episodes", "25")), 1, 100, None, 4, "sync")
     assert cmd[cmd.index("--") + 1 :][:2] == ["--model", "nn"] and cmd[-2:] == ["--episodes", "25"]
+    # refused before anything runs: a task without an expert, more demonstrations than recorded
+    with pytest.raises(ValueError, match="throw-joint-zeta has no scripted expert"):
+        sw.check_arms([Arm("ndp-n5", "bc-ndp", ("--episodes", "5"))], ["throw-joint-zeta"], "x")
+    with pytest.raises(ValueError, match="episodes: 500 demonstrations asked"):
+        sw.check_arms([Arm("ndp-n500", "bc-ndp", ("--episodes", "500"))], ["point-mass"], "x")
 
 
 def test_a_cloning_study_sweeps_and_reports(tmp_path, monkeypatch, capsys):

@@ -77,7 +77,7 @@ def _rl_argv(task: str, arm: Any) -> list[str]:
     return ["--task", task, "--algo", arm.algo, *arm.args]
 
 
-def _rl_check(cfg: Any) -> None:
+def _rl_check(cfg: Any, task: str) -> None:
     from ndp.rl.config import resolve_config
 
     resolve_config(cfg)
@@ -108,7 +108,7 @@ def _il_argv(task: str, arm: Any) -> list[str]:
     return [*il_data_args(task), "--model", IL_METHODS[arm.algo], *arm.args]
 
 
-def _il_check(cfg: Any) -> None:
+def _il_check(cfg: Any, task: str) -> None:
     if cfg.config.data.source != "pendigits":
         return
     from ndp.il.train import DEFAULT_PENDIGITS
@@ -168,7 +168,16 @@ def _bc_argv(task: str, arm: Any) -> list[str]:
     return ["--model", BC_METHODS[arm.algo], *arm.args]
 
 
-def _bc_check(cfg: Any) -> None:
+def _bc_check(cfg: Any, task: str) -> None:
+    from ndp.bc.experts import EXPERTS
+    from ndp.envs import get_task_spec
+
+    spec = get_task_spec(task)
+    if spec.name not in EXPERTS and spec.family not in EXPERTS:
+        raise ValueError(
+            f"task: {spec.name} has no scripted expert to record demonstrations from (tasks "
+            "or families with one: " + ", ".join(EXPERTS) + ")"
+        )
     if cfg.episodes and cfg.episodes > BC_DEMOS_EPISODES:
         raise ValueError(
             f"episodes: {cfg.episodes} demonstrations asked; a study records "
@@ -190,7 +199,7 @@ def _no_argv(task: str, arm: Any) -> list[str]:
     return []
 
 
-def _no_check(cfg: Any) -> None:
+def _no_check(cfg: Any, task: str) -> None:
     return None
 
 
@@ -239,8 +248,9 @@ class RunKind:
     resumes it from its checkpoint."""
     argv: Callable[[str, Any], list[str]] = field(default=_no_argv)
     """``(task, arm) -> the arm's options`` as ``prog`` parses them (the sweep's checks)."""
-    check: Callable[[Any], None] = field(default=_no_check)
-    """Further checks of a parsed config before anything runs (a ValueError naming the field)."""
+    check: Callable[[Any, str], None] = field(default=_no_check)
+    """``(parsed config, task)``: further checks before anything runs (a ValueError naming the
+    field)."""
     metrics_file: str = ""
     """The metrics file whose ``progress_column`` counts the budget (empty: the run's
     ``metrics.csv``, :func:`ndp.runs.metrics_path`)."""

@@ -163,7 +163,7 @@ def _parse_arm(arm: Arm, task: str) -> None:
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err):
             cfg = parse_config(config_class(kind), argv, prog=prog)
-        kind.check(cfg)
+        kind.check(cfg, task)
     except SystemExit:
         rows = [ln.strip(" │╭╰─╮╯|-") for ln in err.getvalue().splitlines()]
         text = " ".join(r for r in rows if r and not r.startswith("For full helptext"))

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import ClassVar, Literal, NoReturn
 
 import mujoco
 import numpy as np
@@ -280,7 +280,7 @@ class ImpedanceController:
         grip = float(a[-1]) if self.gripper else 0.0
         return delta, kp, zeta, grip
 
-    def __call__(self, traj: object, robot_pos: object = None, clip: bool = True) -> object:
+    def __call__(self, traj: object, robot_pos: object = None, clip: bool = True) -> NoReturn:
         """Trajectories -> actions is not defined for impedance control (no NDP head here)."""
         raise ValueError(
             "controller: the impedance-controlled (torque) tasks take VICES actions; an NDP "

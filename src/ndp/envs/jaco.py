@@ -26,7 +26,7 @@ from __future__ import annotations
 import functools
 import importlib.util
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -211,7 +211,8 @@ class JacoEnv(NDPEnv, EzPickle):
     ``info["sim_unstable"]``) if the simulator goes unstable; there is no other termination.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50}
+    # declared as gymnasium.Env declares it (a ClassVar would clash with its declaration)
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 50}  # noqa: RUF012
 
     def __init__(
         self,

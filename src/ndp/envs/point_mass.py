@@ -104,7 +104,8 @@ class PointMassEnv(NDPEnv):
 
     def world_snapshot(self) -> np.ndarray:
         """The world state (the goal) [D], a copy."""
-        return self._goal.copy()
+        goal: np.ndarray = self._goal.copy()
+        return goal
 
     def stale_reward(self, snapshot: np.ndarray, action: np.ndarray | None = None) -> float:
         """Reward with the live point and the goal from ``snapshot`` (pure)."""

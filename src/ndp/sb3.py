@@ -34,7 +34,8 @@ Example::
 
 from __future__ import annotations
 
-from typing import Any
+import functools
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -112,7 +113,9 @@ class _RobotState(gym.Wrapper):
         obs, info = self.env.reset(**kwargs)
         return self._dict(obs, info), info
 
-    def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool, dict]:
+    def step(
+        self, action: Any
+    ) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
         return self._dict(obs, info), reward, terminated, truncated, info
 
@@ -146,8 +149,9 @@ class ObservationOnly(BaseFeaturesExtractor):
     robot state is for the DMP, not the network)."""
 
     def __init__(self, observation_space: spaces.Dict) -> None:
-        box = observation_space["obs"]
-        super().__init__(observation_space, int(np.prod(box.shape)))
+        shape = observation_space["obs"].shape
+        assert shape is not None  # a Box (RobotStateSpace)
+        super().__init__(observation_space, int(np.prod(shape)))
 
     def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
         return observations["obs"].flatten(1)
@@ -177,8 +181,8 @@ class NDPPolicy(ActorCriticPolicy):
 
     def __init__(
         self,
-        observation_space: spaces.Space,
-        action_space: spaces.Space,
+        observation_space: spaces.Space[Any],
+        action_space: spaces.Space[Any],
         lr_schedule: Any,
         task: str | None = None,
         ndp: dict[str, Any] | None = None,
@@ -231,7 +235,9 @@ class NDPPolicy(ActorCriticPolicy):
         orthogonal initialisation and the optimiser."""
         from ndp.rl.config import TrainConfig, resolve_config
 
-        k, a = (int(n) for n in self.action_space.shape)  # type: ignore[misc]
+        shape = self.action_space.shape
+        assert shape is not None  # a [k, A] Box (checked in __init__)
+        k, a = (int(n) for n in shape)
         cfg = resolve_config(
             TrainConfig(
                 task=self.task,
@@ -255,7 +261,7 @@ class NDPPolicy(ActorCriticPolicy):
         if self.ortho_init:  # SB3's gains: sqrt(2) hidden, 0.01 policy output, 1 value output
             gains = {self.mlp_extractor: np.sqrt(2), self.action_net: 0.01, self.value_net: 1.0}
             for module, gain in gains.items():
-                module.apply(lambda m, g=gain: self.init_weights(m, gain=g))
+                module.apply(functools.partial(self.init_weights, gain=gain))
         self.optimizer = self.optimizer_class(
             self.parameters(),
             lr=lr_schedule(1),
@@ -263,9 +269,10 @@ class NDPPolicy(ActorCriticPolicy):
         )
 
     @property
-    def log_std(self) -> torch.Tensor:
+    def log_std(self) -> nn.Parameter:
         """The sub-action log std [A] (SB3 logs ``exp(log_std).mean()`` as train/std)."""
-        return self.ndp_head.log_std
+        log_std: nn.Parameter = self.ndp_head.log_std
+        return log_std
 
     def dmp_actions(self, latent_pi: torch.Tensor, obs: dict[str, torch.Tensor]) -> torch.Tensor:
         """The k sub-action means [B, k, A] of the DMP (goal and weights from ``latent_pi``,
@@ -273,7 +280,8 @@ class NDPPolicy(ActorCriticPolicy):
         raw = self.action_net(latent_pi)
         y0 = obs["y0"].to(raw.dtype).reshape(raw.shape[0], -1)
         dy0 = obs["dy0"].to(raw.dtype).reshape(raw.shape[0], -1)
-        return self.ndp_head.decode(raw, y0, dy0)[0]
+        means: torch.Tensor = self.ndp_head.decode(raw, y0, dy0)[0]
+        return means
 
     def _distribution(
         self, latent_pi: torch.Tensor, obs: dict[str, torch.Tensor]

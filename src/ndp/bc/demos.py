@@ -78,10 +78,10 @@ class Demos:
         keep = self.episode < n
         return Demos(
             self.task,
-            *(getattr(self, k)[keep] for k in _STEP_ARRAYS),
-            self.seeds[:n],
-            self.episode_success[:n],
-            dict(self.meta),
+            **{k: getattr(self, k)[keep] for k in _STEP_ARRAYS},
+            seeds=self.seeds[:n],
+            episode_success=self.episode_success[:n],
+            meta=dict(self.meta),
         )
 
 
@@ -168,10 +168,13 @@ def collect(
         arrays["rewards"].astype(np.float32),
         arrays["success"].astype(bool),
         arrays["episode"].astype(np.int64),
-        *(arrays[k].astype(np.float64) for k in ("robot_pos", "robot_vel", "cmd_pos", "cmd_vel")),
-        np.asarray(seeds, dtype=np.int64),
-        np.asarray(ep_success, dtype=bool),
-        {
+        **{
+            k: arrays[k].astype(np.float64)
+            for k in ("robot_pos", "robot_vel", "cmd_pos", "cmd_vel")
+        },
+        seeds=np.asarray(seeds, dtype=np.int64),
+        episode_success=np.asarray(ep_success, dtype=bool),
+        meta={
             "format": DEMO_FORMAT,
             "version": DEMO_VERSION,
             "task": spec.name,
@@ -242,8 +245,8 @@ def load_demos(path: str | Path) -> Demos:
         raise ValueError(f"episode: expected contiguous indices 0..{n - 1} in {path}")
     return Demos(
         task,
-        *(np.asarray(z[k]) for k in _STEP_ARRAYS),
-        np.asarray(z["seeds"]),
-        np.asarray(z["episode_success"]).astype(bool),
-        meta,
+        **{k: np.asarray(z[k]) for k in _STEP_ARRAYS},
+        seeds=np.asarray(z["seeds"]),
+        episode_success=np.asarray(z["episode_success"]).astype(bool),
+        meta=meta,
     )

@@ -9,9 +9,12 @@ demonstrator sees the scene), ``obs`` and ``info`` what the per-step env returne
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from metaworld.policies.policy import Policy
 
 
 class Expert(Protocol):
@@ -30,7 +33,9 @@ class MetaWorldExpert:
 
         if name not in ENV_POLICY_MAP:
             raise ValueError(f"task: Meta-World ships no scripted policy for {name!r}")
-        self.policy = ENV_POLICY_MAP[name]()
+        # (the map's values are concrete policies; mypy infers the abstract base's constructor)
+        make: Callable[[], Policy] = ENV_POLICY_MAP[name]
+        self.policy = make()
 
     def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
         pass
@@ -49,7 +54,8 @@ class PointMassExpert:
         from ndp.envs.point_mass import ACTION_SCALE
 
         d = len(obs) // 3
-        return np.clip((obs[2 * d :] - obs[:d]) / ACTION_SCALE, -1.0, 1.0)
+        a: np.ndarray = np.clip((obs[2 * d :] - obs[:d]) / ACTION_SCALE, -1.0, 1.0)
+        return a
 
 
 class ThrowExpert:
@@ -79,7 +85,8 @@ class ThrowExpert:
         else:
             a = np.r_[np.zeros(6), -1.0]
         self.t += 1
-        return np.clip(a, -1.0, 1.0)
+        out: np.ndarray = np.clip(a, -1.0, 1.0)
+        return out
 
 
 class PickExpert:
@@ -104,11 +111,13 @@ class PickExpert:
         while self.plan and self.plan[0][2] <= 0:
             self.plan.pop(0)
         if not self.plan:
-            return np.r_[np.zeros(6), 1.0]
+            hold: np.ndarray = np.r_[np.zeros(6), 1.0]
+            return hold
         q, fingers, steps = self.plan[0]
         self.plan[0] = (q, fingers, steps - 1)
         a = np.clip((q - env.joint_targets[:6]) / J.ARM_DELTA, -1.0, 1.0) * 0.5
-        return np.r_[a, fingers]
+        out: np.ndarray = np.r_[a, fingers]
+        return out
 
 
 EXPERTS: dict[str, Callable[[Any], Expert]] = {}

@@ -18,7 +18,7 @@ Envs used with ``stale_world=True`` must provide, on ``env.unwrapped``:
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, cast
 
 import gymnasium as gym
 import numpy as np
@@ -26,6 +26,17 @@ from gymnasium import spaces
 
 from ndp.chunk_info import ChunkInfo
 from ndp.envs.base import CTRL_INFO
+
+
+class _RobotEnv(Protocol):
+    """What the wrapper calls on ``env.unwrapped`` (the module docstring; the last two only
+    with ``stale_world``)."""
+
+    def robot_state(self) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def world_snapshot(self) -> Any: ...
+
+    def stale_reward(self, snapshot: Any, action: np.ndarray) -> float: ...
 
 
 class ChunkedEnv(gym.Wrapper):
@@ -80,18 +91,19 @@ class ChunkedEnv(gym.Wrapper):
         missing = [m for m in needed if not callable(getattr(base, m, None))]
         if missing:
             raise ValueError(f"env: expected env.unwrapped to provide {missing}")
+        robot = cast(_RobotEnv, base)  # its methods checked just above
         self.k = int(k)
         self.stale_world = bool(stale_world)
-        self._base = base
+        self._base = robot
         self._low = np.asarray(box.low, dtype=np.float64)
         self._high = np.asarray(box.high, dtype=np.float64)
         self.action_space = spaces.Box(
             np.tile(box.low, (self.k, 1)), np.tile(box.high, (self.k, 1)), dtype=box.dtype
         )
-        self.dof = len(np.asarray(base.robot_state()[0]))
+        self.dof = len(np.asarray(robot.robot_state()[0]))
         self._last_state: tuple[np.ndarray, np.ndarray] | None = None
         cmd = getattr(base, "command_state", None)
-        self._command_state = cmd if callable(cmd) else base.robot_state
+        self._command_state = cmd if callable(cmd) else robot.robot_state
         self._success_any = False
 
     def reset(

@@ -190,6 +190,7 @@ class ReleaseObservation(gym.ObservationWrapper):
 
         super().__init__(env)
         box = env.observation_space
+        assert isinstance(box, spaces.Box)  # the Meta-World observation
         idx = np.array(RELEASE9)
         self._idx = idx
         self.observation_space = spaces.Box(box.low[idx], box.high[idx], dtype=box.dtype)

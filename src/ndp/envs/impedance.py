@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import ClassVar, Literal, NoReturn
 
 import mujoco
 import numpy as np
@@ -59,7 +59,8 @@ Space = Literal["ee", "joint"]
 
 def damping_gain(kp: np.ndarray, zeta: np.ndarray) -> np.ndarray:
     """``kv = 2 sqrt(kp) zeta`` elementwise (arrays of one shape)."""
-    return 2.0 * np.sqrt(kp) * zeta
+    gain: np.ndarray = 2.0 * np.sqrt(kp) * zeta
+    return gain
 
 
 def unit_to_range(a: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -142,7 +143,8 @@ def osc_torque(
     if posture is not None:
         # (I - J^T Jbar^T) posture with Jbar^T = Lambda J M^-1
         tau = tau + posture - jac.T @ (lam @ (jm @ posture))
-    return tau + bias
+    out: np.ndarray = tau + bias
+    return out
 
 
 def osc_torque_dense(
@@ -190,7 +192,8 @@ def joint_impedance_torque(
     Returns:
         Joint torques [n].
     """
-    return mass @ (kp * err - kv * qvel) + bias
+    out: np.ndarray = mass @ (kp * err - kv * qvel) + bias
+    return out
 
 
 @dataclass(frozen=True)
@@ -280,7 +283,7 @@ class ImpedanceController:
         grip = float(a[-1]) if self.gripper else 0.0
         return delta, kp, zeta, grip
 
-    def __call__(self, traj: object, robot_pos: object = None, clip: bool = True) -> object:
+    def __call__(self, traj: object, robot_pos: object = None, clip: bool = True) -> NoReturn:
         """Trajectories -> actions is not defined for impedance control (no NDP head here)."""
         raise ValueError(
             "controller: the impedance-controlled (torque) tasks take VICES actions; an NDP "
@@ -376,15 +379,19 @@ class ImpedanceArm:
     def position(self, data: mujoco.MjData) -> np.ndarray:
         """Measured position of the controlled axes [n_axes]: ee xyz (m) or joint angles."""
         if self.ctrl.space == "joint":
-            return data.qpos[self.qadr].copy()
+            pos: np.ndarray = data.qpos[self.qadr].copy()
+            return pos
         if self.ee_kind == "body":
-            return data.xpos[self.ee_id].copy()
-        return data.site_xpos[self.ee_id].copy()
+            pos = data.xpos[self.ee_id].copy()
+            return pos
+        pos = data.site_xpos[self.ee_id].copy()
+        return pos
 
     def rotation(self, data: mujoco.MjData) -> np.ndarray:
         """End-effector rotation matrix [3, 3]."""
         x = data.xmat if self.ee_kind == "body" else data.site_xmat
-        return x[self.ee_id].reshape(3, 3).copy()
+        rot: np.ndarray = x[self.ee_id].reshape(3, 3).copy()
+        return rot
 
     # ------------------------------------------------------------------ commands
     def reset(self, data: mujoco.MjData) -> None:
@@ -462,7 +469,8 @@ class ImpedanceArm:
         if self.ctrl.space == "joint":
             vfull[dofs] = kp * (goal - d.qpos[qadr]) - kv * qvel
             mujoco.mj_mulM(m, d, mv, vfull)
-            return mv[dofs] + d.qfrc_bias[dofs] - d.qfrc_passive[dofs]
+            joint_tau: np.ndarray = mv[dofs] + d.qfrc_bias[dofs] - d.qfrc_passive[dofs]
+            return joint_tau
         jac, jm, err, gains, damp = self._jfull, self._jm, self._err, self._gains, self._damp
         if self.ee_kind == "body":
             mujoco.mj_jacBody(m, d, jac[:3], jac[3:], self.ee_id)

@@ -26,7 +26,7 @@ from __future__ import annotations
 import functools
 import importlib.util
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -114,7 +114,8 @@ def _compiled_model_xml() -> str:
         if body.name.startswith("jaco/"):
             body.gravcomp = 1.0
     root.compile()
-    return root.to_xml()
+    xml: str = root.to_xml()
+    return xml
 
 
 @functools.lru_cache(maxsize=1)
@@ -162,7 +163,7 @@ def jaco_ik(
     """
     approach = np.array([0.0, 0.0, -1.0]) if approach is None else np.asarray(approach, float)
     approach = approach / np.linalg.norm(approach)
-    q = (PICK_HOME if q0 is None else np.asarray(q0, float)).copy()
+    q: np.ndarray = (PICK_HOME if q0 is None else np.asarray(q0, float)).copy()
     ref = q.copy()
     data = mujoco.MjData(model)
     qadr = np.array([model.joint(j).qposadr[0] for j in ARM_JOINTS])
@@ -211,7 +212,8 @@ class JacoEnv(NDPEnv, EzPickle):
     ``info["sim_unstable"]``) if the simulator goes unstable; there is no other termination.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50}
+    # declared as gymnasium.Env declares it (a ClassVar would clash with its declaration)
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 50}  # noqa: RUF012
 
     def __init__(
         self,
@@ -284,7 +286,8 @@ class JacoEnv(NDPEnv, EzPickle):
     @property
     def joint_targets(self) -> np.ndarray:
         """Current position targets [9] (rad): 6 arm joints, then the 3 (tied) fingers."""
-        return self._target.copy()
+        targets: np.ndarray = self._target.copy()
+        return targets
 
     # ------------------------------------------------------------------ state access
     def robot_state(self) -> tuple[np.ndarray, np.ndarray]:
@@ -318,11 +321,13 @@ class JacoEnv(NDPEnv, EzPickle):
             Array [10].
         """
         c = self._cube_q
-        return np.concatenate([self.data.qpos[c : c + 7], self._goal]).copy()
+        snapshot: np.ndarray = np.concatenate([self.data.qpos[c : c + 7], self._goal]).copy()
+        return snapshot
 
     def _cube_pos(self) -> np.ndarray:
         c = self._cube_q
-        return self.data.qpos[c : c + 3]
+        pos: np.ndarray = self.data.qpos[c : c + 3]
+        return pos
 
     def _reward_success(self, cube_pos: np.ndarray) -> tuple[float, bool]:
         """Reward and success from the live robot and a (possibly stale) cube position [3]."""
@@ -371,7 +376,8 @@ class JacoEnv(NDPEnv, EzPickle):
                 self._goal,
             ]
         )
-        return np.clip(obs, -OBS_BOUND, OBS_BOUND)
+        clipped: np.ndarray = np.clip(obs, -OBS_BOUND, OBS_BOUND)
+        return clipped
 
     # ------------------------------------------------------------------ gym API
     def reset(
@@ -477,7 +483,8 @@ class JacoEnv(NDPEnv, EzPickle):
             if self._renderer is None:
                 self._renderer = mujoco.Renderer(self.model, height=self.height, width=self.width)
             self._renderer.update_scene(self.data, camera=self.camera)
-            return self._renderer.render().copy()
+            frame: np.ndarray = self._renderer.render().copy()
+            return frame
 
         return self._render_frame(draw)
 

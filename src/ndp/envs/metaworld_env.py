@@ -19,7 +19,7 @@ and quaternions of up to two objects), the previous frame's 18 values [18:36], g
 from __future__ import annotations
 
 from collections import deque
-from typing import Any, ClassVar
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -188,7 +188,8 @@ class MetaWorldEnv(NDPEnv, EzPickle):
     command (unitless) with its rate of change (1/s).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 80}
+    # declared as gymnasium.Env declares it (a ClassVar would clash with its declaration)
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 80}  # noqa: RUF012
 
     def __init__(
         self,

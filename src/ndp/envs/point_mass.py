@@ -26,7 +26,7 @@ actions like every delta-controlled task.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
@@ -53,7 +53,8 @@ class PointMassEnv(NDPEnv):
     Observation [3 D]: position, velocity (m/s) and goal. Action [D] in [-1, 1].
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
+    # declared as gymnasium.Env declares it (a ClassVar would clash with its declaration)
+    metadata: dict[str, Any] = {  # noqa: RUF012
         "render_modes": ["rgb_array"],
         "render_fps": round(1.0 / CONTROL_DT),
     }
@@ -103,7 +104,8 @@ class PointMassEnv(NDPEnv):
 
     def world_snapshot(self) -> np.ndarray:
         """The world state (the goal) [D], a copy."""
-        return self._goal.copy()
+        goal: np.ndarray = self._goal.copy()
+        return goal
 
     def stale_reward(self, snapshot: np.ndarray, action: np.ndarray | None = None) -> float:
         """Reward with the live point and the goal from ``snapshot`` (pure)."""

@@ -18,6 +18,7 @@ targets lead the joints, the commanded targets at rest (Throw: deterministic suc
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypedDict
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,14 @@ class NDPPreset:
     PolicyConfig.dmp_velocity."""
 
 
-_JACO = {"dmp_state": "commanded", "dmp_velocity": "zero"}
+class _DMPFrame(TypedDict):
+    """A row's DMP frame fields (``NDPPreset.dmp_state`` / ``dmp_velocity``)."""
+
+    dmp_state: str
+    dmp_velocity: str
+
+
+_JACO: _DMPFrame = {"dmp_state": "commanded", "dmp_velocity": "zero"}
 """Jaco rows: the joint targets lead the joints (position servos), so the DMP plans from the
 targets, at rest."""
 

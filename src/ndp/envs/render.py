@@ -44,7 +44,9 @@ def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> 
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
     try:
         # macro_block_size=1 keeps odd sizes as they are instead of resizing them.
-        with imageio.get_writer(str(tmp), fps=fps, codec="libx264", macro_block_size=1) as w:
+        # (entered as its own name: imageio's stubs type ``__enter__`` as the base reader/writer)
+        w = imageio.get_writer(str(tmp), fps=fps, codec="libx264", macro_block_size=1)
+        with w:
             for f in frames:
                 w.append_data(np.asarray(f))
         os.replace(tmp, path)

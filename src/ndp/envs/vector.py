@@ -130,7 +130,7 @@ def _worker(
     hi: int,
     fns: Sequence[Callable[[], gym.Env]],
     raw: Any,
-    layout: dict,
+    layout: dict[str, tuple[tuple[int, ...], Any]],
     conn: Any,
 ) -> None:
     """Worker loop: own envs lo..hi-1, answer 'reset', 'step', 'spaces', 'close' over ``conn``."""
@@ -230,7 +230,9 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
         self._conns, self._procs = [], []
         for idx, (lo, hi) in enumerate(self._remote):
             parent, child = ctx.Pipe()
-            proc = ctx.Process(
+            # typeshed types get_context(str) as BaseContext, which lacks the Process that every
+            # start method's context has
+            proc = ctx.Process(  # type: ignore[attr-defined]
                 target=_worker,
                 name=f"ndp-env-worker-{idx}",
                 daemon=True,

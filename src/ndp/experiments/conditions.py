@@ -133,13 +133,15 @@ def conditions_section(
     return md, rows, pngs
 
 
-def _matrix(by: dict, label: str, key: str, tasks: Sequence[str], seeds: Sequence[int]):
+def _matrix(
+    by: dict[tuple[str, str], Any], label: str, key: str, tasks: Sequence[str], seeds: Sequence[int]
+) -> np.ndarray:
     return np.array([[by[(t, label)].numbers[s][key] for t in tasks] for s in seeds], float)
 
 
 def _over_tasks(
-    by: dict, conditions: Sequence[Any], methods: Sequence[str], full: Sequence[str],
-    seeds: Sequence[int],
+    by: dict[tuple[str, str], Any], conditions: Sequence[Any], methods: Sequence[str],
+    full: Sequence[str], seeds: Sequence[int],
 ) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
     if not full:
         return ["Over tasks: no task has every seed in every cell yet.", ""], []

@@ -28,16 +28,24 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
 
 from ndp.chunk_info import dmp_start
 
+if TYPE_CHECKING:
+    from ndp.policies.actor_critic import ActorCritic
+    from ndp.rl.config import TrainConfig
+    from ndp.rl.normalize import ObsNormalizer
 
-def _policy(task: str | None, algo: str, run: str | None, overrides: dict[str, Any]):
-    """(config, spec, model, obs normaliser) of a fresh policy or a trained run."""
+
+def _policy(
+    task: str | None, algo: str, run: str | None, overrides: dict[str, Any]
+) -> tuple[TrainConfig, Any, ActorCritic, ObsNormalizer]:
+    """(config, spec, model, obs normaliser) of a fresh policy or a trained run (the spec: a
+    ``TaskSpec``, or a trained run's ``PolicySpec`` as ``Policy.spec``)."""
     import dataclasses
 
     from ndp.policies import build_actor_critic
@@ -106,6 +114,7 @@ def diagnose(
         executed.append(np.abs(ex[:, delta]) * scale[delta])
         before = info[f"{key}_y0"]
         if absolute.size:
+            assert last_cmd is not None  # set whenever there are absolute DoF
             grip_mean.append(mean[:, absolute[0]])
             prev_cmd.append(float(last_cmd[0]))
         obs, _, term, trunc, info = env.step(act)

@@ -482,11 +482,11 @@ def report(
     for b in budgets or ():
         if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b <= 0:
             raise ValueError(f"budgets: expected env steps > 0, got {b!r}")
-    budgets = sorted({int(b) for b in (budgets or [top / 4, top / 2, top]) if b > 0})
+    at_steps = sorted({int(b) for b in (budgets or [top / 4, top / 2, top]) if b > 0})
     if isinstance(eval_episodes, bool) or not isinstance(eval_episodes, int) or eval_episodes < 0:
         raise ValueError(f"eval_episodes: expected an integer >= 0, got {eval_episodes!r}")
     for c in rl_cells:
-        c.numbers = {s: rl_numbers(i, budgets) for s, i in c.runs.items()}
+        c.numbers = {s: rl_numbers(i, at_steps) for s, i in c.runs.items()}
         for s_, i in c.runs.items():
             ok = eval_episodes and run_kind(i.kind).evaluable
             c.numbers[s_]["det"] = det_success(i.path, eval_episodes) if ok else math.nan
@@ -506,9 +506,9 @@ def report(
     except (FileExistsError, NotADirectoryError):
         raise OSError(f"out: cannot create {out.parent}: a part of that path is a file") from None
     pngs = _plot_all(rl_cells, il_cells, out, prov) if plots else []
-    rows = _csv_rows(rl_cells, [*il_cells, *bc_cells], budgets, expected, prov)
+    rows = _csv_rows(rl_cells, [*il_cells, *bc_cells], at_steps, expected, prov)
     _write_csv(out.with_suffix(".csv"), rows)
-    md = _markdown(title, rl_cells, il_cells, budgets, expected, prov, pngs, out, eval_episodes)
+    md = _markdown(title, rl_cells, il_cells, at_steps, expected, prov, pngs, out, eval_episodes)
     if bc_cells:
         at = md.index("", md.index(next(x for x in md if x.startswith("Seeds per cell")))) + 1
         md[at:at] = _bc_markdown(bc_cells)
@@ -537,7 +537,7 @@ def report(
     return {
         **prov,
         "seeds": expected,
-        "budgets": budgets,
+        "budgets": at_steps,
         "rows": rows,
         "markdown": str(out.with_suffix(".md")),
         "csv": str(out.with_suffix(".csv")),

@@ -57,7 +57,7 @@ class EpisodeCounter:
         self.ret = np.zeros(num_envs)
         self.finished: list[tuple[float, float]] = []
 
-    def step(self, rewards: np.ndarray, dones: np.ndarray, infos: list[dict]) -> None:
+    def step(self, rewards: np.ndarray, dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
         """One vector step: rewards [E] (raw, unnormalised), dones [E], infos (one per env)."""
         for i, info in enumerate(infos):
             self.success[i] |= bool(info.get("success", False))
@@ -167,9 +167,9 @@ def train_sb3(
     session.start(dataclasses.asdict(cfg), manifest(0))
     p = PPOConfig()
     h = resolve_task(task)
-    venv = DummyVecEnv([lambda: h.make(horizon=horizon) for _ in range(num_envs)])
-    venv.seed(seed)
-    venv = VecNormalize(venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
+    raw_venv = DummyVecEnv([lambda: h.make(horizon=horizon) for _ in range(num_envs)])
+    raw_venv.seed(seed)
+    venv = VecNormalize(raw_venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
     model = make_sb3_ppo(venv, seed, num_envs)
     counter = EpisodeCounter(num_envs)
     log = MetricsLogger(run_dir, FIELDS, step="global_step", tensorboard=False)
@@ -181,7 +181,9 @@ def train_sb3(
             self.update = 0
 
         def _on_step(self) -> bool:
-            raw = self.training_env.get_original_reward()  # VecNormalize: unnormalised rewards
+            norm = self.training_env
+            assert isinstance(norm, VecNormalize)  # the model's env is the venv above
+            raw = norm.get_original_reward()  # unnormalised rewards
             counter.step(raw, self.locals["dones"], self.locals["infos"])
             return True
 

@@ -21,6 +21,7 @@ import re
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -55,7 +56,7 @@ class DigitData:
     labels: np.ndarray
     writers: np.ndarray
     name: str = "data"
-    meta: dict = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         n = self.images.shape[0]
@@ -352,7 +353,8 @@ def resample_trajectories(trajs: np.ndarray, n_points: int) -> np.ndarray:
     t_dst = np.linspace(0.0, 1.0, n_points)
     idx = np.clip(np.searchsorted(t_src, t_dst, side="right") - 1, 0, trajs.shape[1] - 2)
     lam = ((t_dst - t_src[idx]) / (t_src[idx + 1] - t_src[idx]))[None, :, None]
-    return (1 - lam) * trajs[:, idx] + lam * trajs[:, idx + 1]
+    out: np.ndarray = (1 - lam) * trajs[:, idx] + lam * trajs[:, idx + 1]
+    return out
 
 
 def load_npz(

@@ -60,7 +60,8 @@ class TrajectoryModel(nn.Module):
 
     def features(self, images: torch.Tensor) -> torch.Tensor:
         """Encoder + head: images [B, H, W] -> raw outputs [B, out_dim]."""
-        return self.head(self.encoder(images))
+        out: torch.Tensor = self.head(self.encoder(images))
+        return out
 
     def predict(self, images: torch.Tensor, y0: torch.Tensor) -> torch.Tensor:
         """Trajectory [B, T, 2] in pixels for images [B, H, W] and start points y0 [B, 2]."""
@@ -131,7 +132,8 @@ class _DMPModel(TrajectoryModel):
     def integrate(self, raw: torch.Tensor, y0: torch.Tensor) -> torch.Tensor:
         """Raw outputs [B, 2 (N + 1)] and y0 [B, 2] -> positions [B, T, 2] (dy0 = 0)."""
         goal, weights = self.params(raw, y0)
-        return self.dmp(goal, weights, y0).pos
+        pos: torch.Tensor = self.dmp(goal, weights, y0).pos
+        return pos
 
     def predict(self, images: torch.Tensor, y0: torch.Tensor) -> torch.Tensor:
         return self.integrate(self.features(images), y0)
@@ -148,6 +150,10 @@ class CNNDMPModel(_DMPModel):
     per output with the training set's mean and std (buffers ``target_mean``, ``target_std``),
     and the loss is their mean squared error.
     """
+
+    # buffers registered in __init__
+    target_mean: torch.Tensor
+    target_std: torch.Tensor
 
     def __init__(self, cfg: ModelConfig) -> None:
         super().__init__(cfg)

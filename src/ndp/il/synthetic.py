@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -82,7 +83,7 @@ class SyntheticConfig:
         """Points per trajectory, tau / dt + 1."""
         return round(self.tau / self.dt) + 1
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """All settings as a plain dict (the cache key is a hash of it)."""
         return asdict(self)
 
@@ -280,7 +281,8 @@ def time_stroke(waypoints: np.ndarray, n_points: int) -> np.ndarray:
         raise ValueError("a stroke needs at least two distinct waypoints")
     s = s / s[-1]
     interp = PchipInterpolator(s, pts, axis=0)
-    return interp(min_jerk_progress(n_points))
+    out: np.ndarray = interp(min_jerk_progress(n_points))
+    return out
 
 
 def units_to_pixels(traj: np.ndarray) -> np.ndarray:
@@ -355,7 +357,8 @@ def random_affine(rng: np.random.Generator, cfg: SyntheticConfig) -> np.ndarray:
 
 def apply_affine(points: np.ndarray, affine: np.ndarray) -> np.ndarray:
     """Apply a [2, 3] affine map to [..., 2] points."""
-    return points @ affine[:, :2].T + affine[:, 2]
+    out: np.ndarray = points @ affine[:, :2].T + affine[:, 2]
+    return out
 
 
 def warp_image(image: np.ndarray, affine: np.ndarray) -> np.ndarray:
@@ -390,9 +393,10 @@ def warp_image(image: np.ndarray, affine: np.ndarray) -> np.ndarray:
     def at(r: np.ndarray, c: np.ndarray) -> np.ndarray:
         r = np.clip(r + 1, 0, size + 1)
         c = np.clip(c + 1, 0, size + 1)
-        return padded[r, c]
+        v: np.ndarray = padded[r, c]
+        return v
 
-    out = (
+    out: np.ndarray = (
         at(y0, x0) * (1 - wx) * (1 - wy)
         + at(y0, x0 + 1) * wx * (1 - wy)
         + at(y0 + 1, x0) * (1 - wx) * wy

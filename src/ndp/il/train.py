@@ -315,7 +315,7 @@ class ImitationLearner:
                 what = f"training loss became {loss.item()} at batch {step + 1}"
                 raise NonFiniteLossError(str(self.session.diverged(what, epoch)))
             self.opt.zero_grad(set_to_none=True)
-            loss.backward()
+            loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
             self.opt.step()
             b = idx.shape[0]
             loss_sum += loss.item() * b

@@ -8,9 +8,10 @@ import torch
 from torch import nn
 
 from ndp.nets.mlp import MLP
+from ndp.policies.base import ActionHead
 from ndp.policies.config import PolicyConfig
 from ndp.policies.distributions import PolicyDistribution
-from ndp.policies.heads import ActionHead, build_head
+from ndp.policies.heads import build_head
 
 
 class ActorCritic(nn.Module):
@@ -60,7 +61,8 @@ class ActorCritic(nn.Module):
 
     def value(self, obs: torch.Tensor) -> torch.Tensor:
         """k value estimates [B, k] (one per sub-step of the decision)."""
-        return self.critic(obs)
+        v: torch.Tensor = self.critic(obs)
+        return v
 
 
 def build_actor_critic(obs_dim: int, spec: Any, cfg: PolicyConfig) -> ActorCritic:

@@ -26,7 +26,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from ndp.policies.base import ActionHead
-from ndp.policies.distributions import SubActionGaussian
+from ndp.policies.distributions import PolicyDistribution, SubActionGaussian
 
 HIDDEN = 400
 """Width of every embedding network's hidden layers (the original's)."""
@@ -54,6 +54,10 @@ class ActionDecoder(nn.Module):
         latent_dim: L.
         low, high: action bounds [A].
     """
+
+    # buffers registered in __init__
+    centre: torch.Tensor
+    half_range: torch.Tensor
 
     def __init__(
         self,
@@ -90,6 +94,14 @@ class SequenceEmbedding(nn.Module):
     chunk), ``z_mean``, ``z_std`` [L] (the encoder's mean over the exploration data).
     """
 
+    # buffers registered in __init__
+    s_mean: torch.Tensor
+    s_std: torch.Tensor
+    d_mean: torch.Tensor
+    d_std: torch.Tensor
+    z_mean: torch.Tensor
+    z_std: torch.Tensor
+
     def __init__(self, k: int, action_dim: int, state_dim: int, latent_dim: int) -> None:
         super().__init__()
         self.k, self.action_dim = int(k), int(action_dim)
@@ -125,7 +137,8 @@ class SequenceEmbedding(nn.Module):
     def predict(self, s0: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
         """Whitened state change [B, S] from the raw start state [B, S] and a latent [B, L]."""
         s = (s0 - self.s_mean) / self.s_std
-        return self.predictor(torch.cat((s, z), dim=-1))
+        change: torch.Tensor = self.predictor(torch.cat((s, z), dim=-1))
+        return change
 
     def loss(
         self, s0: torch.Tensor, actions: torch.Tensor, delta: torch.Tensor, kl_weight: float
@@ -153,6 +166,9 @@ class DyneHead(ActionHead):
     exploration data: the TD3 action range) and ``log_std`` (fixed, not trained).
     """
 
+    # buffer registered in __init__
+    max_latent: torch.Tensor
+
     def __init__(
         self, k: int, action_dim: int, low: torch.Tensor | float, high: torch.Tensor | float
     ) -> None:
@@ -173,9 +189,15 @@ class DyneHead(ActionHead):
 
     def decode(self, z: torch.Tensor) -> torch.Tensor:
         """Whitened latent [B, L] -> k actions [B, k, A]."""
-        return self.decoder(z)
+        actions: torch.Tensor = self.decoder(z)
+        return actions
 
-    def distribution(self, raw, y0=None, dy0=None):
+    def distribution(
+        self,
+        raw: torch.Tensor,
+        y0: torch.Tensor | None = None,
+        dy0: torch.Tensor | None = None,
+    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
         return SubActionGaussian(self.decode(self.latent(raw)), self.log_std), {}
 
     def extra_repr(self) -> str:

@@ -39,7 +39,7 @@ from ndp.dmp import DMPConfig, DMPLayer
 from ndp.dmp.controllers import DeltaController
 from ndp.dmp.integrate import _linear_map_f64, check_finite, recording
 from ndp.policies.base import ActionHead
-from ndp.policies.distributions import ParamGaussian, SubActionGaussian
+from ndp.policies.distributions import ParamGaussian, PolicyDistribution, SubActionGaussian
 from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
 
 
@@ -53,7 +53,12 @@ class StepHead(ActionHead):
         self.n_params = self.action_dim
         self.log_std = nn.Parameter(torch.full((self.action_dim,), float(init_log_std)))
 
-    def distribution(self, raw, y0=None, dy0=None):
+    def distribution(
+        self,
+        raw: torch.Tensor,
+        y0: torch.Tensor | None = None,
+        dy0: torch.Tensor | None = None,
+    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
         return SubActionGaussian(raw.view(raw.shape[0], 1, self.action_dim), self.log_std), {}
 
 
@@ -67,7 +72,12 @@ class MultiHead(ActionHead):
         self.n_params = self.k * self.action_dim
         self.log_std = nn.Parameter(torch.full((self.action_dim,), float(init_log_std)))
 
-    def distribution(self, raw, y0=None, dy0=None):
+    def distribution(
+        self,
+        raw: torch.Tensor,
+        y0: torch.Tensor | None = None,
+        dy0: torch.Tensor | None = None,
+    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
         mean = raw.view(raw.shape[0], self.k, self.action_dim)
         return SubActionGaussian(mean, self.log_std), {}
 
@@ -115,6 +125,16 @@ class NDPHead(ActionHead):
 
     needs_robot_state = True
 
+    # buffers registered in __init__ (the action_* three only with a linear controller)
+    goal_scale: torch.Tensor
+    absolute_goal: torch.Tensor
+    goal_center: torch.Tensor
+    weight_scale: torch.Tensor
+    direct: torch.Tensor
+    action_map: torch.Tensor
+    action_low: torch.Tensor
+    action_high: torch.Tensor
+
     def __init__(
         self,
         k: int,
@@ -122,7 +142,7 @@ class NDPHead(ActionHead):
         action_dim: int,
         dmp: DMPConfig,
         goal_scale: float | torch.Tensor,
-        weight_scale: float,
+        weight_scale: float | torch.Tensor,
         inverse_controller: Callable[..., torch.Tensor],
         decision_dt: float,
         param_noise: bool = False,
@@ -195,7 +215,9 @@ class NDPHead(ActionHead):
             self.register_buffer("action_low", low.to(torch.float32).clone(), persistent=False)
             self.register_buffer("action_high", high.to(torch.float32).clone(), persistent=False)
 
-    def _load_from_state_dict(self, state_dict, prefix, *args, **kwargs):  # type: ignore[override]
+    def _load_from_state_dict(
+        self, state_dict: dict[str, Any], prefix: str, *args: Any, **kwargs: Any
+    ) -> None:
         for name in DERIVED_BUFFERS:  # derived, not state: older checkpoints held some of them
             state_dict.pop(prefix + name, None)
         super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
@@ -277,7 +299,12 @@ class NDPHead(ActionHead):
         actions = self.inverse_controller(traj, clip=self.mean_clip)  # [B, k, A]
         return actions, goal, weights
 
-    def distribution(self, raw, y0=None, dy0=None):
+    def distribution(
+        self,
+        raw: torch.Tensor,
+        y0: torch.Tensor | None = None,
+        dy0: torch.Tensor | None = None,
+    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
         if y0 is None or dy0 is None:
             raise ValueError("NDPHead: the robot state y0, dy0 [B, D] is required")
         mean_actions, goal, weights = self.decode(raw, y0, dy0)
@@ -464,7 +491,12 @@ class HoldHead(ActionHead):
         self.n_params = self.action_dim
         self.log_std = nn.Parameter(torch.full((self.action_dim,), float(init_log_std)))
 
-    def distribution(self, raw, y0=None, dy0=None):
+    def distribution(
+        self,
+        raw: torch.Tensor,
+        y0: torch.Tensor | None = None,
+        dy0: torch.Tensor | None = None,
+    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
         k = self.k
 
         def repeat(z: torch.Tensor) -> torch.Tensor:

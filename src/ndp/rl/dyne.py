@@ -153,7 +153,7 @@ def train_embedding(
                 f"the embedding's loss became {float(loss)} (check the exploration data)"
             )
         opt.zero_grad()
-        loss.backward()
+        loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
         opt.step()
         pred_hist.append(float(pred.detach()))
         kl_hist.append(float(kl.detach()))
@@ -221,7 +221,8 @@ class TwinCritic(nn.Module):
         return self.q1(x).squeeze(-1), self.q2(x).squeeze(-1)
 
     def first(self, obs: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
-        return self.q1(self._x(obs, z)).squeeze(-1)
+        q: torch.Tensor = self.q1(self._x(obs, z)).squeeze(-1)
+        return q
 
 
 class DecisionReplay:
@@ -315,7 +316,9 @@ class DyneLearner(CountsUpdates):
         self.envs = rl_envs.make_vector_env(
             task, self.k, self.E, cfg.stale_world, cfg.horizon, cfg.vector, cfg.env_workers
         )
-        self.obs_dim = int(np.prod(self.envs.single_observation_space.shape))
+        obs_shape = self.envs.single_observation_space.shape
+        assert obs_shape is not None  # a Box (ChunkedEnv's observation space is the task's)
+        self.obs_dim = int(np.prod(obs_shape))
         self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         head = self.model.head
         assert isinstance(head, DyneHead)
@@ -350,7 +353,10 @@ class DyneLearner(CountsUpdates):
             self.session.restored(ckpt, self.update)
         self.session.start(cfg.to_dict(), rl_manifest(cfg, self.global_step, self.update))
         self._tracker = rl_envs.EpisodeTracker(self.E)
-        obs, info = self.envs.reset(seed=rl_envs.env_seeds(cfg.seed, self.E, epoch=self.update))
+        # one seed per env (gymnasium types VectorEnv.reset's seed as one int; its vector envs
+        # and ndp.envs.vector take a list)
+        seeds = rl_envs.env_seeds(cfg.seed, self.E, epoch=self.update)
+        obs, info = self.envs.reset(seed=seeds)  # type: ignore[arg-type]
         self._obs = np.asarray(obs, dtype=np.float64).reshape(self.E, self.obs_dim)
         self._state = _robot_state(info, self.E)
 
@@ -422,7 +428,9 @@ class DyneLearner(CountsUpdates):
 
     # ----------------------------------------------------------------------- acting
 
-    def _step(self, act: np.ndarray, episodes: list) -> tuple[Any, ...]:
+    def _step(
+        self, act: np.ndarray, episodes: list[tuple[float, float, float, float, float]]
+    ) -> tuple[Any, ...]:
         next_obs, _, term, trunc, infos = self.envs.step(act.astype(np.float32))
         term = np.asarray(term, dtype=bool)
         trunc = np.asarray(trunc, dtype=bool)
@@ -442,7 +450,7 @@ class DyneLearner(CountsUpdates):
     def _explore_iteration(self) -> dict[str, Any]:
         """T decisions of uniformly random k-action sequences; keeps the full chunks."""
         E, k, A = self.E, self.k, self.spec.action_dim
-        episodes: list = []
+        episodes: list[tuple[float, float, float, float, float]] = []
         executed = 0
         for _ in range(self.T):
             act = self.rng.uniform(self.low, self.high, size=(E, k, A))
@@ -489,7 +497,7 @@ class DyneLearner(CountsUpdates):
         return np.clip(z + noise, -m, m).astype(np.float32)
 
     def _rl_iteration(self) -> dict[str, Any]:
-        episodes: list = []
+        episodes: list[tuple[float, float, float, float, float]] = []
         executed = 0
         losses: dict[str, list[float]] = {"critic": [], "actor": [], "q": []}
         t_update = 0.0
@@ -547,7 +555,7 @@ class DyneLearner(CountsUpdates):
         if not bool(torch.isfinite(critic_loss)):
             raise self._diverged(f"non-finite critic loss ({float(critic_loss.detach())})")
         self.critic_opt.zero_grad()
-        critic_loss.backward()
+        critic_loss.backward()  # type: ignore[no-untyped-call]  # Tensor.backward is unannotated
         self.critic_opt.step()
         self.grad_steps += 1
         losses["critic"].append(float(critic_loss.detach()))
@@ -560,7 +568,7 @@ class DyneLearner(CountsUpdates):
             if not bool(torch.isfinite(actor_loss)):
                 raise self._diverged(f"non-finite actor loss ({float(actor_loss.detach())})")
             self.actor_opt.zero_grad()
-            actor_loss.backward()
+            actor_loss.backward()  # type: ignore[no-untyped-call]  # Tensor.backward: unannotated
             self.actor_opt.step()
             self.critic.requires_grad_(True)
             losses["actor"].append(float(actor_loss.detach()))

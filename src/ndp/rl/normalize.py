@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 
 class RunningMeanStd:
@@ -111,7 +112,7 @@ class ReturnNormalizer:
         Returns:
             [E, k] scaled rewards (float64), 0 where not executed.
         """
-        r = np.asarray(rewards, dtype=np.float64) * masks
+        r: npt.NDArray[np.float64] = np.asarray(rewards, dtype=np.float64) * masks
         if not self.enabled:
             return r
         k = r.shape[1]
@@ -122,7 +123,8 @@ class ReturnNormalizer:
         self.rms.update(rets[masks > 0])
         self.ret[np.asarray(ends, dtype=bool)] = 0.0
         scaled = r / np.sqrt(self.rms.var + 1e-8)
-        return np.clip(scaled, -self.clip, self.clip) * masks
+        out: npt.NDArray[np.float64] = np.clip(scaled, -self.clip, self.clip) * masks
+        return out
 
     def scale(self, x: np.ndarray | float) -> np.ndarray | float:
         """Divide by the current return std (no update, no clip)."""

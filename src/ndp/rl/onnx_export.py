@@ -66,6 +66,12 @@ class DecisionModule(nn.Module):
     Shapes: obs [E, O], y0 and dy0 [E, D] float64 -> actions [E, k, A] float32.
     """
 
+    # buffers registered in __init__
+    obs_mean: torch.Tensor
+    obs_std: torch.Tensor
+    low: torch.Tensor
+    high: torch.Tensor
+
     def __init__(self, policy: Policy) -> None:
         super().__init__()
         self.model = policy.model
@@ -155,7 +161,8 @@ def onnx_model_bytes(policy: Policy) -> bytes:
             torch.onnx.export(
                 module,
                 args,
-                buf,
+                # typed str | PathLike, but the TorchScript exporter (dynamo=False) takes a file
+                buf,  # type: ignore[arg-type]
                 dynamo=False,
                 input_names=list(INPUTS),
                 output_names=list(OUTPUTS),
@@ -297,7 +304,7 @@ class OnnxPolicy:
         if path.is_dir():
             path = path / ONNX_FILE
         self.meta = onnx_metadata(path)
-        self.state_keys: tuple[str, str] = tuple(self.meta["state_keys"])  # type: ignore[assignment]
+        self.state_keys: tuple[str, str] = tuple(self.meta["state_keys"])
         self.session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
 
     def act(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:

@@ -565,8 +565,10 @@ def cached_evaluation(run_dir: Path) -> dict[str, Any] | None:
     best: tuple[int, dict[str, Any]] | None = None
     for f in Path(run_dir).glob("eval-det-e*.json"):
         m = re.fullmatch(r"eval-det-e(\d+)\.json", f.name)
+        if m is None:
+            continue
         try:
-            data = json.loads(f.read_text()) if m else None
+            data = json.loads(f.read_text())
         except (OSError, ValueError):
             continue
         if (

@@ -106,7 +106,9 @@ class Trainer(CountsUpdates):
             cfg.vector,
             cfg.env_workers,
         )
-        obs_dim = int(np.prod(self.envs.single_observation_space.shape))
+        obs_shape = self.envs.single_observation_space.shape
+        assert obs_shape is not None  # a Box (ChunkedEnv's observation space is the task's)
+        obs_dim = int(np.prod(obs_shape))
         self.obs_dim = obs_dim
         self.device = torch.device(cfg.device)
         model = build_actor_critic(obs_dim, self.spec, cfg.policy)
@@ -130,9 +132,15 @@ class Trainer(CountsUpdates):
         self.session.start(cfg.to_dict(), rl_manifest(cfg, self.global_step))
         # Episode bookkeeping.
         self._episodes = EpisodeTracker(cfg.num_envs)
-        obs, info = self.envs.reset(seed=env_seeds(cfg.seed, cfg.num_envs, epoch=self.update))
+        # one seed per env (gymnasium types VectorEnv.reset's seed as one int; its vector envs
+        # and ndp.envs.vector take a list)
+        seeds = env_seeds(cfg.seed, cfg.num_envs, epoch=self.update)
+        obs, info = self.envs.reset(seed=seeds)  # type: ignore[arg-type]
         self._obs = np.asarray(obs, dtype=np.float64).reshape(cfg.num_envs, obs_dim)
-        self._y0, self._dy0 = _robot_state(info, cfg.num_envs, cfg.policy.dmp_state)
+        frame = cfg.policy.dmp_state
+        assert frame is not None  # resolve_config fills it from the task's preset
+        self._dmp_frame: str = frame
+        self._y0, self._dy0 = _robot_state(info, cfg.num_envs, self._dmp_frame)
 
     # ----------------------------------------------------------------------- state
     def state_dict(self) -> dict[str, Any]:
@@ -212,7 +220,7 @@ class Trainer(CountsUpdates):
                 act = torch.maximum(torch.minimum(dist.actions(z), self.high), self.low)
             if not bool(torch.isfinite(act).all()):
                 raise self._diverged("non-finite actions (check the observations)")
-            if z_b is None:
+            if z_b is None or logp_b is None:  # (both None until the first decision)
                 z_b = torch.zeros((T, E, *z.shape[1:]))
                 logp_b = torch.zeros((T, E, logp.shape[1]))
             obs_b[t], y0_b[t], dy0_b[t], z_b[t], logp_b[t] = obs_n, y0, dy0, z, logp
@@ -230,9 +238,9 @@ class Trainer(CountsUpdates):
             boot = trunc & ~term
             if boot.any():  # bootstrap truncated episodes from their final observation
                 fin = np.stack([np.asarray(o, dtype=np.float64) for o in infos["final_obs"][boot]])
-                fin = torch.from_numpy(self.obs_norm(fin.reshape(-1, self.obs_dim)))
+                fin_n = torch.from_numpy(self.obs_norm(fin.reshape(-1, self.obs_dim)))
                 with torch.no_grad():
-                    v_fin = self.rollout_model.value(fin)[:, 0].numpy()
+                    v_fin = self.rollout_model.value(fin_n)[:, 0].numpy()
                 r_n = bootstrap_truncated(r_n, mask, boot, v_fin, gamma)
             rew_b[t], mask_b[t], end_b[t] = r_n, mask, done
             executed += int(mask.sum())
@@ -242,7 +250,7 @@ class Trainer(CountsUpdates):
 
             self._episodes.add(infos, done, sub_r, live, mask, episodes)
             self._obs = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
-            self._y0, self._dy0 = _robot_state(infos, E, self.cfg.policy.dmp_state)
+            self._y0, self._dy0 = _robot_state(infos, E, self._dmp_frame)
 
         with torch.no_grad():
             last_obs = torch.from_numpy(self.obs_norm(self._obs))
@@ -330,7 +338,7 @@ class Trainer(CountsUpdates):
                         ent = entropy_mean(dist.entropy(), vm)
                     loss = pg + p.vf_coef * vl
                 self.opt.zero_grad()
-                loss.backward()
+                loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
                 gn = self.opt.clip_grad_norm(p.max_grad_norm)
                 if not bool(torch.isfinite(loss.detach() + gn)):  # one check for both
                     raise self._diverged(
@@ -567,9 +575,10 @@ def train(
         RunDir(cfg.run_dir or ".").create(overwrite=True)
     trainer = make_learner(cfg, resolved=True)
     try:
-        return trainer.train(max_updates)
+        metrics: dict[str, float] = trainer.train(max_updates)
     finally:
         trainer.close()
+    return metrics
 
 
 def resume(
@@ -595,6 +604,7 @@ def resume(
     RunDir(run_dir).open_for_resume()
     trainer = make_learner(cfg, resume=True)
     try:
-        return trainer.train(max_updates)
+        metrics: dict[str, float] = trainer.train(max_updates)
     finally:
         trainer.close()
+    return metrics

@@ -82,7 +82,7 @@ class RayBackend:
                 ray.init(num_cpus=max(1, workers or default_workers()), **kw)
             self.started = True
         self.remote = ray.remote(num_cpus=1, max_retries=0)(execute)
-        cpus = int(ray.cluster_resources().get("CPU", 1))
+        cpus = int(ray.cluster_resources().get("CPU", 1))  # type: ignore[no-untyped-call]  # Ray: unannotated
         self.slots = max(1, workers or cpus)
         self.where = address or ("a local Ray instance" if self.started else "the running Ray")
 

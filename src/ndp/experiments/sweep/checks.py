@@ -13,6 +13,7 @@ import shlex
 import typing
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
 from ndp.experiments.run_kinds import RUN_KINDS, config_class, il_data_args, run_kind
 from ndp.experiments.study import Arm, arm_conflict, is_finished
@@ -80,7 +81,8 @@ def train_options(kind: str = "rl") -> dict[str, str]:
     def walk(cls: type) -> None:
         hints = typing.get_type_hints(cls, include_extras=True)
         for f in dataclasses.fields(cls):
-            t, meta = hints[f.name], ()
+            t = hints[f.name]
+            meta: tuple[Any, ...] = ()
             if typing.get_origin(t) is typing.Annotated:
                 meta, t = t.__metadata__, typing.get_args(t)[0]
             if HIDDEN is not None and any(m is HIDDEN for m in meta):
@@ -162,7 +164,7 @@ def _parse_arm(arm: Arm, task: str) -> None:
     err = io.StringIO()
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err):
-            cfg = parse_config(config_class(kind), argv, prog=prog)
+            cfg: object = parse_config(config_class(kind), argv, prog=prog)
         kind.check(cfg, task)
     except SystemExit:
         rows = [ln.strip(" │╭╰─╮╯|-") for ln in err.getvalue().splitlines()]

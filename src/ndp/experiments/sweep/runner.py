@@ -27,7 +27,7 @@ from ndp.experiments.sweep.jobs import FAILED_NAME, LOCK_NAME, RUN_ENV, STOP_GRA
 
 # ----------------------------------------------------------------------------- one run
 
-_LIVE: dict[int, subprocess.Popen] = {}
+_LIVE: dict[int, subprocess.Popen[bytes]] = {}
 _LIVE_LOCK = threading.Lock()
 _STOP = threading.Event()
 
@@ -101,7 +101,7 @@ def _log_tail(log: Path, start: int, lines: int = 3) -> str:
     return " | ".join(picked)[-600:]
 
 
-def _stop_child(proc: subprocess.Popen, grace: float = STOP_GRACE_S) -> None:
+def _stop_child(proc: subprocess.Popen[bytes], grace: float = STOP_GRACE_S) -> None:
     """One SIGINT (the trainer stops at its last checkpoint), then SIGKILL after ``grace``."""
     if proc.poll() is not None:
         return

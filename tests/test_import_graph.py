@@ -195,18 +195,7 @@ def test_the_layer_check_sees_an_upward_and_a_sideways_import():
 
 # ----------------------------------------------------------------------------- lazy imports
 
-LAZY_DEBT = {
-    "ndp.bc.demos",
-    "ndp.envs.factory",
-    "ndp.envs.spec",
-    "ndp.experiments.diagnose",
-    "ndp.experiments.report",
-    "ndp.experiments.sb3_ppo",
-    "ndp.il.train",
-    "ndp.rl.onnx_export",
-    "ndp.rl.policy",
-    "ndp.rl.trainer",
-}
+LAZY_DEBT: set[str] = set()
 """Modules that still import ndp modules inside functions for no reason the rule below accepts
 (the list only shrinks)."""
 

@@ -29,7 +29,9 @@ from typing import Any
 
 import numpy as np
 
+from ndp.bc.experts import expert_for
 from ndp.chunk_info import dmp_start
+from ndp.io import atomic_save_npz
 
 DEMO_FORMAT = "ndp-demos"
 DEMO_VERSION = 1
@@ -106,7 +108,6 @@ def collect(
         ValueError: bad arguments, or fewer successful episodes than asked within
             ``max_attempts`` (default ``3 * episodes + 10``).
     """
-    from ndp.bc.experts import expert_for
     from ndp.envs import ChunkedEnv, make_env
     from ndp.envs.spec import get_task_spec
 
@@ -188,7 +189,6 @@ def collect(
 
 def save_demos(demos: Demos, path: str | Path) -> Path:
     """Write ``demos`` to ``path`` (.npz, atomically)."""
-    from ndp.io import atomic_save_npz
 
     path = Path(path)
     meta = {**demos.meta, "format": DEMO_FORMAT, "version": DEMO_VERSION, "task": demos.task}

@@ -19,12 +19,15 @@ from typing import Any
 
 import gymnasium as gym
 
-from ndp.envs.base import defer_seed
+from ndp.envs.base import check_fixed_goal, defer_seed
+from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.jaco import JacoEnv
-from ndp.envs.metaworld_env import MetaWorldEnv
+from ndp.envs.metaworld_env import V1_REWARD_BROKEN, MetaWorldEnv, check_reward_version
 from ndp.envs.point_mass import PointMassEnv
-from ndp.envs.spec import TASKS, TORQUE_TASKS, finer_spec, get_task_spec
+from ndp.envs.spec import TASKS, TORQUE_TASKS, add_task, finer_spec, get_task_spec
+from ndp.envs.torque import JacoTorqueEnv, MetaWorldTorqueEnv
 from ndp.gym_ids import TABLE, expand, register
+from ndp.io import atomic_write_text
 
 FAMILIES: dict[str, Callable[..., gym.Env]] = {
     "metaworld": lambda spec, horizon, render_mode, **kw: MetaWorldEnv(
@@ -41,15 +44,11 @@ FAMILIES: dict[str, Callable[..., gym.Env]] = {
 
 
 def _torque_metaworld(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
-    from ndp.envs.torque import MetaWorldTorqueEnv
-
     task = spec.metaworld_name or spec.name
     return MetaWorldTorqueEnv(task, spec.controller, horizon, render_mode, **kw)
 
 
 def _torque_jaco(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
-    from ndp.envs.torque import JacoTorqueEnv
-
     return JacoTorqueEnv(spec.base_task, spec.controller, horizon, render_mode, **kw)
 
 
@@ -135,8 +134,6 @@ def task_options(spec: Any, reward_version: str = "v2", fixed_goal: Any = None) 
         ValueError: a bad value, v1 rewards for a task that is not Meta-World's, or a Meta-World
             task whose v1 reward metaworld cannot run (named in the message).
     """
-    from ndp.envs.base import check_fixed_goal
-    from ndp.envs.metaworld_env import V1_REWARD_BROKEN, check_reward_version
 
     reward_version = check_reward_version(reward_version)
     out: dict[str, Any] = {}
@@ -215,7 +212,6 @@ def _make_registered(name: str, **kw: Any) -> gym.Env:
 
 def _make_registered_chunked(name: str, k: int, stale_world: bool = True, **kw: Any) -> gym.Env:
     """gymnasium entry point (chunked env)."""
-    from ndp.envs.chunked import ChunkedEnv
 
     return ChunkedEnv(make_env(name, **kw), k, stale_world=stale_world)
 
@@ -251,7 +247,6 @@ def gym_id_table() -> dict[str, Any]:
 
 def write_gym_id_table() -> None:
     """Rewrite the shipped id table from the task tables (after adding a task)."""
-    from ndp.io import atomic_write_text
 
     atomic_write_text(TABLE, json.dumps(gym_id_table(), indent=1) + "\n")
 
@@ -276,7 +271,6 @@ def register_task(spec: Any, make: Callable[..., gym.Env] | None = None) -> list
     Raises:
         ValueError: the name, an alias or the env id is taken, or the family has no factory.
     """
-    from ndp.envs.spec import add_task
 
     if make is None and spec.family not in FAMILIES:
         raise ValueError(

@@ -36,7 +36,7 @@ from typing import Literal
 import torch
 
 from ndp.dmp.controllers import DeltaController
-from ndp.envs import jaco, point_mass
+from ndp.envs import jaco, point_mass, torque
 from ndp.envs.base import divisors
 from ndp.envs.impedance import ImpedanceController
 from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metaworld_env_names
@@ -295,8 +295,6 @@ low-frequency, one decision per k = 5 env steps as NDP decides)."""
 
 
 def _torque_spec(base: TaskSpec, space: str, learn_damping: bool, period: int) -> TaskSpec:
-    from ndp.envs import torque
-
     if base.family == "metaworld":
         ctrl = torque.sawyer_controller(learn_damping, period)
     else:

@@ -34,6 +34,8 @@ import numpy as np
 import torch
 
 from ndp.chunk_info import dmp_start
+from ndp.policies import build_actor_critic
+from ndp.rl.normalize import ObsNormalizer
 
 if TYPE_CHECKING:
     from ndp.policies.actor_critic import ActorCritic
@@ -48,10 +50,8 @@ def _policy(
     ``TaskSpec``, or a trained run's ``PolicySpec`` as ``Policy.spec``)."""
     import dataclasses
 
-    from ndp.policies import build_actor_critic
     from ndp.rl.config import TrainConfig, resolve_config
     from ndp.rl.envs import resolve_task
-    from ndp.rl.normalize import ObsNormalizer
 
     if run is not None:
         from ndp.rl.evaluate import load_policy

@@ -45,9 +45,14 @@ from typing import Any
 
 import numpy as np
 
+from ndp.experiments.conditions import conditions_section
 from ndp.experiments.run_kinds import REPORT_KIND, RUN_KINDS, kind_of_algo, run_kind
+from ndp.experiments.selection import selection_section
+from ndp.experiments.studies import get_study
 from ndp.experiments.study import final_success, is_finished, smooth, success_area
 from ndp.il.config import data_task_name
+from ndp.io import atomic_write_text
+from ndp.provenance import git_commit
 from ndp.runs import metrics_path, read_metrics, run_commits
 from ndp.runs.session import Manifest, read_manifest
 
@@ -308,7 +313,6 @@ def det_success(path: Path, episodes: int) -> float:
     cache = path / DET_EVAL_FILE.format(episodes=episodes)
     data = _json(cache)
     if data is None:
-        from ndp.io import atomic_write_text
         from ndp.rl.evaluate import evaluate
 
         data = evaluate(path, episodes=episodes, deterministic=True)
@@ -450,13 +454,10 @@ def report(
         MissingSeedsError: cells lack seeds and not ``allow_missing`` (nothing written).
         ValueError: no runs, or two runs of one cell and seed.
     """
-    from ndp.provenance import git_commit
 
     conditions: tuple[Any, ...] = ()
     selection: tuple[Any, ...] = ()
     if study is not None:
-        from ndp.experiments.studies import get_study
-
         st = get_study(study)
         conditions = st.conditions
         selection = st.selection
@@ -513,8 +514,6 @@ def report(
         at = md.index("", md.index(next(x for x in md if x.startswith("Seeds per cell")))) + 1
         md[at:at] = _bc_markdown(bc_cells)
     if conditions:
-        from ndp.experiments.conditions import conditions_section
-
         foot = f"{prov['command']}  |  commit {prov['commit']}  |  {prov['date']}"
         cmd, crows, cpngs = conditions_section(rl_cells, conditions, expected, out, foot, plots)
         csv_rows = [{**r, "command": prov["command"], "commit": prov["commit"],
@@ -525,8 +524,6 @@ def report(
         md[at:at] = cmd
         pngs = [*cpngs, *pngs]
     if selection and il_cells:
-        from ndp.experiments.selection import selection_section
-
         smd, srows = selection_section(il_cells, selection, expected, floor=plots)
         _write_csv(out.with_name(out.name + "-selection.csv"),
                    [{**r, "command": prov["command"], "commit": prov["commit"],

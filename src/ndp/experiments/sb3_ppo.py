@@ -35,6 +35,10 @@ from typing import Any
 
 import numpy as np
 
+from ndp.io import atomic_write_text
+from ndp.runs import MetricsLogger
+from ndp.runs.session import Manifest, RunSession
+
 FIELDS = (
     "update",
     "global_step",
@@ -139,11 +143,8 @@ def train_sb3(
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from ndp.io import atomic_write_text
     from ndp.rl.config import PPOConfig
     from ndp.rl.envs import resolve_task
-    from ndp.runs import MetricsLogger
-    from ndp.runs.session import Manifest, RunSession
 
     torch.set_num_threads(1)
     run_dir = Path(run_dir)

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from ndp.checks import check_device_available
 from ndp.il.config import (
     SAFE_ON_RESUME,
     SPLITS,
@@ -397,7 +398,6 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
         NonFiniteLossError: the loss became NaN / Inf (the last good checkpoint stays).
         FileNotFoundError, ValueError: bad data paths or files; a refused resume.
     """
-    from ndp.checks import check_device_available
 
     check_device_available(cfg.device)  # before the run folder is made
     _set_threads(cfg.threads)

@@ -38,6 +38,8 @@ import torch
 from torch import nn
 
 from ndp.chunk_info import frame_of_keys
+from ndp.io import atomic_write_bytes
+from ndp.provenance import git_commit, installed_versions
 
 if TYPE_CHECKING:
     from ndp.rl.policy import Policy
@@ -218,7 +220,6 @@ def _verify(policy: Policy, module: DecisionModule, data: bytes) -> None:
 def onnx_metadata_of(policy: Policy) -> dict[str, str]:
     """The ``metadata_props`` of a policy's ONNX file (every value a string; JSON where it is
     not one)."""
-    from ndp.provenance import git_commit, installed_versions
 
     spec, head = policy.spec, policy.model.head
     ky, kdy = policy.state_keys
@@ -251,7 +252,6 @@ def onnx_metadata_of(policy: Policy) -> dict[str, str]:
 def write_onnx_export(policy: Policy, out_dir: str | Path) -> Path:
     """Write ``out_dir/policy.onnx`` (a new directory, or one without that file); returns
     ``out_dir``."""
-    from ndp.io import atomic_write_bytes
 
     out = Path(out_dir)
     if (out / ONNX_FILE).exists():

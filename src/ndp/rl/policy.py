@@ -51,9 +51,20 @@ from typing import Any
 import numpy as np
 import torch
 
+import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
+from ndp import zoo
+from ndp.chunk_info import dmp_start_keys
+from ndp.io import atomic_write_bytes, atomic_write_text
 from ndp.policies import ActorCritic, build_actor_critic
-from ndp.rl.config import TrainConfig
+from ndp.policies.task import PolicySpec, check_record, spec_record
+from ndp.provenance import git_commit, installed_versions
+from ndp.rl.card import model_card
+from ndp.rl.config import TrainConfig, load_config
+from ndp.rl.exec_k import at_exec_k
 from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.onnx_export import write_onnx_export
+from ndp.runs import load_checkpoint
+from ndp.runs.layout import PROVENANCE_NAME, run_commits
 
 EXPORT_FORMAT = "ndp-policy"
 """``format`` field of ``policy.json``."""
@@ -119,7 +130,6 @@ class Policy:
         """An evaluation copy running each decision as ``exec_k`` sub-steps of the same total
         duration (``ndp.rl.exec_k.at_exec_k``: allowed values, what each method does, ``hold``);
         the trained policy and its weights are left as they are."""
-        from ndp.rl.exec_k import at_exec_k
 
         return at_exec_k(self, exec_k, hold)
 
@@ -128,7 +138,6 @@ class Policy:
         """The info keys of the DMP start this policy reads (commanded or measured state):
         ``("cmd_y0", "cmd_dy0")`` or ``("dmp_y0", "dmp_dy0")``, each [D] (D =
         ``spec.dmp_dofs``) or [E, D]."""
-        from ndp.chunk_info import dmp_start_keys
 
         return dmp_start_keys(self.cfg.policy.dmp_state or "measured")
 
@@ -142,7 +151,6 @@ class Policy:
     def simulator_free(self) -> bool:
         """True when the task spec is the one recorded in the export (``PolicySpec``: the
         simulators were not importable at load time); :meth:`make_env` then needs them."""
-        from ndp.policies.task import PolicySpec
 
         return isinstance(self.spec, PolicySpec)
 
@@ -311,8 +319,6 @@ class Policy:
         if format not in EXPORT_FORMATS:
             raise ValueError(f"format: expected one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
         if format == "onnx":
-            from ndp.rl.onnx_export import write_onnx_export
-
             return write_onnx_export(self, out_dir)
         return _write_export(self, Path(out_dir), evaluation)
 
@@ -321,7 +327,6 @@ def _task_spec(cfg: TrainConfig, recorded: dict[str, Any] | None, source: str) -
     """The task's row of the task table when the simulators import (``ndp.envs``), else the
     spec the export recorded (``PolicySpec``). With both, a recorded field that differs from
     the table's is warned about (the table's is used, as the env is built from it)."""
-    from ndp.policies.task import PolicySpec, spec_record
 
     try:
         from ndp.rl.envs import resolve_task
@@ -359,8 +364,6 @@ def _build(
     source: str = "policy",
     recorded_spec: dict[str, Any] | None = None,
 ) -> Policy:
-    import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
-
     spec = _task_spec(cfg, recorded_spec, source)
     model = build_actor_critic(obs_dim, spec, cfg.policy)
     _check_weights(model.state_dict(), model_state, source)
@@ -414,8 +417,6 @@ def load_policy(path: str | Path) -> Policy:
         ValueError: an export of another format or version; an unknown zoo name.
     """
     if isinstance(path, str) and path.startswith("zoo:"):
-        from ndp import zoo
-
         path = zoo.path(path)
     path = Path(path)
     if (path / "policy.json").is_file():
@@ -441,9 +442,6 @@ def load_policy(path: str | Path) -> Policy:
         pol.training = training if isinstance(training, dict) else None
         return pol
     if (path / "config.json").is_file():
-        from ndp.rl.config import load_config
-        from ndp.runs import load_checkpoint
-
         cfg = load_config(path / "config.json")
         ckpt = load_checkpoint(path, kind="rl")
         for key in ("obs_dim", "model", "obs_norm"):
@@ -463,8 +461,6 @@ def run_training(run_dir: Path) -> dict[str, Any] | None:
     """A run's training record for its exports: the command line of each session (start,
     resumes) and the commits they ran at, from its ``provenance.json``; None without one."""
     import shlex
-
-    from ndp.runs.layout import PROVENANCE_NAME, run_commits
 
     try:
         sessions = json.loads((Path(run_dir) / PROVENANCE_NAME).read_text())
@@ -530,8 +526,6 @@ def read_export_meta(path: Path) -> dict[str, Any]:
     if meta["config"].get("task") != meta["task"] or meta["config"].get("algo") != meta["algo"]:
         raise ValueError(f"{path}: fields 'task' / 'algo' disagree with the config's")
     if "spec" in meta:
-        from ndp.policies.task import check_record
-
         check_record(meta["spec"], f"{path}: field 'spec'")
     return meta
 
@@ -593,11 +587,6 @@ def cached_evaluation(run_dir: Path) -> dict[str, Any] | None:
 
 def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | None = None) -> Path:
     from safetensors.torch import save
-
-    from ndp.io import atomic_write_bytes, atomic_write_text
-    from ndp.policies.task import spec_record
-    from ndp.provenance import git_commit, installed_versions
-    from ndp.rl.card import model_card
 
     if policy.substeps != 1:
         raise ValueError(

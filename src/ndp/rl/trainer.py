@@ -43,6 +43,7 @@ from ndp.rl.envs import (
 )
 from ndp.rl.gae import bootstrap_truncated, gae_substeps
 from ndp.rl.logger import METRICS
+from ndp.rl.methods import METHODS
 from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
 from ndp.rl.optim import FlatAdam
 from ndp.rl.ppo import (
@@ -555,7 +556,6 @@ def check_budget_not_below(done_updates: int, cfg: TrainConfig) -> None:
 def make_learner(cfg: TrainConfig, resume: bool = False, resolved: bool = False) -> Any:
     """The learner of ``cfg.algo``: its registered :attr:`ndp.rl.methods.Method.learner`, else
     :class:`Trainer`; ``cfg`` is resolved here unless ``resolved`` (once per run either way)."""
-    from ndp.rl.methods import METHODS
 
     if not resolved:
         cfg = resolve_config(cfg)

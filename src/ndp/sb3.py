@@ -270,9 +270,14 @@ class NDPPolicy(ActorCriticPolicy):
 
     @property
     def log_std(self) -> nn.Parameter:
-        """The sub-action log std [A] (SB3 logs ``exp(log_std).mean()`` as train/std)."""
+        """The sub-action log std [A] (SB3 logs ``exp(log_std).mean()`` as train/std); it is the
+        NDP head's parameter, so it cannot be replaced."""
         log_std: nn.Parameter = self.ndp_head.log_std
         return log_std
+
+    @log_std.setter
+    def log_std(self, value: nn.Parameter) -> None:
+        raise AttributeError("log_std: NDPPolicy's log std is the NDP head's parameter (read-only)")
 
     def dmp_actions(self, latent_pi: torch.Tensor, obs: dict[str, torch.Tensor]) -> torch.Tensor:
         """The k sub-action means [B, k, A] of the DMP (goal and weights from ``latent_pi``,

@@ -91,6 +91,9 @@ def test_sb3_ppo_trains_the_ndp_policy_and_acts_through_the_dmp(one_thread, tmp_
         assert np.isfinite(logged[key]), key
     changed = [k for k, v in policy.state_dict().items() if not torch.equal(v, before[k])]
     assert "action_net.weight" in changed and "ndp_head.log_std" in changed
+    assert policy.log_std is policy.ndp_head.log_std  # SB3's train/std reads the head's
+    with pytest.raises(AttributeError, match="log_std: NDPPolicy's log std is the NDP head's"):
+        policy.log_std = torch.zeros(2)
 
     obs, _ = env.reset(seed=5)
     actions, _ = model.predict(obs, deterministic=True)

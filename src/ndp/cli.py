@@ -95,7 +95,6 @@ def _config_command(argv: list[str]) -> tuple[str, Callable[[list[str]], int]] |
 
 def version_line() -> str:
     """``ndp --version``'s line: the installed distribution's version (``ndp.version``)."""
-
     return f"ndp {version()}"
 
 

@@ -140,7 +140,6 @@ def with_robot_state(env: gym.Env, task: str, dmp_state: str | None = None) -> g
 
 def make_env(task: str, k: int = 5, dmp_state: str | None = None, **kwargs: Any) -> gym.Env:
     """``with_robot_state(ndp.make_env(task, k, **kwargs), task, dmp_state)``."""
-
     return with_robot_state(ndp.make_env(task, k=k, **kwargs), task, dmp_state)
 
 

@@ -189,7 +189,6 @@ def collect(
 
 def save_demos(demos: Demos, path: str | Path) -> Path:
     """Write ``demos`` to ``path`` (.npz, atomically)."""
-
     path = Path(path)
     meta = {**demos.meta, "format": DEMO_FORMAT, "version": DEMO_VERSION, "task": demos.task}
     arrays = {k: getattr(demos, k) for k in _REQUIRED}

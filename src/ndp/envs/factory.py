@@ -134,7 +134,6 @@ def task_options(spec: Any, reward_version: str = "v2", fixed_goal: Any = None) 
         ValueError: a bad value, v1 rewards for a task that is not Meta-World's, or a Meta-World
             task whose v1 reward metaworld cannot run (named in the message).
     """
-
     reward_version = check_reward_version(reward_version)
     out: dict[str, Any] = {}
     if spec.family == "metaworld":
@@ -212,7 +211,6 @@ def _make_registered(name: str, **kw: Any) -> gym.Env:
 
 def _make_registered_chunked(name: str, k: int, stale_world: bool = True, **kw: Any) -> gym.Env:
     """gymnasium entry point (chunked env)."""
-
     return ChunkedEnv(make_env(name, **kw), k, stale_world=stale_world)
 
 
@@ -247,7 +245,6 @@ def gym_id_table() -> dict[str, Any]:
 
 def write_gym_id_table() -> None:
     """Rewrite the shipped id table from the task tables (after adding a task)."""
-
     atomic_write_text(TABLE, json.dumps(gym_id_table(), indent=1) + "\n")
 
 
@@ -271,7 +268,6 @@ def register_task(spec: Any, make: Callable[..., gym.Env] | None = None) -> list
     Raises:
         ValueError: the name, an alias or the env id is taken, or the family has no factory.
     """
-
     if make is None and spec.family not in FAMILIES:
         raise ValueError(
             f"make: family {spec.family!r} has no env factory yet ({', '.join(FAMILIES)}); "

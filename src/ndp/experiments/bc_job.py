@@ -76,7 +76,6 @@ def ensure_demos(path: Path, task: str, episodes: int = DEMOS_EPISODES) -> Path:
 def last_val_loss(run: Path) -> float:
     """The cloning's fit: validation loss (MSE of the actions) of its last epoch; NaN when not
     logged (no validation split)."""
-
     try:
         rows = read_metrics(run / "bc_metrics.csv")
     except (OSError, ValueError):

@@ -454,7 +454,6 @@ def report(
         MissingSeedsError: cells lack seeds and not ``allow_missing`` (nothing written).
         ValueError: no runs, or two runs of one cell and seed.
     """
-
     conditions: tuple[Any, ...] = ()
     selection: tuple[Any, ...] = ()
     if study is not None:

@@ -106,7 +106,6 @@ def rollout_paths(
         (paths: one [T + 1, D] array per episode (every env step), success at any step per
         episode, the control step dt).
     """
-
     policy = ndp.load_policy(run)
     env = policy.make_env()
     dt = float(policy.spec.control_dt)

@@ -398,7 +398,6 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
         NonFiniteLossError: the loss became NaN / Inf (the last good checkpoint stays).
         FileNotFoundError, ValueError: bad data paths or files; a refused resume.
     """
-
     check_device_available(cfg.device)  # before the run folder is made
     _set_threads(cfg.threads)
     seed_everything(cfg.seed)

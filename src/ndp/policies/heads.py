@@ -224,7 +224,6 @@ class NDPHead(ActionHead):
 
     def _action_map(self, scale: torch.Tensor, absolute: torch.Tensor) -> torch.Tensor:
         """Per DoF, the map [D, N + 3, k] from (w, g, y0, dy0) to the k sub-action means."""
-
         cfg = self.dmp.config
         n, k = cfg.n_basis, self.k
         pos = torch.as_tensor(_linear_map_f64(cfg, None)[:, : cfg.n_out].copy())  # [N+3, k+1]
@@ -459,7 +458,6 @@ def _as_tensor(x: Any) -> torch.Tensor:
 def _linear_controller(spec: Any) -> tuple[torch.Tensor, ...] | None:
     """(scale, absolute, low, high) [D] of a task whose controller is linear (a
     ``DeltaController``), else None (the composed path is used)."""
-
     ctrl = getattr(spec, "controller", None)
     if not isinstance(ctrl, DeltaController) or len(ctrl.scale) != spec.dmp_dofs:
         return None

@@ -52,7 +52,6 @@ def resolve_task(name: str, **options: Any) -> TaskHandle:
     Raises:
         ValueError: unknown name (the message lists close names), or a bad option.
     """
-
     spec = get_task_spec(name)
     observation = check_observation(spec, options.pop("observation", "full"))
     kw = task_options(spec, **options)
@@ -109,7 +108,6 @@ VECTOR_KINDS = ("auto", "sync", "workers", "async")
 
 def resolve_vector(vector: str, num_envs: int, env_workers: int | None) -> tuple[str, int]:
     """(kind, workers) that ``make_vector_env`` builds for ``vector`` ('auto' decided here)."""
-
     if vector not in VECTOR_KINDS:
         raise ValueError(f"vector: expected one of {', '.join(VECTOR_KINDS)}, got {vector!r}")
     workers = default_workers(num_envs) if env_workers is None else int(env_workers)

@@ -220,7 +220,6 @@ def _verify(policy: Policy, module: DecisionModule, data: bytes) -> None:
 def onnx_metadata_of(policy: Policy) -> dict[str, str]:
     """The ``metadata_props`` of a policy's ONNX file (every value a string; JSON where it is
     not one)."""
-
     spec, head = policy.spec, policy.model.head
     ky, kdy = policy.state_keys
     meta: dict[str, Any] = {
@@ -252,7 +251,6 @@ def onnx_metadata_of(policy: Policy) -> dict[str, str]:
 def write_onnx_export(policy: Policy, out_dir: str | Path) -> Path:
     """Write ``out_dir/policy.onnx`` (a new directory, or one without that file); returns
     ``out_dir``."""
-
     out = Path(out_dir)
     if (out / ONNX_FILE).exists():
         raise FileExistsError(f"out_dir: {out} already holds {ONNX_FILE}; choose another")

@@ -130,7 +130,6 @@ class Policy:
         """An evaluation copy running each decision as ``exec_k`` sub-steps of the same total
         duration (``ndp.rl.exec_k.at_exec_k``: allowed values, what each method does, ``hold``);
         the trained policy and its weights are left as they are."""
-
         return at_exec_k(self, exec_k, hold)
 
     @property
@@ -138,7 +137,6 @@ class Policy:
         """The info keys of the DMP start this policy reads (commanded or measured state):
         ``("cmd_y0", "cmd_dy0")`` or ``("dmp_y0", "dmp_dy0")``, each [D] (D =
         ``spec.dmp_dofs``) or [E, D]."""
-
         return dmp_start_keys(self.cfg.policy.dmp_state or "measured")
 
     @property
@@ -151,7 +149,6 @@ class Policy:
     def simulator_free(self) -> bool:
         """True when the task spec is the one recorded in the export (``PolicySpec``: the
         simulators were not importable at load time); :meth:`make_env` then needs them."""
-
         return isinstance(self.spec, PolicySpec)
 
     def reset(self, seed: int | None = None) -> None:
@@ -327,7 +324,6 @@ def _task_spec(cfg: TrainConfig, recorded: dict[str, Any] | None, source: str) -
     """The task's row of the task table when the simulators import (``ndp.envs``), else the
     spec the export recorded (``PolicySpec``). With both, a recorded field that differs from
     the table's is warned about (the table's is used, as the env is built from it)."""
-
     try:
         from ndp.rl.envs import resolve_task
     except ImportError as exc:

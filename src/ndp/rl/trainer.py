@@ -556,7 +556,6 @@ def check_budget_not_below(done_updates: int, cfg: TrainConfig) -> None:
 def make_learner(cfg: TrainConfig, resume: bool = False, resolved: bool = False) -> Any:
     """The learner of ``cfg.algo``: its registered :attr:`ndp.rl.methods.Method.learner`, else
     :class:`Trainer`; ``cfg`` is resolved here unless ``resolved`` (once per run either way)."""
-
     if not resolved:
         cfg = resolve_config(cfg)
     learner = METHODS[cfg.algo].build_learner(cfg, resume)

@@ -20,7 +20,6 @@ from ndp.runs import metrics_path
 
 def run_fraction(job: Job) -> float:
     """How much of its budget a run has done (from the last row of its metrics)."""
-
     path = metrics_path(job.run_dir)
     try:
         with path.open("rb") as fh:

@@ -43,15 +43,23 @@ from ndp.policies.distributions import ParamGaussian, PolicyDistribution, SubAct
 from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
 
 
-class StepHead(ActionHead):
+class _RawActionHead(ActionHead):
+    """A head whose actor outputs raw actions: k sub-steps, ``n_params`` outputs, and a learned,
+    state-independent log std [A] shared by the sub-steps."""
+
+    def __init__(self, k: int, action_dim: int, n_params: int, init_log_std: float) -> None:
+        super().__init__()
+        self.k = int(k)
+        self.action_dim = int(action_dim)
+        self.n_params = int(n_params)
+        self.log_std = nn.Parameter(torch.full((self.action_dim,), float(init_log_std)))
+
+
+class StepHead(_RawActionHead):
     """PPO: one raw action per decision (k = 1), Gaussian with learned log std [A]."""
 
     def __init__(self, action_dim: int, init_log_std: float = 0.0) -> None:
-        super().__init__()
-        self.k = 1
-        self.action_dim = int(action_dim)
-        self.n_params = self.action_dim
-        self.log_std = nn.Parameter(torch.full((self.action_dim,), float(init_log_std)))
+        super().__init__(1, action_dim, action_dim, init_log_std)
 
     def distribution(
         self,
@@ -62,15 +70,11 @@ class StepHead(ActionHead):
         return SubActionGaussian(raw.view(raw.shape[0], 1, self.action_dim), self.log_std), {}
 
 
-class MultiHead(ActionHead):
+class MultiHead(_RawActionHead):
     """PPO-multi: k raw actions per decision, each a Gaussian with the shared log std [A]."""
 
     def __init__(self, k: int, action_dim: int, init_log_std: float = 0.0) -> None:
-        super().__init__()
-        self.k = int(k)
-        self.action_dim = int(action_dim)
-        self.n_params = self.k * self.action_dim
-        self.log_std = nn.Parameter(torch.full((self.action_dim,), float(init_log_std)))
+        super().__init__(k, action_dim, int(k) * int(action_dim), init_log_std)
 
     def distribution(
         self,
@@ -474,7 +478,7 @@ def _per_dof(value: Any, d: int) -> np.ndarray:
     return arr
 
 
-class HoldHead(ActionHead):
+class HoldHead(_RawActionHead):
     """One raw action per decision, executed for the k sub-steps (the env holds its target).
 
     A diagonal Gaussian over the action [A] with a learned, state-independent log std; one
@@ -483,11 +487,7 @@ class HoldHead(ActionHead):
     """
 
     def __init__(self, k: int, action_dim: int, init_log_std: float = 0.0) -> None:
-        super().__init__()
-        self.k = int(k)
-        self.action_dim = int(action_dim)
-        self.n_params = self.action_dim
-        self.log_std = nn.Parameter(torch.full((self.action_dim,), float(init_log_std)))
+        super().__init__(k, action_dim, action_dim, init_log_std)
 
     def distribution(
         self,

@@ -159,16 +159,32 @@ register_expert("pick", _pick)
 register_expert("metaworld", _metaworld)
 
 
-def expert_for(task: str) -> Expert:
-    """The scripted expert of a task (canonical name or alias): its own, else its family's.
+def expert_builder(task: str) -> Callable[[Any], Expert]:
+    """The factory of a task's scripted expert (canonical name or alias): its own, else its
+    family's.
 
     Raises:
-        ValueError: the task has no expert (one line naming it).
+        ValueError: the task has no expert (one line naming it and those that have one).
     """
     from ndp.envs.spec import get_task_spec
 
     spec = get_task_spec(task)
     build = EXPERTS.get(spec.name) or EXPERTS.get(spec.family)
     if build is None:
-        raise ValueError(f"task: no scripted expert for {spec.name!r}")
-    return build(spec)
+        raise ValueError(
+            f"task: {spec.name} has no scripted expert (tasks or families with one: "
+            + ", ".join(EXPERTS)
+            + ")"
+        )
+    return build
+
+
+def expert_for(task: str) -> Expert:
+    """A new scripted expert of a task (:func:`expert_builder`).
+
+    Raises:
+        ValueError: the task has no expert (one line naming it).
+    """
+    from ndp.envs.spec import get_task_spec
+
+    return expert_builder(task)(get_task_spec(task))

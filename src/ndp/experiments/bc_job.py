@@ -22,14 +22,18 @@ puts it in the behaviour-cloning table.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import fcntl
 import json
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ndp.experiments.run_kinds import BC_DEMOS_EPISODES as DEMOS_EPISODES
+
+if TYPE_CHECKING:
+    from ndp.bc.demos import Demos
 from ndp.io import atomic_write_text
 from ndp.runs import read_metrics
 from ndp.runs.session import read_manifest
@@ -47,9 +51,10 @@ def demos_file(runs_dir: str | Path, task: str) -> Path:
     return Path(runs_dir) / f"{task}-demos.npz"
 
 
-def ensure_demos(path: Path, task: str, episodes: int = DEMOS_EPISODES) -> Path:
+def ensure_demos(path: Path, task: str, episodes: int = DEMOS_EPISODES) -> Demos:
     """Record ``episodes`` successful expert episodes of ``task`` to ``path`` unless it holds
-    them already; one process records while the others wait on ``<path>.lock``.
+    them already (one process records while the others wait on ``<path>.lock``); returns the
+    file's demonstrations.
 
     Raises:
         ValueError: ``path`` holds another task's demonstrations, or fewer episodes.
@@ -70,7 +75,7 @@ def ensure_demos(path: Path, task: str, episodes: int = DEMOS_EPISODES) -> Path:
         raise ValueError(
             f"demos: {path} holds {demos.n_episodes} episodes, the study needs {episodes}"
         )
-    return path
+    return demos
 
 
 def last_val_loss(run: Path) -> float:
@@ -85,14 +90,14 @@ def last_val_loss(run: Path) -> float:
 
 def run_job(task: str, bc_argv: list[str], demos_episodes: int, eval_episodes: int) -> Path:
     """Demonstrations, cloning and evaluation of one run (each step skipped when done)."""
-    from ndp.bc.demos import load_demos
     from ndp.bc.train import BCConfig, train_bc
     from ndp.runs.cli import parse_config
 
-    probe = parse_config(BCConfig, bc_argv, prog="ndp il bc")
-    run = Path(probe.run_dir)
-    demos = ensure_demos(demos_file(run.parent, task), task, demos_episodes)
-    cfg = parse_config(BCConfig, [*bc_argv, "--demos", str(demos)], prog="ndp il bc")
+    cfg = parse_config(BCConfig, bc_argv, prog="ndp il bc")
+    run = Path(cfg.run_dir)
+    path = demos_file(run.parent, task)
+    demos = ensure_demos(path, task, demos_episodes)
+    cfg = dataclasses.replace(cfg, demos=str(path))
     manifest = read_manifest(run)
     if manifest is None or not manifest.finished:
         # a cloning run does not resume: an unfinished one (this job's, killed) starts again
@@ -101,7 +106,7 @@ def run_job(task: str, bc_argv: list[str], demos_episodes: int, eval_episodes: i
     if not out.is_file():
         from ndp.experiments.smoothness import run_smoothness
 
-        seed = int(load_demos(demos).seeds.max()) + EVAL_SEED_OFFSET
+        seed = int(demos.seeds.max()) + EVAL_SEED_OFFSET
         ev = run_smoothness(run, eval_episodes, seed)
         rec: dict[str, Any] = {
             "success": ev["success"],
@@ -110,7 +115,7 @@ def run_job(task: str, bc_argv: list[str], demos_episodes: int, eval_episodes: i
             "val_loss": last_val_loss(run),
             "episodes": eval_episodes,
             "first_seed": seed,
-            "demos": str(demos),
+            "demos": str(path),
         }
         atomic_write_text(out, json.dumps(rec, indent=1) + "\n")
     return run

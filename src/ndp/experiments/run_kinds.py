@@ -169,15 +169,9 @@ def _bc_argv(task: str, arm: Any) -> list[str]:
 
 
 def _bc_check(cfg: Any, task: str) -> None:
-    from ndp.bc.experts import EXPERTS
-    from ndp.envs import get_task_spec
+    from ndp.bc.experts import expert_builder
 
-    spec = get_task_spec(task)
-    if spec.name not in EXPERTS and spec.family not in EXPERTS:
-        raise ValueError(
-            f"task: {spec.name} has no scripted expert to record demonstrations from (tasks "
-            "or families with one: " + ", ".join(EXPERTS) + ")"
-        )
+    expert_builder(task)  # a task without a scripted expert has no demonstrations to clone
     if cfg.episodes and cfg.episodes > BC_DEMOS_EPISODES:
         raise ValueError(
             f"episodes: {cfg.episodes} demonstrations asked; a study records "

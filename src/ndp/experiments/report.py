@@ -141,7 +141,7 @@ def run_info(path: Path) -> RunInfo | None:
     """Identify a run (None: not enough to say which task / method / seed it is)."""
     arm = _json(path / "arm.json") or {}
     cfg = _json(path / "config.json") or {}
-    algo = arm.get("algo") or cfg.get("algo")
+    algo = arm.get("algo") or cfg.get("algo") or cfg.get("method")  # method: an SB3 run's
     label = arm.get("label") or algo
     is_il = "model" in cfg and "data" in cfg
     if is_il and not algo:
@@ -305,13 +305,18 @@ DET_EVAL_FILE = "eval-det-e{episodes}.json"
 """Per-run cache of the report's deterministic evaluation (``ndp rl eval``, seeds 10,000 on)."""
 
 
-def det_success(path: Path, episodes: int) -> float:
+def det_success(path: Path, episodes: int, compute: bool = True) -> float:
     """Success (any step) of the run's deterministic policy over ``episodes`` fresh episodes.
 
-    Cached in ``<run>/eval-det-e<episodes>.json`` (atomic), so a report is cheap to redo.
+    Cached in ``<run>/eval-det-e<episodes>.json`` (atomic), so a report is cheap to redo. A run
+    that ``ndp rl eval`` cannot act with (``compute`` False: the Stable-Baselines3 runs, which
+    write the file themselves when they evaluate, :mod:`ndp.experiments.sb3_ppo`) gives NaN
+    without the file.
     """
     cache = path / DET_EVAL_FILE.format(episodes=episodes)
     data = _json(cache)
+    if data is None and not compute:
+        return math.nan
     if data is None:
         from ndp.rl.evaluate import evaluate
 
@@ -488,8 +493,11 @@ def report(
     for c in rl_cells:
         c.numbers = {s: rl_numbers(i, at_steps) for s, i in c.runs.items()}
         for s_, i in c.runs.items():
-            ok = eval_episodes and run_kind(i.kind).evaluable
-            c.numbers[s_]["det"] = det_success(i.path, eval_episodes) if ok else math.nan
+            c.numbers[s_]["det"] = (
+                det_success(i.path, eval_episodes, compute=run_kind(i.kind).evaluable)
+                if eval_episodes
+                else math.nan
+            )
     for c in il_cells:
         c.numbers = {s: il_numbers(i) for s, i in c.runs.items()}
     for c in bc_cells:

@@ -16,8 +16,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-EXTERNAL_METHODS = ("sb3-ppo",)
-"""Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``)."""
+EXTERNAL_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi")
+"""Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``): the
+Stable-Baselines3 runs of :mod:`ndp.experiments.sb3_ppo` (``SB3_METHODS`` there; kept here as
+a literal so that ``ndp --help`` imports nothing of it)."""
+SB3_EVAL_EPISODES = 20
+"""Deterministic evaluation episodes a sweep's ``sb3-ndp`` / ``sb3-multi`` run ends with
+(``eval-det-e20.json``: ``ndp report --eval-episodes 20`` shows it)."""
 IL_METHODS = {"il-ndp": "ndp", "il-cnn": "cnn", "il-cnn-dmp": "cnn-dmp"}
 """Imitation arms (``ndp il train --model VALUE``); their "task" is a data set
 (:func:`il_data_args`) and their budget is in epochs."""
@@ -136,9 +141,12 @@ def _sb3_algos() -> tuple[str, ...]:
 def _sb3_command(
     task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
-    return [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task,
-            "--steps", str(steps), "--seed", str(seed), "--num-envs", str(num_envs),
-            "--run-dir", str(run)]  # fmt: skip
+    cmd = [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task,
+           "--steps", str(steps), "--seed", str(seed), "--num-envs", str(num_envs),
+           "--run-dir", str(run)]  # fmt: skip
+    if arm.algo != "sb3-ppo":  # the chunked methods (sb3-ppo's command is as it always was)
+        cmd += ["--method", arm.algo, "--eval-episodes", str(SB3_EVAL_EPISODES)]
+    return cmd
 
 
 BC_METHODS = {"bc-ndp": "ndp", "bc-nn": "nn", "bc-nn-step": "nn-step"}

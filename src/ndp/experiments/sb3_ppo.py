@@ -1,24 +1,41 @@
-"""Stable-Baselines3 PPO on this package's per-step tasks, logged like ``ndp rl train``.
+"""Stable-Baselines3 PPO on this package's tasks, logged like ``ndp rl train``: three methods.
 
-The reference trainer of ``benchmarks/ppo_vs_sb3.py``: SB3's PPO with the supplement's
-hyperparameters (those of ``ndp.rl.config.PPOConfig``'s defaults; SB3's own value loss, i.e. no
-value clip, advantages normalised per mini-batch) on the same per-step env this package's PPO
-trains on (``ndp.envs.make_env``; Meta-World random goals at every reset), ``DummyVecEnv`` +
-``VecNormalize`` (observations and returns, clip 10), one torch thread.
+- ``sb3-ppo``: the reference trainer of ``benchmarks/ppo_vs_sb3.py`` (study ``ppo-vs-sb3``):
+  SB3's PPO with the supplement's hyperparameters (those of ``ndp.rl.config.PPOConfig``'s
+  defaults; SB3's own value loss, i.e. no value clip, advantages normalised per mini-batch) on
+  the same per-step env this package's PPO trains on (``ndp.envs.make_env``; Meta-World random
+  goals at every reset), ``DummyVecEnv`` + ``VecNormalize`` (observations and returns, clip 10).
+- ``sb3-ndp`` and ``sb3-multi`` (study ``sb3-ndp``): SB3's PPO on the chunked env
+  ``ndp.make_env(task, k=SB3_K)`` (one SB3 step is one decision of k env steps, its reward the
+  sum of the k sub-step rewards), the same settings for both: SB3's default networks ([64, 64]
+  tanh) and PPO settings except ``n_steps`` 128 decisions per env and ``gamma`` 0.99 ** k (0.99
+  per env step); ``VecNormalize`` of returns and observations (the ``obs`` entry only for NDP:
+  the DMP's start stays in physical units). They differ in the policy only: ``sb3-ndp`` is
+  ``ndp.sb3.NDPPolicy`` on ``ndp.sb3.with_robot_state(env)`` (the actor gives DMP goal and
+  weights, the DMP and the inverse controller the k sub-actions), ``sb3-multi`` SB3's
+  ``MlpPolicy`` giving the k * A sub-actions directly (SB3's PPO-multi). Env steps are counted
+  as decisions x k (sub-step slots, as ``ndp rl train`` counts them).
 
-Success is counted per env and per episode: a per-env flag is set when ``info["success"]`` is
-true at any step of the episode and read when that env's episode ends (a callback that pools
-every env's infos into one list miscounts when several envs end at the same step). One row per
-rollout goes to ``<run_dir>/metrics.csv`` with the keys ``update``, ``global_step``,
-``charts/episodes``, ``charts/success_any``, ``charts/episode_return`` (this package's metric
-names, docs/metrics.md), and ``done.json`` is written atomically at the end. The run directory
-is made by the run session like every trainer's (:mod:`ndp.runs.session`: refused over another
-run, ``config.json`` (:class:`SB3RunConfig`), provenance, ``run.json``). A killed run is
-restarted from scratch (SB3 runs are short; nothing partial is reported as finished).
+All three run one torch thread. Success is counted per env and per episode: a per-env flag is
+set when the step's success (``info["success"]``; ``info["success_decision"]``, success at any
+sub-step, on the chunked env) is true at any step of the episode and read when that env's
+episode ends (a callback that pools every env's infos into one list miscounts when several envs
+end at the same step). One row per rollout goes to ``<run_dir>/metrics.csv`` with the keys
+``update``, ``global_step`` (env steps), ``charts/episodes``, ``charts/success_any``,
+``charts/episode_return`` (this package's metric names, docs/metrics.md). With
+``--eval-episodes E`` > 0 the deterministic policy then runs E episodes (reset seeds 10,000 on)
+with the normaliser frozen, written to ``eval-det-e<E>.json`` (``success_any``, ``return``):
+the file ``ndp report --eval-episodes E`` reads as the run's deterministic success.
+``done.json`` is written atomically at the end. The run directory is made by the run session
+like every trainer's (:mod:`ndp.runs.session`: refused over another run, ``config.json``
+(:class:`SB3RunConfig`), provenance, ``run.json``). A killed run is restarted from scratch (SB3
+runs are short; nothing partial is reported as finished).
 
 Usage::
 
     python -m ndp.experiments.sb3_ppo --task push-v3 --steps 150000 --seed 0 --run-dir DIR
+    python -m ndp.experiments.sb3_ppo --method sb3-ndp --task point-mass --steps 100000 \\
+        --eval-episodes 20 --run-dir DIR
 """
 
 from __future__ import annotations
@@ -29,6 +46,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -38,6 +56,13 @@ import numpy as np
 from ndp.io import atomic_write_text
 from ndp.runs import MetricsLogger
 from ndp.runs.session import Manifest, RunSession
+
+SB3_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi")
+"""The methods this module trains (the ``sb3`` run kind's arms)."""
+SB3_K = 5
+"""Env steps per decision of ``sb3-ndp`` and ``sb3-multi`` unless ``--k`` says otherwise."""
+EVAL_SEED = 10_000
+"""Reset seed of the first deterministic evaluation episode (as ``ndp report``'s)."""
 
 FIELDS = (
     "update",
@@ -62,9 +87,10 @@ class EpisodeCounter:
         self.finished: list[tuple[float, float]] = []
 
     def step(self, rewards: np.ndarray, dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
-        """One vector step: rewards [E] (raw, unnormalised), dones [E], infos (one per env)."""
+        """One vector step: rewards [E] (raw, unnormalised), dones [E], infos (one per env; a
+        chunked env's ``success_decision``, else ``success``)."""
         for i, info in enumerate(infos):
-            self.success[i] |= bool(info.get("success", False))
+            self.success[i] |= bool(info.get("success_decision", info.get("success", False)))
             self.ret[i] += float(rewards[i])
             if dones[i]:
                 self.finished.append((float(self.success[i]), float(self.ret[i])))
@@ -129,26 +155,129 @@ class SB3RunConfig:
     """Episode length in env steps (None: the task's)."""
     run_dir: str = ""
     """Where the run is (never compared on a restart)."""
+    method: str = "sb3-ppo"
+    """``sb3-ppo`` (per-step env), ``sb3-ndp`` or ``sb3-multi`` (chunked env, ``k`` steps per
+    decision); configs written before the field ran sb3-ppo."""
+    k: int = 1
+    """Env steps per decision (1 for sb3-ppo, :data:`SB3_K` for the chunked methods)."""
+    eval_episodes: int = 0
+    """Deterministic evaluation episodes after training (0: none)."""
+
+    def __post_init__(self) -> None:
+        if self.method not in SB3_METHODS:
+            raise ValueError(
+                f"method: expected one of {', '.join(SB3_METHODS)}, got {self.method!r}"
+            )
+        for name, low in (("steps", 1), ("seed", 0), ("num_envs", 1), ("k", 1),
+                          ("eval_episodes", 0)):  # fmt: skip
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
+        if self.method == "sb3-ppo" and self.k != 1:
+            raise ValueError(f"k: sb3-ppo runs one env step per decision, got k={self.k}")
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> SB3RunConfig:
         return cls(**d)
 
 
+def make_sb3_chunked(venv: Any, method: str, seed: int, k: int) -> Any:
+    """SB3 PPO for ``sb3-ndp`` / ``sb3-multi``: SB3's defaults but ``n_steps`` 128 and
+    ``gamma`` 0.99 ** k (the same for both; they differ in the policy only)."""
+    from stable_baselines3 import PPO
+
+    import ndp.sb3
+
+    policy = ndp.sb3.NDPPolicy if method == "sb3-ndp" else "MlpPolicy"
+    return PPO(policy, venv, n_steps=128, gamma=0.99**k, seed=seed, device="cpu", verbose=0)
+
+
+def _env_maker(cfg: SB3RunConfig) -> Callable[[], Any]:
+    """A function building one env of the run (per-step env, or chunked one for k > 1)."""
+    if cfg.method == "sb3-ppo":
+        from ndp.rl.envs import resolve_task
+
+        h = resolve_task(cfg.task)
+        return lambda: h.make(horizon=cfg.horizon)
+    import ndp.sb3  # binds ndp too (ndp.make_env)
+
+    def make() -> Any:
+        env = ndp.make_env(cfg.task, k=cfg.k, horizon=cfg.horizon)
+        if cfg.method == "sb3-ndp":
+            env = ndp.sb3.with_robot_state(env, cfg.task)
+        return env
+
+    return make
+
+
+def evaluate_sb3(model: Any, venv: Any, make: Callable[[], Any], episodes: int) -> dict[str, Any]:
+    """The deterministic policy over ``episodes`` fresh episodes (reset seeds from
+    :data:`EVAL_SEED`), observations normalised by ``venv``'s frozen statistics: success at any
+    step (the mean of the per-episode flags) and the mean raw return."""
+    venv.training = False
+    env = make()
+    succ, rets = [], []
+    try:
+        for ep in range(episodes):
+            obs, info = env.reset(seed=EVAL_SEED + ep)
+            done, ret, hit = False, 0.0, False
+            while not done:
+                act, _ = model.predict(venv.normalize_obs(obs), deterministic=True)
+                obs, r, term, trunc, info = env.step(act)
+                hit |= bool(info.get("success_decision", info.get("success", False)))
+                ret += float(r)
+                done = bool(term or trunc)
+            succ.append(float(hit))
+            rets.append(ret)
+    finally:
+        env.close()
+    return {
+        "episodes": episodes,
+        "deterministic": True,
+        "first_seed": EVAL_SEED,
+        "success_any": float(np.mean(succ)),
+        "return": float(np.mean(rets)),
+    }
+
+
 def train_sb3(
-    task: str, steps: int, seed: int, run_dir: Path, num_envs: int = 4, horizon: int | None = None
+    task: str,
+    steps: int,
+    seed: int,
+    run_dir: Path,
+    num_envs: int = 4,
+    horizon: int | None = None,
+    method: str = "sb3-ppo",
+    k: int | None = None,
+    eval_episodes: int = 0,
 ) -> Path:
-    """Train SB3 PPO; returns the run directory (see the module docstring)."""
+    """Train one of :data:`SB3_METHODS`; returns the run directory (see the module docstring).
+
+    Args:
+        task: the task name (``push-v3``, ``point-mass``).
+        steps: env steps (SB3 counts decisions: it runs ``ceil(steps / k)`` of them, rounded up
+            to whole rollouts).
+        seed: seed of SB3, its envs and torch.
+        run_dir: the run directory (refused when it holds another run).
+        num_envs: envs of the ``DummyVecEnv``.
+        horizon: episode length in env steps (None: the task's).
+        method: ``sb3-ppo``, ``sb3-ndp`` or ``sb3-multi``.
+        k: env steps per decision (None: 1 for sb3-ppo, :data:`SB3_K` otherwise).
+        eval_episodes: deterministic evaluation episodes after training (0: none).
+    """
     import torch
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     from ndp.rl.config import PPOConfig
-    from ndp.rl.envs import resolve_task
 
     torch.set_num_threads(1)
     run_dir = Path(run_dir)
-    cfg = SB3RunConfig(task, int(steps), int(seed), int(num_envs), horizon, str(run_dir))
+    cfg = SB3RunConfig(task, int(steps), int(seed), int(num_envs), horizon, str(run_dir), method,
+                       (1 if method == "sb3-ppo" else SB3_K) if k is None else int(k),
+                       int(eval_episodes))  # fmt: skip
+    kk = cfg.k  # env steps per decision
+    make = _env_maker(cfg)  # an unknown task fails here, before the run folder is made
     session, _ = RunSession.open(
         run_dir,
         kind="sb3",
@@ -161,17 +290,21 @@ def train_sb3(
 
     def manifest(done: int) -> Manifest:
         end = done >= steps
-        return Manifest(kind="sb3", task=task, label="sb3-ppo", seed=int(seed),
+        return Manifest(kind="sb3", task=task, label=method, seed=int(seed),
                         budget=int(steps), unit="env_steps", done=int(done), finished=end,
                         reason="budget" if end else "")  # fmt: skip
 
     session.start(dataclasses.asdict(cfg), manifest(0))
-    p = PPOConfig()
-    h = resolve_task(task)
-    raw_venv = DummyVecEnv([lambda: h.make(horizon=horizon) for _ in range(num_envs)])
+    raw_venv = DummyVecEnv([make for _ in range(num_envs)])
     raw_venv.seed(seed)
-    venv = VecNormalize(raw_venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
-    model = make_sb3_ppo(venv, seed, num_envs)
+    if method == "sb3-ppo":
+        p = PPOConfig()
+        venv = VecNormalize(raw_venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
+        model = make_sb3_ppo(venv, seed, num_envs)
+    else:
+        keys = ["obs"] if method == "sb3-ndp" else None
+        venv = VecNormalize(raw_venv, gamma=0.99**kk, norm_obs_keys=keys)
+        model = make_sb3_chunked(venv, method, seed, kk)
     counter = EpisodeCounter(num_envs)
     log = MetricsLogger(run_dir, FIELDS, step="global_step", tensorboard=False)
     t0 = time.perf_counter()
@@ -194,7 +327,7 @@ def train_sb3(
             log.log(
                 {
                     "update": self.update,
-                    "global_step": self.num_timesteps,
+                    "global_step": self.num_timesteps * kk,
                     "charts/episodes": n,
                     "charts/success_any": succ,
                     "charts/episode_return": ret,
@@ -203,25 +336,33 @@ def train_sb3(
             )
 
     try:
-        model.learn(total_timesteps=steps, callback=_Log())
+        model.learn(total_timesteps=-(-steps // kk), callback=_Log())
+        wall = time.perf_counter() - t0
+        if eval_episodes:
+            ev = evaluate_sb3(model, venv, make, eval_episodes)
+            name = f"eval-det-e{eval_episodes}.json"
+            atomic_write_text(run_dir / name, json.dumps(ev) + "\n")
     finally:
         log.close()
         venv.close()
+    done = int(model.num_timesteps) * kk
     atomic_write_text(
         run_dir / "done.json",
         json.dumps(
             {
                 "task": task,
+                "method": method,
                 "steps": steps,
                 "seed": seed,
                 "num_envs": num_envs,
-                "global_step": int(model.num_timesteps),
-                "wall_s": time.perf_counter() - t0,
+                "k": kk,
+                "global_step": done,
+                "wall_s": wall,
             }
         )
         + "\n",
     )
-    session.finish(manifest(int(model.num_timesteps)))
+    session.finish(manifest(done))
     return run_dir
 
 
@@ -232,8 +373,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--num-envs", type=int, default=4)
     ap.add_argument("--run-dir", type=Path, required=True)
+    ap.add_argument("--method", choices=SB3_METHODS, default="sb3-ppo")
+    ap.add_argument("--k", type=int, default=None, help=f"env steps per decision (default: 1 "
+                    f"for sb3-ppo, {SB3_K} for sb3-ndp and sb3-multi)")  # fmt: skip
+    ap.add_argument("--eval-episodes", type=int, default=0,
+                    help="deterministic evaluation episodes after training")  # fmt: skip
     a = ap.parse_args(argv)
-    train_sb3(a.task, a.steps, a.seed, a.run_dir, a.num_envs)
+    try:
+        train_sb3(a.task, a.steps, a.seed, a.run_dir, a.num_envs, method=a.method, k=a.k,
+                  eval_episodes=a.eval_episodes)  # fmt: skip
+    except ValueError as exc:
+        ap.error(str(exc))
     return 0
 
 

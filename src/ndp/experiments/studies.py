@@ -308,6 +308,13 @@ def _ppo_vs_sb3_arms() -> tuple[ArmSpec, ...]:
     )
 
 
+def _sb3_ndp_arms() -> tuple[ArmSpec, ...]:
+    return (
+        ArmSpec("sb3-ndp", "sb3-ndp", (), "SB3 PPO with ndp.sb3.NDPPolicy (k = 5)"),
+        ArmSpec("sb3-multi", "sb3-multi", (), "SB3 PPO with its MlpPolicy, k * A actions (k = 5)"),
+    )
+
+
 RELEASE_1M_TASKS = ("push-v3", "throw")
 """The 1M-step stage of the release-conditions study: a Meta-World task and a Jaco task."""
 
@@ -492,6 +499,20 @@ STUDIES: dict[str, Study] = {
             tasks=lambda: PPO_VS_SB3_TASKS,
             arms=_ppo_vs_sb3_arms,
             steps=150_000,
+        ),
+        Study(
+            name="sb3-ndp",
+            title="Stable-Baselines3 PPO: NDPPolicy vs MlpPolicy",
+            doc=(
+                "The toy point-mass x SB3's PPO with ndp.sb3.NDPPolicy and with SB3's "
+                "MlpPolicy, on the same chunked env (k = 5), hyperparameters, seeds and budget "
+                "(ndp.experiments.sb3_ppo); each run ends with 20 deterministic episodes "
+                "(report with --eval-episodes 20). It shows the NDP layer training inside "
+                "another library's PPO; other tasks with --tasks."
+            ),
+            tasks=lambda: ("point-mass",),
+            arms=_sb3_ndp_arms,
+            steps=100_000,
         ),
         Study(
             name="release-goals-1m",

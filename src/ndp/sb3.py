@@ -241,7 +241,9 @@ class NDPPolicy(ActorCriticPolicy):
             TrainConfig(
                 task=self.task,
                 algo="ndp",
-                policy=PolicyConfig(k=k, init_log_std=self.log_std_init, **self.ndp),
+                policy=PolicyConfig.from_dict(
+                    {"k": k, "init_log_std": self.log_std_init, **self.ndp}
+                ),
             )
         )
         from ndp.rl.envs import resolve_task

@@ -64,7 +64,7 @@ def test_ndp_bc_gradient_reaches_goal_and_forcing_weights(toy_demos):
     ((dist.mean - target) ** 2).mean().backward()
     last = [m for m in model.actor.net if hasattr(m, "weight")][-1]
     rows = last.weight.grad.norm(dim=1)  # one row per DMP parameter: D goals + D * N weights
-    assert rows.shape[0] == 2 * (1 + cfg.policy.n_basis)
+    assert rows.shape[0] == 2 * (1 + cfg.policy.ndp.n_basis)
     assert (rows > 0).all(), rows
 
 

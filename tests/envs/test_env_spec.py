@@ -104,7 +104,9 @@ def test_controller_is_data_of_the_task_row():
             return 2.0 * spec.controller(traj, robot_pos, clip)
 
     other = dataclasses.replace(spec, controller=Doubled())
-    cfg = PolicyConfig(n_basis=6, a_z=10.0, dmp_steps=35, goal_scale=2.0, weight_scale=25.0)
+    cfg = PolicyConfig.from_dict(
+        {"n_basis": 6, "a_z": 10.0, "dmp_steps": 35, "goal_scale": 2.0, "weight_scale": 25.0}
+    )
     fused = build_actor_critic(39, spec, cfg).head
     composed = build_actor_critic(39, other, cfg).head
     assert fused._fused and not composed._fused

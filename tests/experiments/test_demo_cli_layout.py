@@ -57,7 +57,7 @@ ALLOWED = {
     "il": {"dmp", "nets", "runs"},
     "rl": {"dmp", "nets", "envs", "policies", "runs"},
     "bc": {"dmp", "nets", "envs", "policies", "rl", "runs"},
-    "experiments": {"dmp", "nets", "envs", "policies", "rl", "il", "bc", "runs"},
+    "experiments": {"dmp", "nets", "envs", "policies", "rl", "il", "bc", "sb3", "runs"},
 }
 LEAVES = {
     "io",

@@ -329,10 +329,11 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "digits-converged",
         "ndp-head-ablation",
         "ppo-vs-sb3",
+        "sb3-ndp",
         "il-robot",
     }
     # the benchmarks' grids, as named studies
-    for name in ("ndp-head-ablation", "ppo-vs-sb3", "il-robot"):
+    for name in ("ndp-head-ablation", "ppo-vs-sb3", "sb3-ndp", "il-robot"):
         st = get_study(name)
         sw.check_arms([a.arm() for a in st.arm_specs()], list(st.task_list()), name)
     for name in ("release-conditions", "release-goals-1m"):  # every condition's arms exist

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -12,10 +13,12 @@ from ndp.envs import get_task_spec
 from ndp.envs.point_mass import ACTION_SCALE, CONTROL_DT
 from ndp.envs.spec import toy_spec as point_mass_spec
 from ndp.policies import (
+    NDPHeadConfig,
     ParamGaussian,
     PolicyConfig,
     SubActionGaussian,
     build_actor_critic,
+    build_head,
     diag_gaussian_entropy,
     diag_gaussian_log_prob,
 )
@@ -25,7 +28,7 @@ def _cfg(head, **kw):
     base = {"n_basis": 6, "a_z": 15.0, "dmp_steps": 35, "goal_scale": 1.0, "weight_scale": 50.0}
     if head != "ndp":
         base = {}
-    return PolicyConfig(head=head, k=1 if head == "step" else 5, **{**base, **kw})
+    return PolicyConfig(head=head, k=1 if head == "step" else 5).updated(**{**base, **kw})
 
 
 def test_gaussian_log_prob_and_entropy_match_torch():
@@ -209,19 +212,55 @@ def test_policy_config_rejects_bad_values():
     with pytest.raises(ValueError, match="k"):
         PolicyConfig(k=0)
     with pytest.raises(ValueError, match="n_basis"):
-        PolicyConfig(n_basis=0)
-    with pytest.raises(ValueError, match="dmp_steps"):
-        PolicyConfig(k=5, dmp_steps=36)
+        NDPHeadConfig(n_basis=0)
+    with pytest.raises(ValueError, match="dmp_steps: expected a positive multiple of k=5"):
+        PolicyConfig(k=5, ndp=NDPHeadConfig(dmp_steps=36))
     with pytest.raises(ValueError, match="param_noise"):
-        PolicyConfig(head="multi", param_noise=True)
+        PolicyConfig(head="multi", ndp=NDPHeadConfig(param_noise=True))
     with pytest.raises(ValueError, match="forcing"):
-        PolicyConfig(forcing="raw")
+        NDPHeadConfig(forcing="raw")
     with pytest.raises(ValueError, match="absolute_mode"):
-        PolicyConfig(absolute_mode="plan")
+        NDPHeadConfig(absolute_mode="plan")
     with pytest.raises(ValueError, match="dmp_state"):
         PolicyConfig(dmp_state="mocap")
     with pytest.raises(ValueError, match="hidden_gain"):
         PolicyConfig(hidden_gain=0.0)
+    with pytest.raises(ValueError, match="ndp: expected an NDPHeadConfig"):
+        PolicyConfig(ndp={"n_basis": 3})  # type: ignore[arg-type]
+
+
+def test_ndp_fields_nest_and_the_flat_form_of_older_configs_still_reads():
+    nested = PolicyConfig(k=5, ndp=NDPHeadConfig(n_basis=6, forcing="goal", dmp_steps=35))
+    d = nested.to_dict()
+    assert d["ndp"]["n_basis"] == 6 and "n_basis" not in d  # one place for the head's fields
+    assert PolicyConfig.from_dict(d) == nested
+    flat = {k: v for k, v in d.items() if k != "ndp"} | d["ndp"]  # a config.json before
+    assert PolicyConfig.from_dict(flat) == nested
+    assert nested.updated(n_basis=7, k=7, dmp_steps=49) == PolicyConfig(
+        k=7, ndp=NDPHeadConfig(n_basis=7, forcing="goal", dmp_steps=49)
+    )
+    with pytest.raises(ValueError, match="n_basis given both flat and under 'ndp'"):
+        PolicyConfig.from_dict({"n_basis": 3, "ndp": {"n_basis": 4}})
+    with pytest.raises(ValueError, match=r"policy: .*nbasis"):
+        PolicyConfig.from_dict({"nbasis": 3})
+    with pytest.raises(ValueError, match="policy: no field nbasis"):
+        nested.updated(nbasis=3)
+
+
+def test_the_head_config_is_the_one_map_to_the_dmp_config():
+    head = NDPHeadConfig(n_basis=6, a_z=15.0, dmp_steps=35, goal_scale=1.0, weight_scale=50.0,
+                         rbf="linear", only_g=True)  # fmt: skip
+    dmp = head.dmp_config(5)
+    assert (dmp.n_basis, dmp.a_z, dmp.steps, dmp.subsample, dmp.rbf) == (6, 15.0, 35, 7, "linear")
+    assert dmp.only_g and not dmp.learn_az and not dmp.scale_by_goal  # amplitude forcing
+    assert dataclasses.replace(head, forcing="goal").dmp_config(5).scale_by_goal
+    with pytest.raises(ValueError, match="dmp_steps: expected a multiple of k=3"):
+        head.dmp_config(3)
+    with pytest.raises(ValueError, match="NDP fields must be resolved"):
+        NDPHeadConfig().dmp_config(5)
+    # the head built from a policy config runs that DMP
+    built = build_head(PolicyConfig(k=5, ndp=head), point_mass_spec())
+    assert built.dmp.config == dmp
 
 
 @pytest.mark.parametrize("task", ["push-v3", "throw", "point-mass"])

@@ -36,7 +36,7 @@ FAST = PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3)
 def constant_policy(task: str, algo: str, scale: float = 0.3, **policy: object) -> Policy:
     """An untrained policy whose actor outputs ``scale * U(-1, 1)`` raw values, the same at
     every observation (seeded)."""
-    cfg = resolve_config(TrainConfig(task=task, algo=algo, policy=PolicyConfig(**policy)))
+    cfg = resolve_config(TrainConfig(task=task, algo=algo, policy=PolicyConfig.from_dict(policy)))
     spec = resolve_task(cfg.task).spec
     torch.manual_seed(0)
     model = build_actor_critic(spec.obs_dim, spec, cfg.policy)
@@ -147,7 +147,7 @@ def test_exec_k_equal_to_k_reproduces_plain_eval(toy_run, capsys):
 # ------------------------------------------------------------------ NDP
 def test_ndp_head_samples_the_same_dmp_finer():
     pol = constant_policy("push-v3", "ndp", scale=1.0)
-    assert pol.cfg.policy.dmp_steps == 35 and dmp_steps_at(35, 25) == 175
+    assert pol.cfg.policy.ndp.dmp_steps == 35 and dmp_steps_at(35, 25) == 175
     fine = pol.at_exec_k(25)
     hc, hf = pol.model.head, fine.model.head
     assert hc.k == 5 and hf.k == 25 and hf.dmp.config.steps == 175  # trained head untouched

@@ -104,7 +104,9 @@ def test_zoo_policy_runs_as_one_onnx_graph(name, tmp_path):
 def _fresh(task: str, algo: str, seed: int = 0, **policy_kw) -> Policy:
     """An untrained policy with random actor weights (far from the near-zero init) and
     normaliser statistics: heads and options the zoo does not hold."""
-    cfg = resolve_config(TrainConfig(task=task, algo=algo, policy=PolicyConfig(**policy_kw)))
+    cfg = resolve_config(
+        TrainConfig(task=task, algo=algo, policy=PolicyConfig.from_dict(policy_kw))
+    )
     spec = resolve_task(cfg.task).spec
     torch.manual_seed(seed)
     model = build_actor_critic(spec.obs_dim, spec, cfg.policy).eval()

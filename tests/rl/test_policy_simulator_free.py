@@ -2,9 +2,12 @@
 
 The reference actions (tests/data/zoo_reference_actions.npz) were recorded from every zoo
 policy, on real observations and robot states of its env, with the loader as it was before
-exports recorded their task spec (the task table built the head then). Both paths must give
-them bit for bit: the env path (the task table) in this process, and the recorded spec in a
-process where importing gymnasium, mujoco, metaworld or dm_control raises ImportError.
+exports recorded their task spec (the task table built the head then). On one machine both
+paths must give the same actions bit for bit: the env path (the task table) in this process,
+and the recorded spec in a process where importing gymnasium, mujoco, metaworld or dm_control
+raises ImportError. Against the recording, made on another machine whose CPU may run other
+matrix kernels (the 400-300 Dyn-E decoder differs in the last bits between an Intel and an AMD
+machine), they must agree to 1e-5.
 """
 
 from __future__ import annotations
@@ -52,7 +55,7 @@ import ndp
 
 assert ndp.__file__.startswith(SRC), ndp.__file__
 ref = np.load(REF)
-out = {}
+out, arrays = {}, {}
 for name in ndp.zoo.list():
     key = name.replace("-", "_")
     # push-v3-ndp through the checkout's zoo/ path, the others by their zoo name
@@ -68,14 +71,9 @@ for name in ndp.zoo.list():
         seed_i = 100 + (i // 3) * 10 + i % 3  # as recorded: two episodes of three decisions
         pol.reset(seed=seed_i)
         sto.append(pol.act(obs[i], ndp.RobotState(y0[i], dy0[i]), deterministic=False))
-    out[name] = {
-        "det": bool(np.array_equal(np.stack(det), ref[key + "__det"])),
-        "det_state": bool(np.array_equal(np.stack(det_state), ref[key + "__det"])),
-        # a batch of E runs other matrix kernels than E single rows: equal up to rounding
-        "det_batch": bool(np.allclose(det_batch, ref[key + "__det"], rtol=0, atol=1e-5)),
-        "sto": bool(np.array_equal(np.stack(sto), ref[key + "__sto"])),
-        "max_diff": float(np.abs(np.stack(det) - ref[key + "__det"]).max()),
-    }
+    arrays[key + "__det"], arrays[key + "__det_state"] = np.stack(det), np.stack(det_state)
+    arrays[key + "__det_batch"], arrays[key + "__sto"] = det_batch, np.stack(sto)
+    out[name] = True
     if name == "push-v3-ndp":
         try:
             pol.make_env()
@@ -88,6 +86,7 @@ try:
 except ModuleNotFoundError as exc:
     out["old_export_error"] = str(exc)
 out["blocked_imported"] = sorted(m for m in sys.modules if m.partition(".")[0] in BLOCKED)
+np.savez(ACTIONS, **arrays)
 print("RESULT " + json.dumps(out))
 """
 
@@ -110,6 +109,7 @@ def test_zoo_policies_act_without_the_simulators_bit_identical(tmp_path):
         "REF": repr(str(REF)),
         "ZOO_PUSH": repr(str(ROOT / "zoo" / "push-v3-ndp")),
         "OLD_EXPORT": repr(str(_old_export(tmp_path))),
+        "ACTIONS": repr(str(tmp_path / "actions.npz")),
     }.items():
         script = script.replace(name, value)
     r = subprocess.run(
@@ -128,9 +128,38 @@ def test_zoo_policies_act_without_the_simulators_bit_identical(tmp_path):
     old = out.pop("old_export_error")
     assert "records no task spec" in old and "[envs]" in old and "\n" not in old
     assert sorted(out) == sorted(ndp.zoo.list()) and len(out) == 17
-    checks = ("det", "det_state", "det_batch", "sto")
-    bad = {k: v for k, v in out.items() if not all(v[c] for c in checks)}
-    assert not bad, bad
+    got = np.load(tmp_path / "actions.npz")
+    for name in out:
+        key = name.replace("-", "_")
+        ref = _reference(name)
+        # the recorded spec's actions equal the task table's, in this process, bit for bit
+        here = _env_path_actions(name, ref)
+        for form in ("det", "det_state", "sto"):
+            np.testing.assert_array_equal(got[f"{key}__{form}"], here[form], err_msg=name)
+        # a batch of E runs other matrix kernels than E single rows: equal up to rounding
+        _close(got[f"{key}__det_batch"], here["det"], name)
+        # and both are the recorded actions (made on another machine: up to its kernels)
+        _close(here["det"], ref["det"], name)
+        _close(here["sto"], ref["sto"], name)
+
+
+def _close(a: np.ndarray, b: np.ndarray, name: str) -> None:
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-5, err_msg=name)
+
+
+def _env_path_actions(name: str, ref: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The zoo policy ``name`` loaded through the task table (simulators importable), acting
+    on the recorded observations and robot states as the blocked process does."""
+    pytest.importorskip("metaworld")
+    pol = ndp.load_policy("zoo:" + name)
+    assert not pol.simulator_free
+    det, sto = [], []
+    for i in range(len(ref["obs"])):
+        state = ndp.RobotState(ref["y0"][i], ref["dy0"][i])
+        det.append(pol.act(ref["obs"][i], state))
+        pol.reset(seed=100 + (i // 3) * 10 + i % 3)
+        sto.append(pol.act(ref["obs"][i], state, deterministic=False))
+    return {"det": np.stack(det), "det_state": np.stack(det), "sto": np.stack(sto)}
 
 
 def _reference(name: str) -> dict[str, np.ndarray]:
@@ -155,7 +184,7 @@ def test_the_env_path_gives_the_recorded_actions(name):
     ky, kdy = pol.state_keys
     for i in range(len(ref["obs"])):
         info = {ky: ref["y0"][i], kdy: ref["dy0"][i], "success": False}
-        np.testing.assert_array_equal(pol.act(ref["obs"][i], info), ref["det"][i])
+        _close(pol.act(ref["obs"][i], info), ref["det"][i], name)
 
 
 def test_an_export_without_the_spec_still_loads_with_the_simulators(tmp_path):
@@ -165,7 +194,7 @@ def test_an_export_without_the_spec_still_loads_with_the_simulators(tmp_path):
     ref = _reference("push-v3-ndp")
     for i in range(len(ref["obs"])):
         got = pol.act(ref["obs"][i], {"dmp_y0": ref["y0"][i], "dmp_dy0": ref["dy0"][i]})
-        np.testing.assert_array_equal(got, ref["det"][i])
+        _close(got, ref["det"][i], "push-v3-ndp")
 
 
 def test_export_records_the_spec_training_and_a_card(tmp_path):
@@ -187,8 +216,8 @@ def test_robot_state_forms_and_refusals():
     pol = ndp.load_policy("zoo:throw-ndp")  # commanded frame, DMP at rest (dmp_velocity zero)
     ref = _reference("throw-ndp")
     obs, y0, dy0 = ref["obs"][0], ref["y0"][0], ref["dy0"][0]
-    want = ref["det"][0]
-    np.testing.assert_array_equal(pol.act(obs, ndp.RobotState(y0, dy0)), want)
+    want = pol.act(obs, ndp.RobotState(y0, dy0))
+    _close(want, ref["det"][0], "throw-ndp")
     # at rest, dy0 is not read: None is allowed
     np.testing.assert_array_equal(pol.act(obs, ndp.RobotState(y0)), want)
     with pytest.raises(ValueError, match="DMP starts from the robot's state"):
@@ -205,7 +234,7 @@ def test_robot_state_forms_and_refusals():
     ppo = ndp.load_policy("zoo:soccer-v3-ppo")
     assert not ppo.needs_robot_state and push.needs_robot_state
     s = _reference("soccer-v3-ppo")
-    np.testing.assert_array_equal(ppo.act(s["obs"][0]), s["det"][0])
+    _close(ppo.act(s["obs"][0]), s["det"][0], "soccer-v3-ppo")
 
 
 def test_recorded_spec_is_checked_field_by_field():

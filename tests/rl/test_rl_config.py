@@ -8,7 +8,7 @@ import json
 import pytest
 
 from ndp.envs.presets import NDP_PRESETS
-from ndp.policies import PolicyConfig
+from ndp.policies import NDPHeadConfig, PolicyConfig
 from ndp.rl import envs as rl_envs
 from ndp.rl.config import (
     DyneConfig,
@@ -27,8 +27,8 @@ def test_resolved_defaults_are_the_supplements():
     assert (p.epochs, p.minibatches, p.clip, p.steps_per_update) == (10, 32, 0.1, 2048)
     assert p.norm_obs and p.norm_return
     assert pol.hidden == (100, 100) and pol.activation == "tanh"
-    assert pol.head == "ndp" and pol.k == 5 and pol.dmp_steps == 35
-    assert (pol.n_basis, pol.a_z) == (NDP_PRESETS["push-v3"].n_basis, 10.0)
+    assert pol.head == "ndp" and pol.k == 5 and pol.ndp.dmp_steps == 35
+    assert (pol.ndp.n_basis, pol.ndp.a_z) == (NDP_PRESETS["push-v3"].n_basis, 10.0)
     assert cfg.env_steps_per_update >= 2048
     assert cfg.env_steps_per_update - 2048 < cfg.k * cfg.num_envs
 
@@ -37,7 +37,7 @@ def test_resolved_defaults_are_the_supplements():
 def test_resolution_per_method(algo, head, k):
     cfg = resolve_config(TrainConfig(task="throw", algo=algo))
     assert cfg.policy.head == head and cfg.policy.k == k
-    assert cfg.policy.n_basis is None and not cfg.policy.param_noise
+    assert cfg.policy.ndp.n_basis is None and not cfg.policy.ndp.param_noise
 
 
 def test_trainer_runs_what_the_config_says(tmp_path):
@@ -63,7 +63,7 @@ def test_trainer_runs_what_the_config_says(tmp_path):
         ]
         assert tr.model.critic.net[-1].out_features == 5  # k value heads
         saved = json.loads((tmp_path / "r" / "config.json").read_text())
-        assert saved["ppo"]["ent_coef"] == 0.0 and saved["policy"]["dmp_steps"] == 35
+        assert saved["ppo"]["ent_coef"] == 0.0 and saved["policy"]["ndp"]["dmp_steps"] == 35
     finally:
         tr.close()
 
@@ -78,25 +78,24 @@ def test_cli_parses_every_field_flat_and_roundtrips():
     assert cfg.task == "soccer-v3" and cfg.algo == "ppo-multi" and cfg.policy.k == 3
     assert cfg.ppo.lr == 1e-3 and not cfg.ppo.norm_obs and cfg.ppo.epochs == 10
     assert cfg.policy.hidden == (64, 64) and cfg.horizon is None
-    assert cfg.policy.goal_scale == 2.0 and cfg.ppo.clip_value_loss
+    assert cfg.policy.ndp.goal_scale == 2.0 and cfg.ppo.clip_value_loss
     assert cfg.policy.dmp_state == "measured"
     assert TrainConfig.from_dict(cfg.to_dict()) == cfg
 
 
 def test_every_train_field_is_an_option_of_ndp_rl_train(capsys):
-    """Every TrainConfig / PPOConfig / PolicyConfig field has its --flag in --help, except the
-    derived head; each help line carries the field's docstring."""
+    """Every TrainConfig / PPOConfig / PolicyConfig / NDPHeadConfig field has its --flag in
+    --help, except the derived head; each help line carries the field's docstring."""
     from ndp.cli import main
 
     assert main(["rl", "train", "--help"]) == 0
     text = capsys.readouterr().out
-    classes = (TrainConfig, PPOConfig, PolicyConfig, DyneConfig)
+    classes = (TrainConfig, PPOConfig, PolicyConfig, NDPHeadConfig, DyneConfig)
     names = [f.name for c in classes for f in dataclasses.fields(c)]
     assert len(names) == len(set(names))  # flat options: no two fields share a name
+    nested = ("ppo", "policy", "dyne", "ndp")
     missing = [
-        n
-        for n in names
-        if n not in ("ppo", "policy", "dyne", "head") and f"--{n.replace('_', '-')}" not in text
+        n for n in names if n not in (*nested, "head") and f"--{n.replace('_', '-')}" not in text
     ]
     assert not missing
     assert "--head" not in text and "Entropy bonus coefficient" in text
@@ -137,7 +136,7 @@ def test_bad_input_fails_before_any_env(monkeypatch, tmp_path, kwargs, match):
     monkeypatch.setattr("ndp.rl.trainer.make_vector_env", _no_env)
     with pytest.raises(ValueError, match=match):
         if "policy" in kwargs:
-            kwargs = {"policy": PolicyConfig(**kwargs["policy"])}
+            kwargs = {"policy": PolicyConfig.from_dict(kwargs["policy"])}
         if "ppo" in kwargs:
             kwargs = {"ppo": PPOConfig(**kwargs["ppo"])}
         Trainer(TrainConfig(run_dir=str(tmp_path), **kwargs))

@@ -47,7 +47,7 @@ def test_dyne_is_registered_with_the_td3_actor():
     cfg = resolve_config(TrainConfig(task="point-mass", algo="dyne"))
     assert cfg.policy.head == "dyne" and cfg.policy.k == 5
     assert cfg.policy.hidden == (400, 300) and cfg.policy.activation == "relu"
-    assert cfg.policy.n_basis is None
+    assert cfg.policy.ndp.n_basis is None
     assert TrainConfig.from_dict(cfg.to_dict()) == cfg
     # a config written before Dyn-E (no "dyne" key) still loads, with the defaults
     d = cfg.to_dict()

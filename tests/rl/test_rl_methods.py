@@ -64,7 +64,7 @@ def test_a_registered_toy_method_trains_through_the_cli(tmp_path, repeat_method)
     assert rc == 0
     cfg = json.loads((run / "config.json").read_text())
     assert cfg["algo"] == "ppo-repeat" and cfg["policy"]["head"] == "repeat"
-    assert cfg["policy"]["k"] == 3 and cfg["policy"]["n_basis"] is None
+    assert cfg["policy"]["k"] == 3 and cfg["policy"]["ndp"]["n_basis"] is None
     assert (run / "checkpoint.pt").is_file()
 
 

@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 
 from ndp.cli import main as ndp_main
 from ndp.envs.point_mass import PointMassEnv
-from ndp.policies import PolicyConfig
+from ndp.policies import NDPHeadConfig, PolicyConfig
 from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.rl.evaluate import evaluate
 from ndp.rl.logger import TIME_METRICS
@@ -153,7 +153,7 @@ def test_terminated_episodes_and_all_methods_run(tmp_path, monkeypatch):
 
 
 def test_param_noise_trains(tmp_path):
-    m = train(_cfg(tmp_path, steps=1040, policy=PolicyConfig(param_noise=True)))
+    m = train(_cfg(tmp_path, steps=1040, policy=PolicyConfig(ndp=NDPHeadConfig(param_noise=True))))
     assert math.isfinite(m["losses/policy"]) and m["update"] == 2
 
 
@@ -172,7 +172,7 @@ def test_param_noise_uses_one_decision_level_advantage(tmp_path, monkeypatch):
 
     monkeypatch.setattr(trainer_mod, "policy_loss", spy)
     ppo = PPOConfig(steps_per_update=512, minibatches=1, epochs=1, lr=1e-3)
-    tr = Trainer(_cfg(tmp_path, ppo=ppo, policy=PolicyConfig(param_noise=True)))
+    tr = Trainer(_cfg(tmp_path, ppo=ppo, policy=PolicyConfig(ndp=NDPHeadConfig(param_noise=True))))
     try:
         batch = tr.collect()
         torch.manual_seed(0)

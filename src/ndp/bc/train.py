@@ -94,7 +94,7 @@ class BCConfig:
             raise ValueError(
                 f"val_fraction: expected a number in [0, 1), got {self.val_fraction!r}"
             )
-        if self.policy.param_noise:
+        if self.policy.ndp.param_noise:
             raise ValueError("param_noise: behaviour cloning trains the mean; not supported")
 
     def to_dict(self) -> dict[str, Any]:

@@ -62,9 +62,7 @@ def _policy(
         raise ValueError("task: give --task (fresh policy) or --run (trained)")
     spec = resolve_task(task).spec
     base = TrainConfig(task=task, algo=algo)
-    cfg = resolve_config(
-        dataclasses.replace(base, policy=dataclasses.replace(base.policy, **overrides)), spec
-    )
+    cfg = resolve_config(dataclasses.replace(base, policy=base.policy.updated(**overrides)), spec)
     torch.manual_seed(cfg.seed)
     model = build_actor_critic(spec.obs_dim, spec, cfg.policy)
     # a fresh normaliser still learns the observation statistics during the diagnostic rollout
@@ -135,17 +133,11 @@ def diagnose(
         "decisions": decisions,
         "k": k,
         "policy": {
-            f: getattr(cfg.policy, f)
-            for f in (
-                "mean_clip",
-                "forcing",
-                "absolute_mode",
-                "dmp_state",
-                "dmp_velocity",
-                "goal_scale",
-                "param_noise",
-                "init_log_std",
-            )
+            **{
+                f: getattr(cfg.policy.ndp, f)
+                for f in ("mean_clip", "forcing", "absolute_mode", "goal_scale", "param_noise")
+            },
+            **{f: getattr(cfg.policy, f) for f in ("dmp_state", "dmp_velocity", "init_log_std")},
         },
         "intended_disp": np.mean(intended, axis=(0, 2)).tolist(),
         "executed_disp": np.mean(executed, axis=(0, 2)).tolist(),

@@ -649,7 +649,9 @@ def _markdown(
             "live return: `charts/episode_return_live` over the last 10% of updates."
             + (
                 f" Deterministic: success (any step) of the trained policy's mode over "
-                f"{eval_episodes} fresh episodes per run (`ndp rl eval`, seeds from 10,000)."
+                f"{eval_episodes} fresh episodes per run (`ndp rl eval`, seeds from 10,000; "
+                "Stable-Baselines3 runs: their own evaluation at the end of training, the same "
+                "seeds, `ndp.experiments.sb3_ppo`)."
                 if eval_episodes
                 else ""
             ),

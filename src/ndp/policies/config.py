@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Annotated
+import dataclasses
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Annotated, Any
 
 from ndp.checks import plain_numbers
 from ndp.runs.cli import HIDDEN
+
+if TYPE_CHECKING:
+    from ndp.dmp.config import DMPConfig
 
 HEADS = ("step", "multi", "ndp", "dyne")
 """Built-in action heads: one raw action per step, k raw actions per decision, DMP parameters,
@@ -22,17 +26,127 @@ DMP_STATES = ("commanded", "measured")
 
 
 @dataclass(frozen=True)
-class PolicyConfig:
-    """Actor-critic settings; ``None`` NDP fields are filled from the per-task preset table.
+class NDPHeadConfig:
+    """The NDP head's settings (``PolicyConfig.ndp``; only the 'ndp' head reads them).
 
-    The NDP goal bound is per DoF: ``goal_scale`` times the largest displacement the actions can
-    make in one decision (``k * action_scale`` for delta-controlled DoF, the action range
+    ``None`` fields are filled from the per-task preset table when a run's config is resolved
+    (``ndp.rl.methods.resolve_ndp``). The DMP of a decision is :meth:`dmp_config`: the one place
+    where these fields become a :class:`ndp.dmp.DMPConfig` (``n_basis``, ``a_z``, ``rbf``,
+    ``only_g``, ``learn_az`` as they are; ``steps`` = ``dmp_steps``; ``subsample`` =
+    ``dmp_steps / k``; ``scale_by_goal`` from ``forcing``). The other fields are the head's
+    own: how the network's outputs are bounded and explored.
+    """
+
+    n_basis: int | None = None
+    """Radial basis functions per DMP DoF (N, ``DMPConfig.n_basis``); None: per-task preset."""
+    a_z: float | None = None
+    """DMP spring constant alpha_z (``DMPConfig.a_z``); None: per-task preset."""
+    dmp_steps: int | None = None
+    """Euler integration steps per decision (``DMPConfig.steps``, a multiple of k); None:
+    per-task preset."""
+    goal_scale: float | None = None
+    """Goal bound g = y0 + s * tanh(raw), s = goal_scale * (k * action_scale) per delta DoF
+    (absolute-command DoF always span their action range); None: per-task preset."""
+    weight_scale: float | None = None
+    """Weight bound, w = weight_scale * tanh(raw) ('goal' forcing) or w = weight_scale * reach
+    * tanh(raw) per DoF ('amplitude'); None: a_z^2 / 4 (the spring stiffness)."""
+    rbf: str = "gaussian"
+    """Radial basis kind of the forcing term (``DMPConfig.rbf``)."""
+    absolute_goal: bool = True
+    """DoF whose action is the trajectory value (gripper) get a goal in the action range
+    independent of y0 and start at dy0 = 0; False: relative to y0 like every other DoF."""
+    param_noise: bool = False
+    """Explore with a Gaussian over the DMP parameters (one log-prob per decision)."""
+    only_g: bool = False
+    """Ablation 'only-g': no forcing term; the network outputs the goals only (a critically
+    damped spring to g per decision; ``DMPConfig.only_g``)."""
+    learn_az: bool = False
+    """Ablation: a learned spring constant, one more network output per decision mapped into
+    [0.5, 30] (b_z = a_z / 4; the preset a_z at a zero output); the DMP then runs the reference
+    integration loop instead of the folded map (slower; ``DMPConfig.learn_az``)."""
+    mean_clip: bool = False
+    """Clip the sub-action means to the action bounds before the noise (the first release's
+    handicap); False: only the executed sample is clipped, as for PPO."""
+    forcing: str = "amplitude"
+    """'amplitude' (forcing term f = sum psi w x with |w| <= weight_scale * reach: a gradient
+    from the first update; ``DMPConfig.scale_by_goal`` False) or 'goal' (the paper's f
+    proportional to (g - y0), whose weights get almost no gradient while g is near y0)."""
+    absolute_mode: str = "direct"
+    """Absolute-command DoF (Meta-World gripper): 'direct' emits the decision's goal as the
+    command of all k sub-steps (no dependence on the previous decision's noise); 'dmp'
+    integrates a DMP from the last sampled command (the first release's form)."""
+
+    def __post_init__(self) -> None:
+        plain_numbers(self)
+        if self.n_basis is not None and (isinstance(self.n_basis, bool) or self.n_basis < 1):
+            raise ValueError(f"n_basis: expected an integer >= 1, got {self.n_basis!r}")
+        if self.a_z is not None and not self.a_z > 0:
+            raise ValueError(f"a_z: expected a number > 0, got {self.a_z!r}")
+        if self.dmp_steps is not None and (isinstance(self.dmp_steps, bool) or self.dmp_steps < 1):
+            raise ValueError(f"dmp_steps: expected an integer >= 1, got {self.dmp_steps!r}")
+        for name in ("goal_scale", "weight_scale"):
+            v = getattr(self, name)
+            if v is not None and not v > 0:
+                raise ValueError(f"{name}: expected a number > 0, got {v!r}")
+        for name, allowed in (("forcing", FORCING), ("absolute_mode", ABSOLUTE_MODES)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(
+                    f"{name}: expected one of {', '.join(allowed)}, got {getattr(self, name)!r}"
+                )
+
+    @property
+    def resolved(self) -> bool:
+        """Whether every preset field is set (no ``None`` left)."""
+        return None not in (self.n_basis, self.a_z, self.dmp_steps, self.goal_scale,
+                            self.weight_scale)  # fmt: skip
+
+    def dmp_config(self, k: int) -> DMPConfig:
+        """The DMP of one decision of ``k`` sub-steps (a resolved config only).
+
+        Raises:
+            ValueError: a preset field is still None, or ``dmp_steps`` is not a multiple of k.
+        """
+        from ndp.dmp.config import DMPConfig
+
+        if not self.resolved:
+            raise ValueError(
+                "policy config: NDP fields must be resolved (see ndp.rl.methods.resolve_ndp)"
+            )
+        assert self.n_basis is not None and self.a_z is not None and self.dmp_steps is not None
+        if self.dmp_steps % k:
+            raise ValueError(f"dmp_steps: expected a multiple of k={k}, got {self.dmp_steps}")
+        return DMPConfig(
+            n_basis=int(self.n_basis),
+            a_z=float(self.a_z),
+            steps=int(self.dmp_steps),
+            subsample=int(self.dmp_steps) // k,
+            rbf=self.rbf,
+            scale_by_goal=self.forcing == "goal",
+            only_g=self.only_g,
+            learn_az=self.learn_az,
+        )
+
+
+NDP_FIELDS = tuple(f.name for f in dataclasses.fields(NDPHeadConfig))
+"""The NDP head's fields; a config written before :class:`NDPHeadConfig` holds them flat in
+its ``policy`` (:meth:`PolicyConfig.from_dict` reads both forms)."""
+
+
+@dataclass(frozen=True)
+class PolicyConfig:
+    """Actor-critic settings: the ones every method reads, and the NDP head's (``ndp``).
+
+    The NDP goal bound is per DoF: ``ndp.goal_scale`` times the largest displacement the actions
+    can make in one decision (``k * action_scale`` for delta-controlled DoF, the action range
     ``high - low`` for DoF whose action is the trajectory value itself).
 
     The three clocks: one env step (sub-step) lasts ``spec.control_dt`` seconds; one policy
     decision runs ``k`` sub-steps; the DMP of a decision spans its whole duration
-    ``k * control_dt`` seconds with ``dmp_steps`` Euler steps (``dmp_steps / k`` per sub-step)
-    over DMP time ``tau = 1``.
+    ``k * control_dt`` seconds with ``ndp.dmp_steps`` Euler steps (``dmp_steps / k`` per
+    sub-step) over DMP time ``tau = 1``.
+
+    On the command line the nested fields are flat options (``--n-basis``, ``--forcing``, ...;
+    ``ndp.runs.cli``).
     """
 
     head: Annotated[str, HIDDEN] = "ndp"
@@ -48,50 +162,16 @@ class PolicyConfig:
     """Initial value of the learned, state-independent log std (0: std 1), every method."""
     hidden_gain: float | None = None
     """Orthogonal-init gain of the hidden layers; None: the activation's (5/3 for tanh)."""
-    n_basis: int | None = None
-    """NDP: radial basis functions per DMP DoF (N); None: per-task preset."""
-    a_z: float | None = None
-    """NDP: DMP spring constant alpha_z; None: per-task preset."""
-    dmp_steps: int | None = None
-    """NDP: Euler integration steps per decision (a multiple of k); None: per-task preset."""
-    goal_scale: float | None = None
-    """NDP: goal bound g = y0 + s * tanh(raw), s = goal_scale * (k * action_scale) per delta DoF
-    (absolute-command DoF always span their action range); None: per-task preset."""
-    weight_scale: float | None = None
-    """NDP: weight bound, w = weight_scale * tanh(raw) ('goal' forcing) or w = weight_scale *
-    reach * tanh(raw) per DoF ('amplitude'); None: a_z^2 / 4 (the spring stiffness)."""
-    rbf: str = "gaussian"
-    """NDP: radial basis kind of the forcing term."""
-    absolute_goal: bool = True
-    """NDP: DoF whose action is the trajectory value (gripper) get a goal in the action range
-    independent of y0 and start at dy0 = 0; False: relative to y0 like every other DoF."""
-    param_noise: bool = False
-    """NDP: explore with a Gaussian over the DMP parameters (one log-prob per decision)."""
-    only_g: bool = False
-    """NDP ablation 'only-g': no forcing term; the network outputs the goals only (a critically
-    damped spring to g per decision)."""
-    learn_az: bool = False
-    """NDP ablation: a learned spring constant, one more network output per decision mapped
-    into [0.5, 30] (b_z = a_z / 4; the preset a_z at a zero output); the DMP then runs the
-    reference integration loop instead of the folded map (slower)."""
-    mean_clip: bool = False
-    """NDP: clip the sub-action means to the action bounds before the noise (the first
-    release's handicap); False: only the executed sample is clipped, as for PPO."""
-    forcing: str = "amplitude"
-    """NDP: 'amplitude' (forcing term f = sum psi w x with |w| <= weight_scale * reach: a
-    gradient from the first update) or 'goal' (the paper's f proportional to (g - y0), whose
-    weights get almost no gradient while g is near y0)."""
-    absolute_mode: str = "direct"
-    """NDP, absolute-command DoF (Meta-World gripper): 'direct' emits the decision's goal as the
-    command of all k sub-steps (no dependence on the previous decision's noise); 'dmp' integrates
-    a DMP from the last sampled command (the first release's form)."""
+    ndp: NDPHeadConfig = field(default_factory=NDPHeadConfig)
+    """The NDP head's settings (:class:`NDPHeadConfig`)."""
     dmp_state: str | None = None
-    """NDP: the DMP starts from the commanded state (Meta-World mocap target and its commanded
-    velocity; Jaco joint targets), which is what the actions move, or from the 'measured' robot
-    (hand / joints), which lags the command; None: the task's preset (measured on Meta-World,
-    commanded on Jaco and the toy task; ndp.envs.presets)."""
+    """Where the DMP starts, and the frame of the robot state the trainer records for every
+    method: the commanded state (Meta-World mocap target and its commanded velocity; Jaco joint
+    targets), which is what the actions move, or the 'measured' robot (hand / joints), which
+    lags the command; None: the task's preset (measured on Meta-World, commanded on Jaco and
+    the toy task; ndp.envs.presets)."""
     dmp_velocity: str | None = None
-    """NDP: the DMP starts at rest ('zero') or with the state's velocity ('state': the commanded
+    """The DMP starts at rest ('zero') or with the state's velocity ('state': the commanded
     velocity is the previous decision's last *sampled* sub-action, i.e. its exploration noise;
     the measured one double-counts the momentum stored in the target's lead); None: the task's
     preset ('state' on Meta-World, 'zero' on Jaco and the toy task)."""
@@ -110,45 +190,71 @@ class PolicyConfig:
             )
         if not self.hidden or any(int(h) < 1 for h in self.hidden):
             raise ValueError(f"hidden: expected positive widths, got {self.hidden!r}")
-        if self.n_basis is not None and (isinstance(self.n_basis, bool) or self.n_basis < 1):
-            raise ValueError(f"n_basis: expected an integer >= 1, got {self.n_basis!r}")
-        if self.a_z is not None and not self.a_z > 0:
-            raise ValueError(f"a_z: expected a number > 0, got {self.a_z!r}")
-        if self.dmp_steps is not None:
-            if self.dmp_steps < 1 or self.dmp_steps % self.k:
-                raise ValueError(
-                    f"dmp_steps: expected a positive multiple of k={self.k}, got {self.dmp_steps!r}"
-                )
-        for name in ("goal_scale", "weight_scale"):
+        if not isinstance(self.ndp, NDPHeadConfig):
+            raise ValueError(f"ndp: expected an NDPHeadConfig, got {type(self.ndp).__name__}")
+        if self.ndp.dmp_steps is not None and self.ndp.dmp_steps % self.k:
+            raise ValueError(
+                f"dmp_steps: expected a positive multiple of k={self.k}, got {self.ndp.dmp_steps!r}"
+            )
+        for name, allowed in (("dmp_state", DMP_STATES), ("dmp_velocity", DMP_VELOCITIES)):
             v = getattr(self, name)
-            if v is not None and not v > 0:
-                raise ValueError(f"{name}: expected a number > 0, got {v!r}")
-        for name, allowed in (
-            ("forcing", FORCING),
-            ("absolute_mode", ABSOLUTE_MODES),
-            ("dmp_state", DMP_STATES),
-            ("dmp_velocity", DMP_VELOCITIES),
-        ):
-            if name.startswith("dmp_") and getattr(self, name) is None:
-                continue  # the task's preset (resolve_config)
-            if getattr(self, name) not in allowed:
-                raise ValueError(
-                    f"{name}: expected one of {', '.join(allowed)}, got {getattr(self, name)!r}"
-                )
+            if v is not None and v not in allowed:  # None: the task's preset (resolve_config)
+                raise ValueError(f"{name}: expected one of {', '.join(allowed)}, got {v!r}")
         if self.hidden_gain is not None and not self.hidden_gain > 0:
             raise ValueError(f"hidden_gain: expected a number > 0, got {self.hidden_gain!r}")
-        if self.param_noise and self.head != "ndp":
+        if self.ndp.param_noise and self.head != "ndp":
             raise ValueError("param_noise: parameter-space exploration needs the 'ndp' head")
 
     @property
     def resolved(self) -> bool:
         """Whether every field the head needs is set (no ``None`` left for NDP)."""
-        if self.head != "ndp":
-            return True
-        return None not in (
-            self.n_basis,
-            self.a_z,
-            self.dmp_steps,
-            self.goal_scale,
-            self.weight_scale,
-        )
+        return self.head != "ndp" or self.ndp.resolved
+
+    def updated(self, **changes: Any) -> PolicyConfig:
+        """A copy with ``changes`` applied, the NDP head's fields (:data:`NDP_FIELDS`) given
+        flat like the others (``updated(k=3, n_basis=6)``; ``ndp=`` replaces the whole head).
+
+        Raises:
+            ValueError: a name that is no field, or a bad value (the field's message).
+        """
+        head = {n: changes.pop(n) for n in NDP_FIELDS if n in changes}
+        known = {f.name for f in dataclasses.fields(self)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise ValueError(
+                f"policy: no field {', '.join(unknown)} (expected one of "
+                f"{', '.join(sorted(known | set(NDP_FIELDS)))})"
+            )
+        ndp = changes.pop("ndp", self.ndp)
+        if head:
+            ndp = dataclasses.replace(ndp, **head)
+        return dataclasses.replace(self, ndp=ndp, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (``ndp`` nested)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> PolicyConfig:
+        """Inverse of :meth:`to_dict`; also reads the flat form written before
+        :class:`NDPHeadConfig` (the NDP fields beside the others) and flat keyword sets such
+        as ``ndp.sb3.NDPPolicy``'s ``ndp=`` dict.
+
+        Raises:
+            ValueError: unknown keys, a field given both flat and nested, or bad values.
+        """
+        d = dict(d)
+        nested = d.pop("ndp", None)
+        nested = dict(nested) if isinstance(nested, dict) else ({} if nested is None else nested)
+        if not isinstance(nested, dict):
+            raise ValueError(f"ndp: expected a dict of NDP head fields, got {nested!r}")
+        flat = {name: d.pop(name) for name in NDP_FIELDS if name in d}
+        both = sorted(set(flat) & set(nested))
+        if both:
+            raise ValueError(f"policy: {', '.join(both)} given both flat and under 'ndp'")
+        if "hidden" in d:
+            d["hidden"] = tuple(d["hidden"])
+        try:
+            return cls(ndp=NDPHeadConfig(**flat, **nested), **d)
+        except TypeError as exc:
+            raise ValueError(f"policy: {exc}") from None

@@ -386,40 +386,28 @@ def _build_multi(cfg: Any, spec: Any) -> ActionHead:
 
 @register_head("ndp")
 def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
-    if not cfg.resolved:
-        raise ValueError(
-            "policy config: NDP fields must be resolved (see ndp.rl.methods.resolve_ndp)"
-        )
+    head = cfg.ndp  # NDPHeadConfig
+    dmp = head.dmp_config(cfg.k)  # refuses an unresolved config
     d = spec.dmp_dofs
     scale = _per_dof(spec.action_scale, d)
     absolute = _per_dof(getattr(spec, "action_absolute", False), d).astype(bool)
     high, low = _per_dof(spec.action_high, d), _per_dof(spec.action_low, d)
     span = high - low
     delta_reach = cfg.k * scale  # largest move of a delta DoF in one decision
-    if cfg.absolute_goal:
+    if head.absolute_goal:
         # absolute commands: goal = centre of the action range + half range * tanh (the goal
         # bound of goal_scale applies to delta DoF only)
-        goal_bound = np.where(absolute, span / 2.0, cfg.goal_scale * delta_reach)
+        goal_bound = np.where(absolute, span / 2.0, head.goal_scale * delta_reach)
         centre = np.where(absolute, (high + low) / 2.0, np.nan)
         reach = np.where(absolute, span / 2.0, delta_reach)
     else:
         reach = np.where(absolute, span, delta_reach)
-        goal_bound = cfg.goal_scale * reach
+        goal_bound = head.goal_scale * reach
         centre = np.full(d, np.nan)
-    amplitude = cfg.forcing == "amplitude"
+    amplitude = head.forcing == "amplitude"
     # 'amplitude': w is a forcing amplitude; a_z^2 / 4 * reach moves a DoF by about its reach.
-    weight_scale = cfg.weight_scale * reach if amplitude else np.full(d, cfg.weight_scale)
-    direct = absolute & (cfg.absolute_mode == "direct")
-    dmp = DMPConfig(
-        n_basis=int(cfg.n_basis),
-        a_z=float(cfg.a_z),
-        steps=int(cfg.dmp_steps),
-        subsample=int(cfg.dmp_steps) // cfg.k,
-        rbf=cfg.rbf,
-        scale_by_goal=not amplitude,
-        only_g=bool(getattr(cfg, "only_g", False)),
-        learn_az=bool(getattr(cfg, "learn_az", False)),
-    )
+    weight_scale = head.weight_scale * reach if amplitude else np.full(d, head.weight_scale)
+    direct = absolute & (head.absolute_mode == "direct")
     return NDPHead(
         k=cfg.k,
         dmp_dofs=spec.dmp_dofs,
@@ -429,10 +417,10 @@ def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
         weight_scale=torch.as_tensor(weight_scale, dtype=torch.float32),
         inverse_controller=spec.inverse_controller,
         decision_dt=cfg.k * float(spec.control_dt),
-        param_noise=cfg.param_noise,
+        param_noise=head.param_noise,
         init_log_std=cfg.init_log_std,
         goal_center=torch.as_tensor(centre, dtype=torch.float32),
-        mean_clip=cfg.mean_clip,
+        mean_clip=head.mean_clip,
         direct=torch.as_tensor(direct),
         start_at_rest=_dmp_velocity(cfg, spec) == "zero",
         linear_controller=_linear_controller(spec),

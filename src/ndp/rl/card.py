@@ -240,9 +240,10 @@ def model_card(
             "",
         ]
     if pol.get("head") == "ndp":
+        head = pol.get("ndp") or pol  # nested since NDPHeadConfig; flat in older exports
         lines += [
-            f"DMP: N = {pol.get('n_basis')} basis functions, a_z = {pol.get('a_z')}, "
-            f"{pol.get('dmp_steps')} integration steps per decision, started from the "
+            f"DMP: N = {head.get('n_basis')} basis functions, a_z = {head.get('a_z')}, "
+            f"{head.get('dmp_steps')} integration steps per decision, started from the "
             f"{pol.get('dmp_state')} state ({pol.get('dmp_velocity')} velocity).",
             "",
         ]

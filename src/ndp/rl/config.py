@@ -319,12 +319,11 @@ class TrainConfig:
         # ones (without them) ran the fixed default of their time, the commanded frame at rest
         pol.setdefault("dmp_state", "commanded")
         pol.setdefault("dmp_velocity", "zero")
-        if "hidden" in pol:
-            pol["hidden"] = tuple(pol["hidden"])
+        policy = PolicyConfig.from_dict(pol)  # flat (before NDPHeadConfig) or nested
         try:
             ppo = PPOConfig(**d.pop("ppo", {}))
             dyne = DyneConfig(**d.pop("dyne", {}))  # configs written before Dyn-E: defaults
-            return TrainConfig(ppo=ppo, policy=PolicyConfig(**pol), dyne=dyne, **d)
+            return TrainConfig(ppo=ppo, policy=policy, dyne=dyne, **d)
         except TypeError as exc:
             raise ValueError(f"config: {exc}") from None
 
@@ -377,13 +376,7 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
         for name in ("dmp_state", "dmp_velocity")
     }
     with_k = dataclasses.replace(pol, head=method.head, k=k, **frame)
-    changes: dict[str, Any] = {
-        "head": method.head,
-        "k": k,
-        **frame,
-        **method.resolve(with_k, spec),
-    }
-    policy = dataclasses.replace(pol, **changes)
+    policy = with_k.updated(**method.resolve(with_k, spec))
     run_dir = cfg.run_dir or str(Path("runs") / f"{spec.name}-{cfg.algo}-s{cfg.seed}")
     return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir)
 

@@ -120,9 +120,9 @@ def ndp_head_at(policy: Policy, exec_k: int, spec: Any) -> Any:
     from ndp.policies.heads import build_head
 
     pcfg = policy.cfg.policy
-    if pcfg.head != "ndp" or pcfg.dmp_steps is None:
+    if pcfg.head != "ndp" or pcfg.ndp.dmp_steps is None:
         raise ValueError(f"policy: expected a resolved NDP head, got head {pcfg.head!r}")
-    cfg = dataclasses.replace(pcfg, k=exec_k, dmp_steps=dmp_steps_at(pcfg.dmp_steps, exec_k))
+    cfg = pcfg.updated(k=exec_k, dmp_steps=dmp_steps_at(pcfg.ndp.dmp_steps, exec_k))
     head = build_head(cfg, spec)
     head.load_state_dict(policy.model.head.state_dict())
     return head.eval()

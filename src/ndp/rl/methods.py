@@ -28,7 +28,7 @@ _NDP_FIELDS = ("n_basis", "a_z", "dmp_steps", "goal_scale", "weight_scale")
 
 
 def no_dmp(policy: Any, spec: Any) -> dict[str, Any]:
-    """Resolution of heads without a DMP: the NDP-only fields are cleared."""
+    """Resolution of heads without a DMP: the NDP head's preset fields are cleared."""
     return {**dict.fromkeys(_NDP_FIELDS), "param_noise": False}
 
 
@@ -37,17 +37,17 @@ def resolve_ndp(policy: Any, spec: Any) -> dict[str, Any]:
     ``dmp_steps`` = preset steps per sub-step * k; ``weight_scale`` = a_z^2 / 4 where None."""
     from ndp.envs.presets import preset_of
 
-    pre = preset_of(spec)
-    a_z = float(policy.a_z if policy.a_z is not None else pre.a_z)
+    pre, head = preset_of(spec), policy.ndp
+    a_z = float(head.a_z if head.a_z is not None else pre.a_z)
     return {
-        "n_basis": policy.n_basis if policy.n_basis is not None else pre.n_basis,
+        "n_basis": head.n_basis if head.n_basis is not None else pre.n_basis,
         "a_z": a_z,
-        "dmp_steps": policy.dmp_steps
-        if policy.dmp_steps is not None
+        "dmp_steps": head.dmp_steps
+        if head.dmp_steps is not None
         else pre.steps_per_substep * policy.k,
-        "goal_scale": float(policy.goal_scale if policy.goal_scale is not None else pre.goal_scale),
+        "goal_scale": float(head.goal_scale if head.goal_scale is not None else pre.goal_scale),
         "weight_scale": float(
-            policy.weight_scale if policy.weight_scale is not None else a_z * a_z / 4.0
+            head.weight_scale if head.weight_scale is not None else a_z * a_z / 4.0
         ),
     }
 
@@ -63,7 +63,8 @@ class Method:
     description: str
     """One line for ``--help`` and docs."""
     resolve: Callable[[Any, Any], dict[str, Any]] = no_dmp
-    """``(policy config with k set, task spec) -> PolicyConfig changes`` (task presets)."""
+    """``(policy config with k set, task spec) -> PolicyConfig changes`` (task presets; the NDP
+    head's fields flat, as ``PolicyConfig.updated`` takes them)."""
     metrics: tuple[str, ...] = field(default=())
     """Extra metric keys this method fills (docs/metrics.md)."""
     task_variant: Callable[[Any], Any] | None = None

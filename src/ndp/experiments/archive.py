@@ -3,7 +3,7 @@
 A study's runs live outside the repository (``--runs-dir``). When a study takes more than one
 session and the next session may start on a fresh machine, ``ndp sweep STUDY --pack OUT``
 writes the study's **finished** runs to ``OUT`` (a ``.tar.gz``) without their checkpoints: the
-files a report and a sweep read (``arm.json``, ``config.json``, ``metrics.csv``,
+files a report and a sweep read (``arm.json``, ``config.json``, ``run.json``, ``metrics.csv``,
 ``provenance.json``, ``train.log``, ``eval*.json``) and a ``done.json`` that marks the run
 finished (a sweep skips it, a report counts it). Runs already in ``OUT`` are kept, so the
 archive grows across sessions. ``ndp sweep STUDY --unpack OUT`` restores them into the runs
@@ -26,7 +26,15 @@ from pathlib import Path
 
 from ndp.runs import metrics_path, read_metrics
 
-FILES = ("arm.json", "config.json", "metrics.csv", "provenance.json", "train.log", "done.json")
+FILES = (
+    "arm.json",
+    "config.json",
+    "metrics.csv",
+    "provenance.json",
+    "train.log",
+    "done.json",
+    "run.json",
+)
 """The files of a run that an archive keeps (besides ``eval*.json``)."""
 _NAME = re.compile(r"[A-Za-z0-9._-]+")
 

@@ -463,7 +463,7 @@ def test_pack_and_unpack_carry_finished_runs_to_a_fresh_runs_directory(tmp_path,
     argv = [*base, "--seeds", "0", "1", "--runs-dir", str(fresh), "--unpack", str(archive)]
     assert main(argv) == 0
     out = capsys.readouterr().out
-    assert "unpack: 2 finished runs restored" in out
+    assert "unpack: 2 runs restored" in out and "(0 unfinished" in out
     assert "2/2 finished (0 trained now, 2 already finished)" in out
     assert _rows(fresh / "point-mass-ppo-s0") == _rows(runs / "point-mass-ppo-s0")
     res = report([fresh], tmp_path / "rep", "ndp report fresh")

@@ -231,3 +231,48 @@ def test_a_finished_archived_run_is_never_taken_for_a_partial_start(tmp_path):
     with pytest.raises(ValueError, match=r"already holds a run's metrics\.csv"):
         ck.RunDir(run).create()
     assert (run / "metrics.csv").exists()
+
+
+def test_an_unfinished_run_archived_with_its_checkpoint_resumes_on_a_fresh_machine(
+    tmp_path, kill_after_rows, capsys
+):
+    """``ndp sweep --pack A --pack-unfinished`` keeps a killed run's checkpoint: unpacked into
+    an empty runs directory (the next session's machine) it resumes at that checkpoint and
+    completes every update; packed again once finished, its entry loses the checkpoint."""
+    import tarfile
+
+    from ndp.experiments.archive import pack, unpack
+
+    run = tmp_path / "runs" / "point-mass-ndp-s0"
+    n_updates = 12
+    cmd = [sys.executable, "-m", "ndp.cli", "rl", "train", "--task", "point-mass", "--algo",
+           "ndp", "--steps", str(520 * n_updates), "--steps-per-update", "512", "--minibatches",
+           "4", "--checkpoint-every", "2", "--run-dir", str(run), "--no-progress"]  # fmt: skip
+    assert kill_after_rows(cmd, run).returncode == -signal.SIGKILL
+    saved = ck.load_checkpoint(run / "checkpoint.pt")["update"]
+    assert 0 < saved < n_updates
+    archive = tmp_path / "a.tar.gz"
+    assert pack([], archive, unfinished=[run]) == [run.name]
+    with tarfile.open(archive) as tf:
+        names = set(tf.getnames())
+    assert f"{run.name}/checkpoint.pt" in names and f"{run.name}/done.json" not in names
+
+    fresh = tmp_path / "fresh"
+    assert unpack(archive, fresh) == ([run.name], [])
+    moved = fresh / run.name
+    assert ck.load_checkpoint(moved / "checkpoint.pt")["update"] == saved
+    assert ndp_main(["rl", "train", "--resume", str(moved), "--no-progress"]) == 0
+    rows = read_metrics(moved / "metrics.csv")
+    assert [int(r["update"]) for r in rows] == list(range(1, n_updates + 1))
+    assert ck.load_checkpoint(moved / "checkpoint.pt")["update"] == n_updates
+
+    pack([moved], archive)  # finished now: its entry replaced, without the checkpoint
+    with tarfile.open(archive) as tf:
+        names = set(tf.getnames())
+    assert f"{run.name}/done.json" in names and f"{run.name}/checkpoint.pt" not in names
+    empty = tmp_path / "runs" / "never-started"
+    empty.mkdir()
+    with pytest.raises(FileNotFoundError, match=r"has no checkpoint\.pt to resume from"):
+        pack([], archive, unfinished=[empty])
+    assert ndp_main(["sweep", "--pack-unfinished", "--dry-run"]) != 0
+    assert "--pack-unfinished: only with --pack ARCHIVE" in capsys.readouterr().err

@@ -1,4 +1,4 @@
-"""Finished runs as a small archive: a study that outlives the machine its runs were made on.
+"""Runs as a small archive: a study that outlives the machine its runs were made on.
 
 A study's runs live outside the repository (``--runs-dir``). When a study takes more than one
 session and the next session may start on a fresh machine, ``ndp sweep STUDY --pack OUT``
@@ -8,8 +8,17 @@ files a report and a sweep read (``arm.json``, ``config.json``, ``run.json``, ``
 finished (a sweep skips it, a report counts it). Runs already in ``OUT`` are kept, so the
 archive grows across sessions. ``ndp sweep STUDY --unpack OUT`` restores them into the runs
 directory before the sweep starts; a run directory that already exists there is left as it
-is. What an archived run cannot do: resume (it is finished), evaluate or export its policy (no
-checkpoint).
+is. What an archived finished run cannot do: resume (it is finished), evaluate or export its
+policy (no checkpoint).
+
+With ``--pack-unfinished`` the archive also takes the **unfinished** runs that have a
+checkpoint, with their ``checkpoint.pt`` and without a ``done.json``: unpacked on the next
+machine they are runs killed at their last checkpoint, and the sweep resumes them there (the
+resume truncates ``metrics.csv`` to the checkpoint; the checkpoint is read before the metrics
+so that the metrics never end before it). A session that must stop mid-run so loses at most
+one checkpoint interval instead of the whole run. When the run has finished, packing it again
+replaces its entry by the finished one (no checkpoint). A checkpoint is a torch pickle of this
+package's trainer: unpack only archives you made or trust, as you would run their code.
 
 Member names are ``<run name>/<file>``; anything else (absolute paths, ``..``, links, other
 files) is refused when unpacking.
@@ -36,6 +45,8 @@ FILES = (
     "run.json",
 )
 """The files of a run that an archive keeps (besides ``eval*.json``)."""
+CHECKPOINT = "checkpoint.pt"
+"""The checkpoint an unfinished run is archived with (``pack(..., unfinished=...)``)."""
 _NAME = re.compile(r"[A-Za-z0-9._-]+")
 
 
@@ -59,10 +70,24 @@ def _done_record(run: Path) -> bytes:
     return (json.dumps(rec, indent=1) + "\n").encode()
 
 
-def pack(runs: Sequence[Path], out: Path) -> list[str]:
-    """Write the given finished run directories to ``out`` (merged with the runs ``out``
-    already holds; written atomically). Returns the names of the runs in the archive."""
+def _entry(name: str, data: bytes, mtime: float = 0.0) -> tuple[tarfile.TarInfo, bytes]:
+    info = tarfile.TarInfo(name)
+    info.size, info.mtime = len(data), int(mtime)
+    return info, data
+
+
+def pack(runs: Sequence[Path], out: Path, unfinished: Sequence[Path] = ()) -> list[str]:
+    """Write the given finished run directories, and the ``unfinished`` ones with their
+    checkpoint, to ``out`` (merged with the runs ``out`` already holds, a run's entry replaced
+    by the new one; written atomically). Returns the names of the runs in the archive.
+
+    Raises:
+        FileNotFoundError: an unfinished run without ``checkpoint.pt`` (nothing to resume).
+    """
     out = Path(out)
+    for run in map(Path, unfinished):
+        if not (run / CHECKPOINT).is_file():
+            raise FileNotFoundError(f"pack: {run} has no {CHECKPOINT} to resume from")
     keep: dict[str, list[tuple[tarfile.TarInfo, bytes]]] = {}
     if out.is_file():
         with tarfile.open(out, "r:gz") as tf:
@@ -72,18 +97,21 @@ def pack(runs: Sequence[Path], out: Path) -> list[str]:
                 assert f is not None
                 keep.setdefault(name, []).append((m, f.read()))
     for run in map(Path, runs):
-        entries = []
-        for p in _members(run):
-            data = p.read_bytes()
-            info = tarfile.TarInfo(f"{run.name}/{p.name}")
-            info.size, info.mtime = len(data), int(p.stat().st_mtime)
-            entries.append((info, data))
+        entries = [
+            _entry(f"{run.name}/{p.name}", p.read_bytes(), p.stat().st_mtime) for p in _members(run)
+        ]
         if not (run / "done.json").is_file():
-            data = _done_record(run)
-            info = tarfile.TarInfo(f"{run.name}/done.json")
-            info.size = len(data)
-            entries.append((info, data))
+            entries.append(_entry(f"{run.name}/done.json", _done_record(run)))
         keep[run.name] = entries
+    for run in map(Path, unfinished):
+        ck = run / CHECKPOINT
+        first = _entry(f"{run.name}/{CHECKPOINT}", ck.read_bytes(), ck.stat().st_mtime)
+        rest = [  # read after the checkpoint: metrics at least as far as it
+            _entry(f"{run.name}/{p.name}", p.read_bytes(), p.stat().st_mtime)
+            for p in _members(run)
+            if p.name != "done.json"
+        ]
+        keep[run.name] = [first, *rest]
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp")
     with tarfile.open(tmp, "w:gz") as tf:
@@ -98,14 +126,15 @@ def _check_member(m: tarfile.TarInfo, archive: Path) -> str:
     parts = m.name.split("/")
     if not m.isfile() or len(parts) != 2 or not all(_NAME.fullmatch(p) for p in parts):
         raise ValueError(f"archive: {archive} holds {m.name!r}, not a run file <run>/<file>")
-    if parts[1] not in FILES and not re.fullmatch(r"eval[A-Za-z0-9._-]*\.json", parts[1]):
+    allowed = parts[1] in FILES or parts[1] == CHECKPOINT
+    if not allowed and not re.fullmatch(r"eval[A-Za-z0-9._-]*\.json", parts[1]):
         raise ValueError(f"archive: {archive} holds {m.name!r}, not one of a run's files")
     return parts[0]
 
 
 def unpack(archive: Path, runs_dir: Path) -> tuple[list[str], list[str]]:
     """Restore the runs of ``archive`` into ``runs_dir``: (restored, left as they were because
-    a directory of that name exists).
+    a directory of that name exists). An unfinished run comes back with its checkpoint.
 
     Raises:
         FileNotFoundError: no such archive.

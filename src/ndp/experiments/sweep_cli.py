@@ -126,11 +126,17 @@ def sweep_parser() -> argparse.ArgumentParser:
         "(.tar.gz, without checkpoints) so that a later session on another machine has them",
     )
     p.add_argument(
+        "--pack-unfinished",
+        action="store_true",
+        help="with --pack: also add the unfinished runs that have a checkpoint, with it (the "
+        "next machine's sweep resumes them there instead of starting them again)",
+    )
+    p.add_argument(
         "--unpack",
         type=Path,
         metavar="ARCHIVE",
-        help="first restore the finished runs of ARCHIVE (--pack) into the runs directory "
-        "(existing run directories are left as they are)",
+        help="first restore the runs of ARCHIVE (--pack) into the runs directory (existing run "
+        "directories are left as they are)",
     )
     return p
 
@@ -282,14 +288,23 @@ def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
     }
 
 
-def _pack(jobs: Any, out: Path) -> None:
-    """Write the finished runs of ``jobs`` to the archive ``out`` (``--pack``)."""
-    from ndp.experiments.archive import pack
+def _pack(jobs: Any, out: Path, unfinished: bool = False) -> None:
+    """Write the finished runs of ``jobs`` to the archive ``out`` (``--pack``), and with
+    ``unfinished`` those that have a checkpoint to resume from (``--pack-unfinished``)."""
+    from ndp.experiments.archive import CHECKPOINT, pack
     from ndp.experiments.study import is_finished
 
-    done = [j.run_dir for j in jobs if j.run_dir.is_dir() and is_finished(j.run_dir, j.arm)]
-    names = pack(done, out)
-    print(f"pack: {len(done)} finished runs of this sweep written to {out} "
+    done, partial = [], []
+    for j in jobs:
+        if not j.run_dir.is_dir():
+            continue
+        if is_finished(j.run_dir, j.arm):
+            done.append(j.run_dir)
+        elif unfinished and (j.run_dir / CHECKPOINT).is_file():
+            partial.append(j.run_dir)
+    names = pack(done, out, unfinished=partial)
+    more = f" and {len(partial)} unfinished ones with their checkpoint" if unfinished else ""
+    print(f"pack: {len(done)} finished runs of this sweep{more} written to {out} "
           f"({len(names)} runs in the archive)", flush=True)  # fmt: skip
 
 
@@ -303,6 +318,8 @@ def sweep_command(argv: list[str]) -> int:
         raise ValueError(f"--jobs: expected an integer >= 1, got {args.jobs}")
     if args.retries < 0:
         raise ValueError(f"--retries: expected an integer >= 0, got {args.retries}")
+    if args.pack_unfinished and args.pack is None:
+        raise ValueError("--pack-unfinished: only with --pack ARCHIVE")
     if args.address and args.backend != "ray":
         raise ValueError("--address: only with --backend ray")
     g = build_grid(args, extra)
@@ -329,14 +346,16 @@ def sweep_command(argv: list[str]) -> int:
         from ndp.experiments.archive import unpack
 
         restored, kept = unpack(args.unpack, runs_dir)
-        print(f"unpack: {len(restored)} finished runs restored from {args.unpack} into "
-              f"{runs_dir}; {len(kept)} already there, left as they are", flush=True)  # fmt: skip
+        partial = sum(not (runs_dir / n / "done.json").is_file() for n in restored)
+        print(f"unpack: {len(restored)} runs restored from {args.unpack} into {runs_dir} "
+              f"({partial} unfinished, to resume from their checkpoint); {len(kept)} already "
+              "there, left as they are", flush=True)  # fmt: skip
     check_plan(jobs)
     if args.dry_run:
         print(f"{g['name']}: {len(jobs)} runs in {runs_dir} (dry run: nothing started)")
         print("\n".join(plan_lines(jobs)))
         if args.pack is not None:
-            _pack(jobs, args.pack)
+            _pack(jobs, args.pack, args.pack_unfinished)
         return 0
     result = run_sweep(
         jobs,
@@ -348,7 +367,7 @@ def sweep_command(argv: list[str]) -> int:
         progress_every=args.progress_every,
     )
     if args.pack is not None:
-        _pack(jobs, args.pack)
+        _pack(jobs, args.pack, args.pack_unfinished)
     if args.report is not None and not result.interrupted:
         from ndp.experiments.report import report
         from ndp.experiments.studies import get_study

@@ -236,3 +236,15 @@ def test_task_options_reach_every_env_of_the_run_and_its_evaluation(tmp_path):
     back = TrainConfig.from_dict(old)
     assert (back.goals, back.reward_version) == ("random", "v2")
     assert back.env_options() == {"reward_version": "v2"}
+
+
+def test_ndp_head_options_given_to_a_method_without_it_are_named():
+    from ndp.rl.config import unused_head_options
+
+    head = NDPHeadConfig(n_basis=3, forcing="goal")
+    ppo = TrainConfig(task="point-mass", algo="ppo", policy=PolicyConfig(ndp=head))
+    assert unused_head_options(ppo) == ["n_basis=3", "forcing='goal'"]
+    assert unused_head_options(dataclasses.replace(ppo, algo="ndp")) == []
+    assert unused_head_options(TrainConfig(task="point-mass", algo="ppo-multi")) == []
+    # still accepted, and cleared from what the run records
+    assert resolve_config(ppo).policy.ndp.n_basis is None

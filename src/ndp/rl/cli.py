@@ -126,7 +126,7 @@ def add_subparser(sub: Any) -> None:
 
 def train_command(argv: list[str]) -> int:
     """``ndp rl train [--resume RUN_DIR | --overwrite] [options of TrainConfig]``."""
-    from ndp.rl.config import SAFE_ON_RESUME, load_config
+    from ndp.rl.config import SAFE_ON_RESUME, load_config, unused_head_options
     from ndp.runs import RunDir
     from ndp.runs.cli import changed_fields, parse_config, pop_flag, pop_option
     from ndp.runs.signals import report_stop, stop_on_sigterm
@@ -169,6 +169,10 @@ def train_command(argv: list[str]) -> int:
             else:
                 cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description())
                 run_name = cfg.run_dir or f"runs/{cfg.task}-{cfg.algo}-s{cfg.seed}"
+                unused = unused_head_options(cfg)
+                if unused:
+                    print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "
+                          f"--algo {cfg.algo} does not run; not used", file=sys.stderr)  # fmt: skip
                 metrics = trainer().train(cfg, overwrite=overwrite)
     except FloatingPointError as exc:  # ndp.rl.trainer.TrainingDivergedError
         print(f"ndp: error: {exc}", file=sys.stderr)

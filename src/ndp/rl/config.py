@@ -381,6 +381,25 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir)
 
 
+def unused_head_options(cfg: TrainConfig) -> list[str]:
+    """The NDP head's fields set away from their defaults for a method whose head has no DMP
+    (``--algo ppo --n-basis 3``): ``["n_basis=3", ...]``, empty when none or when the method runs
+    the NDP head. Such options are accepted and cleared (a sweep's ``-o`` overrides span every
+    arm); ``ndp rl train`` names them in a note so that they are not dropped silently."""
+    from ndp.policies.config import NDPHeadConfig
+    from ndp.rl.methods import METHODS
+
+    method = METHODS.get(cfg.algo)
+    if method is None or method.head == "ndp":
+        return []
+    default = NDPHeadConfig()
+    return [
+        f"{f.name}={getattr(cfg.policy.ndp, f.name)!r}"
+        for f in dataclasses.fields(NDPHeadConfig)
+        if getattr(cfg.policy.ndp, f.name) != getattr(default, f.name)
+    ]
+
+
 def load_config(path: Path) -> TrainConfig:
     """Read a run's ``config.json`` (written by the trainer through :class:`ndp.runs.RunDir`)."""
     path = Path(path)

@@ -25,6 +25,11 @@ DMP_STATES = ("commanded", "measured")
 """Where the NDP DMP starts: the commanded target (mocap, joint targets) or the measured robot."""
 
 
+PRESET_FIELDS = ("n_basis", "a_z", "dmp_steps", "goal_scale", "weight_scale")
+"""The NDP head's fields whose ``None`` means "the task's preset" (``ndp.rl.methods.resolve_ndp``
+fills them; a head without a DMP has them cleared)."""
+
+
 @dataclass(frozen=True)
 class NDPHeadConfig:
     """The NDP head's settings (``PolicyConfig.ndp``; only the 'ndp' head reads them).
@@ -97,8 +102,7 @@ class NDPHeadConfig:
     @property
     def resolved(self) -> bool:
         """Whether every preset field is set (no ``None`` left)."""
-        return None not in (self.n_basis, self.a_z, self.dmp_steps, self.goal_scale,
-                            self.weight_scale)  # fmt: skip
+        return all(getattr(self, name) is not None for name in PRESET_FIELDS)
 
     def dmp_config(self, k: int) -> DMPConfig:
         """The DMP of one decision of ``k`` sub-steps (a resolved config only).

@@ -384,7 +384,7 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
 def unused_head_options(cfg: TrainConfig) -> list[str]:
     """The NDP head's fields set away from their defaults for a method whose head has no DMP
     (``--algo ppo --n-basis 3``): ``["n_basis=3", ...]``, empty when none or when the method runs
-    the NDP head. Such options are accepted and cleared (a sweep's ``-o`` overrides span every
+    the NDP head. Such options are accepted and not used (a sweep's ``-o`` overrides span every
     arm); ``ndp rl train`` names them in a note so that they are not dropped silently."""
     from ndp.policies.config import NDPHeadConfig
     from ndp.rl.methods import METHODS

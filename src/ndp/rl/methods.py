@@ -24,12 +24,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-_NDP_FIELDS = ("n_basis", "a_z", "dmp_steps", "goal_scale", "weight_scale")
+from ndp.policies.config import PRESET_FIELDS
 
 
 def no_dmp(policy: Any, spec: Any) -> dict[str, Any]:
     """Resolution of heads without a DMP: the NDP head's preset fields are cleared."""
-    return {**dict.fromkeys(_NDP_FIELDS), "param_noise": False}
+    return {**dict.fromkeys(PRESET_FIELDS), "param_noise": False}
 
 
 def resolve_ndp(policy: Any, spec: Any) -> dict[str, Any]:

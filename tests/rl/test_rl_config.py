@@ -248,3 +248,28 @@ def test_ndp_head_options_given_to_a_method_without_it_are_named():
     assert unused_head_options(TrainConfig(task="point-mass", algo="ppo-multi")) == []
     # still accepted, and cleared from what the run records
     assert resolve_config(ppo).policy.ndp.n_basis is None
+
+
+def test_every_evaluation_starts_at_one_seed():
+    """ndp rl eval / render, the Python API, the smoothness study and the report's cache share
+    ``EVAL_SEED`` (one constant, not a literal per module)."""
+    import inspect
+
+    from ndp.cli import build_parser
+    from ndp.experiments import smoothness
+    from ndp.rl import evaluate as ev
+    from ndp.rl.config import EVAL_SEED
+
+    for fn in (
+        ev.evaluate,
+        ev.evaluate_policy,
+        ev.render,
+        smoothness.rollout_paths,
+        smoothness.run_smoothness,
+        smoothness.smoothness_of_runs,
+    ):
+        assert inspect.signature(fn).parameters["seed"].default == EVAL_SEED, fn.__name__
+    parser = build_parser()
+    for command in ("eval", "render"):
+        args = parser.parse_args(["rl", command, "RUN"])
+        assert args.seed == EVAL_SEED, command

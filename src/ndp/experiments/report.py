@@ -53,6 +53,7 @@ from ndp.experiments.study import final_success, is_finished, smooth, success_ar
 from ndp.il.config import data_task_name
 from ndp.io import atomic_write_text
 from ndp.provenance import git_commit
+from ndp.rl.config import EVAL_SEED
 from ndp.runs import metrics_path, read_metrics, run_commits
 from ndp.runs.session import Manifest, read_manifest
 
@@ -302,7 +303,8 @@ def bc_numbers(info: RunInfo) -> dict[str, Any]:
 
 
 DET_EVAL_FILE = "eval-det-e{episodes}.json"
-"""Per-run cache of the report's deterministic evaluation (``ndp rl eval``, seeds 10,000 on)."""
+"""Per-run cache of the report's deterministic evaluation (``ndp rl eval``, episode seeds from
+``ndp.rl.config.EVAL_SEED``)."""
 
 
 def det_success(path: Path, episodes: int, compute: bool = True) -> float:
@@ -649,7 +651,7 @@ def _markdown(
             "live return: `charts/episode_return_live` over the last 10% of updates."
             + (
                 f" Deterministic: success (any step) of the trained policy's mode over "
-                f"{eval_episodes} fresh episodes per run (`ndp rl eval`, seeds from 10,000; "
+                f"{eval_episodes} fresh episodes per run (`ndp rl eval`, seeds from {EVAL_SEED:,}; "
                 "Stable-Baselines3 runs: their own evaluation at the end of training, the same "
                 "seeds, `ndp.experiments.sb3_ppo`)."
                 if eval_episodes

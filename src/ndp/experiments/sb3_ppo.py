@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from ndp.io import atomic_write_text
+from ndp.rl.config import EVAL_SEED, PPOConfig
 from ndp.runs import MetricsLogger
 from ndp.runs.session import Manifest, RunSession
 
@@ -61,9 +62,6 @@ SB3_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi")
 """The methods this module trains (the ``sb3`` run kind's arms)."""
 SB3_K = 5
 """Env steps per decision of ``sb3-ndp`` and ``sb3-multi`` unless ``--k`` says otherwise."""
-EVAL_SEED = 10_000
-"""Reset seed of the first deterministic evaluation episode (as ``ndp report``'s)."""
-
 FIELDS = (
     "update",
     "global_step",
@@ -110,8 +108,6 @@ def make_sb3_ppo(venv: Any, seed: int, num_envs: int) -> Any:
     """SB3 PPO with the supplement's settings (``PPOConfig`` defaults) on a normalised venv."""
     import torch
     from stable_baselines3 import PPO
-
-    from ndp.rl.config import PPOConfig
 
     p = PPOConfig()
     n_steps = p.steps_per_update // num_envs
@@ -212,8 +208,8 @@ def _env_maker(cfg: SB3RunConfig) -> Callable[[], Any]:
 
 def evaluate_sb3(model: Any, venv: Any, make: Callable[[], Any], episodes: int) -> dict[str, Any]:
     """The deterministic policy over ``episodes`` fresh episodes (reset seeds from
-    :data:`EVAL_SEED`), observations normalised by ``venv``'s frozen statistics: success at any
-    step (the mean of the per-episode flags) and the mean raw return."""
+    :data:`ndp.rl.config.EVAL_SEED`), observations normalised by ``venv``'s frozen statistics:
+    success at any step (the mean of the per-episode flags) and the mean raw return."""
     venv.training = False
     env = make()
     succ, rets = [], []
@@ -268,8 +264,6 @@ def train_sb3(
     import torch
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
-    from ndp.rl.config import PPOConfig
 
     torch.set_num_threads(1)
     run_dir = Path(run_dir)

@@ -26,8 +26,10 @@ from typing import Any
 import numpy as np
 
 import ndp
+from ndp.experiments.report import find_run_dirs, run_info
 from ndp.experiments.run_kinds import run_kind
 from ndp.io import atomic_write_text
+from ndp.rl.config import EVAL_SEED
 
 
 def mean_squared_jerk(path: np.ndarray, dt: float) -> float:
@@ -98,7 +100,7 @@ def path_smoothness(path: np.ndarray, dt: float) -> dict[str, float]:
 
 
 def rollout_paths(
-    run: str | Path, episodes: int, seed: int = 10_000, deterministic: bool = True
+    run: str | Path, episodes: int, seed: int = EVAL_SEED, deterministic: bool = True
 ) -> tuple[list[np.ndarray], list[float], float]:
     """Executed robot paths of a trained run in its own (chunked) env.
 
@@ -130,7 +132,7 @@ def rollout_paths(
 
 
 def run_smoothness(
-    run: str | Path, episodes: int = 10, seed: int = 10_000, dofs: slice | None = None
+    run: str | Path, episodes: int = 10, seed: int = EVAL_SEED, dofs: slice | None = None
 ) -> dict[str, Any]:
     """Success, mean squared jerk and SPARC of a run's executed paths, means over episodes.
 
@@ -162,7 +164,7 @@ SMOOTHNESS_FILE = "smoothness-e{episodes}-s{seed}.json"
 def smoothness_of_runs(
     paths: Sequence[str | Path],
     episodes: int = 20,
-    seed: int = 10_000,
+    seed: int = EVAL_SEED,
     tasks: Sequence[str] | None = None,
     methods: Sequence[str] | None = None,
     seeds: Sequence[int] | None = None,
@@ -179,8 +181,6 @@ def smoothness_of_runs(
         "dt", "episodes"}``, ordered by task, method, seed.
     """
     import json
-
-    from ndp.experiments.report import find_run_dirs, run_info
 
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")

@@ -17,7 +17,7 @@ import json
 import sys
 from typing import Any
 
-from ndp.rl.config import TrainConfig
+from ndp.rl.config import EVAL_SEED, TrainConfig
 
 TRAIN_NOTES = (
     "Unset NDP fields come "
@@ -64,7 +64,7 @@ def add_subparser(sub: Any) -> None:
     ev = rl_sub.add_parser("eval", help="success of a trained run over N episodes")
     ev.add_argument("run_dir", metavar="RUN_DIR")
     ev.add_argument("--episodes", type=int, default=10, help="episodes per mode (default 10)")
-    ev.add_argument("--seed", type=int, default=10_000, help="first episode seed")
+    ev.add_argument("--seed", type=int, default=EVAL_SEED, help="first episode seed")
     ev.add_argument(
         "--mode",
         choices=("both", "deterministic", "stochastic"),
@@ -105,7 +105,7 @@ def add_subparser(sub: Any) -> None:
     rd.add_argument("run_dir", metavar="RUN_DIR")
     rd.add_argument("--out", default=None, help="mp4 path (default RUN_DIR/video.mp4)")
     rd.add_argument("--episodes", type=int, default=1, help="episodes to record (default 1)")
-    rd.add_argument("--seed", type=int, default=10_000, help="first episode seed")
+    rd.add_argument("--seed", type=int, default=EVAL_SEED, help="first episode seed")
     rd.add_argument("--stochastic", action="store_true", help="sample actions (default: mean)")
     rd.add_argument(
         "--compare",

@@ -28,6 +28,12 @@ from typing import Any
 from ndp.checks import plain_numbers
 from ndp.policies.config import PolicyConfig
 
+EVAL_SEED = 10_000
+"""Reset seed of the first evaluation episode (episodes ``EVAL_SEED .. EVAL_SEED + N - 1``) for
+``ndp rl eval``, ``ndp rl render``, the report's cached evaluation, the smoothness study and the
+SB3 runs. Training resets draw 32-bit seeds from ``SeedSequence([seed, epoch])``
+(:func:`ndp.rl.envs.env_seeds`), so evaluation episodes are fresh ones."""
+
 SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers", "device")
 """TrainConfig fields a resume may change: they change neither the numbers nor the history
 (``steps`` extends or shortens the budget; ``device`` moves the update, which changes float

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ndp.envs.render import check_output_path, write_mp4
+from ndp.rl.config import EVAL_SEED
 from ndp.rl.envs import FrameRecorder
 from ndp.rl.exec_k import exec_k_values
 from ndp.rl.policy import Policy, load_policy
@@ -47,7 +48,7 @@ def evaluate(
     run_dir: str | Path,
     episodes: int = 10,
     deterministic: bool = True,
-    seed: int = 10_000,
+    seed: int = EVAL_SEED,
     exec_k: int | None = None,
 ) -> dict[str, Any]:
     """Success of a trained policy over ``episodes`` fresh episodes.
@@ -75,7 +76,7 @@ def evaluate(
 
 
 def evaluate_policy(
-    pol: Policy, episodes: int = 10, deterministic: bool = True, seed: int = 10_000
+    pol: Policy, episodes: int = 10, deterministic: bool = True, seed: int = EVAL_SEED
 ) -> dict[str, Any]:
     """:func:`evaluate` of a loaded policy (or its ``at_exec_k`` copy) in ``pol.make_env()``."""
     _check_episodes(episodes, seed)
@@ -145,7 +146,7 @@ def render(
     out: str | Path | None = None,
     episodes: int = 1,
     deterministic: bool = True,
-    seed: int = 10_000,
+    seed: int = EVAL_SEED,
     compare: str | Path | None = None,
     exec_k: int | None = None,
 ) -> dict[str, Any]:
@@ -227,7 +228,7 @@ def exec_k_table(
     run_dirs: Sequence[str | Path],
     values: Sequence[int] | None = None,
     episodes: int = 20,
-    seed: int = 10_000,
+    seed: int = EVAL_SEED,
     deterministic: bool = True,
     every: bool = False,
     ndp_hold: bool = False,

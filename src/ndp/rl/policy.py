@@ -59,7 +59,7 @@ from ndp.policies import ActorCritic, build_actor_critic
 from ndp.policies.task import PolicySpec, check_record, spec_record
 from ndp.provenance import git_commit, installed_versions
 from ndp.rl.card import model_card
-from ndp.rl.config import TrainConfig, load_config
+from ndp.rl.config import EVAL_SEED, TrainConfig, load_config
 from ndp.rl.exec_k import at_exec_k
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.onnx_export import write_onnx_export
@@ -574,7 +574,7 @@ def cached_evaluation(run_dir: Path) -> dict[str, Any] | None:
         "success": float(data["success_any"]),
         "episodes": n,
         "deterministic": True,
-        "first_seed": 10_000,
+        "first_seed": EVAL_SEED,
         "success_final": data.get("success_final"),
         "episode_return": data.get("episode_return"),
         "command": f"ndp report (its cached evaluation of the run, eval-det-e{n}.json)",

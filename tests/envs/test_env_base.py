@@ -49,6 +49,50 @@ def test_bad_horizon_names_the_argument(family, horizon):
 
 
 @pytest.mark.parametrize("family", list(CLASSES))
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [
+        ("width", 0),
+        ("height", -5),
+        ("width", 4097),
+        ("height", 64.0),
+        ("width", "64"),
+        ("width", True),
+    ],
+)
+def test_bad_render_size_names_the_argument(family, name, value):
+    with pytest.raises(
+        ValueError, match=rf"^{name}: expected an integer from 1 to 4096 \(px\), got "
+    ):
+        CLASSES[family](render_mode="rgb_array", **{name: value})
+
+
+@pytest.mark.parametrize("family", list(CLASSES))
+@pytest.mark.parametrize(("width", "height"), [(40, 30), (800, 600)])
+def test_every_family_renders_at_the_size_asked(family, width, height):
+    # 800 x 600 is larger than the Jaco scene's 640 x 480 offscreen framebuffer, which the env
+    # grows to fit
+    env = CLASSES[family](render_mode="rgb_array", width=width, height=height)
+    env.reset(seed=0)
+    frame = env.render()
+    env.close()
+    assert frame.shape == (height, width, 3) and frame.dtype == np.uint8
+    assert frame.min() < frame.max()  # something drawn, not a blank buffer
+
+
+def test_point_mass_view_scales_with_the_frame():
+    small = PointMassEnv(render_mode="rgb_array")
+    big = PointMassEnv(render_mode="rgb_array", width=192, height=96)
+    small.reset(seed=3), big.reset(seed=3)
+    a, b = small.render(), big.render()
+    assert a.shape == (96, 96, 3) and b.shape == (96, 192, 3)
+    # the goal marker (green) sits at the same relative place, in x stretched twice as far
+    ga = np.argwhere((a == (0, 160, 0)).all(-1)).mean(0)
+    gb = np.argwhere((b == (0, 160, 0)).all(-1)).mean(0)
+    assert abs(ga[0] - gb[0]) <= 1 and abs(2 * ga[1] - gb[1]) <= 3
+
+
+@pytest.mark.parametrize("family", list(CLASSES))
 def test_good_arguments_are_stored(family):
     env = CLASSES[family](horizon=7, render_mode="rgb_array")
     assert env.horizon == 7 and env.render_mode == "rgb_array"

@@ -82,7 +82,10 @@ def test_side_by_side_render_of_two_runs(tmp_path):
     import imageio.v3 as iio
 
     frame = iio.imread(tmp_path / "both.mp4", index=0)
-    assert frame.shape[1] >= 2 * 96  # two 96-pixel views next to each other
+    assert frame.shape[:2] == (96, 2 * 96 + 4)  # two 96-pixel views, a 4-pixel gap between
+    small = render(runs[0], tmp_path / "small.mp4", compare=runs[1], width=64, height=48)
+    assert (small["width"], small["height"]) == (64, 48)  # each run's frame
+    assert iio.imread(tmp_path / "small.mp4", index=0).shape[:2] == (48, 2 * 64 + 4)
 
 
 def test_smoothness_study_over_runs_caches_filters_and_writes_the_table(tmp_path, monkeypatch):

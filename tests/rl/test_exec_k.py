@@ -332,14 +332,22 @@ def test_render_at_exec_k_records_the_finer_steps(tmp_path, capsys):
                  "--horizon", "20", "--vector", "sync", "--run-dir", str(run), "--no-progress",
                  "--no-tensorboard"]) == 0  # fmt: skip
     capsys.readouterr()
-    assert main(["rl", "render", str(run), "--out", str(tmp_path / "a.mp4")]) == 0
+    small = ["--width", "96", "--height", "72"]  # the frames' content is not what is tested
+    assert main(["rl", "render", str(run), "--out", str(tmp_path / "a.mp4"), *small]) == 0
     coarse = json.loads(capsys.readouterr().out)
-    assert main(["rl", "render", str(run), "--out", str(tmp_path / "b.mp4"), "--exec-k", "50"]) == 0
+    assert main(["rl", "render", str(run), "--out", str(tmp_path / "b.mp4"), "--exec-k", "50",
+                 *small]) == 0  # fmt: skip
     fine = json.loads(capsys.readouterr().out)
+    assert (fine["width"], fine["height"]) == (96, 72)
     # 20 trained env steps of 0.02 s (50 Hz: every frame) vs 200 steps of 0.002 s (500 Hz:
     # every 9th frame at 56 fps): the same 0.4 s of motion in both videos
     assert (coarse["exec_k"], coarse["fps"], fine["exec_k"], fine["fps"]) == (5, 50, 50, 56)
     assert abs(coarse["frames"] / coarse["fps"] - fine["frames"] / fine["fps"]) < 0.05
-    assert len(iio.imread(tmp_path / "b.mp4")) == fine["frames"]
+    video = iio.imread(tmp_path / "b.mp4")
+    assert video.shape[:3] == (fine["frames"], 72, 96)
+    # a bad size is refused before anything is loaded or written
+    assert main(["rl", "render", str(run), "--out", str(tmp_path / "d.mp4"), "--width", "0"]) == 2
+    assert "width: expected an integer from 1 to 4096" in capsys.readouterr().err
+    assert not (tmp_path / "d.mp4").exists()
     assert main(["rl", "render", str(run), "--out", str(tmp_path / "c.mp4"), "--exec-k", "7"]) == 2
     assert "exec_k" in capsys.readouterr().err and not (tmp_path / "c.mp4").exists()

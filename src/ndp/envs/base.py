@@ -1,7 +1,7 @@
 """What every env family of the package shares, written once (:class:`NDPEnv`).
 
-- Argument checks: ``render_mode`` against ``metadata["render_modes"]`` and a positive
-  ``horizon`` (one-line ``ValueError`` naming the argument).
+- Argument checks: ``render_mode`` against ``metadata["render_modes"]``, a positive
+  ``horizon`` and the rendered frame size (one-line ``ValueError`` naming the argument).
 - Deferred seeding: :meth:`NDPEnv.seed_next_reset` stores a seed that the next ``reset()``
   without a seed uses (``make_env(..., seed=...)``); :func:`defer_seed` is the factories' half
   (also seeds the action space's sampler).
@@ -47,6 +47,27 @@ def check_render_mode(render_mode: str | None, modes: list[str] | tuple[str, ...
     if render_mode is not None and render_mode not in modes:
         allowed = " or ".join(["None", *(repr(m) for m in modes)])
         raise ValueError(f"render_mode: expected {allowed}, got {render_mode!r}")
+
+
+MAX_RENDER_SIZE = 4096
+"""Largest rendered frame side (px) the envs accept."""
+
+
+def check_render_size(name: str, value: Any) -> int:
+    """``int(value)`` if it is an integer frame side in ``[1, MAX_RENDER_SIZE]`` px.
+
+    Raises:
+        ValueError: ``width: expected an integer from 1 to 4096 (px), got 0``.
+    """
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or not 1 <= int(value) <= MAX_RENDER_SIZE
+    ):
+        raise ValueError(
+            f"{name}: expected an integer from 1 to {MAX_RENDER_SIZE} (px), got {value!r}"
+        )
+    return int(value)
 
 
 def check_horizon(horizon: Any) -> int:

@@ -33,7 +33,13 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils.ezpickle import EzPickle
 
-from ndp.envs.base import NDPEnv, check_substeps, sim_unstable, warning_count
+from ndp.envs.base import (
+    NDPEnv,
+    check_render_size,
+    check_substeps,
+    sim_unstable,
+    warning_count,
+)
 
 SIM_DT = 0.002
 """MuJoCo timestep (s)."""
@@ -252,8 +258,13 @@ class JacoEnv(NDPEnv, EzPickle):
         self._setup(horizon, render_mode, action_dim=self._action_dim())
         self._set_fixed_goal(fixed_goal)
         self.task = task
-        self.width, self.height, self.camera = int(width), int(height), camera
+        self.width = check_render_size("width", width)
+        self.height = check_render_size("height", height)
+        self.camera = camera
         self.model = self._build_model()
+        # the scene's offscreen framebuffer (640 x 480) grown to fit a larger frame
+        vis = self.model.vis.global_
+        vis.offwidth, vis.offheight = max(vis.offwidth, self.width), max(vis.offheight, self.height)
         self.data = mujoco.MjData(self.model)
         m = self.model
         self._arm_q = np.array([m.joint(j).qposadr[0] for j in ARM_JOINTS])

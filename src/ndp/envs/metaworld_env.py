@@ -25,7 +25,13 @@ import mujoco
 import numpy as np
 from gymnasium.utils.ezpickle import EzPickle
 
-from ndp.envs.base import NDPEnv, check_substeps, sim_unstable, warning_count
+from ndp.envs.base import (
+    NDPEnv,
+    check_render_size,
+    check_substeps,
+    sim_unstable,
+    warning_count,
+)
 
 REWARD_VERSIONS = ("v1", "v2")
 """Meta-World's reward functions: ``"v2"`` (metaworld's default, the one every study uses by
@@ -239,6 +245,7 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         self._setup(horizon, render_mode, action_dim=self._action_dim())
         self._set_fixed_goal(fixed_goal)
         self.task = task
+        width, height = check_render_size("width", width), check_render_size("height", height)
         env = self._task_class(ALL_V3_ENVIRONMENTS[task])(
             render_mode=render_mode, camera_name=camera_name, width=width, height=height
         )

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from ndp.envs.base import NDPEnv, defer_seed
+from ndp.envs.base import NDPEnv, check_render_size, defer_seed
 
 ACTION_SCALE = 0.05
 """Displacement (m) per env step for an action of 1."""
@@ -66,6 +66,8 @@ class PointMassEnv(NDPEnv):
         terminate_on_success: bool = False,
         render_mode: str | None = None,
         fixed_goal: int | None = None,
+        width: int = 96,
+        height: int = 96,
     ) -> None:
         """Create the env.
 
@@ -73,13 +75,18 @@ class PointMassEnv(NDPEnv):
             dim: 2 or 3.
             horizon: env steps per episode (truncation).
             terminate_on_success: end the episode (terminated) when the goal is reached.
-            render_mode: ``None`` or ``"rgb_array"`` (a 96 x 96 top view).
+            render_mode: ``None`` or ``"rgb_array"`` (a top view of the box, ``width`` x
+                ``height`` px).
             fixed_goal: None (a fresh seeded start and goal every reset) or the seed of the one
                 start and goal every reset uses.
+            width: Rendered frame width (px).
+            height: Rendered frame height (px).
         """
         if dim not in (2, 3):
             raise ValueError(f"dim: expected 2 or 3, got {dim!r}")
         self._setup(horizon, render_mode, action_dim=int(dim))
+        self.width = check_render_size("width", width)
+        self.height = check_render_size("height", height)
         self._set_fixed_goal(fixed_goal)
         self.dim = int(dim)
         self.terminate_on_success = bool(terminate_on_success)
@@ -155,19 +162,22 @@ class PointMassEnv(NDPEnv):
         return self._obs(), -self._dist(), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
-        """A 96 x 96 RGB top view (goal green, point red), or ``None`` without render_mode."""
+        """A ``height`` x ``width`` RGB top view of the box [-1, 1]^2 (x to the right, y down;
+        goal green, point red), or ``None`` without render_mode."""
         if self.render_mode != "rgb_array":
             return None
-        size = 96
-        img = np.full((size, size, 3), 255, dtype=np.uint8)
+        w, h = self.width, self.height
+        img = np.full((h, w, 3), 255, dtype=np.uint8)
+        half = max(1, round(min(w, h) / 48))  # a 5 px marker at the default 96 x 96
 
         def _px(p: np.ndarray) -> tuple[int, int]:
-            xy = np.clip((p[:2] + 1.0) / 2.0 * (size - 1), 0, size - 1)
-            return round(float(xy[1])), round(float(xy[0]))
+            c = np.clip((p[0] + 1.0) / 2.0 * (w - 1), 0, w - 1)
+            r = np.clip((p[1] + 1.0) / 2.0 * (h - 1), 0, h - 1)
+            return round(float(r)), round(float(c))
 
         for p, colour in ((self._goal, (0, 160, 0)), (self._pos, (220, 0, 0))):
             r, c = _px(p)
-            img[max(r - 2, 0) : r + 3, max(c - 2, 0) : c + 3] = colour
+            img[max(r - half, 0) : r + half + 1, max(c - half, 0) : c + half + 1] = colour
         return img
 
 

@@ -121,6 +121,21 @@ def add_subparser(sub: Any) -> None:
         help="render each decision as K2 sub-steps of the same duration (as ndp rl eval "
         "--exec-k; with --compare, both runs); default: as trained",
     )
+    rd.add_argument(
+        "--width",
+        type=int,
+        default=None,
+        metavar="PX",
+        help="frame width in px (default: the env's, 480 for the robots; with --compare, "
+        "each run's)",
+    )
+    rd.add_argument(
+        "--height",
+        type=int,
+        default=None,
+        metavar="PX",
+        help="frame height in px (default: the env's, 480 for the robots)",
+    )
     rd.set_defaults(func=_cmd_render)
 
 
@@ -231,6 +246,8 @@ def _cmd_render(args: argparse.Namespace) -> int:
         args.seed,
         args.compare,
         args.exec_k,
+        width=args.width,
+        height=args.height,
     )
     print(json.dumps(out))
     return 0

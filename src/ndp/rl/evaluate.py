@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ndp.envs.base import check_render_size
 from ndp.envs.render import check_output_path, write_mp4
 from ndp.rl.config import EVAL_SEED
 from ndp.rl.envs import FrameRecorder
@@ -100,9 +101,11 @@ def _record(
     deterministic: bool,
     seed: int,
     exec_k: int | None = None,
+    render_size: tuple[int | None, int | None] | None = None,
 ) -> tuple[list[np.ndarray], list[dict[str, Any]], Any]:
-    """Frames (every env step) and episode rows of a run's policy (at ``exec_k`` sub-steps per
-    decision where given: ``Policy.at_exec_k``), and the policy."""
+    """Frames (every env step, ``render_size`` = (width, height) px where given) and episode
+    rows of a run's policy (at ``exec_k`` sub-steps per decision where given:
+    ``Policy.at_exec_k``), and the policy."""
     _check_episodes(episodes, seed)
     pol = load_policy(run_dir)
     if exec_k is not None:
@@ -113,7 +116,7 @@ def _record(
         recorders.append(FrameRecorder(base))
         return recorders[-1]
 
-    env = pol.make_env(render_mode="rgb_array", wrap=record)
+    env = pol.make_env(render_mode="rgb_array", wrap=record, render_size=render_size)
     try:
         rows = [_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
     finally:
@@ -149,6 +152,8 @@ def render(
     seed: int = EVAL_SEED,
     compare: str | Path | None = None,
     exec_k: int | None = None,
+    width: int | None = None,
+    height: int | None = None,
 ) -> dict[str, Any]:
     """Render ``episodes`` episodes of a trained policy to one mp4 (every env step is a frame;
     in real time, at most 60 frames per second: finer steps are subsampled).
@@ -163,9 +168,13 @@ def render(
             first (e.g. NDP vs PPO-multi, the supplement's videos).
         exec_k: run each decision as this many sub-steps of the same duration (``ndp rl eval
             --exec-k``; both runs with ``compare``); None: as trained.
+        width: frame width in px (each run's, with ``compare``); None: the env's own (480
+            for the robots, 96 for the point mass).
+        height: frame height in px; None: the env's own.
 
     Returns:
-        ``{"path", "frames", "success_any", ...}`` (``success_any_compare`` with ``compare``).
+        ``{"path", "frames", "width", "height", "success_any", ...}``
+        (``success_any_compare`` with ``compare``; width and height of one run's frames).
     """
     import os
 
@@ -173,6 +182,9 @@ def render(
 
     target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
     check_output_path(target)  # before rendering anything
+    for name, side in (("width", width), ("height", height)):
+        if side is not None:
+            check_render_size(name, side)  # before loading or rendering anything
     if compare is not None:
         other = load_policy(compare)
         mine = load_policy(run_dir)
@@ -180,23 +192,28 @@ def render(
             raise ValueError(
                 f"compare: {compare} is a {other.cfg.task} run, {run_dir} a {mine.cfg.task} run"
             )
-    frames, rows, pol = _record(run_dir, episodes, deterministic, seed, exec_k)
+    size = (width, height)
+    frames, rows, pol = _record(run_dir, episodes, deterministic, seed, exec_k, size)
     result: dict[str, Any] = {}
     if compare is not None:
-        frames_b, rows_b, pol_b = _record(compare, episodes, deterministic, seed, exec_k)
+        frames_b, rows_b, pol_b = _record(compare, episodes, deterministic, seed, exec_k, size)
         if pol_b.substeps != pol.substeps:
             raise ValueError(
                 f"compare: exec_k={exec_k} runs {compare} at {pol_b.substeps} env steps per "
                 f"trained one and {run_dir} at {pol.substeps}; the videos would not line up"
             )
-        frames = side_by_side(frames, frames_b)
         result["success_any_compare"] = float(np.mean([r["success_any"] for r in rows_b]))
+    frame_h, frame_w = frames[0].shape[:2]  # one run's frame (before side_by_side)
+    if compare is not None:
+        frames = side_by_side(frames, frames_b)
     stride, fps = video_rate(float(pol.spec.control_dt))  # the finer row at exec_k
     frames = frames[::stride]
     write_mp4(frames, target, fps=fps)
     return {
         "path": str(target),
         "frames": len(frames),
+        "width": int(frame_w),
+        "height": int(frame_h),
         "success_any": float(np.mean([r["success_any"] for r in rows])),
         "exec_k": pol.exec_k,
         "fps": fps,

@@ -270,11 +270,13 @@ class Policy:
         render_mode: str | None = None,
         horizon: int | None = None,
         wrap: Callable[[Any], Any] | None = None,
+        render_size: tuple[int | None, int | None] | None = None,
     ) -> Any:
         """The chunked env this policy was trained for (its k, stale-world rule, horizon).
 
         ``wrap``: applied to the task env before it is chunked (e.g. a frame recorder that sees
-        every env step).
+        every env step). ``render_size``: ``(width, height)`` of rendered frames (px; None, or a
+        None side: the env's own, 480 x 480 for the robots).
 
         For an :meth:`at_exec_k` copy: the finer env (``substeps`` env steps per trained one,
         ``exec_k`` per decision) with ``horizon * substeps`` env steps (``horizon`` and the
@@ -295,6 +297,9 @@ class Policy:
         h = horizon if horizon is not None else self.cfg.horizon
         m = self.substeps
         kw: dict[str, Any] = {} if m == 1 else {"substeps": m}
+        for name, side in zip(("width", "height"), render_size or (None, None), strict=True):
+            if side is not None:
+                kw[name] = side
         base = resolve_task(self.cfg.task, **self.cfg.env_options()).make(
             horizon=None if h is None else h * m, render_mode=render_mode, **kw
         )

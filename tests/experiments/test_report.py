@@ -302,10 +302,14 @@ def test_report_selects_each_models_learning_rate_on_validation_only(tmp_path):
             rows[-1] += ""
             (run / "metrics.csv").write_text("\n".join(rows) + "\n")
             (run / "eval.json").write_text(json.dumps({"test_mse_px2": {"mean": test[lr] + seed}}))
+            # lr 3e-3 of seed 2 reached its epoch cap (6 here; not stopped by patience)
+            capped = (lr, seed) == ("3e-3", 2)
+            reason = "budget" if capped else "early stop"
             (run / "arm.json").write_text(json.dumps({
-                "label": spec.label, "algo": spec.algo, "args": list(spec.args), "steps": 500,
-                "task": "synthetic-300", "seed": seed, "kind": "il"}))  # fmt: skip
-            (run / "done.json").write_text(json.dumps({"reason": "early stop", "epoch": 6}))
+                "label": spec.label, "algo": spec.algo, "args": list(spec.args),
+                "steps": 6 if capped else 500, "task": "synthetic-300", "seed": seed,
+                "kind": "il"}))  # fmt: skip
+            (run / "done.json").write_text(json.dumps({"reason": reason, "epoch": 6}))
     res = report([runs], tmp_path / "dc", "cmd", study="digits-converged", plots=False,
                  tasks=["synthetic-300"])  # fmt: skip
     md = (tmp_path / "dc.md").read_text()
@@ -313,6 +317,6 @@ def test_report_selects_each_models_learning_rate_on_validation_only(tmp_path):
     for model in ("ndp", "cnn", "cnn-dmp"):
         row = next(ln for ln in md.splitlines() if ln.startswith(f"| synthetic-300 | {model} |"))
         # lr 1e-3: validation 2.0 (lowest); test 5, 6, 7 -> mean 6; best epoch 3; wall 6 x 2 s
-        assert f"`{model}-lr1e-3` | 3 | 2 | 6 [" in row and "| 3 | 12 |" in row, row
-        assert f"`{model}-lr3e-3` 2.5" in row and f"`{model}-lr3e-4` 3" in row
+        assert f"`{model}-lr1e-3` | 3 | 2 | 6 [" in row and "| 3 | 3/3 | 12 |" in row, row
+        assert f"`{model}-lr3e-3` 2.5 (cap 1/3)" in row and f"`{model}-lr3e-4` 3 |" in row
     assert res["missing"] == []

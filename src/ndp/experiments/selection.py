@@ -5,7 +5,9 @@ A selection maps each model to its candidate arms (the same model at each learni
 grid, every run stopped on its validation split). Per data set and model the candidate with
 the lowest mean validation MSE over seeds is chosen (the test split plays no part in the
 choice), and its test MSE is reported: the mean over seeds with a 95% percentile-bootstrap
-interval, with the epochs to the best validation MSE and the training wall time. Below the
+interval, with the epochs to the best validation MSE, how many of its runs the patience rule
+stopped (the others reached the epoch cap with the validation MSE still improving within the
+patience window: not converged) and the training wall time. Below the
 models, the DMP's floor of the data set (:mod:`ndp.il.floor`: least-squares DMP fits to every
 test trajectory, per N) says how close any DMP-based model could get at all.
 """
@@ -47,6 +49,13 @@ def _vals(cell: Any, key: str, seeds: Sequence[int]) -> list[float]:
     return out
 
 
+def _capped(cell: Any, seeds: Sequence[int]) -> str:
+    """`` (cap k/n)`` where k of the cell's n seeds reached the epoch cap (not stopped by
+    patience), else ``""``."""
+    k = len(seeds) - int(sum(_vals(cell, "stopped_early", seeds)))
+    return f" (cap {k}/{len(seeds)})" if k else ""
+
+
 def selection_section(
     cells: Sequence[Any],
     selection: Sequence[tuple[str, tuple[str, ...]]],
@@ -70,12 +79,15 @@ def selection_section(
         "over seeds; its test MSE: mean over seeds [95% percentile-bootstrap interval]. The "
         "test split is scored once, at the end, on each run's best-validation weights. "
         "n: seeds. Epochs to best: the epoch of the lowest validation MSE (mean over seeds). "
+        "Stopped: runs that the patience rule stopped, of n; the others reached the epoch cap "
+        "still improving (not converged; an arm marked `(cap k/n)` among the other arms had k "
+        "such runs). "
         "Floor: the test MSE of least-squares DMP fits to every test trajectory (`ndp il floor`), "
         "the closest any model using that DMP could get.",
         "",
         "| data | model | chosen arm | n | validation MSE px^2 | test MSE px^2 | epochs to best | "
-        "wall s | other arms (validation MSE) |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "stopped | wall s | other arms (validation MSE) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     rows: list[dict[str, Any]] = []
     for task in tasks:
@@ -86,7 +98,7 @@ def selection_section(
                 if len(v) == len(seeds) and v:
                     cands.append((float(np.mean(v)), lb))
             if not cands:
-                md.append(f"| {task} | {model} | - | 0 | - | - | - | - | no complete arm yet |")
+                md.append(f"| {task} | {model} | - | 0 | - | - | - | - | - | no complete arm yet |")
                 continue
             best_val, lb = min(cands)
             cell = by[(task, lb)]
@@ -94,16 +106,26 @@ def selection_section(
             lo, hi = stats.bootstrap_ci(test) if test else (math.nan, math.nan)
             ep = _vals(cell, "best_epoch", seeds)
             wall = _vals(cell, "wall_s", seeds)
-            others = ", ".join(f"`{b}` {a:.3g}" for a, b in sorted(cands) if b != lb) or "-"
+            stopped = int(sum(_vals(cell, "stopped_early", seeds)))
+
+            others = (
+                ", ".join(
+                    f"`{b}` {a:.3g}{_capped(by[(task, b)], seeds)}"
+                    for a, b in sorted(cands)
+                    if b != lb
+                )
+                or "-"
+            )
             md.append(
                 f"| {task} | {model} | `{lb}` | {len(test)} | {best_val:.3g} | "
                 f"{np.mean(test):.3g} [{lo:.3g}, {hi:.3g}] | {np.mean(ep):.0f} | "
-                f"{np.mean(wall):.0f} | {others} |"
+                f"{stopped}/{len(test)} | {np.mean(wall):.0f} | {others} |"
             )
             rows.append({"task": task, "model": model, "arm": lb, "n_seeds": len(test),
                          "val_mse_px2": best_val, "test_mse_px2_mean": float(np.mean(test)),
                          "test_mse_px2_ci_low": lo, "test_mse_px2_ci_high": hi,
                          "epochs_to_best": float(np.mean(ep)),
+                         "n_stopped_by_patience": stopped,
                          "wall_s": float(np.mean(wall))})  # fmt: skip
         if floor:
             from ndp.il.floor import dmp_floor
@@ -113,7 +135,7 @@ def selection_section(
                 md.append(
                     f"| {task} | DMP floor, N = {r['n_basis']} | least-squares fit | "
                     f"{r['n_test']} test trajectories | - | {m['mean']:.3g} (median "
-                    f"{m['median']:.3g}) | - | {r['fit_s']:.0f} | - |"
+                    f"{m['median']:.3g}) | - | - | {r['fit_s']:.0f} | - |"
                 )
                 rows.append({"task": task, "model": f"dmp-floor-n{r['n_basis']}",
                              "arm": "fit_dmp", "n_seeds": 0,

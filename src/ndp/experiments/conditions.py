@@ -246,10 +246,14 @@ def _plot(rows: Sequence[dict[str, Any]], conditions: Sequence[Any], out: Path, 
         ax.grid(alpha=0.3, axis="x")
     labels = [f"{c.name}\n(UNEQUAL)" if c.unequal else c.name for c in conditions]
     axes[0][0].set_yticks(range(len(names))[::-1], labels, fontsize=8)
-    axes[0][-1].legend(fontsize=7, loc="lower right")
+    # one legend above the panels, where it cannot cover a point near 1.0
+    handles, names_ = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, names_, loc="upper center", ncol=max(1, len(methods)), fontsize=7,
+               frameon=False)  # fmt: skip
+    top = 1.0 - 0.28 / fig.get_figheight()
     lines = textwrap.wrap(foot, 170) or [""]
     fig.text(0.01, 0.005, "\n".join(lines), fontsize=5, color="0.35", ha="left", va="bottom")
-    fig.tight_layout(rect=(0, 0.02 + 0.02 * len(lines), 1, 1))
+    fig.tight_layout(rect=(0, 0.02 + 0.02 * len(lines), 1, top))
     path = out.with_name(f"{out.name}-conditions.png")
     fig.savefig(path, dpi=90)
     plt.close(fig)

@@ -313,6 +313,11 @@ def test_report_selects_each_models_learning_rate_on_validation_only(tmp_path):
     res = report([runs], tmp_path / "dc", "cmd", study="digits-converged", plots=False,
                  tasks=["synthetic-300"])  # fmt: skip
     md = (tmp_path / "dc.md").read_text()
+    # the test split is scored once: the drawn curve is the validation MSE, and says so
+    from ndp.experiments.report import il_numbers, run_info
+
+    nums = il_numbers(run_info(runs / "synthetic-300-ndp-lr1e-3-s0"))
+    assert nums["curve_of"] == "validation" and list(nums["curve"][1][:3]) == [6.0, 3.0, 2.0]
     assert "## Selected on the validation split" in md
     for model in ("ndp", "cnn", "cnn-dmp"):
         row = next(ln for ln in md.splitlines() if ln.startswith(f"| synthetic-300 | {model} |"))

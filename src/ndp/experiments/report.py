@@ -274,9 +274,9 @@ def il_numbers(info: RunInfo) -> dict[str, Any]:
     dtw = (ev.get("test_dtw_px") or {}).get("mean", math.nan)
     has_val = bool((~np.isnan(v)).any())
     best = int(np.nanargmin(v)) if has_val else -1
-    curve = (x[keep], y[keep])
+    curve, curve_of = (x[keep], y[keep]), "test"
     if has_val and keep.sum() < 2:  # test scored once at the end: draw the validation curve
-        curve = (x[~np.isnan(v)], v[~np.isnan(v)])
+        curve, curve_of = (x[~np.isnan(v)], v[~np.isnan(v)]), "validation"
     wall = np.array([r.get("time/epoch_s", math.nan) for r in rows], dtype=np.float64)
     return {
         "mse": float(mse),
@@ -287,6 +287,7 @@ def il_numbers(info: RunInfo) -> dict[str, Any]:
         "wall_s": float(np.nansum(wall)) if len(wall) else math.nan,
         "stopped_early": done.get("reason") == "early stop",
         "curve": curve,
+        "curve_of": curve_of,
     }
 
 
@@ -816,6 +817,14 @@ def _plot_all(
             ax.set_title(task + ("  [MISSING SEEDS]" if any(c.missing for c in tcells) else ""))
             ax.set_xlim(0, top)
             ax.set_xlabel(xlabel)
+            if cells is il_cells:  # which split the drawn curves score
+                kinds = {n.get("curve_of", "test") for c in tcells for n in c.numbers.values()}
+                ylabel = {
+                    frozenset({"test"}): "test MSE (px^2)",
+                    frozenset({"validation"}): "validation MSE (px^2)",
+                }.get(
+                    frozenset(kinds), "test MSE, or validation MSE where test is scored once (px^2)"
+                )
             ax.set_ylabel(ylabel)
             if cells is rl_cells:
                 ax.set_ylim(-0.02, 1.02)

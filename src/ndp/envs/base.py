@@ -70,6 +70,13 @@ def check_render_size(name: str, value: Any) -> int:
     return int(value)
 
 
+def fit_offscreen_buffer(model: mujoco.MjModel, width: int, height: int) -> None:
+    """Grow ``model``'s offscreen framebuffer (in place) so that a ``width`` x ``height`` frame
+    fits; MuJoCo's renderer refuses a frame larger than it."""
+    vis = model.vis.global_
+    vis.offwidth, vis.offheight = max(vis.offwidth, int(width)), max(vis.offheight, int(height))
+
+
 def check_horizon(horizon: Any) -> int:
     """``int(horizon)`` if it is at least 1.
 

@@ -37,6 +37,7 @@ from ndp.envs.base import (
     NDPEnv,
     check_render_size,
     check_substeps,
+    fit_offscreen_buffer,
     sim_unstable,
     warning_count,
 )
@@ -262,9 +263,7 @@ class JacoEnv(NDPEnv, EzPickle):
         self.height = check_render_size("height", height)
         self.camera = camera
         self.model = self._build_model()
-        # the scene's offscreen framebuffer (640 x 480) grown to fit a larger frame
-        vis = self.model.vis.global_
-        vis.offwidth, vis.offheight = max(vis.offwidth, self.width), max(vis.offheight, self.height)
+        fit_offscreen_buffer(self.model, self.width, self.height)  # the scene's is 640 x 480
         self.data = mujoco.MjData(self.model)
         m = self.model
         self._arm_q = np.array([m.joint(j).qposadr[0] for j in ARM_JOINTS])

@@ -43,7 +43,7 @@ import numpy as np
 from gymnasium.utils.ezpickle import EzPickle
 
 from ndp.envs import jaco
-from ndp.envs.base import CTRL_INFO, sim_unstable, warning_count
+from ndp.envs.base import CTRL_INFO, fit_offscreen_buffer, sim_unstable, warning_count
 from ndp.envs.impedance import ImpedanceArm, ImpedanceController
 from ndp.envs.metaworld_env import MetaWorldEnv
 
@@ -110,8 +110,7 @@ def _sawyer_torque_class(cls: type) -> type:
         spec = mujoco.MjSpec.from_file(self.fullpath)
         _add_torque_actuators(spec, SAWYER_JOINTS, SAWYER_TORQUE_LIMIT)
         model = spec.compile()
-        model.vis.global_.offwidth = max(model.vis.global_.offwidth, self.width)
-        model.vis.global_.offheight = max(model.vis.global_.offheight, self.height)
+        fit_offscreen_buffer(model, self.width, self.height)
         return model, mujoco.MjData(model)
 
     def do_simulation(self: Any, ctrl: Any, n_frames: int) -> None:

@@ -817,15 +817,14 @@ def _plot_all(
             ax.set_title(task + ("  [MISSING SEEDS]" if any(c.missing for c in tcells) else ""))
             ax.set_xlim(0, top)
             ax.set_xlabel(xlabel)
-            if cells is il_cells:  # which split the drawn curves score
-                kinds = {n.get("curve_of", "test") for c in tcells for n in c.numbers.values()}
-                ylabel = {
-                    frozenset({"test"}): "test MSE (px^2)",
-                    frozenset({"validation"}): "validation MSE (px^2)",
-                }.get(
-                    frozenset(kinds), "test MSE, or validation MSE where test is scored once (px^2)"
-                )
-            ax.set_ylabel(ylabel)
+            label = ylabel
+            if cells is il_cells:  # the split the drawn curves score
+                kinds = {n["curve_of"] for c in tcells for n in c.numbers.values()}
+                if kinds == {"validation"}:
+                    label = "validation MSE (px^2)"
+                elif len(kinds) > 1:
+                    label = "test MSE, or validation MSE where test is scored once (px^2)"
+            ax.set_ylabel(label)
             if cells is rl_cells:
                 ax.set_ylim(-0.02, 1.02)
             else:

@@ -194,6 +194,58 @@ def test_fit_recovers_parameters_of_a_dmp_generated_trajectory_in_position():
     torch.testing.assert_close(w2, w, rtol=1e-4, atol=1e-4)
 
 
+def _wiggly_demo(n_out: int, b: int = 6) -> torch.Tensor:
+    """Pen-like strokes [b, n_out, 2] with sharp turns near the end (what the late, badly
+    conditioned basis functions are for)."""
+    t = torch.linspace(0.0, 1.0, n_out, dtype=torch.float64)
+    k = torch.arange(1, b + 1, dtype=torch.float64).unsqueeze(-1)
+    x = 10 * torch.sin(2 * torch.pi * k * t**2) + 3 * t
+    y = 8 * torch.cos(3 * torch.pi * k * t**3) - 5 * t
+    return torch.stack([x, y], -1)
+
+
+def test_fit_at_zero_ridge_reaches_the_least_squares_minimum_at_n30():
+    # The position map is ~1e13-conditioned at N = 30: normal equations (cond ~1e26) gave a
+    # fit 35% worse than least squares, and one that changed with the thread count.
+    cfg = DMPConfig(n_basis=30, a_z=25.0, steps=300)
+    demo = _wiggly_demo(cfg.n_out)
+    goal, w = fit_dmp(demo, cfg, ridge=0.0)
+    rec = dmp_rollout(goal, w, demo[:, 0], None, cfg).pos
+    ours = ((rec - demo) ** 2).sum((1, 2))
+    # oracle: NumPy's SVD least squares on the same affine map, the residual it leaves
+    from ndp.dmp import linear_map_f64
+
+    m = linear_map_f64(cfg)[:, : cfg.n_out]
+    a = m[: cfg.n_basis + 1].T
+    y = demo.numpy()
+    rhs = y - y[:, :1] * m[cfg.n_basis + 1][None, :, None]
+    best = []
+    for i in range(len(y)):
+        sol, *_ = np.linalg.lstsq(a, rhs[i], rcond=None)
+        best.append(((a @ sol - rhs[i]) ** 2).sum())
+    np.testing.assert_allclose(ours.numpy(), np.array(best), rtol=1e-6, atol=1e-9)
+
+
+def test_fit_does_not_depend_on_the_thread_count():
+    cfg = DMPConfig(n_basis=30, a_z=25.0, steps=300)
+    demo = _wiggly_demo(cfg.n_out, b=64)
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(1)
+        g1, w1 = fit_dmp(demo, cfg, ridge=0.0)
+        torch.set_num_threads(max(2, before))
+        g2, w2 = fit_dmp(demo, cfg, ridge=0.0)
+    finally:
+        torch.set_num_threads(before)
+    r1 = dmp_rollout(g1, w1, demo[:, 0], None, cfg).pos
+    r2 = dmp_rollout(g2, w2, demo[:, 0], None, cfg).pos
+    # the residual (what `ndp il floor` reports) is the same; the parameters may move along
+    # the map's near-null directions, which barely move the trajectory
+    e1, e2 = ((r1 - demo) ** 2).sum((1, 2)), ((r2 - demo) ** 2).sum((1, 2))
+    torch.testing.assert_close(e1, e2, rtol=1e-6, atol=0)
+    torch.testing.assert_close(r1, r2, rtol=0, atol=1e-3)
+
+
 # ------------------------------------------------------------------------------ bad input
 @pytest.mark.parametrize(
     "kwargs,word",
@@ -267,6 +319,9 @@ def test_fit_bad_input():
         fit_dmp(torch.full((2, 11, 2), float("nan")), cfg)
     with pytest.raises(ValueError, match="cfg"):
         fit_dmp(torch.zeros(2, 11, 2), dataclasses.replace(cfg, only_g=True))
+    for bad in (-1e-3, float("nan"), float("inf"), "0.1", True):
+        with pytest.raises(ValueError, match="ridge"):
+            fit_dmp(torch.zeros(2, 11, 2), cfg, ridge=bad)
 
 
 def test_unscaled_forcing_equals_scaled_forcing_with_amplitude_weights():

@@ -6,7 +6,8 @@ Positions are affine in (v, g) with v = w * (g - y0) (see :func:`ndp.dmp.linear_
 
 Given a demonstration on the DMP's reported time grid, y0 = its first point and dy0 known, the
 fit solves the linear least-squares problem for (v, g) (or for v alone with a given goal) with a
-small ridge term, then recovers w = v / (g - y0), or w = v when ``cfg.scale_by_goal`` is False.
+small ridge term, by SVD of the design (stable at the map's ~1e13 condition number; the normal
+equations are not), then recovers w = v / (g - y0), or w = v when ``cfg.scale_by_goal`` is False.
 When g is close to y0 (a closed loop such as a "0") the forcing term's scale g - y0 is small and
 the weights grow accordingly: a property of the (g - y0) scaling, which ``scale_by_goal=False``
 removes.
@@ -56,6 +57,10 @@ def fit_dmp(
         )
     if not bool(torch.isfinite(demo).all()):
         raise ValueError("demo: expected finite values, found NaN or Inf")
+    if isinstance(ridge, bool) or not isinstance(ridge, (int, float)) or not ridge >= 0.0:
+        raise ValueError(f"ridge: expected a finite number >= 0, got {ridge!r}")
+    if ridge == float("inf"):
+        raise ValueError(f"ridge: expected a finite number >= 0, got {ridge!r}")
     n = cfg.n_basis
     m = torch.as_tensor(_linear_map_f64(cfg, None)[:, :t1].copy())  # [N + 3, n_out] positions
     y = demo.detach().to(torch.float64, copy=True).cpu()
@@ -73,12 +78,20 @@ def fit_dmp(
         g_fixed = goal.detach().to(torch.float64).cpu()
         rhs = rhs - g_fixed.unsqueeze(-1) * m[n]
         design = m[:n].T  # [n_out, N]
-    # The map is badly conditioned (late basis functions barely move the trajectory), so a
-    # ridge term penalises the forcing coefficients v (never the goal), scaled to their block.
-    gram = design.T @ design
-    reg = torch.zeros(gram.shape[0], dtype=gram.dtype)
-    reg[:n] = ridge * gram.diagonal()[:n].mean()
-    sol = torch.linalg.solve(gram + torch.diag(reg), design.T @ rhs.reshape(b * d, t1).T).T
+    # The map is badly conditioned (late basis functions barely move the trajectory: the
+    # condition number of `design` is ~1e13 at N = 30), so a ridge term penalises the forcing
+    # coefficients v (never the goal), scaled to their block. The regularised problem is solved
+    # as an augmented least-squares problem [design; sqrt(reg)] by SVD (gelsd), never through
+    # the normal equations: those square the condition number (past 1e16 at N >= 20), so with
+    # a small or zero ridge their solution, and the fit's residual, would depend on rounding
+    # (the thread count, the BLAS). With ridge = 0 the result is the minimum-norm least-squares
+    # solution, singular values below eps * (n_out + N + 1) of the largest treated as zero.
+    k = design.shape[1]
+    reg = torch.zeros(k, dtype=design.dtype)
+    reg[:n] = ridge * (design[:, :n] ** 2).sum(0).mean()
+    a_aug = torch.cat([design, torch.diag(reg.sqrt())], 0)  # [n_out + K, K]
+    b_aug = torch.cat([rhs.reshape(b * d, t1).T, torch.zeros(k, b * d, dtype=rhs.dtype)], 0)
+    sol = torch.linalg.lstsq(a_aug, b_aug, driver="gelsd").solution.T  # [B * D, K]
     sol = sol.reshape(b, d, -1)
     v = sol[..., :n]
     g = sol[..., n] if goal is None else g_fixed

@@ -325,3 +325,44 @@ def test_report_selects_each_models_learning_rate_on_validation_only(tmp_path):
         assert f"`{model}-lr1e-3` | 3 | 2 | 6 [" in row and "| 3 | 3/3 | 12 |" in row, row
         assert f"`{model}-lr3e-3` 2.5 (cap 1/3)" in row and f"`{model}-lr3e-4` 3 |" in row
     assert res["missing"] == []
+
+
+def test_selection_compares_a_models_arms_on_the_seeds_they_all_finished(tmp_path):
+    """With seeds missing (--allow-missing), each model's arms are compared on the seeds every
+    one of them has finished, the row says which are missing, and a model whose arms share no
+    finished seed gets no choice at all."""
+    from ndp.experiments.studies import get_study
+
+    runs = tmp_path / "runs"
+    val = {"3e-4": 3.0, "1e-3": 2.0, "3e-3": 2.5}
+    for spec in get_study("digits-converged").arm_specs():
+        model, lr = spec.label.rsplit("-lr", 1)
+        for seed in (0, 1, 2):
+            if model == "ndp" and lr == "3e-3" and seed == 2:
+                continue  # still training: ndp is compared on seeds 0-1
+            if model == "cnn" and (lr == "3e-4") != (seed == 2):
+                continue  # cnn-lr3e-4 has run seed 2 only, cnn-lr1e-3 / 3e-3 seeds 0-1 only
+            run = runs / f"synthetic-300-{spec.label}-s{seed}"
+            run.mkdir(parents=True)
+            # seed 2 of ndp-lr1e-3 is very bad on validation: it must not count for ndp
+            v = 50.0 if (model, lr, seed) == ("ndp", "1e-3", 2) else val[lr]
+            rows = ["epoch,train/loss,val/mse_px2,test/mse_px2,time/epoch_s"]
+            rows += [f"{e},1,{v + (e - 3) ** 2},,2" for e in range(1, 7)]
+            (run / "metrics.csv").write_text("\n".join(rows) + "\n")
+            (run / "eval.json").write_text(json.dumps({"test_mse_px2": {"mean": 5.0 + seed}}))
+            (run / "arm.json").write_text(json.dumps({
+                "label": spec.label, "algo": spec.algo, "args": list(spec.args),
+                "steps": 500, "task": "synthetic-300", "seed": seed, "kind": "il"}))  # fmt: skip
+            (run / "done.json").write_text(json.dumps({"reason": "early stop", "epoch": 6}))
+    report([runs], tmp_path / "dc", "cmd", study="digits-converged", plots=False,
+           tasks=["synthetic-300"], seeds=[0, 1, 2], allow_missing=True)  # fmt: skip
+    md = (tmp_path / "dc.md").read_text()
+    row = {m: next(ln for ln in md.splitlines() if ln.startswith(f"| synthetic-300 | {m} |"))
+           for m in ("ndp", "cnn", "cnn-dmp")}  # fmt: skip
+    # ndp: seeds 0-1 only; lr 1e-3 still wins (2.0), its test mean over seeds 0-1 is 5.5
+    assert "`ndp-lr1e-3` | 2 **MISSING seeds 2** | 2 | 5.5 [" in row["ndp"], row["ndp"]
+    assert "no seed that every arm has finished yet" in row["cnn"]
+    assert "`cnn-dmp-lr1e-3` | 3 | 2 | 6 [" in row["cnn-dmp"], row["cnn-dmp"]
+    sel = list(csv.DictReader((tmp_path / "dc-selection.csv").open()))
+    assert [(r["model"], r["seeds"]) for r in sel if r["arm"] != "fit_dmp"] == [
+        ("ndp", "0 1"), ("cnn-dmp", "0 1 2")]  # fmt: skip

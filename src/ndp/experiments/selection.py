@@ -67,7 +67,8 @@ def selection_section(
     Args:
         cells: the report's imitation cells (``task``, ``label``, ``numbers`` per seed).
         selection: (model, candidate arm labels) pairs.
-        seeds: the seeds every cell should have.
+        seeds: the seeds every cell should have; each model's arms are compared on those of
+            them that every arm has finished (fewer are marked MISSING in its row).
         floor: add the DMP floor rows (fits every test trajectory of each data set).
     """
     by = {(c.task, c.label): c for c in cells}
@@ -78,7 +79,8 @@ def selection_section(
         "Per data set and model, the learning rate (arm) with the lowest mean validation MSE "
         "over seeds; its test MSE: mean over seeds [95% percentile-bootstrap interval]. The "
         "test split is scored once, at the end, on each run's best-validation weights. "
-        "n: seeds. Epochs to best: the epoch of the lowest validation MSE (mean over seeds). "
+        "n: seeds, those every arm of the model has finished (the arms are compared on the "
+        "same seeds). Epochs to best: the epoch of the lowest validation MSE (mean over seeds). "
         "Stopped: runs that the patience rule stopped, of n; the others reached the epoch cap "
         "still improving (not converged; an arm marked `(cap k/n)` among the other arms had k "
         "such runs). "
@@ -90,16 +92,23 @@ def selection_section(
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     rows: list[dict[str, Any]] = []
+    expected = list(seeds)
     for task in tasks:
         for model, labels in selection:
-            cands = []
-            for lb in labels:
-                v = _vals(by.get((task, lb)), "val", seeds)
-                if len(v) == len(seeds) and v:
-                    cands.append((float(np.mean(v)), lb))
-            if not cands:
-                md.append(f"| {task} | {model} | - | 0 | - | - | - | - | - | no complete arm yet |")
+            # The arms are compared on the seeds every one of them has finished (all of
+            # `seeds` once the study is complete; fewer, marked MISSING, in a report with
+            # --allow-missing), so no arm wins on a seed the others have not run.
+            seeds = [s for s in expected if all(_vals(by.get((task, lb)), "val", [s])
+                                                for lb in labels)]  # fmt: skip
+            if not seeds:
+                md.append(f"| {task} | {model} | - | 0 | - | - | - | - | - | no seed that "
+                          "every arm has finished yet |")  # fmt: skip
                 continue
+            cands = [(float(np.mean(_vals(by.get((task, lb)), "val", seeds))), lb)
+                     for lb in labels]  # fmt: skip
+            gone = [s for s in expected if s not in seeds]
+            n_cell = f"{len(seeds)}" + (f" **MISSING seeds {' '.join(map(str, gone))}**"
+                                        if gone else "")  # fmt: skip
             best_val, lb = min(cands)
             cell = by[(task, lb)]
             test = _vals(cell, "mse", seeds)
@@ -117,11 +126,12 @@ def selection_section(
                 or "-"
             )
             md.append(
-                f"| {task} | {model} | `{lb}` | {len(test)} | {best_val:.3g} | "
+                f"| {task} | {model} | `{lb}` | {n_cell} | {best_val:.3g} | "
                 f"{np.mean(test):.3g} [{lo:.3g}, {hi:.3g}] | {np.mean(ep):.0f} | "
                 f"{stopped}/{len(test)} | {np.mean(wall):.0f} | {others} |"
             )
             rows.append({"task": task, "model": model, "arm": lb, "n_seeds": len(test),
+                         "seeds": " ".join(map(str, seeds)),
                          "val_mse_px2": best_val, "test_mse_px2_mean": float(np.mean(test)),
                          "test_mse_px2_ci_low": lo, "test_mse_px2_ci_high": hi,
                          "epochs_to_best": float(np.mean(ep)),

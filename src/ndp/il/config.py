@@ -141,6 +141,8 @@ class DataConfig:
 
 SPLITS = ("auto", "paper", "writer", "all")
 """Train / test split kinds of :class:`DataConfig`."""
+VAL_SPLITS = ("auto", "samples", "writers")
+"""How ``TrainConfig.val_split`` holds out the validation split."""
 
 SAFE_ON_RESUME = ("epochs", "progress", "threads", "tensorboard", "eval_every")
 """TrainConfig fields a resume may change (``epochs`` extends the run); the others are refused."""
@@ -182,6 +184,13 @@ class TrainConfig:
     (the paper protocol). With it, every epoch logs ``val/mse_px2``, the lowest one's weights
     are kept in ``best.pt`` (``ndp il eval`` scores them), and the last row's test MSE is the
     best checkpoint's."""
+    val_split: str = "auto"
+    """How the validation split is held out: 'samples' (a random ``val_fraction`` of the
+    training samples), 'writers' (a random ``val_fraction`` of the training writers with all
+    their samples; needs writer ids), 'auto' (writers when the test split is writer-disjoint,
+    as on Pendigits, so that selection and early stopping score unseen writers like the test;
+    else samples). A config saved before this option reads as what it ran with ('samples' over a
+    writer-disjoint test split, else 'auto')."""
     patience: int = 0
     """Stop after this many epochs without a lower validation MSE (0: train all ``epochs``,
     which is then the maximum); needs ``val_fraction`` > 0."""
@@ -208,6 +217,10 @@ class TrainConfig:
         if not (isinstance(self.val_fraction, (int, float)) and 0 <= self.val_fraction < 1):
             raise ValueError(
                 f"val_fraction: expected a number in [0, 1), got {self.val_fraction!r}"
+            )
+        if self.val_split not in VAL_SPLITS:
+            raise ValueError(
+                f"val_split: expected one of {', '.join(VAL_SPLITS)}, got {self.val_split!r}"
             )
         if (
             isinstance(self.patience, bool)
@@ -238,6 +251,14 @@ class TrainConfig:
     def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
         """Inverse of :meth:`as_dict` (unknown keys raise ValueError)."""
         d = dict(d)
+        if "val_split" not in d:
+            # Saved before the option, when validation always drew samples: that is 'auto'
+            # except over a writer-disjoint test split, where 'auto' now holds out writers.
+            data = d.get("data", {})
+            writer = data.get("split") == "writer" or (
+                data.get("split", "auto") == "auto" and data.get("source") == "pendigits"
+            )
+            d["val_split"] = "samples" if writer else "auto"
         try:
             d["data"] = DataConfig(**d.get("data", {}))
             d["model"] = ModelConfig(**d.get("model", {}))

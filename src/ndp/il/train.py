@@ -90,6 +90,7 @@ __all__ = [
     "load_data",
     "make_split",
     "predict",
+    "resolved_split",
     "train",
 ]
 
@@ -131,16 +132,37 @@ DONE_NAME = "done.json"
 
 
 def validation_split(
-    train_idx: np.ndarray, fraction: float, seed: int
+    train_idx: np.ndarray, fraction: float, seed: int, writers: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """(training indices, validation indices): ``fraction`` of ``train_idx`` held out (at least
     one sample, at least one left), drawn with ``seed``; (train_idx, empty) for fraction 0.
 
+    Args:
+        train_idx: indices of the training split [n].
+        fraction: the part held out.
+        seed: seed of the draw.
+        writers: writer id of every sample of the data set (indexed by ``train_idx``): when
+            given, ``fraction`` of the training split's writers are held out with all their
+            samples (at least one writer, at least one left), so validation, like a
+            writer-disjoint test split, scores writers the model has not trained on.
+
     Raises:
-        ValueError: too few training samples to hold any out.
+        ValueError: too few training samples (or writers) to hold any out.
     """
     if fraction <= 0:
         return train_idx, train_idx[:0]
+    if writers is not None:
+        w = np.asarray(writers)[train_idx]
+        ids = np.unique(w)
+        n_ids = max(1, round(fraction * len(ids)))
+        if n_ids >= len(ids):
+            raise ValueError(
+                f"val_fraction: {fraction} of the training split's {len(ids)} writers leaves "
+                "none for training"
+            )
+        held = np.random.default_rng([seed, 0x5A1]).choice(ids, size=n_ids, replace=False)
+        is_val = np.isin(w, held)
+        return np.sort(train_idx[~is_val]), np.sort(train_idx[is_val])
     n = len(train_idx)
     n_val = max(1, round(fraction * n))
     if n_val >= n:
@@ -151,11 +173,17 @@ def validation_split(
     return np.sort(train_idx[perm[n_val:]]), np.sort(train_idx[perm[:n_val]])
 
 
+def resolved_split(data: DigitData, cfg: DataConfig) -> str:
+    """``cfg.split`` with 'auto' resolved: 'writer' for Pendigits with writer ids, else
+    'paper'."""
+    if cfg.split != "auto":
+        return cfg.split
+    return "writer" if np.all(data.writers >= 0) and cfg.source == "pendigits" else "paper"
+
+
 def make_split(data: DigitData, cfg: DataConfig) -> tuple[np.ndarray, np.ndarray]:
     """Train / test indices for ``data`` under ``cfg.split`` (see :class:`DataConfig`)."""
-    split = cfg.split
-    if split == "auto":
-        split = "writer" if np.all(data.writers >= 0) and cfg.source == "pendigits" else "paper"
+    split = resolved_split(data, cfg)
     if split == "all":  # every sample trains; no test part
         return np.arange(len(data)), np.arange(0)
     if split == "writer":
@@ -424,7 +452,14 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
             "would cut its budget below that (give at least that many, or start a new run)"
         )
     tr_idx, te_idx = make_split(data, cfg.data)
-    tr_idx, va_idx = validation_split(tr_idx, cfg.val_fraction, cfg.data.split_seed)
+    by_writer = cfg.val_split == "writers" or (
+        cfg.val_split == "auto" and resolved_split(data, cfg.data) == "writer"
+    )
+    if by_writer and np.any(data.writers < 0):
+        raise ValueError("val_split: 'writers' needs writer ids for every sample (Pendigits)")
+    tr_idx, va_idx = validation_split(
+        tr_idx, cfg.val_fraction, cfg.data.split_seed, data.writers if by_writer else None
+    )
     x_all = torch.from_numpy(data.images)
     y_all = torch.from_numpy(data.trajs)
     splits = {
@@ -503,6 +538,7 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
         "train_wall_s": time.perf_counter() - t_run,
         "final": row,
         "n_train": learner.n_train,
+        "n_val": len(va_idx),
         "n_test": int(learner.x_te.shape[0]),
     }
 

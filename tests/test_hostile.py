@@ -59,6 +59,14 @@ def _cli(argv: list[str]) -> tuple[int, str, str]:
     return rc, err.getvalue(), out.getvalue()
 
 
+def _val_by_writers(r: Path) -> tuple[int, str, str]:
+    """Validation by writers on synthetic digits (no writer ids); a run folder left behind by
+    the refusal counts as silent."""
+    res = _cli(["il", "train", *IL, "--val-fraction", "0.2", "--val-split", "writers",
+                "--epochs", "1", "--out", str(r / "ilw")])  # fmt: skip
+    return res if not (r / "ilw").exists() else (0, "", "")
+
+
 def _clear_cli(res: tuple[int, str, str]) -> bool:
     rc, err, _ = res
     lines = [ln for ln in err.strip().splitlines() if ln.strip()]
@@ -209,6 +217,8 @@ def _cases() -> list[Case]:
              str(r / "il"), "--epochs", "1"]), "error", protect=protect_il),
         Case("il train --epochs 0", lambda r: _cli(["il", "train", *IL, "--epochs", "0",
              "--out", str(r / "il0")]), "error"),
+        Case("il train --val-split writers on digits without writers", _val_by_writers,
+             "error"),
         Case("il bc with an empty validation split", lambda r: _cli(["il", "bc", "--demos",
              str(r / "demos.npz"), "--val-fraction", "0.5", "--epochs", "1", "--out",
              str(r / "bc"), "--no-progress", "--no-tensorboard"]), "ok",

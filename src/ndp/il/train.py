@@ -435,6 +435,16 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
         cfg = dataclasses.replace(
             cfg, model=dataclasses.replace(cfg.model, frame=float(data.frame[1]))
         )
+    # the splits before the run folder is made: a bad split option leaves nothing behind
+    tr_idx, te_idx = make_split(data, cfg.data)
+    by_writer = cfg.val_split == "writers" or (
+        cfg.val_split == "auto" and resolved_split(data, cfg.data) == "writer"
+    )
+    if by_writer and np.any(data.writers < 0):
+        raise ValueError("val_split: 'writers' needs writer ids for every sample (Pendigits)")
+    tr_idx, va_idx = validation_split(
+        tr_idx, cfg.val_fraction, cfg.data.split_seed, data.writers if by_writer else None
+    )
     session, ckpt = RunSession.open(
         cfg.run_dir,
         kind="il",
@@ -451,15 +461,6 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
             f"epochs: the run has trained {int(ckpt['epoch'])} epochs; --epochs {cfg.epochs} "
             "would cut its budget below that (give at least that many, or start a new run)"
         )
-    tr_idx, te_idx = make_split(data, cfg.data)
-    by_writer = cfg.val_split == "writers" or (
-        cfg.val_split == "auto" and resolved_split(data, cfg.data) == "writer"
-    )
-    if by_writer and np.any(data.writers < 0):
-        raise ValueError("val_split: 'writers' needs writer ids for every sample (Pendigits)")
-    tr_idx, va_idx = validation_split(
-        tr_idx, cfg.val_fraction, cfg.data.split_seed, data.writers if by_writer else None
-    )
     x_all = torch.from_numpy(data.images)
     y_all = torch.from_numpy(data.trajs)
     splits = {

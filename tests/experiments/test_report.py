@@ -325,6 +325,7 @@ def test_report_selects_each_models_learning_rate_on_validation_only(tmp_path):
         assert f"`{model}-lr1e-3` | 3 | 2 | 6 [" in row and "| 3 | 3/3 | 12 |" in row, row
         assert f"`{model}-lr3e-3` 2.5 (cap 1/3)" in row and f"`{model}-lr3e-4` 3 |" in row
     assert res["missing"] == []
+    assert res["section_csv"] == [str(tmp_path / "dc-selection.csv")]  # named in "wrote ..."
 
 
 def test_selection_compares_a_models_arms_on_the_seeds_they_all_finished(tmp_path):

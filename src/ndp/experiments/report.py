@@ -523,12 +523,14 @@ def report(
     if bc_cells:
         at = md.index("", md.index(next(x for x in md if x.startswith("Seeds per cell")))) + 1
         md[at:at] = _bc_markdown(bc_cells)
+    extra_csv: list[Path] = []  # the sections' own tables
     if conditions:
         foot = f"{prov['command']}  |  commit {prov['commit']}  |  {prov['date']}"
         cmd, crows, cpngs = conditions_section(rl_cells, conditions, expected, out, foot, plots)
         csv_rows = [{**r, "command": prov["command"], "commit": prov["commit"],
                      "date": prov["date"]} for r in crows]  # fmt: skip
         _write_csv(out.with_name(out.name + "-conditions.csv"), csv_rows)
+        extra_csv.append(out.with_name(out.name + "-conditions.csv"))
         # before the per-arm table
         at = next((i for i, line in enumerate(md) if line.startswith("Success:")), len(md))
         md[at:at] = cmd
@@ -538,6 +540,7 @@ def report(
         _write_csv(out.with_name(out.name + "-selection.csv"),
                    [{**r, "command": prov["command"], "commit": prov["commit"],
                      "date": prov["date"]} for r in srows])  # fmt: skip
+        extra_csv.append(out.with_name(out.name + "-selection.csv"))
         at = next((i for i, line in enumerate(md) if line.startswith("Imitation:")), len(md))
         md[at:at] = smd
     out.with_suffix(".md").write_text("\n".join(md) + "\n")
@@ -548,6 +551,7 @@ def report(
         "rows": rows,
         "markdown": str(out.with_suffix(".md")),
         "csv": str(out.with_suffix(".csv")),
+        "section_csv": [str(p) for p in extra_csv],
         "png": [str(p) for p in pngs],
         "missing": [(c.task, c.label, c.missing) for c in cells if c.missing],
     }

@@ -426,7 +426,8 @@ def report_command(argv: list[str]) -> int:
         study=args.study,
     )
     print(Path(res["markdown"]).read_text())
-    print(f"wrote {res['markdown']}, {res['csv']}" + "".join(f", {p}" for p in res["png"]))
+    written = [res["markdown"], res["csv"], *res["section_csv"], *res["png"]]
+    print(f"wrote {', '.join(written)}")
     if res["missing"]:
         print(
             f"ndp report: WARNING: seeds missing from {len(res['missing'])} cells (marked)",

@@ -190,36 +190,31 @@ def test_pendigits_writer_split_run(tmp_path: Path, pendigits_path: Path) -> Non
     assert ev["n_test"] == summary["n_test"]
 
 
-def test_validation_holds_out_writers_over_a_writer_disjoint_test_split(
-    tmp_path: Path, pendigits_path: Path
-) -> None:
-    """On Pendigits (writer-disjoint test) validation holds out whole training writers, so
-    selection and early stopping score unseen writers like the test does; 'samples' keeps the
-    earlier draw, and configs saved before the option read as what they ran with."""
-    from ndp.il.data import load_pendigits
-    from ndp.il.train import make_split, validation_split
+def test_validation_holds_out_writers_over_a_writer_disjoint_test_split(tmp_path: Path) -> None:
+    """Over a writer-disjoint test split (as on Pendigits) validation holds out whole training
+    writers, so selection and early stopping score unseen writers like the test does;
+    'samples' keeps the earlier draw, and configs saved before the option read as what they
+    ran with."""
+    from ndp.il.train import load_data, make_split, validation_split
 
-    text = pendigits_path.read_text()
-    cut = [i for i in range(len(text)) if text.startswith(".SEGMENT", i)][1500]
-    subset = tmp_path / "pendigits-subset"
-    subset.write_text(text[:cut])
-    writers = load_pendigits(subset).writers
-    dcfg = DataConfig(source="pendigits", pendigits_path=str(subset))
-    base = dict(data=dcfg, epochs=1, batch_size=50, threads=1, progress=False,
+    d = load_data(DataConfig(data_dir=str(tmp_path / "data"), n_samples=80))
+    writers = np.repeat(np.arange(10), [2, 4, 6, 8, 10, 10, 10, 10, 10, 10])  # unequal writers
+    p = tmp_path / "ten_writers.npz"
+    np.savez(p, images=d.images, trajectories=d.trajs, writers=writers)
+    dcfg = DataConfig(source=str(p), split="writer")
+    base = dict(data=dcfg, epochs=1, batch_size=16, threads=1, progress=False,
                 max_train_batches=1, val_fraction=0.25, eval_every=0)  # fmt: skip
     by_writer = train(TrainConfig(run_dir=str(tmp_path / "w"), **base))
     by_sample = train(TrainConfig(run_dir=str(tmp_path / "s"), val_split="samples", **base))
-    from ndp.il.train import load_data
-
-    tr, _ = make_split(load_data(dcfg, ModelConfig().n_points), dcfg)
-    ids = np.unique(writers[tr])
-    assert len(ids) >= 4  # the subset has enough writers for the check to mean something
+    tr, te = make_split(load_data(dcfg), dcfg)
+    assert len(np.unique(writers[tr])) == 8 and not set(writers[tr]) & set(writers[te])
     t2, va = validation_split(tr, 0.25, 0, writers)
-    assert not set(writers[t2]) & set(writers[va])
-    assert len(np.unique(writers[va])) == round(0.25 * len(ids))
+    assert not set(writers[t2]) & set(writers[va]) and len(np.unique(writers[va])) == 2
+    n_sample_val = round(0.25 * len(tr))
+    assert len(va) != n_sample_val  # so the run's count tells which split it drew
     assert by_writer["n_val"] == len(va) and by_writer["n_train"] == len(t2)
-    assert by_sample["n_val"] == round(0.25 * len(tr))
-    # configs from before the option: Pendigits drew samples, synthetic is unchanged ('auto')
+    assert by_sample["n_val"] == n_sample_val
+    # configs from before the option: a writer split drew samples, others are 'auto' as before
     old = TrainConfig(run_dir=str(tmp_path / "o"), **base).as_dict()
     del old["val_split"]
     assert TrainConfig.from_dict(old).val_split == "samples"

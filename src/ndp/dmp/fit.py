@@ -15,6 +15,8 @@ removes.
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 from ndp.dmp.config import DMPConfig
@@ -57,9 +59,11 @@ def fit_dmp(
         )
     if not bool(torch.isfinite(demo).all()):
         raise ValueError("demo: expected finite values, found NaN or Inf")
-    if isinstance(ridge, bool) or not isinstance(ridge, (int, float)) or not ridge >= 0.0:
-        raise ValueError(f"ridge: expected a finite number >= 0, got {ridge!r}")
-    if ridge == float("inf"):
+    if (
+        isinstance(ridge, bool)
+        or not isinstance(ridge, (int, float))
+        or not 0.0 <= ridge < math.inf
+    ):
         raise ValueError(f"ridge: expected a finite number >= 0, got {ridge!r}")
     n = cfg.n_basis
     m = torch.as_tensor(_linear_map_f64(cfg, None)[:, :t1].copy())  # [N + 3, n_out] positions

@@ -137,16 +137,25 @@ def warning_count(data: mujoco.MjData) -> int:
     )
 
 
-def check_fixed_goal(value: Any) -> int | None:
-    """``fixed_goal`` checked: None or an integer >= 0 (numpy integers accepted).
+RELEASE_GOAL = "release"
+"""``fixed_goal`` value of the 2021 release's ONE hard-coded task configuration (the same for
+every run and seed; ``docs/rl-release.md``): the env classes that have one define it
+(``release_config``); the others refuse it at construction."""
+
+
+def check_fixed_goal(value: Any) -> int | str | None:
+    """``fixed_goal`` checked: None, an integer >= 0 (numpy integers accepted: the seed of one
+    configuration) or ``"release"`` (:data:`RELEASE_GOAL`).
 
     Raises:
         ValueError: anything else (named in the message).
     """
-    if value is None:
-        return None
+    if value is None or value == RELEASE_GOAL:
+        return value  # type: ignore[no-any-return]
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise ValueError(f"fixed_goal: expected None or an integer >= 0, got {value!r}")
+        raise ValueError(
+            f"fixed_goal: expected None, an integer >= 0 or 'release', got {value!r}"
+        )
     return int(value)
 
 
@@ -173,11 +182,11 @@ class NDPEnv(gym.Env):
     """The simulator went unstable this episode (MuJoCo envs; cleared by reset)."""
     _pending_seed: int | None = None
     """Seed for the next ``reset()`` that is not given one."""
-    fixed_goal: int | None = None
+    fixed_goal: int | str | None = None
     """None: every reset draws a fresh task configuration (objects, goal) from the seeded
     ``np_random``; an int: every reset draws it from a fresh generator seeded with this value,
-    so every episode has the same configuration (the release's fixed goal; ``goals="fixed"``
-    of a run)."""
+    so every episode has the same configuration (``goals="per-seed"`` of a run); ``"release"``:
+    the 2021 release's one hard-coded configuration (:meth:`release_config`; ``goals="release"``)."""
 
     def _setup(self, horizon: Any, render_mode: str | None, action_dim: int) -> None:
         """Check and store ``horizon`` and ``render_mode``; set the ``[-1, 1]^action_dim``
@@ -207,15 +216,35 @@ class NDPEnv(gym.Env):
             seed, self._pending_seed = self._pending_seed, None
         super().reset(seed=seed)
 
-    def _set_fixed_goal(self, fixed_goal: Any) -> None:
-        """Check and store ``fixed_goal`` (None, or an int >= 0)."""
+    def _set_fixed_goal(self, fixed_goal: Any, task: str = "") -> None:
+        """Check and store ``fixed_goal`` (None, an int >= 0, or ``"release"`` where
+        :meth:`release_config` has one for ``task``).
+
+        Raises:
+            ValueError: a bad value, or ``"release"`` for a task the release did not fix.
+        """
         self.fixed_goal = check_fixed_goal(fixed_goal)
+        if self.fixed_goal == RELEASE_GOAL and self.release_config(task) is None:
+            from ndp.envs.release import RELEASE_GOAL_TASKS
+
+            raise ValueError(
+                f"fixed_goal: 'release' (the 2021 release's hard-coded configuration) exists for "
+                f"{', '.join(RELEASE_GOAL_TASKS)}, not {task or type(self).__name__!r}"
+            )
+
+    def release_config(self, task: str) -> np.ndarray | None:
+        """The 2021 release's hard-coded task configuration of ``task`` (what this env's reset
+        draws at random otherwise), or None where the release had none (the default)."""
+        return None
 
     def _task_rng(self) -> np.random.Generator:
         """The generator this reset's task configuration is drawn from: ``np_random`` (fresh
-        goals), or a new generator seeded with ``fixed_goal`` (the same goal every reset)."""
+        goals), or a new generator seeded with ``fixed_goal`` (the same goal every reset; with
+        ``"release"`` the env uses :meth:`release_config` instead of drawing)."""
         if self.fixed_goal is None:
             return self.np_random
+        if self.fixed_goal == RELEASE_GOAL:
+            return np.random.default_rng(0)
         return np.random.default_rng(self.fixed_goal)
 
     # ------------------------------------------------------------------ step helpers

@@ -39,6 +39,12 @@ class _RobotEnv(Protocol):
     def stale_reward(self, snapshot: Any, action: np.ndarray) -> float: ...
 
 
+EXECUTIONS = ("all", "first-held")
+"""How :class:`ChunkedEnv` runs a decision's k sub-actions: each in turn ('all'), or only the
+first, held for the k sub-steps ('first-held': the 2021 release's defect, an early return and
+an indentation slip, reproduced as a labelled condition)."""
+
+
 class ChunkedEnv(gym.Wrapper):
     """Execute k sub-actions per step; report per-sub-step rewards, masks and robot states.
 
@@ -68,21 +74,28 @@ class ChunkedEnv(gym.Wrapper):
     ``cmd_dy0`` [D] and ``success_any`` False.
     """
 
-    def __init__(self, env: gym.Env, k: int, stale_world: bool = True) -> None:
+    def __init__(
+        self, env: gym.Env, k: int, stale_world: bool = True, execution: str = "all"
+    ) -> None:
         """Wrap ``env``.
 
         Args:
             env: A per-step env whose action space is a 1-D Box [A].
             k: Sub-steps per decision (>= 1).
             stale_world: Apply the stale-world reward rule at sub-steps 1..k-1.
+            execution: 'all' (run the k sub-actions in turn) or 'first-held' (run the first
+                sub-action k times, the 2021 release's execution; :data:`EXECUTIONS`).
 
         Raises:
-            ValueError: bad ``k``, a non-Box action space, or an env without the methods the
-                wrapper needs.
+            ValueError: bad ``k`` or ``execution``, a non-Box action space, or an env without
+                the methods the wrapper needs.
         """
         super().__init__(env)
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
             raise ValueError(f"k: expected an int >= 1, got {k!r}")
+        if execution not in EXECUTIONS:
+            raise ValueError(f"execution: expected one of {', '.join(EXECUTIONS)}, got {execution!r}")
+        self.execution = str(execution)
         box = env.action_space
         if not isinstance(box, spaces.Box) or len(box.shape) != 1:
             raise ValueError(f"env: expected a 1-D Box action space, got {box}")
@@ -145,6 +158,8 @@ class ChunkedEnv(gym.Wrapper):
         if not np.all(np.isfinite(a)):
             raise ValueError("actions: expected finite values, got NaN or inf")
         a = np.clip(a, self._low, self._high).astype(self.env.action_space.dtype)
+        if self.execution == "first-held":  # the release's: sub-action 0, held k env steps
+            a = np.repeat(a[:1], self.k, axis=0)
         k, dof = self.k, self.dof
         sub_r = np.zeros(k)
         sub_live = np.zeros(k)

@@ -24,6 +24,7 @@ from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import V1_REWARD_BROKEN, MetaWorldEnv, check_reward_version
 from ndp.envs.point_mass import PointMassEnv
+from ndp.envs.release import RELEASE_GOAL_TASKS
 from ndp.envs.spec import TASKS, TORQUE_TASKS, add_task, finer_spec, get_task_spec
 from ndp.envs.torque import JacoTorqueEnv, MetaWorldTorqueEnv
 from ndp.gym_ids import TABLE, expand, register
@@ -69,7 +70,7 @@ def make_env(
     render_mode: str | None = None,
     substeps: int = 1,
     reward_version: str = "v2",
-    fixed_goal: int | None = None,
+    fixed_goal: int | str | None = None,
     observation: str = "full",
     **kw: Any,
 ) -> gym.Env:
@@ -91,9 +92,10 @@ def make_env(
         reward_version: ``"v2"`` (default) or ``"v1"``: Meta-World's reward function (v1: the
             shaped rewards the 2021 release trained on; success stays the v2 evaluation).
             Meta-World tasks only.
-        fixed_goal: None (a fresh seeded task configuration every reset) or the seed of the
-            one configuration (objects, goal) every reset uses; :func:`fixed_goal_seed` derives
-            it from a run's seed.
+        fixed_goal: None (a fresh seeded task configuration every reset), the seed of the
+            one configuration (objects, goal) every reset uses (:func:`fixed_goal_seed` derives
+            it from a run's seed), or ``"release"``: the 2021 release's one hard-coded
+            configuration (:mod:`ndp.envs.release`; push, soccer, faucet-open, Throw, Pick).
         observation: ``"full"`` (the task's observation) or ``"release9"`` (Meta-World only: the
             2021 release's 9 values, hand xyz, first object xyz, goal xyz; a
             :class:`ReleaseObservation` wrapper, the env's own state is unchanged).
@@ -147,6 +149,11 @@ def task_options(spec: Any, reward_version: str = "v2", fixed_goal: Any = None) 
             f"reward_version: 'v1' exists for Meta-World tasks only, got task {spec.name!r}"
         )
     goal = check_fixed_goal(fixed_goal)
+    if goal == "release" and spec.name not in RELEASE_GOAL_TASKS:
+        raise ValueError(
+            f"fixed_goal: 'release' (the 2021 release's hard-coded configuration) exists for "
+            f"{', '.join(RELEASE_GOAL_TASKS)}, not {spec.name!r}"
+        )
     if goal is not None:
         out["fixed_goal"] = goal
     return out

@@ -231,7 +231,7 @@ class JacoEnv(NDPEnv, EzPickle):
         height: int = 480,
         camera: str = "side",
         substeps: int = 1,
-        fixed_goal: int | None = None,
+        fixed_goal: int | str | None = None,
     ) -> None:
         """Create the env.
 
@@ -245,8 +245,9 @@ class JacoEnv(NDPEnv, EzPickle):
             substeps: m, a divisor of ``FRAME_SKIP``: one env step is ``FRAME_SKIP / m``
                 simulator steps and an action moves the targets ``1 / m`` as far (see the
                 module docstring).
-            fixed_goal: None (a fresh seeded cube / basket jitter every reset) or the seed of
-                the one jitter every reset uses (the release's fixed goal).
+            fixed_goal: None (a fresh seeded cube / basket jitter every reset), the seed of
+                the one jitter every reset uses, or ``"release"`` (no jitter: the release's
+                one basket / cube place).
         """
         EzPickle.__init__(
             self, task, horizon, render_mode, width, height, camera, substeps, fixed_goal
@@ -257,7 +258,7 @@ class JacoEnv(NDPEnv, EzPickle):
         if task not in ("throw", "pick"):
             raise ValueError(f"task: expected 'throw' or 'pick', got {task!r}")
         self._setup(horizon, render_mode, action_dim=self._action_dim())
-        self._set_fixed_goal(fixed_goal)
+        self._set_fixed_goal(fixed_goal, task)
         self.task = task
         self.width = check_render_size("width", width)
         self.height = check_render_size("height", height)
@@ -389,6 +390,13 @@ class JacoEnv(NDPEnv, EzPickle):
         clipped: np.ndarray = np.clip(obs, -OBS_BOUND, OBS_BOUND)
         return clipped
 
+    def release_config(self, task: str) -> np.ndarray | None:
+        """The release's basket (Throw) or cube (Pick) jitter, 0: the nominal place
+        (``ndp.envs.release.RELEASE_CONFIGS``)."""
+        from ndp.envs.release import release_config
+
+        return release_config(task)
+
     # ------------------------------------------------------------------ gym API
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -397,7 +405,8 @@ class JacoEnv(NDPEnv, EzPickle):
         self._reset_rng(seed)
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        jitter = self._task_rng().uniform(-0.05, 0.05, size=2)
+        release = self.release_config(self.task) if self.fixed_goal == "release" else None
+        jitter = self._task_rng().uniform(-0.05, 0.05, size=2) if release is None else release
         if self.task == "pick":
             home, fingers = PICK_HOME, FINGER_OPEN
             cube = np.array([jitter[0], 0.5 + jitter[1], CUBE_HALF])

@@ -207,7 +207,7 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         camera_name: str = "corner",
         substeps: int = 1,
         reward_version: str = "v2",
-        fixed_goal: int | None = None,
+        fixed_goal: int | str | None = None,
     ) -> None:
         """Create the env.
 
@@ -243,7 +243,7 @@ class MetaWorldEnv(NDPEnv, EzPickle):
                 "an attribute nothing sets); use 'v2'"
             )
         self._setup(horizon, render_mode, action_dim=self._action_dim())
-        self._set_fixed_goal(fixed_goal)
+        self._set_fixed_goal(fixed_goal, task)
         self.task = task
         width, height = check_render_size("width", width), check_render_size("height", height)
         env = self._task_class(ALL_V3_ENVIRONMENTS[task])(
@@ -283,6 +283,12 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         self.control_dt = float(m.opt.timestep * env.frame_skip) / self.substeps
         # the current-frame blocks (obs[:18]) of the last `substeps` env steps (substeps > 1)
         self._frames: deque[np.ndarray] = deque(maxlen=self.substeps)
+
+    def release_config(self, task: str) -> np.ndarray | None:
+        """The release's reset vector of ``task`` (``ndp.envs.release.RELEASE_CONFIGS``)."""
+        from ndp.envs.release import release_config
+
+        return release_config(task)
 
     def _action_dim(self) -> int:
         """Size of one action (4; the torque-actuated variant overrides it)."""
@@ -409,6 +415,10 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         self._reset_rng(seed)
         # metaworld draws its reset vector (objects, goal) from this, and nothing else
         self.mw.np_random = self._task_rng()
+        release = self.release_config(self.task) if self.fixed_goal == "release" else None
+        if release is not None:  # the release's one configuration instead of a draw
+            self.mw._last_rand_vec = release
+        self.mw._freeze_rand_vec = release is not None
         obs, _ = self.mw.reset()
         self._gripper = -1.0  # metaworld's hand reset leaves the gripper open (command -1)
         self._gripper_rate = 0.0

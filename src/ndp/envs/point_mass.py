@@ -65,7 +65,7 @@ class PointMassEnv(NDPEnv):
         horizon: int = DEFAULT_HORIZON,
         terminate_on_success: bool = False,
         render_mode: str | None = None,
-        fixed_goal: int | None = None,
+        fixed_goal: int | str | None = None,
         width: int = 96,
         height: int = 96,
     ) -> None:
@@ -87,7 +87,7 @@ class PointMassEnv(NDPEnv):
         self._setup(horizon, render_mode, action_dim=int(dim))
         self.width = check_render_size("width", width)
         self.height = check_render_size("height", height)
-        self._set_fixed_goal(fixed_goal)
+        self._set_fixed_goal(fixed_goal, "point-mass")
         self.dim = int(dim)
         self.terminate_on_success = bool(terminate_on_success)
         # position in the box [-1, 1], velocity at most ACTION_SCALE / CONTROL_DT, goal in

@@ -145,7 +145,7 @@ class MetaWorldTorqueEnv(MetaWorldEnv):
         height: int = 480,
         camera_name: str = "corner",
         reward_version: str = "v2",
-        fixed_goal: int | None = None,
+        fixed_goal: int | str | None = None,
     ) -> None:
         """Create the env (``controller``: the task table's row; None: the default OSC row;
         ``reward_version``, ``fixed_goal``: as :class:`ndp.envs.metaworld_env.MetaWorldEnv`)."""
@@ -321,7 +321,7 @@ class JacoTorqueEnv(jaco.JacoEnv):
         width: int = 480,
         height: int = 480,
         camera: str = "side",
-        fixed_goal: int | None = None,
+        fixed_goal: int | str | None = None,
     ) -> None:
         """Create the env (``controller``: the task table's row; None: joint space;
         ``fixed_goal``: as :class:`ndp.envs.jaco.JacoEnv`)."""

@@ -87,7 +87,7 @@ def diagnose(
     env = ChunkedEnv(
         resolve_task(cfg.task, **cfg.env_options()).make(horizon=cfg.horizon),
         k,
-        stale_world=cfg.stale_world,
+        **cfg.chunk_options(),
     )
     key = "cmd" if cfg.policy.dmp_state == "commanded" else "dmp"
     scale = np.array([s if s > 0 else 1.0 for s in spec.action_scale])[: spec.action_dim]

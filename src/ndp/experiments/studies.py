@@ -39,11 +39,13 @@ class ArmSpec:
     """The arm's method may not be registered yet: then the arm is left out (with a note)."""
     in_default: bool = True
     """Part of a plain ``ndp sweep STUDY``; False: only when named with ``--arms``."""
+    tasks: tuple[str, ...] = ()
+    """The tasks the arm runs on (``Arm.tasks``); empty: every task of the study."""
 
     def arm(self) -> Any:
         from ndp.experiments.study import Arm
 
-        return Arm(self.label, self.algo, self.args, self.note, self.requires)
+        return Arm(self.label, self.algo, self.args, self.note, self.requires, self.tasks)
 
 
 @dataclass(frozen=True)
@@ -343,6 +345,108 @@ RELEASE_1M_CONDITIONS = (
 """The conditions of release-goals-1m (release-goals is UNEQUAL on purpose, and labelled so)."""
 
 
+EXPLAINED_TASKS = ("push-v3", "soccer-v3", "faucet-open-v3", "throw")
+"""Tasks of release-explained: the paper's three Meta-World tasks and Throw."""
+RELEASE_ALL_MW = (
+    *RELEASE_V1,
+    "--goals", "as-release",
+    "--observation", "release9",
+    *RELEASE_OPTIMISER,
+    "--steps-per-update", "500",
+)  # fmt: skip
+"""Every release condition our code has, for one method on a Meta-World task: v1 rewards, the
+release's goals for this method on this task (ndp.envs.release.release_goals), the 9-D
+observation, entropy 0.01 and the clipped value loss, 500 env steps per update. Chunked methods
+add the first-held execution (and PPO-multi the live reward at every sub-step: the release's
+stale rule was NDP's only). Not reproducible here: the linear lr decay over 25,000 updates (at
+300k env steps it would have lowered the lr by 2.4%), the vendored pre-v1 Meta-World and push's
+4x timestep."""
+FIRST_HELD = ("--execution", "first-held")
+
+
+def _explained_arms() -> tuple[ArmSpec, ...]:
+    """The runs of release-explained (docs/rl-release.md); an arm runs only on its tasks."""
+    mw, push, throw = RELEASE_TASKS, ("push-v3",), ("throw",)
+    rel_v1 = (*RELEASE_V1, "--goals", "release")
+    rel = ("--goals", "release")
+    return (
+        # fair reference (the 300k screen's runs on Meta-World, archived; new on Throw)
+        ArmSpec("ndp", "ndp", (), "fair: v2 rewards, random goals, all sub-actions executed"),
+        ArmSpec("ppo-multi", "ppo-multi", (), "fair"),
+        ArmSpec("ppo", "ppo", (), "fair"),
+        # every release condition at once (Meta-World)
+        ArmSpec("ndp-rall", "ndp", (*RELEASE_ALL_MW, *FIRST_HELD),
+                "release-all: every release condition at once", tasks=mw),
+        ArmSpec("ppo-multi-rall", "ppo-multi", (*RELEASE_ALL_MW, *FIRST_HELD, "--no-stale-world"),
+                "release-all (live reward at every sub-step, as the release's PPO-multi)",
+                tasks=mw),
+        ArmSpec("ppo-rall", "ppo", RELEASE_ALL_MW, "release-all (random goals on push / soccer)",
+                tasks=mw),
+        # the release's execution on push (v1, the release's one goal) ...
+        ArmSpec("ndp-v1-rel", "ndp", rel_v1, "v1, the release's goal, all executed", tasks=push),
+        ArmSpec("ndp-v1-rel-fh", "ndp", (*rel_v1, *FIRST_HELD), "v1, release goal, first held",
+                tasks=push),
+        ArmSpec("ppo-multi-v1-rel", "ppo-multi", rel_v1, "v1, release goal, all executed",
+                tasks=push),
+        ArmSpec("ppo-multi-v1-rel-fh", "ppo-multi", (*rel_v1, *FIRST_HELD),
+                "v1, release goal, first held", tasks=push),
+        ArmSpec("ppo-repeat-v1-rel", "ppo-repeat", rel_v1,
+                "v1, release goal, PPO with its action held k = 5 steps", tasks=push),
+        ArmSpec("ppo-v1-rel", "ppo", rel_v1, "v1, release goal", tasks=push, in_default=False),
+        # ... and on Throw (the release's one basket place, for every method)
+        ArmSpec("ndp-rel", "ndp", rel, "release basket, all executed", tasks=throw),
+        ArmSpec("ndp-rel-fh", "ndp", (*rel, *FIRST_HELD), "release basket, first held",
+                tasks=throw),
+        ArmSpec("ppo-multi-rel", "ppo-multi", rel, "release basket, all executed", tasks=throw),
+        ArmSpec("ppo-multi-rel-fh", "ppo-multi", (*rel, *FIRST_HELD),
+                "release basket, first held", tasks=throw),
+        ArmSpec("ppo-repeat-rel", "ppo-repeat", rel, "release basket, action held k = 5 steps",
+                tasks=throw),
+        ArmSpec("ppo-rel", "ppo", rel, "release basket", tasks=throw),
+        # the release's 9-D observation alone (fair otherwise)
+        ArmSpec("ndp-obs9", "ndp", ("--observation", "release9"), "9-D observation",
+                tasks=("push-v3", "soccer-v3")),
+        ArmSpec("ppo-multi-obs9", "ppo-multi", ("--observation", "release9"), "9-D observation",
+                tasks=("push-v3", "soccer-v3")),
+        ArmSpec("ppo-obs9", "ppo", ("--observation", "release9"), "9-D observation",
+                tasks=("push-v3", "soccer-v3")),
+    )  # fmt: skip
+
+
+EXPLAINED_CONDITIONS = (
+    Condition("fair", "v2 rewards, random goals for every method (our default)",
+              (("ndp", "ndp"), ("ppo-multi", "ppo-multi"), ("ppo", "ppo"))),
+    Condition("obs9", "the release's 9-D observation (hand, object, goal), fair otherwise",
+              (("ndp", "ndp-obs9"), ("ppo-multi", "ppo-multi-obs9"), ("ppo", "ppo-obs9"))),
+    Condition("release-all",
+              "every release condition at once: v1 rewards, the release's goals per task (PPO "
+              "random on push / soccer), first-held execution, 9-D observation, entropy 0.01, "
+              "clipped value loss, 500 env steps per update",
+              (("ndp", "ndp-rall"), ("ppo-multi", "ppo-multi-rall"), ("ppo", "ppo-rall")),
+              True),
+    Condition("push: release goal, all executed",
+              "push only: v1 rewards, the release's one goal for every method",
+              (("ndp", "ndp-v1-rel"), ("ppo-multi", "ppo-multi-v1-rel"),
+               ("ppo-repeat", "ppo-repeat-v1-rel"))),
+    Condition("push: release goal, first held",
+              "push only: v1 rewards, the release's one goal; NDP / PPO-multi execute only their "
+              "first sub-action, held k = 5 steps; PPO-repeat holds its one action",
+              (("ndp", "ndp-v1-rel-fh"), ("ppo-multi", "ppo-multi-v1-rel-fh"),
+               ("ppo-repeat", "ppo-repeat-v1-rel"))),
+    Condition("throw: release basket, all executed",
+              "Throw only: the basket at the release's one place for every method",
+              (("ndp", "ndp-rel"), ("ppo-multi", "ppo-multi-rel"), ("ppo", "ppo-rel"),
+               ("ppo-repeat", "ppo-repeat-rel"))),
+    Condition("throw: release basket, first held",
+              "Throw only: the release's basket; NDP / PPO-multi execute only their first "
+              "sub-action, held k = 5 steps",
+              (("ndp", "ndp-rel-fh"), ("ppo-multi", "ppo-multi-rel-fh"), ("ppo", "ppo-rel"),
+               ("ppo-repeat", "ppo-repeat-rel"))),
+)  # fmt: skip
+"""The conditions of release-explained (release-all is UNEQUAL on push and soccer: PPO draws
+random goals there, as in the release)."""
+
+
 BC_TASKS = ("throw", "pick", "push-v3", "soccer-v3", "faucet-open-v3")
 """Tasks of the behaviour-cloning study (the paper's five robot tasks, each with a scripted
 expert: ndp.bc.experts)."""
@@ -530,6 +634,27 @@ STUDIES: dict[str, Study] = {
             arms=_release_1m_arms,
             steps=1_000_000,
             conditions=RELEASE_1M_CONDITIONS,
+        ),
+        Study(
+            name="release-explained",
+            title="The 2021 release explained: its goals per task, its execution, its "
+            "observation, and all its conditions at once",
+            doc=(
+                "push-v3, soccer-v3, faucet-open-v3 and throw x NDP, PPO-multi, PPO (and "
+                "PPO-repeat: PPO with its action held k = 5 env steps) under the release's "
+                "conditions as the release ran them: release-all (v1 rewards, the release's "
+                "goals per task with PPO on random goals on push / soccer, only the first "
+                "sub-action executed and held k steps, the 9-D observation, entropy 0.01, the "
+                "clipped value loss, 500 env steps per update; Meta-World tasks; UNEQUAL); the "
+                "first-held execution against all-executed and PPO-repeat on push (v1, the "
+                "release's one goal) and Throw (its one basket place); the 9-D observation "
+                "alone on push and soccer; fair reference arms. Each arm runs only on its "
+                "tasks. 300k env steps, 3 seeds; report with --study release-explained."
+            ),
+            tasks=lambda: EXPLAINED_TASKS,
+            arms=_explained_arms,
+            steps=300_000,
+            conditions=EXPLAINED_CONDITIONS,
         ),
         Study(
             name="il-robot",

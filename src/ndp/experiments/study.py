@@ -57,6 +57,13 @@ class Arm:
     requires: str = ""
     """What the arm needs that the trainer may not have yet (e.g. "the learned-a_z option of
     the RL NDP head"): named when its options are refused (ndp.experiments.sweep.check_arms)."""
+    tasks: tuple[str, ...] = field(default=())
+    """The tasks this arm runs on (its options exist only there, e.g. v1 rewards on Meta-World);
+    empty: every task of the sweep."""
+
+    def runs_on(self, task: str) -> bool:
+        """Whether the arm has a run on ``task`` (:attr:`tasks` empty: every task)."""
+        return not self.tasks or task in self.tasks
 
     def __post_init__(self) -> None:
         kind_of_algo(self.algo)  # a ValueError naming the known methods

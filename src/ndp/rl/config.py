@@ -34,6 +34,11 @@ EVAL_SEED = 10_000
 SB3 runs. Training resets draw 32-bit seeds from ``SeedSequence([seed, epoch])``
 (:func:`ndp.rl.envs.env_seeds`), so evaluation episodes are fresh ones."""
 
+GOALS = ("random", "per-seed", "release", "as-release")
+"""Values of ``TrainConfig.goals``."""
+EXECUTIONS = ("all", "first-held")
+"""Values of ``TrainConfig.execution`` (``ndp.envs.chunked.EXECUTIONS``)."""
+
 SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers", "device")
 """TrainConfig fields a resume may change: they change neither the numbers nor the history
 (``steps`` extends or shortens the budget; ``device`` moves the update, which changes float
@@ -220,9 +225,18 @@ class TrainConfig:
     """Meta-World's reward function: 'v2' (metaworld's default) or 'v1' (the shaped rewards the
     2021 release trained on; success is the v2 evaluation under both). Meta-World tasks only."""
     goals: str = "random"
-    """'random' (a fresh seeded task configuration every episode) or 'fixed' (one object + goal
-    configuration for the whole run, drawn from the run's seed: the release's condition for NDP
-    and PPO-multi). Evaluation of the run uses the same."""
+    """'random' (a fresh seeded task configuration every episode), 'per-seed' (one object + goal
+    configuration for the whole run, drawn from the run's seed; 'fixed' is its old name, still
+    read), 'release' (the 2021 release's ONE hard-coded configuration, the same for every run
+    and seed: push, soccer, faucet-open, Throw, Pick; ndp.envs.release) or 'as-release' (what the
+    release gave this method on this task: random for PPO on push and soccer, 'release'
+    otherwise; resolved to one of the two before the run starts). Evaluation of the run uses
+    the same."""
+    execution: str = "all"
+    """How a decision's k sub-actions run: 'all' (each in turn) or 'first-held' (only the first,
+    held for the k env steps, while the update pairs each sub-step's advantage with its own
+    sub-action's log-prob: the 2021 release's defect, reproduced as a labelled condition for
+    chunked methods; no effect at k = 1)."""
     observation: str = "full"
     """'full' (the task's observation) or 'release9' (Meta-World only: the 2021 release's 9
     values, hand, object and goal xyz)."""
@@ -263,8 +277,17 @@ class TrainConfig:
             _check_int("horizon", self.horizon, 1)
         if self.reward_version not in ("v1", "v2"):
             raise ValueError(f"reward_version: expected 'v1' or 'v2', got {self.reward_version!r}")
-        if self.goals not in ("random", "fixed"):
-            raise ValueError(f"goals: expected 'random' or 'fixed', got {self.goals!r}")
+        if self.goals == "fixed":  # the old name of 'per-seed' (configs and arms written before)
+            object.__setattr__(self, "goals", "per-seed")
+        if self.goals not in GOALS:
+            raise ValueError(
+                f"goals: expected one of {', '.join(GOALS)} ('fixed' = 'per-seed'), "
+                f"got {self.goals!r}"
+            )
+        if self.execution not in EXECUTIONS:
+            raise ValueError(
+                f"execution: expected one of {', '.join(EXECUTIONS)}, got {self.execution!r}"
+            )
         _check_device(self.device)
         if self.vector not in ("auto", "sync", "workers", "async"):
             raise ValueError(
@@ -301,16 +324,25 @@ class TrainConfig:
 
     def env_options(self) -> dict[str, Any]:
         """The task options every env of this run gets (``ndp.envs.make_env`` keywords):
-        ``reward_version`` and, for ``goals="fixed"``, the ``fixed_goal`` seed derived from
-        ``seed`` (``ndp.envs.fixed_goal_seed``)."""
+        ``reward_version``, ``observation`` where not 'full', and the ``fixed_goal``: for
+        ``goals="per-seed"`` the seed derived from ``seed`` (``ndp.envs.fixed_goal_seed``), for
+        ``goals="release"`` the string ``"release"``."""
         out: dict[str, Any] = {"reward_version": self.reward_version}
         if self.observation != "full":
             out["observation"] = self.observation
-        if self.goals == "fixed":
+        if self.goals == "per-seed":
             from ndp.envs.factory import fixed_goal_seed
 
             out["fixed_goal"] = fixed_goal_seed(self.seed)
+        elif self.goals == "release":
+            out["fixed_goal"] = "release"
         return out
+
+    def chunk_options(self) -> dict[str, Any]:
+        """The :class:`ndp.envs.ChunkedEnv` keywords of this run (``stale_world``,
+        ``execution``): every env the run's policy acts in gets them (training, evaluation,
+        rendering)."""
+        return {"stale_world": self.stale_world, "execution": self.execution}
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (nested for ``ppo``, ``policy`` and ``dyne``)."""
@@ -345,6 +377,8 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     - NDP: ``n_basis``, ``a_z``, ``goal_scale`` from the task's preset where None;
       ``dmp_steps`` = preset steps per sub-step * k; ``weight_scale`` = a_z^2 / 4 where None.
     - ``run_dir`` defaults to ``runs/<task>-<algo>-s<seed>``.
+    - ``goals="as-release"`` becomes what the release gave the method on the task
+      (``ndp.envs.release.release_goals``).
 
     Args:
         cfg: the requested config.
@@ -384,7 +418,17 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     with_k = dataclasses.replace(pol, head=method.head, k=k, **frame)
     policy = with_k.updated(**method.resolve(with_k, spec))
     run_dir = cfg.run_dir or str(Path("runs") / f"{spec.name}-{cfg.algo}-s{cfg.seed}")
-    return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir)
+    goals = cfg.goals
+    if goals == "as-release":
+        from ndp.envs.release import release_goals
+
+        try:
+            goals = release_goals(spec.name, cfg.algo)
+        except ValueError as exc:
+            raise ValueError(f"goals: 'as-release' needs a task the release ran ({exc})") from None
+    if goals == "release":  # refused here, before any run folder, where there is none
+        task_options(spec, cfg.reward_version, "release")
+    return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir, goals=goals)
 
 
 def unused_head_options(cfg: TrainConfig) -> list[str]:

@@ -314,8 +314,9 @@ class DyneLearner(CountsUpdates):
         self.T = cfg.decisions_per_env
         self.n_explore = explore_iterations(cfg)
         self.envs = rl_envs.make_vector_env(
-            task, self.k, self.E, cfg.stale_world, cfg.horizon, cfg.vector, cfg.env_workers
-        )
+            task, self.k, self.E, cfg.stale_world, cfg.horizon, cfg.vector, cfg.env_workers,
+            cfg.execution,
+        )  # fmt: skip
         obs_shape = self.envs.single_observation_space.shape
         assert obs_shape is not None  # a Box (ChunkedEnv's observation space is the task's)
         self.obs_dim = int(np.prod(obs_shape))

@@ -67,12 +67,14 @@ def _make_chunked(
     stale_world: bool,
     horizon: int | None,
     render_mode: str | None = None,
+    execution: str = "all",
 ) -> ChunkedEnv:
     """Env-worker entry: one chunked env (torch kept to one thread in worker processes)."""
     import torch
 
     torch.set_num_threads(1)
-    return ChunkedEnv(make(horizon=horizon, render_mode=render_mode), k, stale_world=stale_world)
+    env = make(horizon=horizon, render_mode=render_mode)
+    return ChunkedEnv(env, k, stale_world=stale_world, execution=execution)
 
 
 def make_vector_env(
@@ -83,14 +85,16 @@ def make_vector_env(
     horizon: int | None = None,
     vector: str = "sync",
     env_workers: int | None = None,
+    execution: str = "all",
 ) -> gym.vector.VectorEnv:
     """``num_envs`` chunked copies of a task in a vector env (same-step autoreset).
 
     Seed it with ``reset(seed=[...])``. Actions are [num_envs, k, A]. ``vector`` and
-    ``env_workers``: see the module docstring (``resolve_vector``).
+    ``env_workers``: see the module docstring (``resolve_vector``); ``stale_world`` and
+    ``execution``: :class:`ndp.envs.ChunkedEnv`'s.
     """
     fns = [
-        functools.partial(_make_chunked, task.make, k, stale_world, horizon)
+        functools.partial(_make_chunked, task.make, k, stale_world, horizon, None, execution)
         for _ in range(num_envs)
     ]
     kind, workers = resolve_vector(vector, num_envs, env_workers)

@@ -11,8 +11,8 @@ with :mod:`ndp.runs` and leaves a checkpoint with the keys of :data:`POLICY_CHEC
 ``ndp rl eval / render / export`` and ``ndp.load_policy`` then work on its runs unchanged
 (``tests/rl/test_rl_methods.py`` registers a toy random-search learner and evaluates it).
 
-Every built-in method is registered below (``ppo``, ``ppo-multi``, ``ndp``, ``dyne``, ``vices``,
-``vices-pos``, ``vices-low-freq``). The registry imports no learner and no trainer: Dyn-E's
+Every built-in method is registered below (``ppo``, ``ppo-multi``, ``ppo-repeat``, ``ndp``,
+``dyne``, ``vices``, ``vices-pos``, ``vices-low-freq``). The registry imports no learner and no trainer: Dyn-E's
 learner is named by its entry point, so the learners and the config may import the registry
 without an import circle (``tests/test_import_graph.py``).
 """
@@ -132,6 +132,14 @@ def register_method(method: Method) -> Method:
 
 register_method(Method("ppo", "step", "PPO: one raw action per env step (k = 1)"))
 register_method(Method("ppo-multi", "multi", "PPO-multi: k raw actions per decision"))
+register_method(
+    Method(
+        "ppo-repeat",
+        "hold",
+        "PPO with action repeat: one raw action per decision, held for the k env steps (one "
+        "log-prob per decision; the baseline of the release's first-held execution)",
+    )
+)
 register_method(
     Method(
         "ndp",

@@ -305,7 +305,7 @@ class Policy:
         )
         if wrap is not None:
             base = wrap(base)
-        return ChunkedEnv(base, self.exec_k, stale_world=self.cfg.stale_world)
+        return ChunkedEnv(base, self.exec_k, **self.cfg.chunk_options())
 
     def export(
         self,

@@ -106,6 +106,7 @@ class Trainer(CountsUpdates):
             cfg.horizon,
             cfg.vector,
             cfg.env_workers,
+            cfg.execution,
         )
         obs_shape = self.envs.single_observation_space.shape
         assert obs_shape is not None  # a Box (ChunkedEnv's observation space is the task's)

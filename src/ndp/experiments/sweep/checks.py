@@ -152,7 +152,7 @@ def check_arms(arms: Sequence[Arm], tasks: Sequence[str] = (), study: str = "") 
     for arm in arms:
         if not run_kind(arm.kind).takes_options:
             continue
-        for task in tasks or ("point-mass",):
+        for task in [t for t in tasks if arm.runs_on(t)] or ("point-mass",)[: not tasks]:
             _parse_arm(arm, task)
 
 

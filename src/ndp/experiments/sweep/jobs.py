@@ -72,12 +72,14 @@ def make_jobs(
     num_envs: int = 4,
     vector: str = "sync",
 ) -> list[Job]:
-    """Every (task, arm, seed), seed-major (all tasks and arms of the first seed first)."""
+    """Every (task, arm, seed), seed-major (all tasks and arms of the first seed first); an
+    arm restricted to some tasks (``Arm.tasks``) only on those."""
     return [
         Job(t, a, int(s), int(steps), run_dir(Path(runs_dir), t, a, s), num_envs, vector)
         for s in seeds
         for t in tasks
         for a in arms
+        if a.runs_on(t)
     ]
 
 

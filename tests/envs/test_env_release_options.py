@@ -73,7 +73,7 @@ def test_reward_version_and_fixed_goal_refused_with_a_clear_message():
         with pytest.raises(ValueError, match=rf"reward_version: {name}'s v1 reward"):
             make_env(name, reward_version="v1")
     for bad in (-1, 1.5, True, "3"):
-        with pytest.raises(ValueError, match="fixed_goal: expected None or an integer >= 0"):
+        with pytest.raises(ValueError, match="fixed_goal: expected None, an integer >= 0 or "):
             make_env("point-mass", fixed_goal=bad)
     assert make_env("point-mass", fixed_goal=np.int64(4)).unwrapped.fixed_goal == 4
 
@@ -128,3 +128,112 @@ def test_release9_observation_is_hand_object_goal_and_trains(tmp_path):
     obs, info = env.reset(seed=0)
     assert obs.shape == (9,) and pol.act(obs, info).shape == (5, 4)
     env.close()
+
+
+# ------------------------------------------------------------------ the release's one goal
+
+
+def _positions(task: str, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(object or faucet xyz, goal xyz) of a Meta-World observation."""
+    return np.asarray(obs[4:7]), np.asarray(obs[36:39])
+
+
+@pytest.mark.parametrize(
+    ("task", "obj_xy", "goal_xy"),
+    [
+        ("push-v3", (0.0, 0.6), (0.1, 0.8)),
+        ("soccer-v3", (0.0, 0.6), (0.0, 0.9)),
+        ("faucet-open-v3", None, (0.175, 0.8)),  # v3's goal: faucet (0, 0.8) + its handle
+    ],
+)
+def test_release_goal_is_the_releases_hard_coded_configuration(task, obj_xy, goal_xy):
+    """fixed_goal='release' puts object and goal where the release hard-coded them, at every
+    reset and for every episode seed (ndp-method.md section 7)."""
+    env = make_env(task, fixed_goal="release")
+    first = None
+    for seed in (0, 1, 7):
+        obs, _ = env.reset(seed=seed)
+        obj, goal = _positions(task, obs)
+        np.testing.assert_allclose(goal[:2], goal_xy, atol=1e-6)
+        if obj_xy is not None:
+            np.testing.assert_allclose(obj[:2], obj_xy, atol=1e-3)
+        first = obs if first is None else first
+        np.testing.assert_array_equal(obs, first)
+    env.close()
+    # the default still draws fresh configurations (the env's own draw is not frozen for good)
+    free = make_env(task)
+    a, _ = free.reset(seed=0)
+    b, _ = free.reset(seed=1)
+    assert not np.array_equal(a[36:39], b[36:39])
+    free.close()
+
+
+@pytest.mark.parametrize("task", ["throw", "pick"])
+def test_release_goal_on_jaco_is_the_nominal_place(task):
+    """Throw's basket / Pick's cube at the nominal place (jitter 0) for every episode seed."""
+    env = make_env(task, fixed_goal="release")
+    goals = [env.reset(seed=s)[0][-3:] for s in (0, 1, 2)]
+    for g in goals[1:]:
+        np.testing.assert_array_equal(g, goals[0])
+    free = make_env(task)
+    jittered = [free.reset(seed=s)[0][-3:] for s in (0, 1)]
+    assert not np.array_equal(jittered[0], jittered[1])
+    if task == "pick":
+        np.testing.assert_allclose(goals[0][:2], (0.0, 0.5), atol=1e-6)
+    env.close()
+    free.close()
+
+
+def test_release_goal_refused_where_the_release_had_none():
+    for task in ("reach-v3", "point-mass"):
+        with pytest.raises(ValueError, match="fixed_goal: 'release' .* exists for push-v3"):
+            make_env(task, fixed_goal="release")
+
+
+def test_release_goal_rule_per_task_and_method():
+    """The release's rule, pinned: PPO (and its variants) random on push and soccer only; NDP and
+    PPO-multi fixed everywhere; faucet-open, Throw, Pick fixed for every method."""
+    from ndp.envs.release import RELEASE_GOAL_TASKS, release_goals
+
+    want = {
+        ("push-v3", "ndp"): "release",
+        ("push-v3", "ppo-multi"): "release",
+        ("push-v3", "ppo"): "random",
+        ("push-v3", "ppo-repeat"): "random",
+        ("soccer-v3", "ndp"): "release",
+        ("soccer-v3", "ppo-multi"): "release",
+        ("soccer-v3", "ppo"): "random",
+        ("faucet-open-v3", "ndp"): "release",
+        ("faucet-open-v3", "ppo-multi"): "release",
+        ("faucet-open-v3", "ppo"): "release",
+        ("throw", "ndp"): "release",
+        ("throw", "ppo"): "release",
+        ("pick", "ppo"): "release",
+        ("pick", "ndp"): "release",
+    }
+    for (task, method), goals in want.items():
+        assert release_goals(task, method) == goals, (task, method)
+    assert set(RELEASE_GOAL_TASKS) == {"push-v3", "soccer-v3", "faucet-open-v3", "throw", "pick"}
+    with pytest.raises(ValueError, match="task: the release's goal rule covers"):
+        release_goals("reach-v3", "ndp")
+
+
+def test_as_release_goals_resolve_per_method():
+    """--goals as-release is resolved before the run: the config that runs (and is saved) says
+    'release' or 'random'."""
+    from ndp.rl.config import TrainConfig, resolve_config
+
+    for algo, want in (("ndp", "release"), ("ppo", "random"), ("ppo-multi", "release")):
+        cfg = resolve_config(TrainConfig(task="push-v3", algo=algo, goals="as-release"))
+        assert cfg.goals == want
+        assert cfg.env_options().get("fixed_goal") == ("release" if want == "release" else None)
+    assert (
+        resolve_config(TrainConfig(task="faucet-open-v3", algo="ppo", goals="as-release")).goals
+        == "release"
+    )
+    with pytest.raises(ValueError, match="goals: 'as-release' needs a task the release ran"):
+        resolve_config(TrainConfig(task="reach-v3", goals="as-release"))
+    with pytest.raises(ValueError, match="fixed_goal: 'release'"):
+        resolve_config(TrainConfig(task="reach-v3", goals="release"))
+    # the old name of the per-seed goal is still read
+    assert TrainConfig(goals="fixed").goals == "per-seed"

@@ -128,7 +128,8 @@ def _no_env(*a, **k):
         ({"reward_version": "v3"}, "reward_version: expected 'v1' or 'v2'"),
         ({"task": "throw", "reward_version": "v1"}, "reward_version: 'v1' exists for Meta-World"),
         ({"task": "assembly-v3", "reward_version": "v1"}, "reward_version: assembly-v3's v1"),
-        ({"goals": "one"}, "goals: expected 'random' or 'fixed'"),
+        ({"goals": "one"}, "goals: expected one of random, per-seed, release, as-release"),
+        ({"execution": "first"}, "execution: expected one of all, first-held"),
     ],
 )
 def test_bad_input_fails_before_any_env(monkeypatch, tmp_path, kwargs, match):
@@ -226,7 +227,7 @@ def test_task_options_reach_every_env_of_the_run_and_its_evaluation(tmp_path):
     finally:
         tr.close()
     saved = json.loads((run / "config.json").read_text())
-    assert saved["goals"] == "fixed" and saved["reward_version"] == "v1"
+    assert saved["goals"] == "per-seed" and saved["reward_version"] == "v1"  # 'fixed': old name
     env = load_policy(run).make_env()
     assert env.unwrapped.fixed_goal == fixed_goal_seed(3)
     assert env.unwrapped.reward_version == "v1"

@@ -153,9 +153,7 @@ def check_fixed_goal(value: Any) -> int | str | None:
     if value is None or value == RELEASE_GOAL:
         return value  # type: ignore[no-any-return]
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise ValueError(
-            f"fixed_goal: expected None, an integer >= 0 or 'release', got {value!r}"
-        )
+        raise ValueError(f"fixed_goal: expected None, an integer >= 0 or 'release', got {value!r}")
     return int(value)
 
 
@@ -186,7 +184,8 @@ class NDPEnv(gym.Env):
     """None: every reset draws a fresh task configuration (objects, goal) from the seeded
     ``np_random``; an int: every reset draws it from a fresh generator seeded with this value,
     so every episode has the same configuration (``goals="per-seed"`` of a run); ``"release"``:
-    the 2021 release's one hard-coded configuration (:meth:`release_config`; ``goals="release"``)."""
+    the 2021 release's one hard-coded configuration (:meth:`release_config`;
+    ``goals="release"``)."""
 
     def _setup(self, horizon: Any, render_mode: str | None, action_dim: int) -> None:
         """Check and store ``horizon`` and ``render_mode``; set the ``[-1, 1]^action_dim``

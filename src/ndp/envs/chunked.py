@@ -94,7 +94,9 @@ class ChunkedEnv(gym.Wrapper):
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
             raise ValueError(f"k: expected an int >= 1, got {k!r}")
         if execution not in EXECUTIONS:
-            raise ValueError(f"execution: expected one of {', '.join(EXECUTIONS)}, got {execution!r}")
+            raise ValueError(
+                f"execution: expected one of {', '.join(EXECUTIONS)}, got {execution!r}"
+            )
         self.execution = str(execution)
         box = env.action_space
         if not isinstance(box, spaces.Box) or len(box.shape) != 1:

@@ -39,10 +39,19 @@ GOALS = ("random", "per-seed", "release", "as-release")
 EXECUTIONS = ("all", "first-held")
 """Values of ``TrainConfig.execution`` (``ndp.envs.chunked.EXECUTIONS``)."""
 
-SAFE_ON_RESUME = ("progress", "tensorboard", "steps", "vector", "env_workers", "device")
+SAFE_ON_RESUME = (
+    "progress",
+    "tensorboard",
+    "steps",
+    "vector",
+    "env_workers",
+    "device",
+    "eval_every",
+    "eval_episodes",
+)
 """TrainConfig fields a resume may change: they change neither the numbers nor the history
 (``steps`` extends or shortens the budget; ``device`` moves the update, which changes float
-rounding only)."""
+rounding only; the periodic evaluation draws nothing from the training stream)."""
 
 
 @dataclass(frozen=True)
@@ -244,6 +253,12 @@ class TrainConfig:
     """Run directory; None: runs/<task>-<algo>-s<seed>."""
     checkpoint_every: int = 10
     """Updates between checkpoints (one is always written at the end)."""
+    eval_every: int = 15_000
+    """Env steps between deterministic evaluations of the policy during training (and one after
+    the last update): eval_episodes episodes of its mode on the fixed evaluation seeds, logged as
+    eval/* in metrics.csv (ndp.rl.periodic_eval; about 20 in a 300k-step run); 0: off."""
+    eval_episodes: int = 10
+    """Episodes per periodic deterministic evaluation (0: off)."""
     tensorboard: bool = True
     """Write TensorBoard event files besides the CSV."""
     progress: bool = True
@@ -272,6 +287,8 @@ class TrainConfig:
         _check_int("seed", self.seed, 0)
         _check_int("num_envs", self.num_envs, 1)
         _check_int("checkpoint_every", self.checkpoint_every, 1)
+        _check_int("eval_every", self.eval_every, 0)
+        _check_int("eval_episodes", self.eval_episodes, 0)
         _check_int("torch_threads", self.torch_threads, 1)
         if self.horizon is not None:
             _check_int("horizon", self.horizon, 1)
@@ -357,6 +374,7 @@ class TrainConfig:
         # ones (without them) ran the fixed default of their time, the commanded frame at rest
         pol.setdefault("dmp_state", "commanded")
         pol.setdefault("dmp_velocity", "zero")
+        d.setdefault("eval_every", 0)  # configs written before the periodic evaluation: none ran
         policy = PolicyConfig.from_dict(pol)  # flat (before NDPHeadConfig) or nested
         try:
             ppo = PPOConfig(**d.pop("ppo", {}))

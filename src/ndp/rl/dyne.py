@@ -58,6 +58,7 @@ from ndp.rl.config import DyneConfig, TrainConfig
 from ndp.rl.logger import METRICS
 from ndp.rl.methods import DYNE_METRICS
 from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import TrainProgress, episode_charts, last_update
 from ndp.rl.trainer import open_rl_session, rl_manifest
 from ndp.runs.session import (
@@ -339,6 +340,7 @@ class DyneLearner(CountsUpdates):
         self.replay = DecisionReplay(d.replay_size, self.obs_dim, self.L, self.k)
         # identity statistics: TD3 sees raw observations (clipped), as eval will
         self.obs_norm = ObsNormalizer(self.obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
+        self.evaluator = PeriodicEvaluator(cfg, self.spec)
         self.low = np.asarray(self.spec.action_low, dtype=np.float64)
         self.high = np.asarray(self.spec.action_high, dtype=np.float64)
         self.update = 0
@@ -597,8 +599,13 @@ class DyneLearner(CountsUpdates):
             embed = self._fit_embedding()
         t2 = time.perf_counter()
         self.update += 1
-        self.global_step += batch["executed"]
-        return self._metrics(batch, embed, t1 - t0 - t_update, t_update + t2 - t1)
+        before, self.global_step = self.global_step, self.global_step + batch["executed"]
+        row = self._metrics(batch, embed, t1 - t0 - t_update, t_update + t2 - t1)
+        last = self.update >= self.cfg.num_updates
+        if self.embedded:  # before the embedding is fitted there is no policy to evaluate
+            row.update(self.evaluator.maybe(before, self.global_step, last, self.model,
+                                            self.obs_norm))  # fmt: skip
+        return row
 
     def train(self, max_updates: int | None = None) -> dict[str, float]:
         """Train until ``cfg.steps`` (or ``max_updates`` more iterations); returns the last
@@ -657,5 +664,6 @@ class DyneLearner(CountsUpdates):
         }
 
     def close(self) -> None:
-        """Close the environments."""
+        """Close the environments (training and evaluation)."""
         self.envs.close()
+        self.evaluator.close()

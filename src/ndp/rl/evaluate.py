@@ -28,7 +28,9 @@ def _check_episodes(episodes: Any, seed: Any) -> None:
         raise ValueError(f"seed: expected an integer >= 0 (the first episode seed), got {seed!r}")
 
 
-def _episode(pol: Policy, env: Any, seed: int, deterministic: bool) -> dict[str, float]:
+def run_episode(pol: Policy, env: Any, seed: int, deterministic: bool) -> dict[str, float]:
+    """One episode of ``pol`` in ``env`` (a chunked env) from reset seed ``seed``: success at
+    any step and at the final step, return and length in env steps."""
     obs, info = env.reset(seed=seed)
     pol.reset(seed)  # the action noise of a stochastic episode is seeded by the episode seed
     ret, length = 0.0, 0
@@ -83,7 +85,7 @@ def evaluate_policy(
     _check_episodes(episodes, seed)
     env = pol.make_env()
     try:
-        rows = [_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
+        rows = [run_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
     finally:
         env.close()
     out: dict[str, Any] = {"episodes": episodes, "deterministic": deterministic}
@@ -118,7 +120,7 @@ def _record(
 
     env = pol.make_env(render_mode="rgb_array", wrap=record, render_size=render_size)
     try:
-        rows = [_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
+        rows = [run_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
     finally:
         env.close()
     return recorders[0].frames, rows, pol

@@ -32,8 +32,14 @@ METRICS: tuple[str, ...] = (
     "ctrl/nonfinite",
     "time/rollout_s",
     "time/update_s",
+    # the periodic deterministic evaluation (ndp.rl.periodic_eval.EVAL_METRICS)
+    "eval/success_any",
+    "eval/success_final",
+    "eval/return",
+    "eval/episodes",
+    "time/eval_s",
 )
 """CSV columns, in order. Values that do not apply (e.g. dmp/* for PPO) are left empty."""
 
-TIME_METRICS = ("charts/env_steps_per_s", "time/rollout_s", "time/update_s")
+TIME_METRICS = ("charts/env_steps_per_s", "time/rollout_s", "time/update_s", "time/eval_s")
 """Columns that depend on wall-clock time (excluded from determinism checks)."""

@@ -12,9 +12,9 @@ with :mod:`ndp.runs` and leaves a checkpoint with the keys of :data:`POLICY_CHEC
 (``tests/rl/test_rl_methods.py`` registers a toy random-search learner and evaluates it).
 
 Every built-in method is registered below (``ppo``, ``ppo-multi``, ``ppo-repeat``, ``ndp``,
-``dyne``, ``vices``, ``vices-pos``, ``vices-low-freq``). The registry imports no learner and no trainer: Dyn-E's
-learner is named by its entry point, so the learners and the config may import the registry
-without an import circle (``tests/test_import_graph.py``).
+``dyne``, ``vices``, ``vices-pos``, ``vices-low-freq``). The registry imports no learner and
+no trainer: Dyn-E's learner is named by its entry point, so the learners and the config may
+import the registry without an import circle (``tests/test_import_graph.py``).
 """
 
 from __future__ import annotations

@@ -46,6 +46,7 @@ from ndp.rl.logger import METRICS
 from ndp.rl.methods import METHODS
 from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
 from ndp.rl.optim import FlatAdam
+from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.ppo import (
     entropy_mean,
     gaussian_policy_loss,
@@ -128,6 +129,7 @@ class Trainer(CountsUpdates):
         self.high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
         self.update = 0
         self.global_step = 0
+        self.evaluator = PeriodicEvaluator(cfg, self.spec)
         if ckpt is not None:
             self.load_state_dict(ckpt)
             self.session.restored(ckpt, self.update)
@@ -381,7 +383,11 @@ class Trainer(CountsUpdates):
         stats = self.learn(batch)
         t2 = time.perf_counter()
         self.update += 1
-        self.global_step += batch["executed"]
+        before, self.global_step = self.global_step, self.global_step + batch["executed"]
+        last = self.update >= self.cfg.num_updates
+        evaluation = self.evaluator.maybe(
+            before, self.global_step, last, self.rollout_model, self.obs_norm
+        )
         with torch.no_grad():
             std = float(self.model.head.log_std.exp().mean())
         return {
@@ -403,6 +409,7 @@ class Trainer(CountsUpdates):
             **self._ctrl_metrics(batch),
             "time/rollout_s": t1 - t0,
             "time/update_s": t2 - t1,
+            **evaluation,
         }
 
     def train(self, max_updates: int | None = None) -> dict[str, float]:
@@ -441,8 +448,9 @@ class Trainer(CountsUpdates):
         }
 
     def close(self) -> None:
-        """Close the environments."""
+        """Close the environments (training and evaluation)."""
         self.envs.close()
+        self.evaluator.close()
 
 
 def _robot_state(

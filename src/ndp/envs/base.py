@@ -242,7 +242,7 @@ class NDPEnv(gym.Env):
         ``"release"`` the env uses :meth:`release_config` instead of drawing)."""
         if self.fixed_goal is None:
             return self.np_random
-        if self.fixed_goal == RELEASE_GOAL:
+        if isinstance(self.fixed_goal, str):  # "release": the env uses release_config
             return np.random.default_rng(0)
         return np.random.default_rng(self.fixed_goal)
 

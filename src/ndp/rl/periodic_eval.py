@@ -90,7 +90,7 @@ class PeriodicEvaluator:
         was_training = model.training
         try:
             model.eval()
-            pol = Policy(self.cfg, self.spec, model, obs_norm)  # type: ignore[arg-type]
+            pol = Policy(self.cfg, self.spec, model, obs_norm)
             if self._env is None:
                 self._env = pol.make_env()
             with torch.no_grad():

@@ -186,7 +186,7 @@ def test_release_goal_on_jaco_is_the_nominal_place(task):
 
 def test_release_goal_refused_where_the_release_had_none():
     for task in ("reach-v3", "point-mass"):
-        with pytest.raises(ValueError, match="fixed_goal: 'release' .* exists for push-v3"):
+        with pytest.raises(ValueError, match=r"fixed_goal: 'release' .* exists for push-v3"):
             make_env(task, fixed_goal="release")
 
 

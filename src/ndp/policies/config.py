@@ -25,6 +25,8 @@ DMP_STATES = ("commanded", "measured")
 """Where the NDP DMP starts: the commanded target (mocap, joint targets) or the measured robot."""
 
 
+AR1_HEADS = ("step", "multi", "ndp")
+"""Heads whose exploration is a Gaussian around each sub-action (``noise="ar1"`` applies)."""
 PRESET_FIELDS = ("n_basis", "a_z", "dmp_steps", "goal_scale", "weight_scale")
 """The NDP head's fields whose ``None`` means "the task's preset" (``ndp.rl.methods.resolve_ndp``
 fills them; a head without a DMP has them cleared)."""
@@ -164,6 +166,15 @@ class PolicyConfig:
     """Hidden non-linearity of both MLPs."""
     init_log_std: float = 0.0
     """Initial value of the learned, state-independent log std (0: std 1), every method."""
+    noise: str = "white"
+    """Exploration noise around the sub-actions: 'white' (independent per env step) or 'ar1'
+    (temporally correlated: an AR(1) / discretised Ornstein-Uhlenbeck process over env steps,
+    continued across decisions, restarted at each episode; exact conditional log-probs,
+    ndp.policies.distributions.AR1SubActionGaussian). PPO, PPO-multi and NDP (not with
+    param_noise or the hold head). Acting with a loaded policy samples the white marginal."""
+    noise_corr: float = 0.8
+    """'ar1' noise: correlation of consecutive env steps' noise, in [0, 1) (0.8: a correlation
+    time of about one k = 5 decision)."""
     hidden_gain: float | None = None
     """Orthogonal-init gain of the hidden layers; None: the activation's (5/3 for tanh)."""
     ndp: NDPHeadConfig = field(default_factory=NDPHeadConfig)
@@ -208,6 +219,18 @@ class PolicyConfig:
             raise ValueError(f"hidden_gain: expected a number > 0, got {self.hidden_gain!r}")
         if self.ndp.param_noise and self.head != "ndp":
             raise ValueError("param_noise: parameter-space exploration needs the 'ndp' head")
+        from ndp.policies.distributions import NOISES
+
+        if self.noise not in NOISES:
+            raise ValueError(f"noise: expected one of {', '.join(NOISES)}, got {self.noise!r}")
+        if not (isinstance(self.noise_corr, (int, float)) and 0.0 <= self.noise_corr < 1.0):
+            raise ValueError(f"noise_corr: expected a number in [0, 1), got {self.noise_corr!r}")
+        if self.noise == "ar1" and (self.head not in AR1_HEADS or self.ndp.param_noise):
+            raise ValueError(
+                "noise: 'ar1' needs a Gaussian around each sub-action (ppo, ppo-multi, ndp "
+                f"without --param-noise), got head {self.head!r}"
+                + (" with param_noise" if self.ndp.param_noise else "")
+            )
 
     @property
     def resolved(self) -> bool:

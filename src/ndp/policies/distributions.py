@@ -147,3 +147,101 @@ class ParamGaussian:
         """Sub-actions [B, k, A] for raw parameters ``z`` [B, P]."""
         with torch.no_grad():
             return self._decode(z)
+
+
+NOISES = ("white", "ar1")
+"""Exploration noise of the per-sub-action Gaussian heads: independent per sub-step ('white'),
+or an AR(1) process over env steps, continued across decisions ('ar1': the discretised
+Ornstein-Uhlenbeck process; :class:`AR1SubActionGaussian`)."""
+
+
+class AR1SubActionGaussian:
+    """Gaussian sub-actions whose noise is an AR(1) process over env steps (temporally
+    correlated exploration: the discretised Ornstein-Uhlenbeck process).
+
+    ``z_j = mean_j + std * e_j`` with unit-variance noise ``e_j = rho e_{j-1} + sqrt(1 - rho^2)
+    xi_j``, ``xi_j ~ N(0, I)``, for the sub-steps j = 0..k-1 of a decision; ``e_{-1}`` is the
+    ``carry``: the last noise of the env's previous decision (a fresh N(0, I) draw at an
+    episode's start, so every ``e_j`` is N(0, I) and corr(e_j, e_{j+l}) = rho^l).
+
+    The log-prob of sub-action j is its density given the decision's earlier sub-actions and the
+    carry: ``log N(xi_j; 0, I) - sum_a log(std sqrt(1 - rho^2))`` with ``xi_j = (e_j - rho
+    e_{j-1}) / sqrt(1 - rho^2)`` and ``e_j = (z_j - mean_j) / std`` recomputed from the current
+    parameters; the carry is part of the condition (stored with the decision), so the policy is
+    a proper density over the decision given (observation, carry), the PPO ratio of sub-step j is
+    exact, and the per-sub-step factorisation keeps the causal pairing with the advantage A_j
+    (docs/rl-regimes.md). ``rho = 0`` is :class:`SubActionGaussian`.
+
+    Args:
+        mean: [B, k, A].
+        log_std: [A].
+        carry: [B, A] the previous noise ``e_{-1}``.
+        rho: correlation of consecutive env steps' noise, in [0, 1).
+    """
+
+    per_decision = False
+
+    def __init__(
+        self, mean: torch.Tensor, log_std: torch.Tensor, carry: torch.Tensor, rho: float
+    ) -> None:
+        self.mean = mean
+        self.log_std = log_std
+        self.carry = carry.to(mean.dtype)
+        self.rho = float(rho)
+        self._s = math.sqrt(1.0 - self.rho * self.rho)
+
+    def noise(self, z: torch.Tensor) -> torch.Tensor:
+        """The unit noise ``e`` [B, k, A] of sub-actions ``z`` under the current parameters."""
+        return (z - self.mean) * torch.exp(-self.log_std)
+
+    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Draw sub-actions [B, k, A] (no gradient)."""
+        xi = torch.randn(
+            self.mean.shape, generator=generator, dtype=self.mean.dtype, device=self.mean.device
+        )
+        e = torch.empty_like(xi)
+        prev = self.carry
+        for j in range(xi.shape[1]):
+            prev = self.rho * prev + self._s * xi[:, j]
+            e[:, j] = prev
+        return (self.mean + e * self.log_std.exp()).detach()
+
+    def mode(self) -> torch.Tensor:
+        """The means [B, k, A] (the noise has mean 0 whatever the carry's value; the mode of
+        the conditional density is shifted by ``rho^(j+1) std carry``, but a deterministic
+        policy does not carry noise)."""
+        return self.mean.detach()
+
+    def log_prob(self, z: torch.Tensor) -> torch.Tensor:
+        """Per-sub-action conditional log-probs [B, k] of ``z`` [B, k, A]."""
+        e = self.noise(z)
+        prev = torch.cat([self.carry.unsqueeze(1), e[:, :-1]], dim=1)
+        xi = (e - self.rho * prev) / self._s
+        log_scale = self.log_std + math.log(self._s)
+        return (-0.5 * xi.pow(2) - log_scale - _HALF_LOG_2PI).sum(-1)
+
+    def entropy(self) -> torch.Tensor:
+        """Per-sub-action conditional entropies [B, k]."""
+        return diag_gaussian_entropy(self.log_std + math.log(self._s), self.mean.shape)
+
+    def actions(self, z: torch.Tensor) -> torch.Tensor:
+        """The sub-actions are the samples themselves: [B, k, A]."""
+        return z
+
+    def last_noise(self, z: torch.Tensor) -> torch.Tensor:
+        """The carry of the env's next decision: the noise of the last sub-action [B, A]."""
+        return self.noise(z)[:, -1].detach()
+
+
+def correlate(dist: PolicyDistribution, carry: torch.Tensor, rho: float) -> AR1SubActionGaussian:
+    """``dist`` (a :class:`SubActionGaussian`) with AR(1) noise continued from ``carry`` [B, A].
+
+    Raises:
+        ValueError: ``dist`` is not a per-sub-action Gaussian (parameter noise, the hold head).
+    """
+    if not isinstance(dist, SubActionGaussian):
+        raise ValueError(
+            "noise: 'ar1' needs a Gaussian around each sub-action (ppo, ppo-multi, ndp without "
+            f"--param-noise), got {type(dist).__name__}"
+        )
+    return AR1SubActionGaussian(dist.mean, dist.log_std, carry, rho)

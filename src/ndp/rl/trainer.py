@@ -31,7 +31,7 @@ import torch
 from ndp.chunk_info import dmp_start, dmp_start_keys
 from ndp.envs.base import CTRL_INFO
 from ndp.policies import build_actor_critic
-from ndp.policies.distributions import SubActionGaussian
+from ndp.policies.distributions import SubActionGaussian, correlate
 from ndp.rl.config import SAFE_ON_RESUME, TrainConfig, load_config, resolve_config
 from ndp.rl.envs import (
     EpisodeTracker,
@@ -145,6 +145,17 @@ class Trainer(CountsUpdates):
         assert frame is not None  # resolve_config fills it from the task's preset
         self._dmp_frame: str = frame
         self._y0, self._dy0 = _robot_state(info, cfg.num_envs, self._dmp_frame)
+        # AR(1) exploration: each env's last unit noise, the next decision's carry (None: white)
+        self._rho = float(cfg.policy.noise_corr) if cfg.policy.noise == "ar1" else None
+        self._carry = None if self._rho is None else torch.randn(cfg.num_envs, self.spec.action_dim)
+
+    def _explore(self, dist: Any, carry: torch.Tensor | None) -> Any:
+        """The exploration distribution the run samples from: ``dist`` itself (white noise) or
+        with AR(1) noise continued from ``carry`` [B, A] (``--noise ar1``)."""
+        if self._rho is None:
+            return dist
+        assert carry is not None
+        return correlate(dist, carry, self._rho)
 
     # ----------------------------------------------------------------------- state
     def state_dict(self) -> dict[str, Any]:
@@ -197,6 +208,7 @@ class Trainer(CountsUpdates):
         dy0_b = torch.zeros(T, E, D)
         z_b: torch.Tensor | None = None
         logp_b: torch.Tensor | None = None
+        carry_b = None if self._carry is None else torch.zeros(T, E, self._carry.shape[1])
         val_b = np.zeros((T, E, k))
         rew_b = np.zeros((T, E, k))
         mask_b = np.zeros((T, E, k))
@@ -217,6 +229,8 @@ class Trainer(CountsUpdates):
                 except FloatingPointError as exc:
                     msg = f"non-finite DMP input during the rollout ({exc})"
                     raise self._diverged(msg) from None
+                carry = self._carry
+                dist = self._explore(dist, carry)
                 z = dist.sample()
                 logp = dist.log_prob(z)
                 per_decision = bool(dist.per_decision)
@@ -228,6 +242,8 @@ class Trainer(CountsUpdates):
                 z_b = torch.zeros((T, E, *z.shape[1:]))
                 logp_b = torch.zeros((T, E, logp.shape[1]))
             obs_b[t], y0_b[t], dy0_b[t], z_b[t], logp_b[t] = obs_n, y0, dy0, z, logp
+            if carry_b is not None and carry is not None:
+                carry_b[t] = carry
             val_b[t] = values.numpy()
             if "goal_norm" in aux:
                 goal_norms.append(float(aux["goal_norm"].mean()))
@@ -253,6 +269,11 @@ class Trainer(CountsUpdates):
                     ctrl[key] += float(step_info(infos, done, key).sum())
 
             self._episodes.add(infos, done, sub_r, live, mask, episodes)
+            if self._carry is not None:  # continue the noise; a new episode starts afresh
+                self._carry = dist.last_noise(z)
+                if done.any():
+                    fresh = torch.from_numpy(done)
+                    self._carry[fresh] = torch.randn(int(done.sum()), self._carry.shape[1])
             self._obs = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
             self._y0, self._dy0 = _robot_state(infos, E, self._dmp_frame)
 
@@ -278,6 +299,7 @@ class Trainer(CountsUpdates):
             "weight_norm": float(np.mean(weight_norms)) if weight_norms else math.nan,
             "ctrl": ctrl,
             "per_decision": per_decision,
+            "carry": None if carry_b is None else carry_b.reshape(n, -1),
         }
 
     # ----------------------------------------------------------------------- update
@@ -311,6 +333,8 @@ class Trainer(CountsUpdates):
         }
         vclip = p.clip if p.clip_value_loss else None
         keys = ("obs", "y0", "dy0", "z", "logp", "values", "returns")
+        if batch.get("carry") is not None:
+            keys += ("carry",)
         vmask_all = batch["mask"]
         for _ in range(p.epochs):
             perm = torch.randperm(n, device=mask.device)
@@ -324,6 +348,7 @@ class Trainer(CountsUpdates):
                     dist, _ = self.model.distribution(mb["obs"], mb["y0"], mb["dy0"])
                 except FloatingPointError as exc:
                     raise self._diverged(f"non-finite DMP input in the update ({exc})") from None
+                dist = self._explore(dist, mb.get("carry"))
                 m, vm = mb["mask"], mb["vmask"]
                 mb_adv = normalize_advantages(mb["adv"], m) if per_mb_norm else mb["adv"]
                 if isinstance(dist, SubActionGaussian):  # fused surrogate: one autograd node

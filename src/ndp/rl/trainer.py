@@ -332,7 +332,7 @@ class Trainer(CountsUpdates):
             k: [] for k in ("policy", "value", "entropy", "approx_kl", "clipfrac", "grad_norm")
         }
         vclip = p.clip if p.clip_value_loss else None
-        keys = ("obs", "y0", "dy0", "z", "logp", "values", "returns")
+        keys: tuple[str, ...] = ("obs", "y0", "dy0", "z", "logp", "values", "returns")
         if batch.get("carry") is not None:
             keys += ("carry",)
         vmask_all = batch["mask"]

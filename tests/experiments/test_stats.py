@@ -70,3 +70,72 @@ def test_bad_input_is_refused():
         S.probability_of_improvement(X, Y[:, :2])
     with pytest.raises(ValueError, match="scores: expected an array"):
         S.iqm(np.zeros((0, 2)))
+
+
+# ------------------------------------------------------------------ permutation test, t, rliable
+
+
+def test_permutation_test_by_hand_one_task():
+    """3 + 3 runs: 20 splits. X = {4, 5, 6} beats Y = {1, 2, 3} in every pair: only the observed
+    split is as extreme, p = 1 / 20 one-sided, 2 / 20 two-sided."""
+    x, y = [[4.0], [5.0], [6.0]], [[1.0], [2.0], [3.0]]
+    assert S.permutation_test(x, y) == pytest.approx(1 / 20)
+    assert S.permutation_test(x, y, "two-sided") == pytest.approx(2 / 20)
+    assert S.permutation_test(x, y, "less") == pytest.approx(1.0)
+    # identical groups: every split is as extreme as the observed 0 difference
+    assert S.permutation_test([[1.0], [1.0]], [[1.0], [1.0]]) == pytest.approx(1.0)
+
+
+def test_permutation_test_is_stratified_by_task():
+    """Two tasks, X ahead by the same margin on both: only the observed split of each task is as
+    extreme, p = 1 / 20^2; a task on which X is far ahead cannot make up a task mixed across
+    seeds (labels are only exchanged within a task)."""
+    x = np.array([[4.0, 14.0], [5.0, 15.0], [6.0, 16.0]])
+    y = np.array([[1.0, 11.0], [2.0, 12.0], [3.0, 13.0]])
+    assert S.permutation_test(x, y) == pytest.approx(1 / 400)
+    # against an unstratified test, pooling both tasks would not be exchangeable; check a
+    # brute-force enumeration of the stratified splits on a small random case
+    rng = np.random.default_rng(3)
+    a, b = rng.random((2, 2)), rng.random((3, 2))
+    import itertools
+
+    stats = []
+    for s0 in itertools.combinations(range(5), 2):
+        for s1 in itertools.combinations(range(5), 2):
+            tot = 0.0
+            for t, sel in enumerate((s0, s1)):
+                pool = np.concatenate([a[:, t], b[:, t]])
+                m = np.zeros(5, bool)
+                m[list(sel)] = True
+                tot += pool[m].mean() - pool[~m].mean()
+            stats.append(tot)
+    obs = float((a.mean(0) - b.mean(0)).sum())
+    want = np.mean(np.array(stats) >= obs - 1e-12)
+    assert S.permutation_test(a, b) == pytest.approx(want)
+
+
+def test_permutation_test_monte_carlo_above_the_exact_limit(monkeypatch):
+    monkeypatch.setattr(S, "PERMUTATION_EXACT_LIMIT", 10)
+    x = np.array([[4.0, 14.0], [5.0, 15.0], [6.0, 16.0]])
+    y = np.array([[1.0, 11.0], [2.0, 12.0], [3.0, 13.0]])
+    p = S.permutation_test(x, y, rng=0)
+    assert 1 / (S.PERMUTATION_SAMPLES + 1) <= p < 0.003  # exact: 1/400
+    with pytest.raises(ValueError, match="alternative: expected"):
+        S.permutation_test(x, y, "bigger")
+
+
+def test_t_interval_by_hand():
+    # mean 2, sample std 1, n 3: half width t(0.975, 2) / sqrt(3) = 4.302653 / 1.732051
+    lo, hi = S.t_interval([1.0, 2.0, 3.0])
+    assert (lo + hi) / 2 == pytest.approx(2.0)
+    assert (hi - lo) / 2 == pytest.approx(4.302653 / np.sqrt(3), rel=1e-6)
+    assert S.t_interval([0.4]) == (0.4, 0.4)
+
+
+def test_optimality_gap_and_performance_profile_from_rliable():
+    # gap: mean of max(1 - score, 0) over all runs
+    assert S.optimality_gap([[1.0, 0.5], [0.0, 1.2]]) == pytest.approx((0 + 0.5 + 1.0 + 0) / 4)
+    prof, ci = S.performance_profile({"a": X}, np.array([0.0, 0.5, 1.0]), reps=200)
+    # fraction of the 9 runs above tau: all above 0, 5 of 9 above 0.5, none above 1
+    np.testing.assert_allclose(prof["a"], [1.0, 5 / 9, 0.0])
+    assert ci["a"].shape == (2, 3)

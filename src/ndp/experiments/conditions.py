@@ -12,6 +12,13 @@ every condition and method this section gives:
   (:mod:`ndp.experiments.stats`, the rliable protocol), with the paper's ordering
   (NDP > PPO-multi > PPO) checked on the IQM of the success area.
 
+Where the runs have a periodic deterministic evaluation (``eval/*``, ndp.rl.periodic_eval), its
+numbers come first and the **headline** is the deterministic success area; else the training
+episodes' success area. For the headline the section adds the t-interval beside the bootstrap
+(with :data:`ndp.experiments.stats.COVERAGE_NOTE`), the optimality gap over tasks (rliable),
+exact permutation p-values for every pair of methods in a condition (per task and stratified
+over the tasks), and a performance-profile figure per study (``<out>-profiles.png``).
+
 Conditions with ``unequal=True`` (the release's unequal goals) carry "UNEQUAL" in every table
 and figure.
 """
@@ -33,13 +40,53 @@ METRICS = (
     ("final", "final success (any step)"),
     ("final_last", "final success (final step)"),
 )
-"""(cell number key, heading) of the numbers each table gives."""
+"""(cell number key, heading) of the training-episode numbers each table gives."""
+DET_METRICS = (
+    ("det_area", "det. success area"),
+    ("det_final", "det. final success (any step)"),
+    ("det_final_last", "det. final success (final step)"),
+)
+"""The periodic deterministic evaluation's numbers, first where the runs have them."""
+
+
+def metrics_of(cells: Sequence[Any]) -> tuple[tuple[tuple[str, str], ...], str]:
+    """(the numbers the tables give, the headline key): the deterministic ones first and the
+    deterministic area as headline where any run has them, else the training-episode ones."""
+    det = any(
+        not math.isnan(n.get("det_area", math.nan)) for c in cells for n in c.numbers.values()
+    )
+    return ((*DET_METRICS, *METRICS), "det_area") if det else (METRICS, "area")
+
+
 ORDER = ("ndp", "ppo-multi", "ppo")
 """The paper's ordering of the methods, best first."""
 
 
 def _name(cond: Any) -> str:
     return f"{cond.name} (UNEQUAL)" if cond.unequal else cond.name
+
+
+def _with_overrides(cond: Any, by: dict[tuple[str, str], Any], tasks: Sequence[str]) -> Any:
+    """A condition whose arm differs per task (``Condition.overrides``) as one with a combined
+    label per overridden method, e.g. ``ppo-v1 / faucet-open-v3: ppo-v1-fixed``, entered in
+    ``by`` for every task (the tables then need no per-task lookup)."""
+    import dataclasses
+
+    if not getattr(cond, "overrides", ()):
+        return cond
+    methods = []
+    for m, lb in cond.methods:
+        per = {t: o for t, mm, o in cond.overrides if mm == m}
+        if not per:
+            methods.append((m, lb))
+            continue
+        name = lb + " / " + ", ".join(f"{t}: {o}" for t, o in per.items())
+        for t in tasks:
+            cell = by.get((t, per.get(t, lb)))
+            if cell is not None:
+                by[(t, name)] = cell
+        methods.append((m, name))
+    return dataclasses.replace(cond, methods=tuple(methods), overrides=())
 
 
 def _ci(v: Sequence[float], lo: float, hi: float) -> str:
@@ -75,14 +122,18 @@ def conditions_section(
     """
     by = {(c.task, c.label): c for c in cells}
     tasks = list(dict.fromkeys(c.task for c in cells))
+    conditions = [_with_overrides(cond, by, tasks) for cond in conditions]
     methods = list(dict.fromkeys(m for cond in conditions for m, _ in cond.methods))
+    metrics, head = metrics_of(cells)
+    head_name = dict(metrics)[head]
     md = [
         "## Conditions",
         "",
         "Each condition maps every method to one arm of the study (runs shared where settings "
         "coincide). UNEQUAL: the methods do not see the same task distribution on purpose (the "
         "2021 release's condition, reproduced to explain the paper's curves; not a fair "
-        "comparison). Per task: mean over seeds [95% percentile-bootstrap interval].",
+        "comparison). Per task: mean over seeds [95% percentile-bootstrap interval]; for the "
+        f"headline ({head_name}) also the 95% t-interval. {stats.COVERAGE_NOTE}",
         "",
     ]
     for cond in conditions:
@@ -91,43 +142,71 @@ def conditions_section(
     md.append("")
     rows: list[dict[str, Any]] = []
     for task in tasks:
+        present = [cond for cond in conditions if any((task, lb) in by for _, lb in cond.methods)]
+        if not present:
+            continue
         md += [
             f"### {task}",
             "",
-            "| condition | method | arm | n | " + " | ".join(h for _, h in METRICS) + " |",
-            "|---" * (4 + len(METRICS)) + "|",
+            "| condition | method | arm | n | "
+            + " | ".join(h for _, h in metrics)
+            + f" | {head_name}: t-interval |",
+            "|---" * (5 + len(metrics)) + "|",
         ]
-        for cond in conditions:
+        for cond in present:
             for m, lb in cond.methods:
                 cell = by.get((task, lb))
                 vals = []
                 row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
                                        "task": task, "method": m, "arm": lb}  # fmt: skip
                 n = 0
-                for key, _ in METRICS:
+                for key, _ in metrics:
                     v = _values(cell, key, seeds)
                     n = max(n, len(v))
                     lo, hi = stats.bootstrap_ci(v) if v else (math.nan, math.nan)
                     vals.append(_ci(v, lo, hi))
                     row.update({f"{key}_mean": np.mean(v) if v else math.nan,
                                 f"{key}_ci_low": lo, f"{key}_ci_high": hi})  # fmt: skip
+                v = _values(cell, head, seeds)
+                tlo, thi = stats.t_interval(v) if v else (math.nan, math.nan)
+                vals.append("-" if not v else f"[{tlo:.2f}, {thi:.2f}]")
+                row.update({f"{head}_t_low": tlo, f"{head}_t_high": thi})
                 row["n_seeds"] = n
                 rows.append(row)
                 md.append(f"| {_name(cond)} | {m} | `{lb}` | {n} | " + " | ".join(vals) + " |")
         md.append("")
-    full = [
-        t
-        for t in tasks
-        if all(
-            len(_values(by.get((t, lb)), "final", seeds)) == len(seeds)
-            for cond in conditions
-            for _, lb in cond.methods
+        prows = _pairwise(by, present, [task], seeds, head)
+        md += _pairwise_md(prows, f"{task}: permutation tests of {head_name}")
+        rows += prows
+    # over tasks: the conditions whose every arm has every seed on the same tasks (two or
+    # more), each over its own full tasks
+    over_rows: list[dict[str, Any]] = []
+    groups: dict[tuple[str, ...], list[Any]] = {}
+    for cond in conditions:
+        full = tuple(
+            t
+            for t in tasks
+            if all(
+                len(_values(by.get((t, lb)), head, seeds)) == len(seeds) for _, lb in cond.methods
+            )
         )
-    ]
-    over, over_rows = _over_tasks(by, conditions, methods, full, seeds)
-    md += over
+        if len(full) >= 2:
+            groups.setdefault(full, []).append(cond)
+    if not groups:
+        md += ["Over tasks: no condition has every seed of every arm on two tasks yet.", ""]
+    for full, conds in groups.items():
+        over, rows_g = _over_tasks(by, conds, methods, list(full), seeds, metrics, head)
+        md += over
+        prows = _pairwise(by, conds, list(full), seeds, head)
+        md += _pairwise_md(prows, f"over {', '.join(full)}: stratified permutation tests "
+                           f"of {head_name}")  # fmt: skip
+        over_rows += rows_g + prows
     rows += over_rows
-    pngs = [_plot(over_rows, conditions, out, foot)] if plots and over_rows else []
+    pngs = []
+    iq = [r for r in over_rows if r["task"] == "IQM over tasks"]
+    if plots and iq:
+        pngs.append(_plot(iq, conditions, out, foot, metrics))
+        pngs.append(_profiles(by, groups, seeds, head, head_name, out, foot))
     md += [f"![{p.stem}]({p.name})" for p in pngs]
     md.append("")
     return md, rows, pngs
@@ -141,17 +220,20 @@ def _matrix(
 
 def _over_tasks(
     by: dict[tuple[str, str], Any], conditions: Sequence[Any], methods: Sequence[str],
-    full: Sequence[str], seeds: Sequence[int],
+    full: Sequence[str], seeds: Sequence[int], metrics: Sequence[tuple[str, str]] = METRICS,
+    head: str = "area",
 ) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
-    if not full:
-        return ["Over tasks: no task has every seed in every cell yet.", ""], []
+    head_name = dict(metrics)[head]
     md = [
         f"### Over tasks ({len(full)} tasks: {', '.join(full)}; {len(seeds)} seeds each)",
         "",
-        "IQM over all runs (tasks x seeds) [95% stratified-bootstrap interval]:",
+        "IQM over all runs (tasks x seeds) [95% stratified-bootstrap interval]; optimality gap "
+        f"of the {head_name} (rliable: mean of max(1 - score, 0) over runs; lower is better):",
         "",
-        "| condition | method | " + " | ".join(f"IQM {h}" for _, h in METRICS) + " |",
-        "|---" * (2 + len(METRICS)) + "|",
+        "| condition | method | "
+        + " | ".join(f"IQM {h}" for _, h in metrics)
+        + f" | optimality gap, {head_name} |",
+        "|---" * (3 + len(metrics)) + "|",
     ]
     rows: list[dict[str, Any]] = []
     iqm_area: dict[tuple[str, str], float] = {}
@@ -161,25 +243,31 @@ def _over_tasks(
             row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
                                    "task": "IQM over tasks", "method": m, "arm": lb,
                                    "n_seeds": len(seeds)}  # fmt: skip
-            for key, _ in METRICS:
+            for key, _ in metrics:
                 x = _matrix(by, lb, key, full, seeds)
                 point = stats.iqm(x)
                 lo, hi = stats.stratified_bootstrap_ci(x, stats.iqm)
                 vals.append(f"{point:.2f} [{lo:.2f}, {hi:.2f}]")
                 row.update({f"{key}_mean": point, f"{key}_ci_low": lo, f"{key}_ci_high": hi})
-                if key == "area":
+                if key == head:
                     iqm_area[(cond.name, m)] = point
+            x = _matrix(by, lb, head, full, seeds)
+            gap = stats.optimality_gap(x)
+            glo, ghi = stats.stratified_bootstrap_ci(x, stats.optimality_gap, reps=1000)
+            vals.append(f"{gap:.2f} [{glo:.2f}, {ghi:.2f}]")
+            row.update({"gap_mean": gap, "gap_ci_low": glo, "gap_ci_high": ghi})
             rows.append(row)
             md.append(f"| {_name(cond)} | {m} | " + " | ".join(vals) + " |")
     md.append("")
     others = [m for m in methods if m != "ndp"]
     if "ndp" in methods and others:
-        heads = [f"P(NDP > {o}), {h}" for o in others for k, h in METRICS if k != "final_last"]
+        shown = [(k, h) for k, h in metrics if k in (head, "area", "final", "det_final")]
+        heads = [f"P(NDP > {o}), {h}" for o in others for _, h in shown]
         md += [
             "Probability that an NDP run beats a run of the other method on the same task "
             "(ties count half; averaged over tasks) [95% stratified-bootstrap interval]; "
             "0.5 = neither is better. Paper's ordering: NDP > PPO-multi > PPO in the IQM of "
-            "the success area.",
+            f"the {head_name}.",
             "",
             "| condition | " + " | ".join(heads) + " | paper's ordering |",
             "|---" * (2 + len(heads)) + "|",
@@ -191,11 +279,9 @@ def _over_tasks(
             vals = []
             for o in others:
                 if o not in lab:
-                    vals += ["-", "-"]
+                    vals += ["-"] * len(shown)
                     continue
-                for key, _ in METRICS:
-                    if key == "final_last":
-                        continue
+                for key, _ in shown:
                     x = _matrix(by, lab["ndp"], key, full, seeds)
                     y = _matrix(by, lab[o], key, full, seeds)
                     p = stats.probability_of_improvement(x, y)
@@ -215,7 +301,100 @@ def _over_tasks(
     return md, rows
 
 
-def _plot(rows: Sequence[dict[str, Any]], conditions: Sequence[Any], out: Path, foot: str) -> Path:
+def _pairwise(
+    by: dict[tuple[str, str], Any], conditions: Sequence[Any], tasks: Sequence[str],
+    seeds: Sequence[int], head: str,
+) -> list[dict[str, Any]]:  # fmt: skip
+    """For every condition and pair of its methods (table order) with every seed on ``tasks``:
+    the mean difference of ``head`` over the tasks and the exact stratified permutation
+    p-values of "A > B" and "B > A" (:func:`ndp.experiments.stats.permutation_test`)."""
+    rows = []
+    where = tasks[0] if len(tasks) == 1 else "over " + ", ".join(tasks)
+    for cond in conditions:
+        n = len(seeds)
+        arms = [
+            (m, lb)
+            for m, lb in cond.methods
+            if all(len(_values(by.get((t, lb)), head, seeds)) == n for t in tasks)
+        ]
+        for (ma, la), (mb, lb) in itertools.combinations(arms, 2):
+            x, y = _matrix(by, la, head, tasks, seeds), _matrix(by, lb, head, tasks, seeds)
+            rows.append({
+                "condition": cond.name, "unequal": cond.unequal, "task": where,
+                "method": f"{ma} vs {mb}", "arm": f"{la} vs {lb}", "metric": head,
+                "diff_mean": float((x.mean(0) - y.mean(0)).mean()),
+                "p_a_greater": stats.permutation_test(x, y, "greater"),
+                "p_b_greater": stats.permutation_test(x, y, "less"),
+                "n_seeds": len(seeds),
+            })  # fmt: skip
+    return rows
+
+
+def _pairwise_md(rows: Sequence[dict[str, Any]], title: str) -> list[str]:
+    if not rows:
+        return []
+    md = [
+        f"{title} (exact, labels exchanged within each task; A - B: the mean difference over "
+        "tasks; one-sided p of each direction; with 3 + 3 seeds on one task the smallest p is "
+        "0.05):",
+        "",
+        "| condition | A vs B | A - B | p(A > B) | p(B > A) |",
+        "|---|---|---|---|---|",
+    ]
+    for r in rows:
+        cond = f"{r['condition']} (UNEQUAL)" if r["unequal"] else r["condition"]
+        md.append(f"| {cond} | {r['method']} | {r['diff_mean']:+.3f} | {r['p_a_greater']:.3f} "
+                  f"| {r['p_b_greater']:.3f} |")  # fmt: skip
+    return [*md, ""]
+
+
+def _profiles(
+    by: dict[tuple[str, str], Any], groups: dict[tuple[str, ...], list[Any]],
+    seeds: Sequence[int], head: str, head_name: str, out: Path, foot: str,
+) -> Path:  # fmt: skip
+    """``<out>-profiles.png``: rliable performance profiles (the fraction of runs over the
+    condition's tasks scoring above tau, with its stratified-bootstrap band) of the headline
+    number, one panel per condition."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import textwrap
+
+    import matplotlib.pyplot as plt
+
+    panels = [(full, cond) for full, conds in groups.items() for cond in conds]
+    cols = min(3, len(panels))
+    nrows = math.ceil(len(panels) / cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(4.2 * cols, 3.2 * nrows + 0.4),
+                             squeeze=False)  # fmt: skip
+    taus = np.linspace(0.0, 1.0, 51)
+    for ax, (full, cond) in zip(axes.ravel(), panels, strict=False):
+        scores = {m: _matrix(by, lb, head, full, seeds) for m, lb in cond.methods}
+        prof, ci = stats.performance_profile(scores, taus)
+        for m in scores:
+            (line,) = ax.plot(taus, prof[m], label=m, lw=1.6)
+            ax.fill_between(taus, ci[m][0], ci[m][1], color=line.get_color(), alpha=0.15, lw=0)
+        ax.set_title(_name(cond) + f"\n({len(full)} tasks x {len(seeds)} seeds)", fontsize=8)
+        ax.set_xlabel(f"{head_name} tau", fontsize=8)
+        ax.set_ylabel("fraction of runs > tau", fontsize=8)
+        ax.set_ylim(-0.02, 1.02)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    for ax in axes.ravel()[len(panels) :]:
+        ax.axis("off")
+    lines = textwrap.wrap(foot, 170) or [""]
+    fig.text(0.01, 0.005, "\n".join(lines), fontsize=5, color="0.35", ha="left", va="bottom")
+    fig.tight_layout(rect=(0, 0.02 + 0.02 * len(lines), 1, 1))
+    path = out.with_name(f"{out.name}-profiles.png")
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path
+
+
+def _plot(
+    rows: Sequence[dict[str, Any]], conditions: Sequence[Any], out: Path, foot: str,
+    metrics: Sequence[tuple[str, str]] = METRICS,
+) -> Path:  # fmt: skip
     """``<out>-conditions.png``: IQM with its interval per condition and method, one panel per
     number."""
     import matplotlib
@@ -228,10 +407,10 @@ def _plot(rows: Sequence[dict[str, Any]], conditions: Sequence[Any], out: Path, 
     iq = [r for r in rows if r["task"] == "IQM over tasks"]
     methods = list(dict.fromkeys(r["method"] for r in iq))
     names = [c.name for c in conditions]
-    fig, axes = plt.subplots(1, len(METRICS), figsize=(4.0 * len(METRICS), 1.2 + 0.55 * len(names)),
+    fig, axes = plt.subplots(1, len(metrics), figsize=(4.0 * len(metrics), 1.2 + 0.55 * len(names)),
                              sharey=True, squeeze=False)  # fmt: skip
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for ax, (key, head) in zip(axes[0], METRICS, strict=True):
+    for ax, (key, head) in zip(axes[0], metrics, strict=True):
         for j, m in enumerate(methods):
             for i, cname in enumerate(names):
                 r = next((r for r in iq if r["condition"] == cname and r["method"] == m), None)

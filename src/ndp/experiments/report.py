@@ -257,7 +257,40 @@ def rl_numbers(info: RunInfo, budgets: Sequence[float]) -> dict[str, Any]:
     }
     for b in budgets:
         out[f"at:{int(b)}"] = success_at(xs, ys, b, info.steps)
+    out.update(det_numbers(rows))
     return out
+
+
+DET_KEYS = ("det_area", "det_final", "det_final_last")
+"""The numbers of a run's periodic deterministic evaluation (:func:`det_numbers`)."""
+
+
+def det_numbers(rows: Sequence[dict[str, float]]) -> dict[str, Any]:
+    """A run's periodic deterministic evaluation (``eval/*`` columns, ndp.rl.periodic_eval):
+    ``det_area`` the mean of ``eval/success_any`` over its evaluations (taken at about equal
+    env-step intervals: the deterministic success area), ``det_final`` / ``det_final_last``
+    the last evaluation's success at any step / at the final step (the final policy), and
+    ``det_curve`` (env steps, success) of every evaluation; NaN and an empty curve for a run
+    without evaluations (trained before the option, or with ``--eval-every 0``)."""
+    x = np.array([r.get("global_step", math.nan) for r in rows], dtype=np.float64)
+    y = np.array([r.get("eval/success_any", math.nan) for r in rows], dtype=np.float64)
+    y_last = np.array([r.get("eval/success_final", math.nan) for r in rows], dtype=np.float64)
+    keep = ~np.isnan(y)
+    if not keep.any():
+        return {**dict.fromkeys(DET_KEYS, math.nan), "det_curve": (x[keep], y[keep])}
+    return {
+        "det_area": float(np.mean(y[keep])),
+        "det_final": float(y[keep][-1]),
+        "det_final_last": float(y_last[keep][-1]),
+        "det_curve": (x[keep], y[keep]),
+    }
+
+
+def has_det(cells: Sequence[Any]) -> bool:
+    """Whether any run of ``cells`` has a periodic deterministic evaluation."""
+    return any(
+        not math.isnan(n.get("det_area", math.nan)) for c in cells for n in c.numbers.values()
+    )
 
 
 def il_numbers(info: RunInfo) -> dict[str, Any]:
@@ -589,6 +622,9 @@ def _csv_rows(
                 ("final_success_last_step", "final_last"),
                 ("final_return_live", "return"),
                 ("det_success", "det"),
+                ("det_success_area", "det_area"),
+                ("det_final_success", "det_final"),
+                ("det_final_success_last_step", "det_final_last"),
             ]
         for name, key in keys:
             m, s, _ = c.stat(key)
@@ -647,6 +683,16 @@ def _markdown(
         ]
     if rl_cells:
         heads = [f"success @ {b:,}" for b in budgets]
+        det = has_det(rl_cells)
+        if det:
+            md += [
+                "Deterministic (the headline): every run evaluates its policy's mode on fixed "
+                "evaluation seeds (from 10,000) during training (`eval/*`, ndp.rl.periodic_eval); "
+                "det. area: the mean of `eval/success_any` over its evaluations; det. final: the "
+                "last evaluation (the final policy), at any step and at the final step. `-`: a "
+                "run trained without it.",
+                "",
+            ]
         md += [
             "Success: `charts/success_any` of the training episodes. Success @ b: mean over the "
             "updates in the last 10% of [0, b] (`-`: no update logged by b, or b past the "
@@ -664,13 +710,15 @@ def _markdown(
             ),
             "",
             "| task | method | n | "
+            + ("det. area | det. final | det. final (final step) | " if det else "")
             + " | ".join(heads)
             + " | success area | final success | final success (final step) | final live return |"
             + (" deterministic success |" if eval_episodes else ""),
-            "|---" * (7 + len(heads) + bool(eval_episodes)) + "|",
+            "|---" * (7 + 3 * det + len(heads) + bool(eval_episodes)) + "|",
         ]
         for c in rl_cells:
-            vals = [_fmt(*c.stat(f"at:{b}")) for b in budgets]
+            vals = [_fmt(*c.stat(k)) for k in DET_KEYS] if det else []
+            vals += [_fmt(*c.stat(f"at:{b}")) for b in budgets]
             vals += [_fmt(*c.stat("area")), _fmt(*c.stat("final")), _fmt(*c.stat("final_last"))]
             vals += [_fmt(*c.stat("return"), 1)]
             vals += [_fmt(*c.stat("det"))] if eval_episodes else []
@@ -789,10 +837,15 @@ def _plot_all(
     foot_lines = textwrap.wrap(foot, 150) or [""]
     meta = {"Description": foot, "Software": "ndp report"}
     paths = []
-    for cells, xlabel, ylabel in (
-        (rl_cells, "env steps", "success (any step, training)"),
-        (il_cells, "epoch", "test MSE (px^2)"),
-    ):
+    panels: list[tuple[Sequence[Cell], str, str, str]] = [
+        (rl_cells, "env steps", "success (any step, training)", "curve"),
+        (il_cells, "epoch", "test MSE (px^2)", "curve"),
+    ]
+    if has_det(rl_cells):
+        panels.insert(
+            0, (rl_cells, "env steps", "success (any step, deterministic evaluation)", "det_curve")
+        )
+    for cells, xlabel, ylabel, curve_key in panels:
         for task in dict.fromkeys(c.task for c in cells):
             fig, ax = plt.subplots(figsize=(6.4, 4.2 + 0.1 * len(foot_lines)))
             tcells = [c for c in cells if c.task == task]
@@ -801,7 +854,7 @@ def _plot_all(
             for c in tcells:
                 curves = []
                 for n in c.numbers.values():
-                    x, y = n["curve"]
+                    x, y = n[curve_key]
                     if len(x):
                         curves.append(np.interp(grid, x, y, left=np.nan, right=np.nan))
                 if not curves:
@@ -840,7 +893,8 @@ def _plot_all(
             )
             fig.tight_layout(rect=(0, 0.01 + 0.022 * len(foot_lines), 1, 1))
             safe = re.sub(r"[^A-Za-z0-9_.-]", "_", task)
-            path = out.with_name(f"{out.name}-{safe}.png")
+            suffix = "-det" if curve_key == "det_curve" else ""
+            path = out.with_name(f"{out.name}-{safe}{suffix}.png")
             fig.savefig(path, dpi=80, metadata=meta)
             plt.close(fig)
             paths.append(path)

@@ -11,6 +11,12 @@ Precipice" (NeurIPS 2021; the ``rliable`` package), written here in numpy:
   the Mann-Whitney statistic of X's runs against Y's (ties count half), averaged over tasks,
   with its stratified bootstrap interval (X's and Y's runs resampled independently per task).
 
+Beside them, what rliable lacks and few-seed comparisons need: an exact **permutation test**
+stratified by task (:func:`permutation_test`), **t-intervals** (:func:`t_interval`) with the
+note on coverage at few seeds (:data:`COVERAGE_NOTE`); and from rliable itself (the ``[stats]``
+extra) the **optimality gap** (:func:`optimality_gap`) and **performance profiles**
+(:func:`performance_profile`).
+
 Scores are arrays ``[runs, tasks]`` (a seed per row, a task per column; every task with the same
 number of runs). Each function takes a ``numpy.random.Generator`` or a seed, so a report's
 intervals are the same every time it is written.
@@ -18,6 +24,7 @@ intervals are the same every time it is written.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -134,6 +141,125 @@ def probability_of_improvement_ci(
         )
     q = (1 - conf) / 2
     return float(np.quantile(boot, q)), float(np.quantile(boot, 1 - q))
+
+
+PERMUTATION_EXACT_LIMIT = 200_000
+"""Largest number of stratified splits enumerated exactly; above it the test samples
+:data:`PERMUTATION_SAMPLES` random splits."""
+PERMUTATION_SAMPLES = 10_000
+
+
+def _splits(n_x: int, n_y: int) -> np.ndarray:
+    """Every way to choose which n_x of n_x + n_y pooled runs form group X: [splits, n_x + n_y]
+    bool (True: in X)."""
+    import itertools
+
+    n = n_x + n_y
+    out = np.zeros((math.comb(n, n_x), n), dtype=bool)
+    for r, idx in enumerate(itertools.combinations(range(n), n_x)):
+        out[r, list(idx)] = True
+    return out
+
+
+def permutation_test(
+    x: object,
+    y: object,
+    alternative: str = "greater",
+    rng: np.random.Generator | int | None = 0,
+) -> float:
+    """p-value of a permutation test of X's runs against Y's, stratified by task.
+
+    Statistic: the sum over tasks of (mean of X's runs - mean of Y's runs) on the task (the mean
+    difference over tasks, times the task count). Under the null hypothesis the labels X / Y are
+    exchangeable within each task, so the reference distribution is the statistic over every
+    re-split of each task's pooled runs into groups of X's and Y's sizes (the product over tasks
+    of C(n_x + n_y, n_x) splits), enumerated exactly up to :data:`PERMUTATION_EXACT_LIMIT`
+    splits, else :data:`PERMUTATION_SAMPLES` random ones (Monte Carlo; the observed split
+    counted in, so p >= 1 / (samples + 1)).
+
+    Args:
+        x: scores [n_x, tasks] (or [n_x]).
+        y: scores [n_y, tasks], the same tasks.
+        alternative: 'greater' (X > Y), 'less' or 'two-sided' (|statistic| as large).
+
+    Returns:
+        The p-value: the fraction of splits whose statistic is at least as extreme as the
+        observed one (the observed split included). With 3 + 3 runs on one task the smallest
+        one-sided p is 1 / 20 = 0.05.
+    """
+    a, b = _scores(x, "x"), _scores(y, "y")
+    if a.shape[1] != b.shape[1]:
+        raise ValueError(f"y: expected {a.shape[1]} tasks like x, got {b.shape[1]}")
+    if alternative not in ("greater", "less", "two-sided"):
+        raise ValueError(
+            f"alternative: expected 'greater', 'less' or 'two-sided', got {alternative!r}"
+        )
+    n_x, n_y, m = a.shape[0], b.shape[0], a.shape[1]
+    pooled = np.concatenate([a, b], axis=0)  # [n, tasks]
+    splits = _splits(n_x, n_y).astype(np.float64)  # [S, n]
+    # per task and split: mean of the X group - mean of the Y group
+    per_task = splits @ pooled / n_x - (1.0 - splits) @ pooled / n_y  # [S, tasks]
+    observed = float((a.mean(0) - b.mean(0)).sum())
+    total = splits.shape[0] ** m
+    if total <= PERMUTATION_EXACT_LIMIT:
+        stat = np.zeros(1)
+        for t in range(m):  # the sum over tasks for every combination of per-task splits
+            stat = (stat[:, None] + per_task[None, :, t]).ravel()
+    else:
+        gen = _rng(rng)
+        pick = gen.integers(0, splits.shape[0], size=(PERMUTATION_SAMPLES, m))
+        stat = np.concatenate([per_task[pick, np.arange(m)].sum(1), [observed]])
+    eps = 1e-12 * max(1.0, abs(observed))
+    if alternative == "greater":
+        hit = stat >= observed - eps
+    elif alternative == "less":
+        hit = stat <= observed + eps
+    else:
+        hit = np.abs(stat) >= abs(observed) - eps
+    return float(hit.mean())
+
+
+def t_interval(values: object, conf: float = 0.95) -> tuple[float, float]:
+    """Student-t interval of the mean of ``values`` [n] (n - 1 degrees of freedom); with one
+    value the interval is that value."""
+    from scipy import stats as sps
+
+    v = _scores(values, "values")[:, 0]
+    if len(v) == 1:
+        return float(v[0]), float(v[0])
+    half = float(sps.t.ppf(0.5 + conf / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v)))
+    return float(v.mean() - half), float(v.mean() + half)
+
+
+COVERAGE_NOTE = (
+    "With n seeds, the percentile bootstrap of a mean covers less than its nominal 95% (in "
+    "simulation about 76% per task and 84% for the IQM at n = 3); the t-interval is wider and "
+    "near nominal for roughly normal scores. Read both; prefer the permutation p-values for "
+    "'is A ahead of B'."
+)
+"""The one-line note on interval coverage at few seeds that every condition table carries."""
+
+
+def optimality_gap(scores: object, gamma: float = 1.0) -> float:
+    """rliable's optimality gap (``rliable.metrics.aggregate_optimality_gap``): the mean over
+    all runs of max(gamma - score, 0): how far the method is from solving every task (0: every
+    run at gamma; lower is better)."""
+    from rliable import metrics
+
+    return float(metrics.aggregate_optimality_gap(_scores(scores), gamma))
+
+
+def performance_profile(
+    scores: dict[str, np.ndarray], taus: np.ndarray, reps: int = 2000
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """rliable's score distributions (``rliable.library.create_performance_profile``): for
+    each method, the fraction of its runs (over tasks) scoring above each tau, and its
+    stratified-bootstrap 95% band ([2, len(taus)])."""
+    from rliable import library
+
+    clean = {k: _scores(v) for k, v in scores.items()}
+    prof, ci = library.create_performance_profile(clean, taus, reps=reps)
+    return {k: np.asarray(v) for k, v in prof.items()}, {k: np.asarray(v) for k, v in ci.items()}
 
 
 # the Wilson interval of a success rate lives with the model cards that report it (ndp.rl sits

@@ -61,6 +61,9 @@ class Condition:
     unequal: bool = False
     """The methods do not see the same task distribution or settings on purpose (a condition
     reproduced from the 2021 release): the report labels it so."""
+    overrides: tuple[tuple[str, str, str], ...] = ()
+    """(task, method, arm label): on that task the method's arm is this one instead (a
+    condition that the release ran differently per task, e.g. its goal rule)."""
 
 
 @dataclass(frozen=True)
@@ -259,6 +262,15 @@ RELEASE_CONDITIONS = (
         "random goals for PPO",
         {"ndp": "-v1-fixed", "ppo-multi": "-v1-fixed", "ppo": "-v1"},
         unequal=True,
+    ),
+    Condition(
+        "release-goals per task",
+        "the release's goal rule task by task (corrected): v1 rewards; push and soccer fixed "
+        "goals for NDP and PPO-multi, random for PPO (UNEQUAL); faucet-open fixed for every "
+        "method (one goal per run and seed: the fixed-all arms)",
+        (("ndp", "ndp-v1-fixed"), ("ppo-multi", "ppo-multi-v1-fixed"), ("ppo", "ppo-v1")),
+        True,
+        overrides=(("faucet-open-v3", "ppo", "ppo-v1-fixed"),),
     ),
     _condition("fixed-all", "v1 rewards, one fixed goal per run for every method",
                dict.fromkeys(RELEASE_METHODS, "-v1-fixed")),

@@ -331,7 +331,24 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "ppo-vs-sb3",
         "sb3-ndp",
         "il-robot",
+        "release-explained",
+        "ndp-regimes",
+        "ndp-settings",
     }
+    # the new studies: every arm accepted on its tasks; every condition's arms exist and run
+    # the condition's method
+    for name in ("release-explained", "ndp-regimes", "ndp-settings"):
+        st = get_study(name)
+        arms = {a.label: a for a in st.arm_specs()}
+        sw.check_arms([a.arm() for a in arms.values()], list(st.task_list()), name)
+        for cond in st.conditions:
+            assert all(lb in arms and arms[lb].algo == m for m, lb in cond.methods), cond.name
+    rx = {a.label: a for a in get_study("release-explained").arm_specs()}
+    assert rx["ndp-rall"].tasks == ("push-v3", "soccer-v3", "faucet-open-v3")
+    assert "--execution" in rx["ndp-rall"].args and "--execution" not in rx["ppo-rall"].args
+    rg = {a.label: a for a in get_study("ndp-regimes").arm_specs()}
+    assert rg["ndp-k20"].args == ("--k", "20", "--minibatches", "8")
+    assert [a for a in rg if a.startswith("ndp-ar1-k") and rg[a].in_default] == ["ndp-ar1-k5"]
     # the benchmarks' grids, as named studies
     for name in ("ndp-head-ablation", "ppo-vs-sb3", "sb3-ndp", "il-robot"):
         st = get_study(name)
@@ -343,7 +360,12 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         for cond in st.conditions:
             assert [m for m, _ in cond.methods] == ["ndp", "ppo-multi", "ppo"]
             assert all(lb in arms and arms[lb].algo == m for m, lb in cond.methods)
-        assert [c.name for c in st.conditions if c.unequal] == ["release-goals"]
+            assert all(lb in arms and arms[lb].algo == m for _, m, lb in cond.overrides)
+        assert [c.name for c in st.conditions if c.unequal] == (
+            ["release-goals", "release-goals per task"]
+            if name == "release-conditions"
+            else ["release-goals"]
+        )
     bc = get_study("il-robot")
     labels = [a.label for a in bc.arm_specs() if a.in_default]
     assert labels == [f"{m}-n{n}" for n in (25, 100, 400) for m in ("ndp", "nn")]
@@ -360,7 +382,12 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         assert all(lb in arms and arms[lb].algo == m for m, lb in cond.methods)
     goals = dict(next(c for c in rc.conditions if c.name == "release-goals").methods)
     assert goals == {"ndp": "ndp-v1-fixed", "ppo-multi": "ppo-multi-v1-fixed", "ppo": "ppo-v1"}
-    assert [c.name for c in rc.conditions if c.unequal] == ["release-goals"]
+    assert [c.name for c in rc.conditions if c.unequal] == [
+        "release-goals",
+        "release-goals per task",
+    ]
+    per_task = next(c for c in rc.conditions if c.name == "release-goals per task")
+    assert per_task.overrides == (("faucet-open-v3", "ppo", "ppo-v1-fixed"),)
     pf = get_study("paper-five")
     assert pf.task_list() == ("throw", "pick", "push-v3", "soccer-v3", "faucet-open-v3")
     keep, pending = pf.available()

@@ -17,6 +17,7 @@ fine-tunes the cloned policy with PPO.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import json
@@ -274,75 +275,80 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
         overwrite=overwrite,
         resumable=False,
     )
-    run = session.run
-    session.start(rl_cfg.to_dict(), bc_manifest(cfg, spec.name, 0))
-    from ndp.io import atomic_write_text
+    with contextlib.closing(session):  # releases the run lock (ndp.runs.lock)
+        run = session.run
+        session.start(rl_cfg.to_dict(), bc_manifest(cfg, spec.name, 0))
+        from ndp.io import atomic_write_text
 
-    meta = {"bc": cfg.to_dict(), "demos": str(cfg.demos), "episodes": demos.n_episodes,
-            "steps": len(demos.obs), "demos_meta": demos.meta}  # fmt: skip
-    atomic_write_text(run.path / "bc.json", json.dumps(meta, indent=2, default=str) + "\n")
+        meta = {"bc": cfg.to_dict(), "demos": str(cfg.demos), "episodes": demos.n_episodes,
+                "steps": len(demos.obs), "demos_meta": demos.meta}  # fmt: skip
+        atomic_write_text(run.path / "bc.json", json.dumps(meta, indent=2, default=str) + "\n")
 
-    torch.set_num_threads(cfg.threads)
-    seed_everything(cfg.seed)
-    model = build_actor_critic(obs_dim, spec, rl_cfg.policy)
-    k = rl_cfg.k
-    p = rl_cfg.ppo
-    obs_norm = ObsNormalizer(obs_dim, p.clip_obs, p.norm_obs)
-    obs_norm.rms.update(demos.obs)
-    obs_norm.rms.var = np.maximum(obs_norm.rms.var, cfg.obs_std_floor**2)
-    commanded = rl_cfg.policy.dmp_state == "commanded"
-    idx, mask = _windows(demos.episode, k)
-    rng = np.random.default_rng(cfg.seed)
-    n_ep = demos.n_episodes
-    n_val = round(cfg.val_fraction * n_ep) if n_ep >= 2 else 0
-    val_eps = set(rng.choice(n_ep, size=n_val, replace=False).tolist()) if n_val else set()
-    is_val = np.isin(demos.episode, list(val_eps))
-    learner = CloningLearner(
-        model,
-        session,
-        obs=torch.from_numpy(obs_norm(demos.obs)),
-        y0=torch.as_tensor(demos.cmd_pos if commanded else demos.robot_pos, dtype=torch.float32),
-        dy0=torch.as_tensor(demos.cmd_vel if commanded else demos.robot_vel, dtype=torch.float32),
-        target=torch.as_tensor(demos.actions[idx], dtype=torch.float32),  # [S, k, A]
-        mask=torch.as_tensor(mask, dtype=torch.float32).unsqueeze(-1),  # [S, k, 1]
-        train_idx=torch.as_tensor(np.flatnonzero(~is_val)),
-        val_idx=torch.as_tensor(np.flatnonzero(is_val)),
-        cfg=cfg,
-    )
-    tr, va = learner.train_idx, learner.val_idx
+        torch.set_num_threads(cfg.threads)
+        seed_everything(cfg.seed)
+        model = build_actor_critic(obs_dim, spec, rl_cfg.policy)
+        k = rl_cfg.k
+        p = rl_cfg.ppo
+        obs_norm = ObsNormalizer(obs_dim, p.clip_obs, p.norm_obs)
+        obs_norm.rms.update(demos.obs)
+        obs_norm.rms.var = np.maximum(obs_norm.rms.var, cfg.obs_std_floor**2)
+        commanded = rl_cfg.policy.dmp_state == "commanded"
+        idx, mask = _windows(demos.episode, k)
+        rng = np.random.default_rng(cfg.seed)
+        n_ep = demos.n_episodes
+        n_val = round(cfg.val_fraction * n_ep) if n_ep >= 2 else 0
+        val_eps = set(rng.choice(n_ep, size=n_val, replace=False).tolist()) if n_val else set()
+        is_val = np.isin(demos.episode, list(val_eps))
+        learner = CloningLearner(
+            model,
+            session,
+            obs=torch.from_numpy(obs_norm(demos.obs)),
+            y0=torch.as_tensor(
+                demos.cmd_pos if commanded else demos.robot_pos, dtype=torch.float32
+            ),
+            dy0=torch.as_tensor(
+                demos.cmd_vel if commanded else demos.robot_vel, dtype=torch.float32
+            ),
+            target=torch.as_tensor(demos.actions[idx], dtype=torch.float32),  # [S, k, A]
+            mask=torch.as_tensor(mask, dtype=torch.float32).unsqueeze(-1),  # [S, k, 1]
+            train_idx=torch.as_tensor(np.flatnonzero(~is_val)),
+            val_idx=torch.as_tensor(np.flatnonzero(is_val)),
+            cfg=cfg,
+        )
+        tr, va = learner.train_idx, learner.val_idx
 
-    from tqdm import tqdm
+        from tqdm import tqdm
 
-    bar = tqdm(total=cfg.epochs, disable=not cfg.progress, desc=f"bc {cfg.model} {spec.name}")
-    t_run = time.perf_counter()
+        bar = tqdm(total=cfg.epochs, disable=not cfg.progress, desc=f"bc {cfg.model} {spec.name}")
+        t_run = time.perf_counter()
 
-    def log_row(row: dict[str, float]) -> None:
-        log.log(row)
-        bar.update(1)
-        bar.set_postfix(loss=f"{row['train/loss']:.4f}")
+        def log_row(row: dict[str, float]) -> None:
+            log.log(row)
+            bar.update(1)
+            bar.set_postfix(loss=f"{row['train/loss']:.4f}")
 
-    with MetricsLogger(run.path, BC_METRICS, step="epoch", tensorboard=cfg.tensorboard,
-                       filename="bc_metrics.csv", tb_dir="tb_bc") as log:  # fmt: skip
-        row = drive(learner, cfg.epochs, log_row, lambda: None)  # one checkpoint, at the end
-    bar.close()
-    learner.set_exploration_std()
-    state = ppo_state(
-        model,
-        FlatAdam(copy.deepcopy(model), lr=p.lr, eps=p.adam_eps),
-        obs_norm,
-        ReturnNormalizer(rl_cfg.num_envs, p.gamma, p.clip_reward, p.norm_return),
-        update=0,
-        global_step=0,
-        obs_dim=obs_dim,
-    )
-    session.save({**state, "bc": meta}, 0, rl_cfg.to_dict())
-    session.finish(bc_manifest(cfg, spec.name, learner.step))
-    return {
-        "run_dir": str(run.path),
-        "algo": rl_cfg.algo,
-        "episodes": demos.n_episodes,
-        "train_steps": len(tr),
-        "val_steps": len(va),
-        "final": {**row, "val/loss": None if not len(va) else row["val/loss"]},
-        "train_wall_s": time.perf_counter() - t_run,
-    }
+        with MetricsLogger(run.path, BC_METRICS, step="epoch", tensorboard=cfg.tensorboard,
+                           filename="bc_metrics.csv", tb_dir="tb_bc") as log:  # fmt: skip
+            row = drive(learner, cfg.epochs, log_row, lambda: None)  # one checkpoint, at the end
+        bar.close()
+        learner.set_exploration_std()
+        state = ppo_state(
+            model,
+            FlatAdam(copy.deepcopy(model), lr=p.lr, eps=p.adam_eps),
+            obs_norm,
+            ReturnNormalizer(rl_cfg.num_envs, p.gamma, p.clip_reward, p.norm_return),
+            update=0,
+            global_step=0,
+            obs_dim=obs_dim,
+        )
+        session.save({**state, "bc": meta}, 0, rl_cfg.to_dict())
+        session.finish(bc_manifest(cfg, spec.name, learner.step))
+        return {
+            "run_dir": str(run.path),
+            "algo": rl_cfg.algo,
+            "episodes": demos.n_episodes,
+            "train_steps": len(tr),
+            "val_steps": len(va),
+            "final": {**row, "val/loss": None if not len(va) else row["val/loss"]},
+            "train_wall_s": time.perf_counter() - t_run,
+        }

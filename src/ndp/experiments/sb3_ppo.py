@@ -41,6 +41,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import math
@@ -281,83 +282,86 @@ def train_sb3(
         resume=False,
         resumable=False,
     )
+    with contextlib.closing(session):  # releases the run lock (ndp.runs.lock)
 
-    def manifest(done: int) -> Manifest:
-        end = done >= steps
-        return Manifest(kind="sb3", task=task, label=method, seed=int(seed),
-                        budget=int(steps), unit="env_steps", done=int(done), finished=end,
-                        reason="budget" if end else "")  # fmt: skip
+        def manifest(done: int) -> Manifest:
+            end = done >= steps
+            return Manifest(kind="sb3", task=task, label=method, seed=int(seed),
+                            budget=int(steps), unit="env_steps", done=int(done), finished=end,
+                            reason="budget" if end else "")  # fmt: skip
 
-    session.start(dataclasses.asdict(cfg), manifest(0))
-    raw_venv = DummyVecEnv([make for _ in range(num_envs)])
-    raw_venv.seed(seed)
-    if method == "sb3-ppo":
-        p = PPOConfig()
-        venv = VecNormalize(raw_venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
-        model = make_sb3_ppo(venv, seed, num_envs)
-    else:
-        keys = ["obs"] if method == "sb3-ndp" else None
-        venv = VecNormalize(raw_venv, gamma=0.99**kk, norm_obs_keys=keys)
-        model = make_sb3_chunked(venv, method, seed, kk)
-    counter = EpisodeCounter(num_envs)
-    log = MetricsLogger(run_dir, FIELDS, step="global_step", tensorboard=False)
-    t0 = time.perf_counter()
+        session.start(dataclasses.asdict(cfg), manifest(0))
+        raw_venv = DummyVecEnv([make for _ in range(num_envs)])
+        raw_venv.seed(seed)
+        if method == "sb3-ppo":
+            p = PPOConfig()
+            venv = VecNormalize(
+                raw_venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward
+            )
+            model = make_sb3_ppo(venv, seed, num_envs)
+        else:
+            keys = ["obs"] if method == "sb3-ndp" else None
+            venv = VecNormalize(raw_venv, gamma=0.99**kk, norm_obs_keys=keys)
+            model = make_sb3_chunked(venv, method, seed, kk)
+        counter = EpisodeCounter(num_envs)
+        log = MetricsLogger(run_dir, FIELDS, step="global_step", tensorboard=False)
+        t0 = time.perf_counter()
 
-    class _Log(BaseCallback):
-        def __init__(self) -> None:
-            super().__init__()
-            self.update = 0
+        class _Log(BaseCallback):
+            def __init__(self) -> None:
+                super().__init__()
+                self.update = 0
 
-        def _on_step(self) -> bool:
-            norm = self.training_env
-            assert isinstance(norm, VecNormalize)  # the model's env is the venv above
-            raw = norm.get_original_reward()  # unnormalised rewards
-            counter.step(raw, self.locals["dones"], self.locals["infos"])
-            return True
+            def _on_step(self) -> bool:
+                norm = self.training_env
+                assert isinstance(norm, VecNormalize)  # the model's env is the venv above
+                raw = norm.get_original_reward()  # unnormalised rewards
+                counter.step(raw, self.locals["dones"], self.locals["infos"])
+                return True
 
-        def _on_rollout_end(self) -> None:
-            self.update += 1
-            n, succ, ret = counter.pop()
-            log.log(
+            def _on_rollout_end(self) -> None:
+                self.update += 1
+                n, succ, ret = counter.pop()
+                log.log(
+                    {
+                        "update": self.update,
+                        "global_step": self.num_timesteps * kk,
+                        "charts/episodes": n,
+                        "charts/success_any": succ,
+                        "charts/episode_return": ret,
+                        "time/wall_s": time.perf_counter() - t0,
+                    }
+                )
+
+        try:
+            model.learn(total_timesteps=-(-steps // kk), callback=_Log())
+            wall = time.perf_counter() - t0
+            if eval_episodes:
+                ev = evaluate_sb3(model, venv, make, eval_episodes)
+                name = f"eval-det-e{eval_episodes}.json"
+                atomic_write_text(run_dir / name, json.dumps(ev) + "\n")
+        finally:
+            log.close()
+            venv.close()
+        done = int(model.num_timesteps) * kk
+        atomic_write_text(
+            run_dir / "done.json",
+            json.dumps(
                 {
-                    "update": self.update,
-                    "global_step": self.num_timesteps * kk,
-                    "charts/episodes": n,
-                    "charts/success_any": succ,
-                    "charts/episode_return": ret,
-                    "time/wall_s": time.perf_counter() - t0,
+                    "task": task,
+                    "method": method,
+                    "steps": steps,
+                    "seed": seed,
+                    "num_envs": num_envs,
+                    "k": kk,
+                    "global_step": done,
+                    "wall_s": wall,
                 }
             )
-
-    try:
-        model.learn(total_timesteps=-(-steps // kk), callback=_Log())
-        wall = time.perf_counter() - t0
-        if eval_episodes:
-            ev = evaluate_sb3(model, venv, make, eval_episodes)
-            name = f"eval-det-e{eval_episodes}.json"
-            atomic_write_text(run_dir / name, json.dumps(ev) + "\n")
-    finally:
-        log.close()
-        venv.close()
-    done = int(model.num_timesteps) * kk
-    atomic_write_text(
-        run_dir / "done.json",
-        json.dumps(
-            {
-                "task": task,
-                "method": method,
-                "steps": steps,
-                "seed": seed,
-                "num_envs": num_envs,
-                "k": kk,
-                "global_step": done,
-                "wall_s": wall,
-            }
+            + "\n",
         )
-        + "\n",
-    )
-    session.finish(manifest(done))
-    return run_dir
+        session.finish(manifest(done))
+        return run_dir
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -80,8 +80,11 @@ class Arm:
 
 
 def run_dir(runs_dir: Path, task: str, arm: Arm, seed: int) -> Path:
-    """Directory of one run."""
-    return Path(runs_dir) / f"{task}-{arm.label}-s{seed}"
+    """Directory of one run: ``<runs_dir>/<task>-<label>-s<seed>``
+    (:func:`ndp.runs.layout.run_name`)."""
+    from ndp.runs.layout import run_name
+
+    return Path(runs_dir) / run_name(task, arm.label, seed)
 
 
 _ARM_KEYS = ("label", "algo", "args", "steps")

@@ -17,6 +17,7 @@ samples shuffled with ``split_seed`` into 10,000 train / 2,000 test.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import json
@@ -456,92 +457,93 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
         hint="Try a lower --lr.",
         overwrite=overwrite,
     )
-    if ckpt is not None and cfg.epochs < int(ckpt["epoch"]):
-        raise ValueError(
-            f"epochs: the run has trained {int(ckpt['epoch'])} epochs; --epochs {cfg.epochs} "
-            "would cut its budget below that (give at least that many, or start a new run)"
+    with contextlib.closing(session):  # releases the run lock (ndp.runs.lock)
+        if ckpt is not None and cfg.epochs < int(ckpt["epoch"]):
+            raise ValueError(
+                f"epochs: the run has trained {int(ckpt['epoch'])} epochs; --epochs {cfg.epochs} "
+                "would cut its budget below that (give at least that many, or start a new run)"
+            )
+        x_all = torch.from_numpy(data.images)
+        y_all = torch.from_numpy(data.trajs)
+        splits = {
+            name: (x_all[idx].to(device), y_all[idx].to(device))
+            for name, idx in (("train", tr_idx), ("val", va_idx), ("test", te_idx))
+        }
+        learner = ImitationLearner(cfg, session, splits, device, fresh=ckpt is None)
+        if ckpt is not None:
+            learner.load_state_dict(ckpt)
+            session.restored(ckpt, learner.step)
+        start_epoch = learner.step
+        run_dir = session.run.path
+        done_path = run_dir / DONE_NAME
+        if done_path.exists() and not learner.stopped:
+            done_path.unlink()  # a run extended by --epochs is no longer finished
+        session.start(cfg.as_dict(), il_manifest(cfg, start_epoch, learner.stopped))
+        logger = MetricsLogger(
+            run_dir,
+            METRICS,
+            step="epoch",
+            tensorboard=cfg.tensorboard,
+            resume_index=start_epoch if ckpt is not None else None,
+            resume_step=start_epoch if ckpt is not None else None,
         )
-    x_all = torch.from_numpy(data.images)
-    y_all = torch.from_numpy(data.trajs)
-    splits = {
-        name: (x_all[idx].to(device), y_all[idx].to(device))
-        for name, idx in (("train", tr_idx), ("val", va_idx), ("test", te_idx))
-    }
-    learner = ImitationLearner(cfg, session, splits, device, fresh=ckpt is None)
-    if ckpt is not None:
-        learner.load_state_dict(ckpt)
-        session.restored(ckpt, learner.step)
-    start_epoch = learner.step
-    run_dir = session.run.path
-    done_path = run_dir / DONE_NAME
-    if done_path.exists() and not learner.stopped:
-        done_path.unlink()  # a run extended by --epochs is no longer finished
-    session.start(cfg.as_dict(), il_manifest(cfg, start_epoch, learner.stopped))
-    logger = MetricsLogger(
-        run_dir,
-        METRICS,
-        step="epoch",
-        tensorboard=cfg.tensorboard,
-        resume_index=start_epoch if ckpt is not None else None,
-        resume_step=start_epoch if ckpt is not None else None,
-    )
-    bar = None
-    if cfg.progress:
-        from tqdm import tqdm
+        bar = None
+        if cfg.progress:
+            from tqdm import tqdm
 
-        bar = tqdm(
-            total=(cfg.epochs - start_epoch) * learner.steps_per_epoch,
-            desc=f"il {cfg.model.kind}",
-            unit="batch",
-            dynamic_ncols=True,
-        )
+            bar = tqdm(
+                total=(cfg.epochs - start_epoch) * learner.steps_per_epoch,
+                desc=f"il {cfg.model.kind}",
+                unit="batch",
+                dynamic_ncols=True,
+            )
 
-        def on_batch(epoch: int, loss: float) -> None:
-            assert bar is not None
-            bar.update(1)
-            bar.set_postfix(epoch=epoch, loss=f"{loss:.3g}")
+            def on_batch(epoch: int, loss: float) -> None:
+                assert bar is not None
+                bar.update(1)
+                bar.set_postfix(epoch=epoch, loss=f"{loss:.3g}")
 
-        learner.on_batch = on_batch
+            learner.on_batch = on_batch
 
-    def save() -> None:  # every epoch
-        session.save(learner.state_dict(), learner.step, cfg.as_dict())
+        def save() -> None:  # every epoch
+            session.save(learner.state_dict(), learner.step, cfg.as_dict())
 
-    t_run = time.perf_counter()
-    row: dict[str, float] = {}
-    try:
-        if not learner.stopped:
-            row = drive(learner, cfg.epochs, logger.log, save)
-    finally:
-        if bar is not None:
-            bar.close()
-        logger.close()
-    early = learner.early
-    last = learner.step
-    row = {k: v for k, v in row.items() if k != "epoch"}
-    manifest = il_manifest(cfg, last, learner.stopped)
-    done = {
-        "finished": True,
-        "epoch": last,
-        "reason": manifest.reason,
-        "best_epoch": early["best_epoch"] or None,
-        "best_val_mse_px2": early["best_val"] if early["best_epoch"] else None,
-        "train_wall_s": time.perf_counter() - t_run,
-    }
-    if manifest.finished:
-        atomic_write_text(done_path, json.dumps(done, indent=1) + "\n")
-    session.finish(manifest)
-    return {
-        "run_dir": str(run_dir),
-        "checkpoint": str(session.run.checkpoint),
-        "stopped_early": learner.stopped,
-        "best_epoch": early["best_epoch"] or None,
-        "epochs": cfg.epochs,
-        "train_wall_s": time.perf_counter() - t_run,
-        "final": row,
-        "n_train": learner.n_train,
-        "n_val": len(va_idx),
-        "n_test": int(learner.x_te.shape[0]),
-    }
+        t_run = time.perf_counter()
+        row: dict[str, float] = {}
+        try:
+            if not learner.stopped:
+                row = drive(learner, cfg.epochs, logger.log, save)
+        finally:
+            if bar is not None:
+                bar.close()
+            logger.close()
+        early = learner.early
+        last = learner.step
+        row = {k: v for k, v in row.items() if k != "epoch"}
+        manifest = il_manifest(cfg, last, learner.stopped)
+        done = {
+            "finished": True,
+            "epoch": last,
+            "reason": manifest.reason,
+            "best_epoch": early["best_epoch"] or None,
+            "best_val_mse_px2": early["best_val"] if early["best_epoch"] else None,
+            "train_wall_s": time.perf_counter() - t_run,
+        }
+        if manifest.finished:
+            atomic_write_text(done_path, json.dumps(done, indent=1) + "\n")
+        session.finish(manifest)
+        return {
+            "run_dir": str(run_dir),
+            "checkpoint": str(session.run.checkpoint),
+            "stopped_early": learner.stopped,
+            "best_epoch": early["best_epoch"] or None,
+            "epochs": cfg.epochs,
+            "train_wall_s": time.perf_counter() - t_run,
+            "final": row,
+            "n_train": learner.n_train,
+            "n_val": len(va_idx),
+            "n_test": int(learner.x_te.shape[0]),
+        }
 
 
 def load_encoder(model: TrajectoryModel, path: Path) -> None:

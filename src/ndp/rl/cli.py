@@ -141,7 +141,7 @@ def add_subparser(sub: Any) -> None:
 
 def train_command(argv: list[str]) -> int:
     """``ndp rl train [--resume RUN_DIR | --overwrite] [options of TrainConfig]``."""
-    from ndp.rl.config import SAFE_ON_RESUME, load_config, unused_head_options
+    from ndp.rl.config import SAFE_ON_RESUME, load_config, resolve_config, unused_head_options
     from ndp.runs import RunDir
     from ndp.runs.cli import changed_fields, parse_config, pop_flag, pop_option
     from ndp.runs.signals import report_stop, stop_on_sigterm
@@ -183,7 +183,10 @@ def train_command(argv: list[str]) -> int:
                     return 0
             else:
                 cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description())
-                run_name = cfg.run_dir or f"runs/{cfg.task}-{cfg.algo}-s{cfg.seed}"
+                # resolved once, here: the run directory every message names is the one the
+                # run writes (an alias task or VICES's task variant gives the canonical row)
+                cfg = resolve_config(cfg)
+                run_name = cfg.run_dir or "."
                 unused = unused_head_options(cfg)
                 if unused:
                     print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "

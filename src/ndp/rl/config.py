@@ -435,7 +435,7 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     }
     with_k = dataclasses.replace(pol, head=method.head, k=k, **frame)
     policy = with_k.updated(**method.resolve(with_k, spec))
-    run_dir = cfg.run_dir or str(Path("runs") / f"{spec.name}-{cfg.algo}-s{cfg.seed}")
+    run_dir = cfg.run_dir or default_run_dir(spec.name, cfg.algo, cfg.seed)
     goals = cfg.goals
     if goals == "as-release":
         from ndp.envs.release import release_goals
@@ -447,6 +447,16 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     if goals == "release":  # refused here, before any run folder, where there is none
         task_options(spec, cfg.reward_version, "release")
     return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir, goals=goals)
+
+
+def default_run_dir(task: str, algo: str, seed: int) -> str:
+    """``runs/<task>-<algo>-s<seed>`` (:func:`ndp.runs.layout.run_name`), the run directory of
+    a config without one; ``task`` is the canonical name of the row the method runs
+    (:func:`resolve_config` is the one caller: an alias or VICES's task variant is resolved
+    first, so every message and ``--resume`` names the directory the run is in)."""
+    from ndp.runs.layout import run_name
+
+    return str(Path("runs") / run_name(task, algo, seed))
 
 
 def unused_head_options(cfg: TrainConfig) -> list[str]:

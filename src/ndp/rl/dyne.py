@@ -664,6 +664,7 @@ class DyneLearner(CountsUpdates):
         }
 
     def close(self) -> None:
-        """Close the environments (training and evaluation)."""
+        """Close the environments (training and evaluation) and release the run."""
         self.envs.close()
         self.evaluator.close()
+        self.session.close()

@@ -55,7 +55,7 @@ from ndp.rl.ppo import (
     value_loss,
 )
 from ndp.rl.progress import TrainProgress, episode_charts, last_update
-from ndp.runs import RunDir
+from ndp.runs import RunDir, lock
 from ndp.runs.session import (
     CountsUpdates,
     Manifest,
@@ -473,9 +473,10 @@ class Trainer(CountsUpdates):
         }
 
     def close(self) -> None:
-        """Close the environments (training and evaluation)."""
+        """Close the environments (training and evaluation) and release the run."""
         self.envs.close()
         self.evaluator.close()
+        self.session.close()
 
 
 def _robot_state(
@@ -604,13 +605,14 @@ def train(
     ``overwrite``: remove an earlier run in the run directory first (its files are named on
     stderr); without it such a directory is refused."""
     cfg = resolve_config(cfg)  # once: the learner gets it resolved
-    if overwrite:
-        RunDir(cfg.run_dir or ".").create(overwrite=True)
-    trainer = make_learner(cfg, resolved=True)
-    try:
-        metrics: dict[str, float] = trainer.train(max_updates)
-    finally:
-        trainer.close()
+    with lock.held(cfg.run_dir or "."):  # never overwrite a run another process trains
+        if overwrite:
+            RunDir(cfg.run_dir or ".").create(overwrite=True)
+        trainer = make_learner(cfg, resolved=True)
+        try:
+            metrics: dict[str, float] = trainer.train(max_updates)
+        finally:
+            trainer.close()
     return metrics
 
 

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -129,10 +131,14 @@ class RunDir:
             )
             held = None
         if held is not None and not overwrite:
-            resume = "resume it (--resume), " if resumable else ""
+            if resumable and self.checkpoint.is_file():  # never offer to delete what resumes
+                raise ValueError(
+                    f"run_dir: {self.path} already holds {held}; resume it (--resume "
+                    f"{self.path}) or choose another run directory"
+                )
             raise ValueError(
-                f"run_dir: {self.path} already holds {held}; {resume}replace it "
-                "(--overwrite) or choose another run directory"
+                f"run_dir: {self.path} already holds {held}; replace it (--overwrite) or "
+                "choose another run directory"
             )
         if held is not None:
             removed = self.run_files()
@@ -221,6 +227,31 @@ class RunDir:
         sessions.append(entry)
         atomic_write_text(path, json.dumps(sessions, indent=2) + "\n")
         return entry
+
+
+def run_name(task: str, label: str, seed: int) -> str:
+    """The one name of a run directory: ``<task>-<label>-s<seed>`` (``label``: the method for
+    ``ndp rl train``'s default ``runs/<name>``, the arm for a sweep's runs); ``task`` is the
+    task row's canonical name (an alias or a method's task variant resolved first)."""
+    return f"{task}-{label}-s{int(seed)}"
+
+
+def parse_run_name(name: str, tasks: Iterable[str] = ()) -> tuple[str, str, int] | None:
+    """The inverse of :func:`run_name`: ``(task, label, seed)`` of a directory name, or None.
+    Task names hold '-' too: with ``tasks`` (the known task names) the longest one that
+    prefixes the name is the task; without, the label is taken as one '-'-free word after the
+    task where the name allows nothing else."""
+    m = re.match(r"^(?P<head>.+)-s(?P<seed>\d+)$", name)
+    if m is None:
+        return None
+    head, seed = m.group("head"), int(m.group("seed"))
+    for task in sorted(tasks, key=len, reverse=True):
+        if head.startswith(task + "-") and len(head) > len(task) + 1:
+            return task, head[len(task) + 1 :], seed
+    if "-" not in head:
+        return None
+    task, label = head.rsplit("-", 1)
+    return task, label, seed
 
 
 def run_commits(run_dir: str | Path) -> list[str]:

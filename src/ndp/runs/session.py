@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 from ndp.io import atomic_write_text
+from ndp.runs import lock
 from ndp.runs.checkpoint import load_checkpoint, save_checkpoint
 from ndp.runs.layout import RunDir
 from ndp.runs.resume import check_resume
@@ -213,6 +214,7 @@ class RunSession:
         self.hint = hint
         self.last_saved: int | None = None
         self.resumed = False
+        self._locked = False
 
     @classmethod
     def open(
@@ -236,13 +238,29 @@ class RunSession:
         the checkpoint's outside ``safe_on_resume`` (one line naming each field).
         """
         session = cls(RunDir(run_dir), kind, unit, hint)
-        if not resume:
-            session.run.create(overwrite=overwrite, resumable=resumable)
-            return session, None
-        session.run.open_for_resume()
-        ckpt = load_checkpoint(session.run.checkpoint, kind=kind)
-        check_resume(config_from_dict(ckpt["config"]), config, safe_on_resume, session.run.path)
+        if session.run.path.exists() and not session.run.path.is_dir():
+            raise ValueError(f"run_dir: {session.run.path} exists and is not a directory")
+        if resume and not session.run.path.is_dir():
+            session.run.open_for_resume()  # its one-line error; the lock would make the folder
+        lock.acquire(session.run.path)  # one writer for the run's whole life (ndp.runs.lock)
+        session._locked = True
+        try:
+            if not resume:
+                session.run.create(overwrite=overwrite, resumable=resumable)
+                return session, None
+            session.run.open_for_resume()
+            ckpt = load_checkpoint(session.run.checkpoint, kind=kind)
+            check_resume(config_from_dict(ckpt["config"]), config, safe_on_resume, session.run.path)
+        except BaseException:
+            session.close()
+            raise
         return session, ckpt
+
+    def close(self) -> None:
+        """Release the run's lock (idempotent; the process's exit releases it too)."""
+        if self._locked:
+            self._locked = False
+            lock.release(self.run.path)
 
     def restored(self, ckpt: dict[str, Any], step: int) -> None:
         """The learner continues from ``ckpt`` at ``step``: restore the global RNG state."""

@@ -1,0 +1,136 @@
+"""One writer per run directory: an exclusive lock held for the whole life of a run.
+
+Every trainer takes it when it creates, resumes or overwrites a run
+(:meth:`ndp.runs.session.RunSession.open`) and keeps it until the run is closed, so a second
+``ndp rl train`` / ``ndp il train`` / ``ndp bc train`` on the same directory, a second
+``--resume`` of it, or an ``--overwrite`` of it while it trains, is refused in one line naming
+the process that holds it. The lock is ``flock`` on ``<run>/.run.lock``: the kernel releases it
+when its process dies, so the lock of a killed run is stale by construction and the next run
+takes it over (the file's text, the last holder's pid and host, is only a message). Within one
+process the lock is re-entrant (a counted registry), so a command that locks a run before it
+overwrites it, then opens its session, holds it once.
+
+A sweep's own lock (``.sweep.lock``, ``ndp.experiments.sweep``) is another file: it keeps two
+sweeps from starting the same run, and this one keeps the trainer it starts from racing a
+trainer started by hand.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO
+
+RUN_LOCK_NAME = ".run.lock"
+"""The lock file in a run directory."""
+
+_HELD: dict[Path, tuple[IO[str], int, bool]] = {}
+"""This process's locks: resolved run path -> (open lock file, hold count, whether acquiring
+made the directory)."""
+
+
+class RunBusyError(ValueError):
+    """Another process holds the run directory's lock (it is being trained now)."""
+
+
+def _key(run_dir: str | Path) -> Path:
+    return Path(run_dir).resolve()
+
+
+def acquire(run_dir: str | Path) -> None:
+    """Take the run's lock (re-entrant within the process; the directory is made if missing).
+
+    Raises:
+        RunBusyError: another process holds it; the message names the run and the holder.
+        OSError: the directory cannot be made or the lock file written (one line).
+    """
+    import fcntl
+
+    key = _key(run_dir)
+    if key in _HELD:
+        fh, n, made = _HELD[key]
+        _HELD[key] = (fh, n + 1, made)
+        return
+    if key.exists() and not key.is_dir():
+        raise OSError(f"run_dir: {run_dir} exists and is not a directory")
+    made = not key.exists()
+    try:
+        key.mkdir(parents=True, exist_ok=True)
+        fh = (key / RUN_LOCK_NAME).open("a+")
+    except (FileExistsError, NotADirectoryError):
+        raise OSError(f"run_dir: cannot create {run_dir}: a part of that path is a file") from None
+    except PermissionError:
+        raise OSError(f"run_dir: {run_dir} is not writable (permission denied)") from None
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        fh.seek(0)
+        holder = fh.read().strip() or "another process"
+        fh.close()
+        _remove_if_bare(key, made)
+        raise RunBusyError(
+            f"run_dir: {run_dir} is being trained now ({holder}); wait for it to finish or "
+            "stop it (Ctrl-C keeps its last checkpoint), or choose another run directory"
+        ) from None
+    fh.seek(0)
+    fh.truncate()
+    fh.write(f"pid {os.getpid()} on {socket.gethostname()}\n")
+    fh.flush()
+    _HELD[key] = (fh, 1, made)
+
+
+def _remove_if_bare(key: Path, made: bool) -> None:
+    """Remove a directory that acquiring made and that holds nothing but the lock file (a run
+    stopped before it wrote anything leaves no empty directory behind)."""
+    if not made:
+        return
+    with contextlib.suppress(OSError):
+        if {p.name for p in key.iterdir()} <= {RUN_LOCK_NAME}:
+            (key / RUN_LOCK_NAME).unlink(missing_ok=True)
+            key.rmdir()
+
+
+def release(run_dir: str | Path) -> None:
+    """Give one hold of the run's lock back (the lock is released at the last; a run this
+    process does not hold: nothing). A directory that acquiring made and that still holds
+    nothing but the lock is removed."""
+    key = _key(run_dir)
+    if key not in _HELD:
+        return
+    fh, n, made = _HELD[key]
+    if n > 1:
+        _HELD[key] = (fh, n - 1, made)
+        return
+    del _HELD[key]
+    _remove_if_bare(key, made)
+    fh.close()  # closing the descriptor releases the flock
+
+
+def holder(run_dir: str | Path) -> str | None:
+    """Who holds the run's lock now (another process), or None (free, or held by this
+    process)."""
+    key = _key(run_dir)
+    if key in _HELD or not (key / RUN_LOCK_NAME).is_file():
+        return None
+    try:
+        acquire(key)
+    except RunBusyError as exc:
+        text = str(exc)
+        return text[text.find("(") + 1 : text.find(")")] or "another process"
+    except OSError:
+        return None
+    release(key)
+    return None
+
+
+@contextlib.contextmanager
+def held(run_dir: str | Path) -> Iterator[None]:
+    """Hold the run's lock for the ``with`` block."""
+    acquire(run_dir)
+    try:
+        yield
+    finally:
+        release(run_dir)

@@ -1,0 +1,93 @@
+"""One writer per run directory (ndp.runs.lock), with real processes."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from ndp.runs import lock
+
+ENV = {**os.environ, "MUJOCO_GL": "egl", "OMP_NUM_THREADS": "1"}
+
+
+def test_lock_is_reentrant_in_a_process_and_leaves_no_bare_directory(tmp_path):
+    run = tmp_path / "r"
+    lock.acquire(run)
+    lock.acquire(run)  # the same process: counted
+    assert (run / lock.RUN_LOCK_NAME).is_file()
+    lock.release(run)
+    assert (run / lock.RUN_LOCK_NAME).is_file()  # still held once
+    lock.release(run)
+    assert not run.exists()  # made by the lock and still empty: removed
+    # a directory that held files before is kept
+    (tmp_path / "k").mkdir()
+    (tmp_path / "k" / "notes.txt").write_text("mine")
+    with lock.held(tmp_path / "k"):
+        pass
+    assert (tmp_path / "k" / "notes.txt").is_file()
+
+
+def _holder(run) -> subprocess.Popen:
+    code = (
+        "import sys, time; from ndp.runs import lock; lock.acquire(sys.argv[1]); "
+        "print('held', flush=True); time.sleep(600)"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code, str(run)], stdout=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stdout.readline().strip() == b"held"
+    return proc
+
+
+def test_a_second_process_is_refused_and_a_killed_holder_is_taken_over(tmp_path):
+    run = tmp_path / "r"
+    proc = _holder(run)
+    try:
+        with pytest.raises(lock.RunBusyError, match=r"is being trained now \(pid \d+"):
+            lock.acquire(run)
+        assert lock.holder(run) is not None and str(proc.pid) in lock.holder(run)
+    finally:
+        proc.kill()
+        proc.wait()
+    lock.acquire(run)  # the kernel released the killed holder's lock: taken over
+    assert lock.holder(run) is None
+    lock.release(run)
+
+
+def test_two_trainers_one_run_directory(tmp_path):
+    """A second `ndp rl train` on a run being trained, its --overwrite and its --resume are each
+    refused in one line naming the holder; the first run is untouched and resumes after it is
+    stopped."""
+    ndp = [sys.executable, "-m", "ndp.cli", "rl", "train"]
+    base = ["--task", "point-mass", "--algo", "ndp", "--num-envs", "2", "--vector", "sync",
+            "--no-progress", "--no-tensorboard", "--checkpoint-every", "1", "--eval-every", "0",
+            "--steps-per-update", "200", "--run-dir", str(tmp_path / "r")]  # fmt: skip
+    first = subprocess.Popen([*ndp, *base, "--steps", "400000"], env=ENV,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)  # fmt: skip
+    try:
+        deadline = time.time() + 120
+        while not (tmp_path / "r" / "checkpoint.pt").is_file():
+            assert first.poll() is None and time.time() < deadline
+            time.sleep(0.1)
+        for extra in (["--steps", "400000"], ["--steps", "400000", "--overwrite"]):
+            res = subprocess.run([*ndp, *base, *extra], env=ENV, capture_output=True, text=True)
+            assert res.returncode == 2
+            assert f"is being trained now (pid {first.pid}" in res.stderr, res.stderr
+            assert "Traceback" not in res.stderr
+        res = subprocess.run([*ndp, "--resume", str(tmp_path / "r")], env=ENV,
+                             capture_output=True, text=True)  # fmt: skip
+        assert res.returncode == 2 and f"(pid {first.pid}" in res.stderr
+        assert first.poll() is None  # the first trainer runs on
+    finally:
+        first.send_signal(signal.SIGINT)
+        first.wait(timeout=60)
+    assert (tmp_path / "r" / "checkpoint.pt").is_file()
+    from ndp.runs import read_metrics
+
+    more = str(int(read_metrics(tmp_path / "r")[-1]["global_step"]) + 600)
+    res = subprocess.run([*ndp, "--resume", str(tmp_path / "r"), "--steps", more], env=ENV,
+                         capture_output=True, text=True)  # fmt: skip
+    assert res.returncode == 0, res.stderr[-800:]

@@ -31,7 +31,8 @@ def test_version_everywhere_is_pyprojects():
     cff = pytest.importorskip("yaml").safe_load((ROOT / "CITATION.cff").read_text())
     assert cff["version"] == v and cff["license"] == "MIT"
     changelog = (ROOT / "CHANGELOG.md").read_text()
-    first = re.search(r"^## \[([^\]]+)\]", changelog, re.MULTILINE)
+    # an [Unreleased] section (Keep a Changelog) may come first; the newest release is the version
+    first = re.search(r"^## \[((?!Unreleased)[^\]]+)\]", changelog, re.MULTILINE)
     assert first and first.group(1) == v, "CHANGELOG.md's newest entry is not pyproject's version"
 
 

@@ -88,3 +88,37 @@ def atomic_save_npz(path: str | os.PathLike[str], **arrays: Any) -> None:
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)  # in memory first, as atomic_torch_save
     atomic_write_bytes(path, buf.getbuffer())
+
+
+def check_output_path(
+    path: str | os.PathLike[str], name: str = "path", folder: bool = False, create: bool = True
+) -> Path:
+    """The one check of a path a command is about to write, before any expensive work: a file
+    (``folder`` False: the file's folder is made if ``create``) or a folder (``folder`` True: made
+    if ``create``). Without ``create`` nothing is made (a dry run) and the same problems are
+    found.
+
+    Raises:
+        OSError: one line naming ``name`` and the path: a part of the path is a file; a folder
+            where a file is to be written, or a file where a folder is; not writable.
+    """
+    path = Path(path)
+    target_dir = path if folder else path.parent
+    if folder and path.exists() and not path.is_dir():
+        raise OSError(f"{name}: {path} is a file, not a folder")
+    if not folder and path.is_dir():
+        raise OSError(f"{name}: {path} is a folder; give a file name")
+    # the deepest part of the path that exists must be a writable folder
+    probe = target_dir
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    if probe.exists() and not probe.is_dir():
+        raise OSError(f"{name}: cannot write {path}: a part of that path ({probe}) is a file")
+    if not os.access(probe, os.W_OK):
+        raise OSError(f"{name}: cannot write {path}: {probe} is not writable")
+    if create:
+        try:
+            target_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OSError(f"{name}: cannot create {target_dir}: {exc.strerror or exc}") from None
+    return path

@@ -168,10 +168,16 @@ def test_video_output_checked_before_work_and_written_atomically(tmp_path):
 
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    with pytest.raises(OSError, match="is a file, not a folder"):
+    with pytest.raises(OSError, match=r"a part of that path \(.*file\) is a file"):
         check_output_path(blocker / "sub" / "v.mp4")
     with pytest.raises(OSError, match="is a folder"):
         check_output_path(tmp_path)
     frames = [np.zeros((16, 16, 3), np.uint8)] * 3
     out = write_mp4(frames, tmp_path / "v.mp4", fps=5)
     assert out.stat().st_size > 0 and not list(tmp_path.glob(".v.*"))
+    # odd sizes: the encoder (H.264 / yuv420p) cannot take them; refused before writing, and
+    # nothing is left behind (it used to write a 0-byte mp4 and report success)
+    for shape, side in (((16, 15, 3), "width"), ((3, 4, 3), "height"), ((1, 1, 3), "height")):
+        with pytest.raises(ValueError, match=f"{side}: expected an even number of px"):
+            write_mp4([np.zeros(shape, np.uint8)] * 2, tmp_path / "odd.mp4", fps=5)
+    assert not (tmp_path / "odd.mp4").exists() and not list(tmp_path.glob(".odd.*"))

@@ -29,9 +29,9 @@ class RepeatHead(ActionHead):
 @pytest.fixture
 def repeat_method():
     register_head("repeat")(lambda cfg, spec: RepeatHead(cfg.k, spec.action_dim))
-    register_method(Method("ppo-repeat", "repeat", "PPO with each action held for k steps"))
+    register_method(Method("toy-repeat", "repeat", "PPO with each action held for k steps"))
     yield
-    METHODS.pop("ppo-repeat")
+    METHODS.pop("toy-repeat")
     HEAD_BUILDERS.pop("repeat")
 
 
@@ -44,7 +44,7 @@ def test_a_registered_toy_method_trains_through_the_cli(tmp_path, repeat_method)
             "--task",
             "point-mass",
             "--algo",
-            "ppo-repeat",
+            "toy-repeat",
             "--k",
             "3",
             "--steps",
@@ -63,7 +63,7 @@ def test_a_registered_toy_method_trains_through_the_cli(tmp_path, repeat_method)
     )
     assert rc == 0
     cfg = json.loads((run / "config.json").read_text())
-    assert cfg["algo"] == "ppo-repeat" and cfg["policy"]["head"] == "repeat"
+    assert cfg["algo"] == "toy-repeat" and cfg["policy"]["head"] == "repeat"
     assert cfg["policy"]["k"] == 3 and cfg["policy"]["ndp"]["n_basis"] is None
     assert (run / "checkpoint.pt").is_file()
 

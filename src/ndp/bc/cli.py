@@ -40,6 +40,9 @@ def collect_command(argv: list[str]) -> int:
 
     cfg = parse_config(CollectConfig, argv, prog="ndp il collect")
     out = Path(cfg.out)
+    from ndp.io import check_output_path
+
+    check_output_path(out, "out")  # a part of the path a file, a folder, not writable
     if out.exists() and not cfg.overwrite:
         raise ValueError(f"out: {out} exists; use --overwrite to replace it")
     from ndp.bc.demos import collect, save_demos

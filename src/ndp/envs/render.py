@@ -13,6 +13,22 @@ from pathlib import Path
 import numpy as np
 
 
+def check_video_size(name: str, value: int) -> int:
+    """``value`` if the mp4 encoder accepts it as a frame side: H.264 in yuv420p, which every
+    player reads, stores colour at half resolution and so needs even widths and heights.
+
+    Raises:
+        ValueError: ``width: expected an even number of px for the mp4 video (H.264 / yuv420p
+            needs even sizes), got 3``.
+    """
+    if int(value) % 2:
+        raise ValueError(
+            f"{name}: expected an even number of px for the mp4 video (H.264 / yuv420p needs "
+            f"even sizes), got {value}"
+        )
+    return int(value)
+
+
 def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> Path:
     """Write RGB frames to an H.264 mp4.
 
@@ -25,7 +41,9 @@ def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> 
         The written path.
 
     Raises:
-        ValueError: no frames, or frames that are not [H, W, 3] uint8 of one size.
+        ValueError: no frames, frames that are not [H, W, 3] uint8 of one size, or of an odd
+            width or height (:func:`check_video_size`).
+        OSError: the encoder wrote nothing (one line naming the path); nothing is left behind.
     """
     import imageio.v2 as imageio
 
@@ -38,6 +56,8 @@ def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> 
             raise ValueError(
                 f"frames: expected [H, W, 3] uint8 frames of shape {shape}, got {f.dtype} {f.shape}"
             )
+    check_video_size("height", shape[0])
+    check_video_size("width", shape[1])
     path = check_output_path(path)
     # written beside the target, then moved into place: a failed write leaves no partial file
     # and an existing video intact
@@ -49,6 +69,8 @@ def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> 
         with w:
             for f in frames:
                 w.append_data(np.asarray(f))
+        if not tmp.is_file() or tmp.stat().st_size == 0:  # never a 0-byte video called success
+            raise OSError(f"the encoder wrote no bytes ({len(frames)} frames of {shape})")
         os.replace(tmp, path)
     except OSError as exc:
         raise OSError(f"path: cannot write the video {path}: {exc.strerror or exc}") from None
@@ -60,16 +82,8 @@ def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> 
 
 def check_output_path(path: str | Path) -> Path:
     """Make ``path``'s folder (if needed) and check that a file can be written there, before
-    any expensive work; raises ``OSError`` in one line naming the path and the cause."""
-    path = Path(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise OSError(f"path: {path.parent} is a file, not a folder") from None
-    except OSError as exc:
-        raise OSError(f"path: cannot create {path.parent}: {exc.strerror or exc}") from None
-    if path.is_dir():
-        raise OSError(f"path: {path} is a folder; give a file name")
-    if not os.access(path.parent, os.W_OK):
-        raise OSError(f"path: {path.parent} is not writable")
-    return path
+    any expensive work (:func:`ndp.io.check_output_path`); raises ``OSError`` in one line
+    naming the path and the cause."""
+    from ndp.io import check_output_path as check
+
+    return check(path, "path")

@@ -51,7 +51,7 @@ from ndp.experiments.selection import selection_section
 from ndp.experiments.studies import get_study
 from ndp.experiments.study import final_success, is_finished, smooth, success_area
 from ndp.il.config import data_task_name
-from ndp.io import atomic_write_text
+from ndp.io import atomic_write_text, check_output_path
 from ndp.provenance import git_commit
 from ndp.rl.config import EVAL_SEED
 from ndp.runs import metrics_path, read_metrics, run_commits
@@ -545,10 +545,7 @@ def report(
         "run_commits": sorted({x for c in cells for i in c.runs.values() for x in i.commits}),
     }
     out = Path(out)
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise OSError(f"out: cannot create {out.parent}: a part of that path is a file") from None
+    check_output_path(out, "out")
     pngs = _plot_all(rl_cells, il_cells, out, prov) if plots else []
     rows = _csv_rows(rl_cells, [*il_cells, *bc_cells], at_steps, expected, prov)
     _write_csv(out.with_suffix(".csv"), rows)

@@ -329,6 +329,10 @@ def sweep_command(argv: list[str]) -> int:
     for n in g["notes"]:
         print(n, flush=True)
     runs_dir = args.runs_dir or Path("runs") / "sweep" / g["name"]
+    from ndp.io import check_output_path
+
+    # the same check in a dry run as in a real one (nothing is made in a dry run)
+    check_output_path(runs_dir, "runs_dir", folder=True, create=not args.dry_run)
     jobs_at_once = args.jobs or default_workers()
     vector = args.vector or default_vector(jobs_at_once)
     jobs = make_jobs(

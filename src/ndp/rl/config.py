@@ -481,6 +481,11 @@ def unused_head_options(cfg: TrainConfig) -> list[str]:
 def load_config(path: Path) -> TrainConfig:
     """Read a run's ``config.json`` (written by the trainer through :class:`ndp.runs.RunDir`)."""
     path = Path(path)
+    from ndp.runs.layout import kind_of_run, wrong_kind
+
+    kind = kind_of_run(path.parent)
+    if kind not in (None, "rl"):  # an imitation or SB3 run: say so, and what reads it
+        raise ValueError(wrong_kind(path.parent, kind, "rl"))
     if not path.is_file():
         raise FileNotFoundError(f"config: no such file {path}")
     try:

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ndp.envs.base import check_render_size
-from ndp.envs.render import check_output_path, write_mp4
+from ndp.envs.render import check_output_path, check_video_size, write_mp4
 from ndp.rl.config import EVAL_SEED
 from ndp.rl.envs import FrameRecorder
 from ndp.rl.exec_k import exec_k_values
@@ -187,6 +187,7 @@ def render(
     for name, side in (("width", width), ("height", height)):
         if side is not None:
             check_render_size(name, side)  # before loading or rendering anything
+            check_video_size(name, side)  # what the mp4 encoder accepts
     if compare is not None:
         other = load_policy(compare)
         mine = load_policy(run_dir)

@@ -74,9 +74,13 @@ def load_checkpoint(path: str | Path, kind: str | None = None) -> dict[str, Any]
         raise ValueError(f"checkpoint: {path} is not a checkpoint of this package (not a dict)")
     found = state.get("kind") or _legacy_kind(state)
     if kind is not None and found != kind:
+        from ndp.runs.layout import RUN_KINDS
+
         names = {"rl": "an RL", "il": "an imitation"}
         what = names.get(str(found), "not a known")
+        readers = RUN_KINDS.get(str(found), ("", ""))[1].replace("RUN", str(path.parent))
+        hint = f"; read it with {readers}" if readers else ""
         raise ValueError(
-            f"checkpoint: {path} is {what} checkpoint; expected {names.get(kind, kind)} one"
+            f"checkpoint: {path} is {what} checkpoint; expected {names.get(kind, kind)} one{hint}"
         )
     return state

@@ -229,6 +229,48 @@ class RunDir:
         return entry
 
 
+RUN_KINDS: dict[str, tuple[str, str]] = {
+    "rl": ("an RL run", "ndp rl eval / export / render RUN, ndp rl train --resume RUN"),
+    "il": ("an imitation run", "ndp il eval RUN, ndp il train --resume RUN"),
+    "sb3": (
+        "a Stable-Baselines3 reference run",
+        "stable_baselines3.PPO.load on its model.zip; ndp report RUN",
+    ),
+}
+"""Run kind -> (what it is, the commands that read it), for errors that meet a run of another
+kind (``bc`` runs are RL runs at update 0)."""
+
+
+def kind_of_run(run_dir: str | Path) -> str | None:
+    """The kind of the run in ``run_dir`` ('rl', 'il', 'sb3'), from its run.json, else from its
+    config.json's shape (imitation configs hold ``model`` and ``data``); None when neither
+    tells."""
+    path = Path(run_dir)
+    try:
+        manifest = json.loads((path / "run.json").read_text())
+        kind = manifest.get("kind") if isinstance(manifest, dict) else None
+        if isinstance(kind, str):
+            return "rl" if kind == "bc" else kind
+    except (OSError, ValueError):
+        pass
+    try:
+        config = json.loads((path / CONFIG_NAME).read_text())
+    except (OSError, ValueError):
+        return None
+    if isinstance(config, dict) and "model" in config and "data" in config:
+        return "il"
+    if isinstance(config, dict) and "algo" in config and "ppo" in config:
+        return "rl"
+    return None
+
+
+def wrong_kind(run_dir: str | Path, found: str, expected: str) -> str:
+    """The one-line message for a run of kind ``found`` given to a reader of ``expected``."""
+    what, readers = RUN_KINDS.get(found, (f"a {found!r} run", "its own tools"))
+    want = RUN_KINDS.get(expected, (f"a {expected!r} run", ""))[0]
+    return f"{run_dir} is {what}, not {want}; read it with {readers}".replace("RUN", str(run_dir))
+
+
 def run_name(task: str, label: str, seed: int) -> str:
     """The one name of a run directory: ``<task>-<label>-s<seed>`` (``label``: the method for
     ``ndp rl train``'s default ``runs/<name>``, the arm for a sweep's runs); ``task`` is the

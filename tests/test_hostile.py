@@ -131,6 +131,7 @@ def root(tmp_path_factory) -> Path:
     assert _cli(["il", "train", *IL, "--epochs", "2", "--out", str(root / "il")])[0] == 0
     assert _cli(["il", "collect", "--task", "point-mass", "--episodes", "1", "--out",
                  str(root / "demos.npz")])[0] == 0  # fmt: skip
+    shutil.copytree(root / "rl", root / "rl-locked")
     return root
 
 
@@ -199,6 +200,93 @@ def _sweep_budget(root: Path) -> tuple[int, str, str]:
         shutil.copytree(root / "rl", runs / "point-mass-ndp-s0")
     return _cli(["sweep", "--tasks", "point-mass", "--methods", "ndp", "--steps", "1600",
                  "--runs-dir", str(runs), "--jobs", "1", "--vector", "sync"])  # fmt: skip
+
+
+def _onnx_act(root: Path, what: str) -> Any:
+    """OnnxPolicy.act on the point-mass export with one kind of bad (or good) input."""
+    from ndp.act_inputs import RobotState
+    from ndp.rl.onnx_export import OnnxPolicy
+
+    out = root / "export-onnx"
+    if not out.exists():
+        assert _cli(["rl", "export", str(root / "rl"), str(out), "--format", "onnx"])[0] == 0
+    if what == "corrupt":
+        bad = root / "export-onnx-bad"
+        bad.mkdir(exist_ok=True)
+        (bad / "policy.onnx").write_bytes(b"\x08\x01garbage" * 10)
+        return OnnxPolicy(bad)
+    pol = OnnxPolicy(out)
+    obs, info = np.zeros(6), {k: np.zeros(2) for k in pol.state_keys}
+    if what == "nan obs":
+        return pol.act(np.full(6, np.nan), info)
+    if what == "inf obs":
+        return pol.act(np.full(6, np.inf), info)
+    if what == "nan state":
+        return pol.act(obs, {k: np.full(2, np.nan) for k in pol.state_keys})
+    if what == "wrong shape":
+        return pol.act(np.zeros(5), info)
+    if what == "batch with one env's info":
+        return pol.act(np.zeros((2, 6)), info)
+    if what == "robot state":
+        return pol.act(obs, RobotState(np.zeros(2), np.zeros(2)))
+    raise AssertionError(what)
+
+
+def _locked_train(root: Path) -> tuple[int, str, str]:
+    """`ndp rl train` into a run another process is training (holds its lock)."""
+    import subprocess
+    import sys
+
+    run = root / "rl-locked"  # a copy of the trained run (made by the fixture)
+    code = ("import sys, time; from ndp.runs import lock; lock.acquire(sys.argv[1]); "
+            "print('held', flush=True); time.sleep(120)")  # fmt: skip
+    proc = subprocess.Popen([sys.executable, "-c", code, str(run)], stdout=subprocess.PIPE)
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == b"held"
+        return _cli(["rl", "train", *RL, "--steps", "512", "--run-dir", str(run), "--overwrite"])
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def _bad_archive(root: Path, kind: str) -> tuple[int, str, str]:
+    import tarfile
+
+    arc = root / f"bad-{kind.replace('/', '_').replace('.', 'd')}.tar.gz"
+    if kind == "not gzip":
+        arc.write_bytes(b"this is not an archive")
+    else:
+        with tarfile.open(arc, "w:gz") as tf:
+            data = b"{}"
+            info = tarfile.TarInfo(kind)
+            info.size = len(data)
+            tf.addfile(info, io.BytesIO(data))
+    res = _cli(["sweep", "--tasks", "point-mass", "--methods", "ndp", "--runs-dir",
+                str(root / "unpacked"), "--unpack", str(arc), "--dry-run"])  # fmt: skip
+    stray = list((root / "unpacked").glob(".*")) if (root / "unpacked").exists() else []
+    return res if not stray else (0, "", f"left behind: {stray}")
+
+
+def _binary_metrics(root: Path) -> Path:
+    out = root / "binmetrics"
+    if not out.exists():
+        shutil.copytree(root / "rl", out)
+        (out / "metrics.csv").write_bytes(bytes(range(256)) * 4)
+    return out
+
+
+def _clipped_obs(root: Path) -> list[str]:
+    import warnings
+
+    import ndp
+
+    pol = ndp.load_policy(root / "rl")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        info = {k: np.zeros(2) for k in pol.state_keys}
+        pol.act(np.full(6, 1e30), info)
+        pol.act(np.full(6, 1e30), info)  # said once per policy
+    return [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
 
 
 def _cases() -> list[Case]:
@@ -298,6 +386,67 @@ def _cases() -> list[Case]:
              "error", api=True),
         Case("make_env(v1 on the point mass)", lambda r: __import__("ndp").make_env(
              "point-mass", reward_version="v1"), "error", api=True),
+        # nothing silent, part 3: one run, one writer
+        Case("rl train --overwrite of a run another process trains", _locked_train, "error",
+             lambda res: "is being trained now (pid" in res[1],
+             protect=["rl-locked/checkpoint.pt", "rl-locked/metrics.csv"]),
+        # render sizes the encoder cannot take
+        Case("rl render --width 3 --height 3", lambda r: _cli(["rl", "render", rl(r), "--out",
+             str(r / "odd.mp4"), "--width", "3", "--height", "3"]), "error",
+             lambda res: "expected an even number of px" in res[1]),
+        # the ONNX policy checks its inputs as Policy.act does
+        Case("OnnxPolicy.act(NaN observation)", lambda r: _onnx_act(r, "nan obs"), "error",
+             api=True),
+        Case("OnnxPolicy.act(+Inf observation)", lambda r: _onnx_act(r, "inf obs"), "error",
+             api=True),
+        Case("OnnxPolicy.act(NaN robot state)", lambda r: _onnx_act(r, "nan state"), "error",
+             api=True),
+        Case("OnnxPolicy.act(observation of the wrong size)", lambda r: _onnx_act(
+             r, "wrong shape"), "error", api=True),
+        Case("OnnxPolicy.act([2, O] with one env's info)", lambda r: _onnx_act(
+             r, "batch with one env's info"), "error", api=True),
+        Case("OnnxPolicy.act(obs, RobotState)", lambda r: _onnx_act(r, "robot state"), "ok",
+             lambda a: np.shape(a) == (5, 2), api=True),
+        Case("OnnxPolicy of a corrupt policy.onnx", lambda r: _onnx_act(r, "corrupt"), "error",
+             api=True),
+        # archives
+        Case("sweep --unpack of a file that is not an archive", lambda r: _bad_archive(
+             r, "not gzip"), "error"),
+        Case("sweep --unpack of a member ./x", lambda r: _bad_archive(r, "./x"), "error"),
+        Case("sweep --unpack of a member ../x", lambda r: _bad_archive(r, "../x"), "error"),
+        # a run of the wrong kind
+        Case("rl export of an imitation run", lambda r: _cli(["rl", "export", str(r / "il"),
+             str(r / "il-export")]), "error",
+             lambda res: "is an imitation run" in res[1] and "ndp il eval" in res[1],
+             protect=protect_il),
+        Case("rl eval of an imitation run", lambda r: _cli(["rl", "eval", str(r / "il")]),
+             "error", lambda res: "is an imitation run" in res[1]),
+        Case("rl train --resume of an imitation run", lambda r: _cli(["rl", "train", "--resume",
+             str(r / "il")]), "error", lambda res: "is an imitation run" in res[1],
+             protect=protect_il),
+        Case("load_policy(an imitation run)", lambda r: __import__("ndp").load_policy(
+             r / "il"), "error", api=True),
+        Case("il eval of an RL run", lambda r: _cli(["il", "eval", rl(r)]), "error",
+             lambda res: "ndp rl eval" in res[1], protect=protect_rl),
+        # paths that are files
+        Case("sweep --runs-dir a file --dry-run", lambda r: _cli(["sweep", "--tasks",
+             "point-mass", "--methods", "ndp", "--runs-dir", str(r / "rl" / "config.json"),
+             "--dry-run"]), "error", lambda res: "is a file, not a folder" in res[1],
+             protect=protect_rl),
+        Case("il collect --out under a file", lambda r: _cli(["il", "collect", "--task",
+             "point-mass", "--episodes", "1", "--out", str(r / "rl" / "config.json" / "d.npz")]),
+             "error", lambda res: "a part of that path" in res[1], protect=protect_rl),
+        # messages that name the file and field at fault
+        Case("report of a binary metrics.csv", lambda r: _cli(["report", str(_binary_metrics(r)),
+             "--out", str(r / "rep-bin")]), "error",
+             lambda res: "binmetrics/metrics.csv is not a metrics CSV" in res[1]),
+        Case("export with a cut obs_norm.mean", lambda r: _cli(["rl", "eval", str(_export_copy(
+             r, "export-cutnorm", lambda m: m["obs_norm"].update(mean=m["obs_norm"]["mean"][:2]))),
+             "--episodes", "1"]), "error",
+             lambda res: "policy.json: field 'obs_norm.mean'" in res[1]),
+        # inputs clipped silently
+        Case("policy.act(observations of 1e30)", _clipped_obs, "ok",
+             lambda w: len(w) == 1 and "clipped to the normaliser's bound" in w[0], api=True),
     ]
     # fmt: on
 

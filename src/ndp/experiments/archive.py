@@ -29,7 +29,9 @@ from __future__ import annotations
 import io
 import json
 import re
+import shutil
 import tarfile
+import zlib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -124,7 +126,9 @@ def pack(runs: Sequence[Path], out: Path, unfinished: Sequence[Path] = ()) -> li
 
 def _check_member(m: tarfile.TarInfo, archive: Path) -> str:
     parts = m.name.split("/")
-    if not m.isfile() or len(parts) != 2 or not all(_NAME.fullmatch(p) for p in parts):
+    # exactly <run>/<file>: no '.', '..' or empty part, no leading dot (./x, ../x, .hidden)
+    plain = all(p not in ("", ".", "..") and not p.startswith(".") for p in parts)
+    if not m.isfile() or len(parts) != 2 or not plain or not all(_NAME.fullmatch(p) for p in parts):
         raise ValueError(f"archive: {archive} holds {m.name!r}, not a run file <run>/<file>")
     allowed = parts[1] in FILES or parts[1] == CHECKPOINT
     if not allowed and not re.fullmatch(r"eval[A-Za-z0-9._-]*\.json", parts[1]):
@@ -143,8 +147,15 @@ def unpack(archive: Path, runs_dir: Path) -> tuple[list[str], list[str]]:
     archive, runs_dir = Path(archive), Path(runs_dir)
     if not archive.is_file():
         raise FileNotFoundError(f"unpack: no such archive {archive}")
-    with tarfile.open(archive, "r:gz") as tf:
-        members = tf.getmembers()
+    try:
+        tf = tarfile.open(archive, "r:gz")
+        members = tf.getmembers()  # reads the whole index: a damaged archive fails here
+    except (tarfile.TarError, EOFError, OSError, zlib.error) as exc:
+        raise ValueError(
+            f"unpack: {archive} is not a readable .tar.gz archive ({type(exc).__name__}: "
+            f"{str(exc)[:120]})"
+        ) from None
+    with tf:
         names: dict[str, list[tarfile.TarInfo]] = {}
         for m in members:
             names.setdefault(_check_member(m, archive), []).append(m)
@@ -155,11 +166,18 @@ def unpack(archive: Path, runs_dir: Path) -> tuple[list[str], list[str]]:
                 kept.append(name)
                 continue
             tmp = runs_dir / f".{name}.unpack"
-            tmp.mkdir(parents=True, exist_ok=True)
-            for m in ms:
-                f = tf.extractfile(m)
-                assert f is not None
-                (tmp / m.name.split("/")[1]).write_bytes(f.read())
-            tmp.replace(target)
+            try:
+                tmp.mkdir(parents=True, exist_ok=True)
+                for m in ms:
+                    f = tf.extractfile(m)
+                    assert f is not None
+                    (tmp / m.name.split("/")[1]).write_bytes(f.read())
+                tmp.replace(target)
+            except (tarfile.TarError, EOFError, OSError, zlib.error) as exc:
+                shutil.rmtree(tmp, ignore_errors=True)  # a failed unpack leaves nothing behind
+                raise ValueError(
+                    f"unpack: cannot restore {name} from {archive} ({type(exc).__name__}: "
+                    f"{str(exc)[:120]})"
+                ) from None
             restored.append(name)
     return restored, kept

@@ -137,7 +137,11 @@ def arm_conflict(run: Path, arm: Arm, steps: int, task: str | None = None,
 
 def _config_budget(run: Path, arm: Arm) -> int | None:
     """The budget the run's config.json records (RL: ``steps``; imitation: ``epochs``), or None
-    where there is no readable config (a run not started yet)."""
+    where there is no readable config (a run not started yet) or nothing that counts: a start
+    that failed before its first checkpoint is restarted at the sweep's budget, so its config's
+    budget is no conflict."""
+    if not (run / "checkpoint.pt").exists() and not (run / "done.json").exists():
+        return None
     try:
         cfg = json.loads((run / "config.json").read_text())
     except (OSError, json.JSONDecodeError):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -58,6 +59,10 @@ class ObsNormalizer:
         self.rms = RunningMeanStd((obs_dim,))
         self.clip = float(clip)
         self.enabled = bool(enabled)
+        self.warn_clip = False
+        """Say once (a warning) when an observation is clipped: set for a loaded policy, whose
+        statistics are frozen, so that inputs far outside what it was trained on are not
+        silently cut to the bound; a training run clips quietly (its statistics move)."""
 
     def __call__(self, obs: np.ndarray, update: bool = False) -> np.ndarray:
         """Normalise ``obs`` [n, O] (updating the statistics first if ``update``) -> float32."""
@@ -67,6 +72,17 @@ class ObsNormalizer:
         if update:
             self.rms.update(obs)
         z = (obs - self.rms.mean) / np.sqrt(self.rms.var + 1e-8)
+        if self.warn_clip and not update and np.abs(z).max(initial=0.0) > self.clip:
+            self.warn_clip = False  # once per policy
+            idx = np.unravel_index(int(np.argmax(np.abs(z))), z.shape)
+            warnings.warn(
+                f"obs: entry {list(map(int, idx))} is {float(obs[idx]):.3g}, "
+                f"{float(abs(z[idx])):.3g} std from the training mean: clipped to the "
+                f"normaliser's bound (+-{self.clip:g} std); the policy has not seen such inputs "
+                "(said once per policy)",
+                RuntimeWarning,
+                stacklevel=3,
+            )
         return np.clip(z, -self.clip, self.clip).astype(np.float32)
 
     def state_dict(self) -> dict[str, Any]:

@@ -271,7 +271,14 @@ def onnx_metadata(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     if path.is_dir():
         path = path / ONNX_FILE
-    model = onnx.load(str(path), load_external_data=False)
+    if not path.is_file():
+        raise FileNotFoundError(f"policy: no {ONNX_FILE} at {path}")
+    try:
+        model = onnx.load(str(path), load_external_data=False)
+    except Exception as exc:  # protobuf's DecodeError and others for a damaged file
+        raise ValueError(
+            f"{path}: not a readable ONNX file ({type(exc).__name__}: {str(exc)[:120]})"
+        ) from None
     meta: dict[str, Any] = {}
     for entry in model.metadata_props:
         try:
@@ -301,17 +308,47 @@ class OnnxPolicy:
         path = Path(path)
         if path.is_dir():
             path = path / ONNX_FILE
+        if not path.is_file():
+            raise FileNotFoundError(f"policy: no {ONNX_FILE} at {path}")
+        self.path = path
         self.meta = onnx_metadata(path)
-        self.state_keys: tuple[str, str] = tuple(self.meta["state_keys"])
-        self.session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+        keys = self.meta.get("state_keys")
+        if not (isinstance(keys, list) and len(keys) == 2):
+            raise ValueError(f"{path}: metadata 'state_keys' is missing or not two names")
+        self.state_keys: tuple[str, str] = (str(keys[0]), str(keys[1]))
+        try:
+            self.session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+        except Exception as exc:  # onnxruntime raises its own error kinds for a bad graph
+            raise ValueError(
+                f"{path}: onnxruntime cannot load the graph ({type(exc).__name__}: "
+                f"{str(exc).splitlines()[0][:160]})"
+            ) from None
+        config = self.meta.get("config") or {}
+        velocity = (config.get("policy") or {}).get("dmp_velocity", "zero")
+        self._checks = {
+            "obs_dim": int(self.meta["obs_dim"]),
+            "dofs": int(self.meta["dmp_dofs"]),
+            "state_keys": self.state_keys,
+            "needs_state": bool(self.meta.get("uses_robot_state", True)),
+            "starts_at_rest": velocity == "zero",
+            "what": "this ONNX policy",
+        }
 
-    def act(self, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
-        """The deterministic decision: [k, A] for obs [O], [E, k, A] for obs [E, O]."""
-        single = np.ndim(obs) == 1
-        feed = {"obs": np.atleast_2d(np.asarray(obs, dtype=np.float64))}
-        for name, key in zip(("y0", "dy0"), self.state_keys, strict=True):
-            if key not in info:
-                raise ValueError(f"info: expected the chunked env's {key!r}")
-            feed[name] = np.atleast_2d(np.asarray(info[key], dtype=np.float64))
-        out: np.ndarray = self.session.run(None, feed)[0]
+    def act(self, obs: np.ndarray, info: Any = None) -> np.ndarray:
+        """The deterministic decision: [k, A] for obs [O], [E, k, A] for obs [E, O].
+
+        Takes what ``Policy.act`` takes (the chunked env's info, a mapping with
+        :attr:`state_keys`, an ``ndp.RobotState``, or None for a policy without a DMP) and
+        refuses what it refuses, with the same one-line messages (:mod:`ndp.act_inputs`)."""
+        from ndp.act_inputs import check_act_inputs
+
+        o, y0, dy0, single = check_act_inputs(obs, info, **self._checks)
+        feed = {"obs": o, "y0": y0, "dy0": dy0}
+        try:
+            out: np.ndarray = self.session.run(None, feed)[0]
+        except Exception as exc:  # onnxruntime's own error kinds
+            raise ValueError(
+                f"{self.path}: onnxruntime failed on the inputs ({type(exc).__name__}: "
+                f"{str(exc).splitlines()[0][:160]})"
+            ) from None
         return out[0] if single else out

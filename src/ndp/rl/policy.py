@@ -53,6 +53,7 @@ import torch
 
 import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
 from ndp import zoo
+from ndp.act_inputs import RobotState, check_act_inputs
 from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text
 from ndp.policies import ActorCritic, build_actor_critic
@@ -73,23 +74,6 @@ EXPORT_VERSION = 1
 ``"spec"``, ``"training"`` fields were added compatibly)."""
 _SIMULATORS = ("gymnasium", "mujoco", "metaworld", "dm_control", "imageio", "imageio_ffmpeg")
 """Packages of the [envs] extra whose absence makes a policy fall back to its recorded spec."""
-
-
-@dataclass(frozen=True)
-class RobotState:
-    """The robot state a policy's DMP starts from (the ``robot_state`` of :meth:`Policy.act`).
-
-    Units are the task's DMP coordinates (``policy.spec.dof_names`` / ``dof_units``; where the
-    env reads them: ``policy.spec.y0_source``); which state (commanded or measured) is
-    ``policy.cfg.policy.dmp_state``, i.e. the info keys :attr:`Policy.state_keys`.
-    """
-
-    y0: Any
-    """Position [D] (or [E, D] for E observations), e.g. Meta-World: hand x, y, z (m) and the
-    last gripper command; Jaco: 6 joint angles and the finger angle (rad)."""
-    dy0: Any = None
-    """Velocity [D] / [E, D] per second; None: at rest (zeros), allowed only for a policy whose
-    DMP starts at rest (``dmp_velocity == "zero"``)."""
 
 
 EXPORT_FORMATS = ("safetensors", "onnx")
@@ -190,36 +174,15 @@ class Policy:
             each of its sub-actions held for K / k env steps of the finer env, whose per-step
             action scale is 1 / m of the trained one: the same displacement per decision.
         """
-        ky, kdy = self.state_keys
-        single = np.ndim(obs) == 1
-        o = np.asarray(obs, dtype=np.float64)
-        if o.ndim not in (1, 2) or o.shape[-1] != self.model.obs_dim:
-            raise ValueError(
-                f"obs: expected [{self.model.obs_dim}] or [E, {self.model.obs_dim}], got shape "
-                f"{list(o.shape)}"
-            )
-        o = o.reshape(1 if single else len(o), -1)
-        if not np.isfinite(o).all():
-            bad = np.argwhere(~np.isfinite(o))[0].tolist()
-            raise ValueError(f"obs: expected finite values, got {o[tuple(bad)]} at {bad}")
-        D = self.spec.dmp_dofs
-        info = self._state_mapping(info, (D,) if single else (len(o), D))
-        if ky not in info or kdy not in info:
-            raise ValueError(
-                f"info: expected the chunked env's {ky!r} and {kdy!r} (use policy.make_env() "
-                "or ndp.make_env(task, k=...)), or a robot state (ndp.RobotState(y0, dy0) or "
-                f"a mapping with those keys), got keys {sorted(info)[:8]}"
-            )
-        states = []
-        for key in (ky, kdy):
-            v = np.asarray(info[key], dtype=np.float64)
-            if v.shape != ((D,) if single else (len(o), D)):
-                want = f"[{D}]" if single else f"[{len(o)}, {D}] for {len(o)} observations"
-                raise ValueError(f"info: {key!r} expected shape {want}, got {list(v.shape)}")
-            if not np.isfinite(v).all():
-                raise ValueError(f"info: {key!r} expected finite values, got {v.tolist()}")
-            states.append(v.reshape(len(o), D))
-        y0, dy0 = states
+        o, y0, dy0, single = check_act_inputs(
+            obs,
+            info,
+            obs_dim=int(self.model.obs_dim),
+            dofs=int(self.spec.dmp_dofs),
+            state_keys=self.state_keys,
+            needs_state=self.needs_robot_state,
+            starts_at_rest=self.cfg.policy.dmp_velocity == "zero",
+        )
         with torch.no_grad():
             dist, _ = self.model.distribution(
                 torch.from_numpy(self.obs_norm(o)),
@@ -235,35 +198,6 @@ class Policy:
         if reps > 1:  # a sub-action per trained env step, each held for m finer env steps
             out = np.repeat(out, reps, axis=-2)
         return out[0] if single else out
-
-    def _state_mapping(self, info: Any, shape: tuple[int, ...]) -> Mapping[str, Any]:
-        """``act``'s robot state as a mapping with :attr:`state_keys` (a RobotState, None)."""
-        ky, kdy = self.state_keys
-        if isinstance(info, RobotState):
-            dy0 = info.dy0
-            if dy0 is None:
-                if self.cfg.policy.dmp_velocity != "zero" and self.needs_robot_state:
-                    raise ValueError(
-                        "robot_state: dy0 is None, but this policy's DMP starts with the "
-                        f"robot's velocity (dmp_velocity={self.cfg.policy.dmp_velocity!r}); "
-                        f"give dy0 with shape {list(shape)}"
-                    )
-                dy0 = np.zeros(shape)
-            return {ky: info.y0, kdy: dy0}
-        if info is None:
-            if self.needs_robot_state:
-                raise ValueError(
-                    f"robot_state: this {self.cfg.algo} policy's DMP starts from the robot's "
-                    f"state; give ndp.RobotState(y0, dy0) or a mapping with {ky!r}, {kdy!r} "
-                    f"(shape {list(shape)} each)"
-                )
-            return {ky: np.zeros(shape), kdy: np.zeros(shape)}
-        if not isinstance(info, Mapping):
-            raise ValueError(
-                "info: expected the env's info dict, a mapping with "
-                f"{ky!r} and {kdy!r}, or an ndp.RobotState; got {type(info).__name__}"
-            )
-        return info
 
     def make_env(
         self,
@@ -379,6 +313,7 @@ def _build(
             )
     obs_norm = ObsNormalizer(obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
     obs_norm.load_state_dict(obs_norm_state)
+    obs_norm.warn_clip = True  # frozen statistics: an input beyond them is said, once
     return Policy(cfg, spec, model, obs_norm)
 
 
@@ -524,6 +459,17 @@ def read_export_meta(path: Path) -> dict[str, Any]:
     for key in ("mean", "var", "count"):
         if key not in meta["obs_norm"]:
             raise ValueError(f"{path}: field 'obs_norm.{key}' is missing")
+    for key in ("mean", "var"):  # the normaliser's statistics live here, not in the weights
+        v = meta["obs_norm"][key]
+        n = len(v) if isinstance(v, list) else None
+        if n != meta["obs_dim"] or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) for x in v
+        ):
+            got = f"{n} values" if n is not None else type(v).__name__
+            raise ValueError(
+                f"{path}: field 'obs_norm.{key}': expected {meta['obs_dim']} numbers (obs_dim), "
+                f"got {got}"
+            )
     if meta["config"].get("task") != meta["task"] or meta["config"].get("algo") != meta["algo"]:
         raise ValueError(f"{path}: fields 'task' / 'algo' disagree with the config's")
     if "spec" in meta:

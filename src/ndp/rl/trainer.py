@@ -637,9 +637,10 @@ def resume(
         )
     cfg = dataclasses.replace(cfg, run_dir=str(run_dir), **overrides)
     RunDir(run_dir).open_for_resume()
-    trainer = make_learner(cfg, resume=True)
-    try:
-        metrics: dict[str, float] = trainer.train(max_updates)
-    finally:
-        trainer.close()
+    with lock.held(run_dir):
+        trainer = make_learner(cfg, resume=True)
+        try:
+            metrics: dict[str, float] = trainer.train(max_updates)
+        finally:
+            trainer.close()
     return metrics

@@ -93,15 +93,16 @@ def _remove_if_bare(key: Path, made: bool) -> None:
             key.rmdir()
 
 
-def release(run_dir: str | Path) -> None:
-    """Give one hold of the run's lock back (the lock is released at the last; a run this
-    process does not hold: nothing). A directory that acquiring made and that still holds
-    nothing but the lock is removed."""
+def release(run_dir: str | Path, every: bool = False) -> None:
+    """Give one hold of the run's lock back (``every``: all of this process's holds, as the
+    outermost holder does when an exception unwinds past inner ones); the lock is released at
+    the last; a run this process does not hold: nothing. A directory that acquiring made and
+    that still holds nothing but the lock is removed."""
     key = _key(run_dir)
     if key not in _HELD:
         return
     fh, n, made = _HELD[key]
-    if n > 1:
+    if n > 1 and not every:
         _HELD[key] = (fh, n - 1, made)
         return
     del _HELD[key]
@@ -128,9 +129,11 @@ def holder(run_dir: str | Path) -> str | None:
 
 @contextlib.contextmanager
 def held(run_dir: str | Path) -> Iterator[None]:
-    """Hold the run's lock for the ``with`` block."""
+    """Hold the run's lock for the ``with`` block; at its end every hold this process took
+    inside it is given back too (a learner whose construction was interrupted never closes its
+    session), so nothing stays locked and no bare directory stays behind."""
     acquire(run_dir)
     try:
         yield
     finally:
-        release(run_dir)
+        release(run_dir, every=True)

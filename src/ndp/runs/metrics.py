@@ -33,17 +33,25 @@ def read_metrics(run_dir: str | Path) -> list[dict[str, float]]:
 
     Raises:
         FileNotFoundError: no metrics file.
+        ValueError: a file that is not a metrics CSV (binary, a cell that is not a number),
+            naming it.
     """
     path = Path(run_dir)
     if path.is_dir():
         path = metrics_path(path)
     if not path.is_file():
         raise FileNotFoundError(f"metrics: no such file {path}")
-    with path.open(newline="") as f:
-        return [
-            {k: float(v) if v not in ("", None) else math.nan for k, v in r.items()}
-            for r in csv.DictReader(f)
-        ]
+    try:
+        with path.open(newline="") as f:
+            return [
+                {k: float(v) if v not in ("", None) else math.nan for k, v in r.items()}
+                for r in csv.DictReader(f)
+            ]
+    except (UnicodeDecodeError, csv.Error) as exc:
+        why = exc.reason if isinstance(exc, UnicodeDecodeError) else str(exc)
+        raise ValueError(f"metrics: {path} is not a metrics CSV (not text: {why})") from None
+    except (TypeError, ValueError) as exc:  # a cell that is not a number, a ragged row
+        raise ValueError(f"metrics: {path} is not a metrics CSV ({exc})") from None
 
 
 class MetricsLogger:

@@ -132,6 +132,7 @@ def root(tmp_path_factory) -> Path:
     assert _cli(["il", "collect", "--task", "point-mass", "--episodes", "1", "--out",
                  str(root / "demos.npz")])[0] == 0  # fmt: skip
     shutil.copytree(root / "rl", root / "rl-locked")
+    shutil.copytree(root / "il", root / "il-locked")
     return root
 
 
@@ -232,17 +233,20 @@ def _onnx_act(root: Path, what: str) -> Any:
     raise AssertionError(what)
 
 
-def _locked_train(root: Path) -> tuple[int, str, str]:
-    """`ndp rl train` into a run another process is training (holds its lock)."""
+def _locked_train(root: Path, il: bool = False) -> tuple[int, str, str]:
+    """`ndp rl train` (or `ndp il train`) into a run another process is training (holds its
+    lock)."""
     import subprocess
     import sys
 
-    run = root / "rl-locked"  # a copy of the trained run (made by the fixture)
+    run = root / ("il-locked" if il else "rl-locked")  # a copy made by the fixture
     code = ("import sys, time; from ndp.runs import lock; lock.acquire(sys.argv[1]); "
             "print('held', flush=True); time.sleep(120)")  # fmt: skip
     proc = subprocess.Popen([sys.executable, "-c", code, str(run)], stdout=subprocess.PIPE)
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == b"held"
+        if il:
+            return _cli(["il", "train", *IL, "--epochs", "2", "--out", str(run), "--overwrite"])
         return _cli(["rl", "train", *RL, "--steps", "512", "--run-dir", str(run), "--overwrite"])
     finally:
         proc.kill()
@@ -390,6 +394,9 @@ def _cases() -> list[Case]:
         Case("rl train --overwrite of a run another process trains", _locked_train, "error",
              lambda res: "is being trained now (pid" in res[1],
              protect=["rl-locked/checkpoint.pt", "rl-locked/metrics.csv"]),
+        Case("il train --overwrite of a run another process trains", lambda r: _locked_train(
+             r, il=True), "error", lambda res: "is being trained now (pid" in res[1],
+             protect=["il-locked/checkpoint.pt", "il-locked/metrics.csv"]),
         # render sizes the encoder cannot take
         Case("rl render --width 3 --height 3", lambda r: _cli(["rl", "render", rl(r), "--out",
              str(r / "odd.mp4"), "--width", "3", "--height", "3"]), "error",

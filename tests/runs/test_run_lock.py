@@ -91,3 +91,26 @@ def test_two_trainers_one_run_directory(tmp_path):
     res = subprocess.run([*ndp, "--resume", str(tmp_path / "r"), "--steps", more], env=ENV,
                          capture_output=True, text=True)  # fmt: skip
     assert res.returncode == 0, res.stderr[-800:]
+
+
+def test_an_interrupt_before_anything_is_written_leaves_no_run_directory(tmp_path, monkeypatch):
+    """Ctrl-C while the learner is being built (after its session locked and made the run
+    folder, before config.json): no empty folder stays for --resume to stumble on, and the
+    lock is free again."""
+    from ndp.rl import trainer as T
+    from ndp.rl.config import TrainConfig
+
+    real_open = T.open_rl_session
+
+    def open_then_interrupt(*args, **kwargs):
+        real_open(*args, **kwargs)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(T, "open_rl_session", open_then_interrupt)
+    run = tmp_path / "fresh"
+    cfg = TrainConfig(task="point-mass", steps=200, run_dir=str(run), progress=False,
+                      tensorboard=False, vector="sync")  # fmt: skip
+    with pytest.raises(KeyboardInterrupt):
+        T.train(cfg)
+    assert not run.exists()
+    assert lock.holder(tmp_path) is None and not lock._HELD

@@ -46,7 +46,7 @@ _LAZY = {
     "DMPLayer": ("ndp.dmp", "DMPLayer", None),
     "DMPConfig": ("ndp.dmp", "DMPConfig", None),
     "Policy": ("ndp.rl.policy", "Policy", None),
-    "load_policy": ("ndp.rl.policy", "load_policy", None),
+    "load_policy": ("ndp.rl.policy", "load_any_policy", None),
     "export_policy": ("ndp.rl.policy", "export_policy", None),
     "RobotState": ("ndp.rl.policy", "RobotState", None),
     "zoo": ("ndp.zoo", None, None),

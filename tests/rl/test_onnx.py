@@ -211,3 +211,42 @@ def test_decision_module_passes_torch_export():
         new = probe_inputs(policy, e, seed=e)
         with torch.no_grad():
             torch.testing.assert_close(program.module()(*new), module(*new), rtol=0.0, atol=1e-6)
+
+
+def test_load_policy_loads_an_onnx_export_with_the_same_calling_convention(tmp_path):
+    """ndp.load_policy of an ONNX export (its folder or the file) gives an OnnxPolicy whose
+    act(obs, robot_state) matches the torch policy's deterministic decision; sampling is refused
+    in one line; what needs the torch policy says what the path is."""
+    import ndp
+    from ndp.act_inputs import RobotState
+    from ndp.rl.evaluate import evaluate
+    from ndp.rl.onnx_export import OnnxPolicy
+
+    torch_pol = ndp.load_policy("zoo:throw-ndp")
+    out = torch_pol.export(tmp_path / "onnx", format="onnx")
+    for where in (out, out / "policy.onnx"):
+        pol = ndp.load_policy(where)
+        assert isinstance(pol, OnnxPolicy)
+        env = torch_pol.make_env()
+        obs, info = env.reset(seed=3)
+        env.close()
+        np.testing.assert_allclose(pol.act(obs, info), torch_pol.act(obs, info), atol=1e-5)
+        ky, kdy = pol.state_keys
+        state = RobotState(info[ky], info[kdy])
+        np.testing.assert_allclose(pol.act(obs, state), torch_pol.act(obs, state), atol=1e-5)
+        with pytest.raises(ValueError, match="deterministic: an ONNX export holds"):
+            pol.act(obs, info, deterministic=False)
+    with pytest.raises(ValueError, match="is an ONNX export"):
+        evaluate(out, episodes=1)
+
+
+def test_load_policy_of_a_missing_path_names_the_zoo(tmp_path, monkeypatch):
+    import ndp
+
+    monkeypatch.chdir(tmp_path)  # outside the checkout: zoo/ is not there
+    with pytest.raises(FileNotFoundError, match=r"ndp.load_policy\('zoo:push-v3-ndp'\)"):
+        ndp.load_policy("zoo/push-v3-ndp")
+    with pytest.raises(FileNotFoundError, match="close zoo names: zoo:push-v3-ndp"):
+        ndp.load_policy("runs/push-v3-ndpp")
+    with pytest.raises(FileNotFoundError, match="load as 'zoo:NAME'"):
+        ndp.load_policy("nothing/like/it")

@@ -334,14 +334,21 @@ class OnnxPolicy:
             "what": "this ONNX policy",
         }
 
-    def act(self, obs: np.ndarray, info: Any = None) -> np.ndarray:
+    def act(self, obs: np.ndarray, info: Any = None, deterministic: bool = True) -> np.ndarray:
         """The deterministic decision: [k, A] for obs [O], [E, k, A] for obs [E, O].
 
         Takes what ``Policy.act`` takes (the chunked env's info, a mapping with
         :attr:`state_keys`, an ``ndp.RobotState``, or None for a policy without a DMP) and
-        refuses what it refuses, with the same one-line messages (:mod:`ndp.act_inputs`)."""
+        refuses what it refuses, with the same one-line messages (:mod:`ndp.act_inputs`).
+        ``deterministic=False`` is refused: the graph holds the mode only (sample with the
+        torch policy, ``ndp.load_policy`` of the run or its safetensors export)."""
         from ndp.act_inputs import check_act_inputs
 
+        if not deterministic:
+            raise ValueError(
+                "deterministic: an ONNX export holds the deterministic decision only; sample "
+                "with the torch policy (ndp.load_policy of the run or its safetensors export)"
+            )
         o, y0, dy0, single = check_act_inputs(obs, info, **self._checks)
         feed = {"obs": o, "y0": y0, "dy0": dy0}
         try:

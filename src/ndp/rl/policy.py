@@ -387,10 +387,61 @@ def load_policy(path: str | Path) -> Policy:
         pol = _build(cfg, int(ckpt["obs_dim"]), ckpt["model"], ckpt["obs_norm"], ck)
         pol.training = run_training(path)
         return pol
+    if (path.suffix == ".onnx" and path.is_file()) or (path / "policy.onnx").is_file():
+        raise OnnxExportFound(path)
+    if not path.exists():
+        raise FileNotFoundError(_not_found(path))
     raise FileNotFoundError(
-        f"path: {path} holds neither a training run (config.json + checkpoint.pt) nor an "
-        "exported policy (policy.json + policy.safetensors)"
+        f"path: {path} holds neither a training run (config.json + checkpoint.pt), an exported "
+        "policy (policy.json + policy.safetensors) nor an ONNX export (policy.onnx)"
     )
+
+
+class OnnxExportFound(ValueError):
+    """:func:`load_policy` met an ONNX export: what needs the torch policy (evaluation,
+    rendering, export) says so in one line; ``ndp.load_policy`` (:func:`load_any_policy`) loads
+    it as an :class:`ndp.rl.onnx_export.OnnxPolicy`."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(
+            f"path: {path} is an ONNX export (policy.onnx): ndp.load_policy gives its "
+            "OnnxPolicy (act() only); evaluating, rendering and exporting need the run or its "
+            "safetensors export"
+        )
+        self.path = path
+
+
+def load_any_policy(path: str | Path) -> Policy | Any:
+    """``ndp.load_policy``: :func:`load_policy` (a run, a safetensors export, ``zoo:NAME``), or
+    for an ONNX export (a ``policy.onnx`` file or a folder holding one) its
+    :class:`ndp.rl.onnx_export.OnnxPolicy`, which acts with the same calling convention
+    (``act(obs, robot_state)``; deterministic only)."""
+    try:
+        return load_policy(path)
+    except OnnxExportFound as found:
+        from ndp.rl.onnx_export import OnnxPolicy
+
+        return OnnxPolicy(found.path)
+
+
+def _not_found(path: Path) -> str:
+    """The message for a policy path that does not exist: the zoo's name where it is one
+    (``load_policy("zoo/push-v3-ndp")`` outside a checkout), else the closest zoo names."""
+    import difflib
+
+    names = zoo.list()
+    if path.name in names:
+        return (
+            f"path: no such directory {path}; {path.name!r} is a policy of the zoo, shipped with "
+            f"the package: ndp.load_policy('zoo:{path.name}')"
+        )
+    close = difflib.get_close_matches(path.name, names, n=3, cutoff=0.6)
+    hint = (
+        f"; close zoo names: {', '.join('zoo:' + c for c in close)}"
+        if close
+        else f"; the zoo's policies load as 'zoo:NAME' (ndp.zoo.list(): {len(names)} names)"
+    )
+    return f"path: no such directory {path}{hint}"
 
 
 def run_training(run_dir: Path) -> dict[str, Any] | None:

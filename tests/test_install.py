@@ -25,12 +25,12 @@ import ndp
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = Path(ndp.__file__).resolve().parents[1]  # the ndp under test (editable install or PYTHONPATH)
-EXTRAS = ("envs", "rl", "il", "ray", "onnx", "sb3", "dev")
+EXTRAS = ("envs", "rl", "il", "ray", "onnx", "sb3", "stats", "dev")
 CORE = {"torch", "numpy", "safetensors"}
 # Packages only an extra installs (import names); the core must run with all of them absent.
 BLOCKED = (
     "gymnasium mujoco metaworld dm_control scipy matplotlib tensorboard tqdm tyro imageio "
-    "imageio_ffmpeg sklearn stable_baselines3 ray yaml onnx onnxruntime"
+    "imageio_ffmpeg sklearn stable_baselines3 ray yaml onnx onnxruntime rliable arch"
 ).split()
 
 BARE_SCRIPT = r"""
@@ -101,6 +101,14 @@ except ModuleNotFoundError as exc:
     assert "[envs]" in str(exc), exc
 else:
     raise AssertionError("make_env ran without gymnasium")
+
+# an optional module imported without its extra names the pip line
+try:
+    import ndp.sb3
+except ModuleNotFoundError as exc:
+    assert "pip install 'neural-dynamic-policies[sb3]'" in str(exc), exc
+else:
+    raise AssertionError("ndp.sb3 imported without stable_baselines3")
 
 # the `ndp` command still starts; a command whose extra is missing says which one
 from ndp.cli import build_parser, main

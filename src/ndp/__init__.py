@@ -98,7 +98,7 @@ def make_env(
     seed: int | None = None,
     render_mode: str | None = None,
     reward_version: str = "v2",
-    fixed_goal: int | None = None,
+    fixed_goal: int | str | None = None,
     observation: str = "full",
 ) -> Any:
     """The chunked env of a task: k sub-steps per decision (``k = 1``: plain per-step).
@@ -112,9 +112,10 @@ def make_env(
         render_mode: None or ``"rgb_array"``.
         reward_version: Meta-World's reward function, ``"v2"`` (default) or ``"v1"`` (the 2021
             release's shaped rewards; success is the v2 evaluation under both).
-        fixed_goal: None (a fresh seeded goal every reset) or the seed of the one task
-            configuration every reset uses (a run with ``goals="fixed"`` uses
-            ``ndp.envs.fixed_goal_seed(run_seed)``).
+        fixed_goal: None (a fresh seeded goal every reset), the seed of the one task
+            configuration every reset uses (a run with ``goals="per-seed"`` uses
+            ``ndp.envs.fixed_goal_seed(run_seed)``), or ``"release"``: the 2021 release's one
+            hard-coded configuration (``ndp.envs.release``).
         observation: ``"full"`` or ``"release9"`` (Meta-World: the release's 9-D observation,
             hand, object and goal xyz).
 

@@ -37,14 +37,23 @@ from __future__ import annotations
 import functools
 from typing import Any, SupportsFloat
 
-import gymnasium as gym
 import numpy as np
 import torch
-from gymnasium import spaces
-from stable_baselines3.common.distributions import DiagGaussianDistribution
-from stable_baselines3.common.policies import ActorCriticPolicy
-from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
+
+try:
+    import gymnasium as gym
+    from gymnasium import spaces
+    from stable_baselines3.common.distributions import DiagGaussianDistribution
+    from stable_baselines3.common.policies import ActorCriticPolicy
+    from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+except ModuleNotFoundError as _exc:  # name the extra that installs what is missing
+    if (_exc.name or "").split(".")[0] not in ("stable_baselines3", "gymnasium"):
+        raise
+    raise ModuleNotFoundError(
+        f"{_exc}: ndp.sb3 needs the [sb3] extra (pip install 'neural-dynamic-policies[sb3]')",
+        name=_exc.name,
+    ) from _exc
 
 import ndp
 from ndp.chunk_info import DMP_START_KEYS

@@ -334,6 +334,7 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "release-explained",
         "ndp-regimes",
         "ndp-settings",
+        "digits-head",
     }
     # the new studies: every arm accepted on its tasks; every condition's arms exist and run
     # the condition's method

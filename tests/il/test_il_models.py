@@ -131,3 +131,25 @@ def test_amplitude_rollout_equals_the_papers_form_and_has_finite_gradients() -> 
     raw2.requires_grad_(True)
     model.integrate(raw2, y0).sum().backward()
     assert torch.isfinite(raw2.grad).all() and raw2.grad.abs().max() < 1e6
+
+
+def test_paper_network_preset_is_the_release_head_for_every_model():
+    """--network paper: the release's 100-200-128-64 ReLU head, for NDP, CNN and CNN-DMP alike
+    (capacity held equal); a conflicting --head-hidden is refused."""
+    import pytest
+    import torch
+
+    from ndp.il.config import PAPER_HEAD, ModelConfig
+    from ndp.il.models import build_model
+
+    for kind in ("ndp", "cnn", "cnn-dmp"):
+        cfg = ModelConfig(kind=kind, network="paper")
+        assert cfg.head_hidden == PAPER_HEAD == (100, 200, 128, 64)
+        model = build_model(cfg)
+        widths = [m.out_features for m in model.head.modules() if isinstance(m, torch.nn.Linear)]
+        assert widths[:4] == [100, 200, 128, 64]
+        assert ModelConfig(kind=kind).head_hidden == ()  # the default stays linear
+    with pytest.raises(ValueError, match="head_hidden: the 'paper' network's head"):
+        ModelConfig(network="paper", head_hidden=(10,))
+    with pytest.raises(ValueError, match="network: expected one of default, paper"):
+        ModelConfig(network="release")

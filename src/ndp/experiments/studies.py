@@ -609,6 +609,38 @@ def _converged_arms() -> tuple[ArmSpec, ...]:
     )
 
 
+HEAD_LRS = ("1e-3", "3e-3", "1e-2")
+"""The learning-rate grid of digits-head (NDP's best converged lr sat at the top of the old
+grid, 3e-3, on several sizes)."""
+HEADS = (("lin", ()), ("paper", ("--network", "paper")))
+"""digits-head's head axis: the linear head and the release's 100-200-128-64 MLP."""
+
+
+def _head_arms() -> tuple[ArmSpec, ...]:
+    return tuple(
+        ArmSpec(
+            f"{m}-{h}-lr{lr}",
+            algo,
+            ("--lr", lr, *args, *CONVERGED_ARGS),
+            f"{m}, {'the release head 100-200-128-64' if args else 'linear head'}, Adam lr {lr}",
+        )
+        for m, algo in CONVERGED_MODELS
+        for h, args in HEADS
+        for lr in HEAD_LRS
+    )
+
+
+def _head_selection() -> tuple[tuple[str, tuple[str, ...]], ...]:
+    """Per model: the best of both heads and every lr; and each head alone (equal capacity)."""
+    out = []
+    for m, _ in CONVERGED_MODELS:
+        out.append((m, tuple(f"{m}-{h}-lr{lr}" for h, _ in HEADS for lr in HEAD_LRS)))
+    for h, _ in HEADS:
+        for m, _ in CONVERGED_MODELS:
+            out.append((f"{m} ({h} head)", tuple(f"{m}-{h}-lr{lr}" for lr in HEAD_LRS)))
+    return tuple(out)
+
+
 STUDIES: dict[str, Study] = {
     s.name: s
     for s in (
@@ -822,6 +854,26 @@ STUDIES: dict[str, Study] = {
             arms=_digits_arms,
             steps=71,
             kind="il",
+        ),
+        Study(
+            name="digits-head",
+            title="Digit writing: the head as an axis every model shares (linear vs the "
+            "release's 100-200-128-64 MLP)",
+            doc=(
+                "synthetic-300, synthetic-1000 and Pendigits' writers x NDP, CNN, CNN-DMP x "
+                "{linear head, the 2021 release's head (--network paper)} x Adam lr 1e-3 / "
+                "3e-3 / 1e-2, the converged protocol of digits-converged (validation split, "
+                "patience 20, at most 500 epochs, best-validation weights, test scored once); "
+                "3 seeds. The report selects per data set each model's head and lr on "
+                "validation alone (rows 'ndp', 'cnn', 'cnn-dmp'), and each model's lr within "
+                "one head (rows 'ndp (lin head)', ... 'cnn-dmp (paper head)'): the comparison "
+                "at equal capacity."
+            ),
+            tasks=lambda: ("synthetic-300", "synthetic-1000", "pendigits"),
+            arms=_head_arms,
+            steps=500,
+            kind="il",
+            selection=_head_selection(),
         ),
         Study(
             name="digits-converged",

@@ -18,6 +18,13 @@ if TYPE_CHECKING:
     from ndp.dmp import DMPConfig
 
 MODEL_KINDS = ("ndp", "cnn", "cnn-dmp")
+PAPER_HEAD = (100, 200, 128, 64)
+"""The hidden widths of the 2021 release's imitation head: the CNN trunk's 200 features, then an
+MLP 100-200-128-64 with ReLU, then the output layer (../shared/docs/ndp-method.md section 5)."""
+NETWORKS = ("default", "paper")
+"""``ModelConfig.network`` presets: 'default' (a linear head on the 200 trunk features) and
+'paper' (the release's NDP imitation network: :data:`PAPER_HEAD`, outputs scaled x1000, N 30,
+a_z 25; the other settings are already the release's)."""
 
 
 @dataclass(frozen=True)
@@ -37,6 +44,11 @@ class ModelConfig:
     """Width of the CNN encoder's last fully connected layer."""
     head_hidden: tuple[int, ...] = field(default_factory=tuple)
     """Hidden widths of the MLP head between the encoder and the outputs (empty: linear)."""
+    network: str = "default"
+    """A named network: 'default' (the head as head_hidden says; linear when empty) or 'paper'
+    (the 2021 release's imitation network: head 100-200-128-64 with ReLU, for any model kind, so
+    that NDP, CNN and CNN-DMP can be compared at equal capacity; head_hidden must then be left
+    empty or equal)."""
     image_size: int = 28
     """Images are resized to this side before the encoder (the paper: 40 -> 28)."""
     frame: Annotated[float, HIDDEN] = 40.0
@@ -70,6 +82,17 @@ class ModelConfig:
         if any(int(h) < 1 for h in self.head_hidden):
             raise ValueError(f"head_hidden: expected positive widths, got {self.head_hidden!r}")
         object.__setattr__(self, "head_hidden", tuple(int(h) for h in self.head_hidden))
+        if self.network not in NETWORKS:
+            raise ValueError(
+                f"network: expected one of {', '.join(NETWORKS)}, got {self.network!r}"
+            )
+        if self.network == "paper":
+            if self.head_hidden not in ((), PAPER_HEAD):
+                raise ValueError(
+                    f"head_hidden: the 'paper' network's head is {list(PAPER_HEAD)}; got "
+                    f"{list(self.head_hidden)} (give one or the other)"
+                )
+            object.__setattr__(self, "head_hidden", PAPER_HEAD)
 
     @property
     def n_points(self) -> int:

@@ -133,3 +133,32 @@ def test_ndp_policy_refuses_what_it_cannot_run():
             policy_kwargs={"ndp": {"dmp_state": "measured"}},
             device="cpu",
         )
+
+
+def test_vecnormalize_statistics_saved_and_loaded_with_the_model(one_thread, tmp_path):
+    """docs/sb3.md's recipe: model.save + VecNormalize.save, then VecNormalize.load +
+    PPO.load(env=...): the reloaded model acts as the trained one on the same raw observation;
+    reloaded without the statistics it acts otherwise (why the docs save them)."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    k = 5
+    venv = DummyVecEnv([lambda: ndp.sb3.make_env("point-mass", k=k) for _ in range(2)])
+    venv = VecNormalize(venv, gamma=0.99**k, norm_obs_keys=["obs"])
+    model = PPO(ndp.sb3.NDPPolicy, venv, gamma=0.99**k, n_steps=64, batch_size=64, n_epochs=1,
+                seed=0, device="cpu")  # fmt: skip
+    model.learn(256)
+    model.save(tmp_path / "m.zip")
+    venv.save(str(tmp_path / "vn.pkl"))
+    raw = ndp.sb3.make_env("point-mass", k=k).reset(seed=4)[0]
+    raw_batch = {key: v[None] for key, v in raw.items()}
+    want = model.predict(venv.normalize_obs(raw_batch), deterministic=True)[0]
+
+    fresh = DummyVecEnv([lambda: ndp.sb3.make_env("point-mass", k=k)])
+    loaded_vn = VecNormalize.load(str(tmp_path / "vn.pkl"), fresh)
+    loaded_vn.training, loaded_vn.norm_reward = False, False
+    loaded = PPO.load(tmp_path / "m.zip", env=loaded_vn, device="cpu")
+    got = loaded.predict(loaded_vn.normalize_obs(raw_batch), deterministic=True)[0]
+    np.testing.assert_allclose(got, want, atol=1e-6)
+    # without the statistics: raw observations, other actions
+    bare = PPO.load(tmp_path / "m.zip", device="cpu")
+    assert not np.allclose(bare.predict(raw_batch, deterministic=True)[0], want, atol=1e-3)

@@ -120,3 +120,23 @@ def test_the_yaml_writer_round_trips_awkward_strings():
         "j": "line\nbreak",
     }
     assert yaml.safe_load(to_yaml(data)) == data
+
+
+def test_cards_name_the_robot_state_the_policy_reads():
+    """A policy whose DMP starts from the commanded state is not described with the measured
+    source (the Jaco cards said 'from MuJoCo qpos/qvel'); every card links the observation
+    layout."""
+    import json
+
+    from ndp.rl.card import COMMANDED_SOURCE
+    from ndp.zoo import root
+
+    for name in ("throw-ndp", "push-v3-ndp"):
+        d = root() / name
+        meta = json.loads((d / "policy.json").read_text())
+        card = (d / "README.md").read_text()
+        assert "docs/observations.md" in card
+        if meta["config"]["policy"]["dmp_state"] == "commanded":
+            assert COMMANDED_SOURCE in card and "from MuJoCo qpos/qvel" not in card
+        else:
+            assert meta["spec"]["y0_source"] in card

@@ -42,6 +42,24 @@ Z95 = 1.959963984540054
 """The standard normal's 97.5% quantile: two-sided 95% intervals."""
 
 
+COMMANDED_SOURCE = (
+    "the commanded state, not the measured robot: the targets the actions move and their "
+    "commanded rate (the chunked env's info `cmd_y0` / `cmd_dy0`: on Meta-World the mocap "
+    "target the hand follows and the last gripper command, on Jaco the joint and finger "
+    "targets of its position servos), in the units above"
+)
+"""How a card names the robot state of a policy whose DMP starts from the commanded state."""
+
+
+def robot_state_source(dmp_state: Any, spec: dict[str, Any]) -> str:
+    """Where the robot state a policy reads comes from: the task's measured source
+    (``spec['y0_source']``) for ``dmp_state`` 'measured', :data:`COMMANDED_SOURCE` for
+    'commanded'."""
+    if dmp_state == "commanded":
+        return COMMANDED_SOURCE
+    return str(spec.get("y0_source"))
+
+
 def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, float]:
     """The Wilson score interval of a success rate (95% for the default ``z``).
 
@@ -232,9 +250,11 @@ def model_card(
             for n, u in zip(spec.get("dof_names", []), spec.get("dof_units", []), strict=False)
         )
         lines += [
-            f"Observation: {spec.get('obs_dim')} numbers (as the env returns them). Robot "
+            f"Observation: {spec.get('obs_dim')} numbers (as the env returns them; index by "
+            "index: docs/observations.md). Robot "
             f"state (`policy.state_keys`, D = {spec.get('dmp_dofs')}): {units}; "
-            f"{spec.get('y0_source')}. Actions: [k, {spec.get('action_dim')}] in "
+            f"{robot_state_source(pol.get('dmp_state'), spec)}. Actions: "
+            f"[k, {spec.get('action_dim')}] in "
             f"[{min(spec.get('action_low', [0]))}, {max(spec.get('action_high', [0]))}], one per "
             f"env step of {spec.get('control_dt')} s.",
             "",

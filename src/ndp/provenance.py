@@ -81,3 +81,33 @@ def provenance(argv: list[str] | None = None) -> dict[str, Any]:
         "host": platform.node(),
         "versions": versions(),
     }
+
+
+def portable_path(path: str | Path) -> str:
+    """``path`` as a committed file may record it: a relative path unchanged; an absolute one
+    relative to the working directory when it lies under it or under its parent
+    (``/work/runs/x`` from ``/work/main`` gives ``../runs/x``), else its last two parts
+    (``.../runs/x``): no machine's absolute path is written into a table, card or export."""
+    import os
+
+    p = Path(path)
+    if not p.is_absolute():
+        return str(path)
+    here = Path.cwd()
+    if any(p.is_relative_to(base) for base in (here, here.parent)):
+        return os.path.relpath(p, here)
+    return ".../" + "/".join(p.parts[-2:])
+
+
+def portable_command(argv: list[str]) -> list[str]:
+    """A command line with every absolute path argument made :func:`portable_path`."""
+    out = []
+    for a in argv:
+        if a.startswith("/"):
+            out.append(portable_path(a))
+        elif a.startswith("--") and "=/" in a:
+            k, v = a.split("=", 1)
+            out.append(f"{k}={portable_path(v)}")
+        else:
+            out.append(a)
+    return out

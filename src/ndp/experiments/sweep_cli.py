@@ -325,6 +325,7 @@ def sweep_command(argv: list[str]) -> int:
     g = build_grid(args, extra)
     from ndp.experiments.study import default_vector
     from ndp.experiments.sweep import default_workers, make_jobs, plan_lines, run_sweep
+    from ndp.provenance import portable_command
 
     for n in g["notes"]:
         print(n, flush=True)
@@ -376,7 +377,7 @@ def sweep_command(argv: list[str]) -> int:
         from ndp.experiments.report import report
         from ndp.experiments.studies import get_study
 
-        cmd = "ndp sweep " + shlex.join(argv)
+        cmd = "ndp sweep " + shlex.join(portable_command(argv))
         unit = run_kind(g["kind"]).unit
         dirs = [j.run_dir for j in jobs if j.run_dir.is_dir()]
         out = report(
@@ -410,6 +411,8 @@ def _list_studies() -> int:
 
 def report_command(argv: list[str]) -> int:
     """``ndp report RUN_DIRS... [options]``."""
+    from ndp.provenance import portable_command
+
     args = report_parser().parse_args(argv)
     from ndp.experiments.report import report
     from ndp.experiments.studies import get_study
@@ -418,7 +421,7 @@ def report_command(argv: list[str]) -> int:
     res = report(
         args.run_dirs,
         out,
-        "ndp report " + shlex.join(argv),
+        "ndp report " + shlex.join(portable_command(argv)),
         seeds=args.seeds,
         budgets=args.budgets,
         tasks=args.tasks,

@@ -58,7 +58,7 @@ from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text
 from ndp.policies import ActorCritic, build_actor_critic
 from ndp.policies.task import PolicySpec, check_record, spec_record
-from ndp.provenance import git_commit, installed_versions
+from ndp.provenance import git_commit, installed_versions, portable_path
 from ndp.rl.card import model_card
 from ndp.rl.config import EVAL_SEED, TrainConfig, load_config
 from ndp.rl.exec_k import at_exec_k
@@ -455,8 +455,10 @@ def run_training(run_dir: Path) -> dict[str, Any] | None:
         return None
     if not isinstance(sessions, list):
         return None
+    from ndp.provenance import portable_command
+
     commands = [
-        shlex.join(str(a) for a in e["argv"])
+        shlex.join(portable_command([str(a) for a in e["argv"]]))
         for e in sessions
         if isinstance(e, dict) and isinstance(e.get("argv"), list)
     ]
@@ -602,7 +604,8 @@ def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | No
         "task": policy.cfg.task,
         "algo": policy.cfg.algo,
         "obs_dim": policy.model.obs_dim,
-        "config": policy.cfg.to_dict(),
+        # where it trained, without this machine's absolute path (ndp.provenance.portable_path)
+        "config": {**policy.cfg.to_dict(), "run_dir": portable_path(policy.cfg.run_dir or ".")},
         "obs_norm": {
             "mean": norm["mean"].tolist(),
             "var": norm["var"].tolist(),

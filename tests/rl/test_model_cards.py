@@ -140,3 +140,29 @@ def test_cards_name_the_robot_state_the_policy_reads():
             assert COMMANDED_SOURCE in card and "from MuJoCo qpos/qvel" not in card
         else:
             assert meta["spec"]["y0_source"] in card
+
+
+def test_every_export_writes_a_card_and_a_re_export_keeps_its_results(tmp_path):
+    """The ONNX export writes a card too, with the evaluation it is given; a re-export of an
+    export (given no evaluation) keeps the source's success figures and commit; cards link no
+    page that does not exist (the package is not on PyPI)."""
+    import json
+
+    import ndp
+
+    src = ndp.load_policy("zoo:push-v3-ndp")
+    zoo_card = (ndp.zoo.path("push-v3-ndp") / "README.md").read_text()
+    assert "success_rate: 0.8" in zoo_card
+    again = src.export(tmp_path / "again")
+    card = (again / "README.md").read_text()
+    meta = json.loads((again / "policy.json").read_text())
+    assert "success_rate: 0.8" in card and "episodes: 50" in card
+    assert meta["evaluation"]["success"] == 0.8 and meta["commit"] == "35cbbe6"
+    assert 'commit: "35cbbe6"' in card
+    onnx = src.export(tmp_path / "onnx", evaluation={"success": 0.5, "episodes": 10},
+                      format="onnx")  # fmt: skip
+    ocard = (onnx / "README.md").read_text()
+    assert "success_rate: 0.5" in ocard and "episodes: 10" in ocard
+    assert "OnnxPolicy" in ocard and "make_env" not in ocard
+    for text in (card, ocard, zoo_card):
+        assert "pypi.org" not in text

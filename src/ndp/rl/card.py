@@ -209,9 +209,13 @@ def _scalar(v: Any) -> str:
 
 
 def model_card(
-    meta: dict[str, Any], evaluation: dict[str, Any] | None = None, name: str | None = None
+    meta: dict[str, Any],
+    evaluation: dict[str, Any] | None = None,
+    name: str | None = None,
+    onnx: bool = False,
 ) -> str:
-    """The ``README.md`` of an export: front matter (:func:`card_fields`) and a short text."""
+    """The ``README.md`` of an export: front matter (:func:`card_fields`) and a short text
+    (``onnx``: of an ONNX export, whose use differs)."""
     fields = card_fields(meta, evaluation, name)
     name = name or f"{meta['task']}-{meta['algo']}"
     cfg = meta.get("config", {})
@@ -222,7 +226,8 @@ def model_card(
     lines = ["---", to_yaml(fields), "---", "", f"# {name}", ""]
     lines += [
         f"A policy for the `{meta['task']}` task. Method: {method}. Trained with the "
-        f"[{LIBRARY}](https://pypi.org/project/{LIBRARY}/) package: {_budget(fields)}, "
+        f"`{LIBRARY}` package (not on PyPI yet: install it from a clone, see its README): "
+        f"{_budget(fields)}, "
         f"seed {_seq(fields['seeds'])}, k = {k} (env steps per decision).",
         "",
         "## Result",
@@ -231,17 +236,7 @@ def model_card(
         "",
         "## Use",
         "",
-        "```python",
-        "import ndp",
-        "",
-        f'policy = ndp.load_policy("{_load_path(name, evaluation)}")',
-        "# with the simulator ([envs] extra): the env the policy was trained for",
-        "env = policy.make_env()",
-        "obs, info = env.reset(seed=0)",
-        "obs, reward, terminated, truncated, info = env.step(policy.act(obs, info))",
-        "# without one: the robot state the DMP starts from, [D] each",
-        "# actions = policy.act(obs, ndp.RobotState(y0, dy0))   # [k, A]",
-        "```",
+        *(_onnx_use(name) if onnx else _torch_use(name, evaluation)),
         "",
     ]
     if spec:
@@ -286,6 +281,38 @@ def _seq(v: Any) -> str:
 def _budget(fields: dict[str, Any]) -> str:
     b = fields["budget_env_steps"]
     return f"{b:,} env steps" if isinstance(b, int) else f"budget {NOT_RECORDED}"
+
+
+def _torch_use(name: str, evaluation: dict[str, Any] | None) -> list[str]:
+    return [
+        "```python",
+        "import ndp",
+        "",
+        f'policy = ndp.load_policy("{_load_path(name, evaluation)}")',
+        "# with the simulator ([envs] extra): the env the policy was trained for",
+        "env = policy.make_env()",
+        "obs, info = env.reset(seed=0)",
+        "obs, reward, terminated, truncated, info = env.step(policy.act(obs, info))",
+        "# without one: the robot state the DMP starts from, [D] each",
+        "# actions = policy.act(obs, ndp.RobotState(y0, dy0))   # [k, A]",
+        "```",
+    ]
+
+
+def _onnx_use(name: str) -> list[str]:
+    return [
+        "`policy.onnx` is the whole deterministic decision as one graph (inputs `obs` [E, O], "
+        "`y0`, `dy0` [E, D], float64; output the k sub-actions [E, k, A], float32). Run it with "
+        "onnxruntime alone, or through the package ([onnx] extra), which checks the inputs as "
+        "the torch policy does:",
+        "",
+        "```python",
+        "import ndp",
+        "",
+        f'policy = ndp.load_policy("{name}")   # an OnnxPolicy',
+        "actions = policy.act(obs, ndp.RobotState(y0, dy0))   # [k, A]; or the env's info",
+        "```",
+    ]
 
 
 def _load_path(name: str, evaluation: dict[str, Any] | None) -> str:

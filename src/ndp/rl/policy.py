@@ -100,6 +100,9 @@ class Policy:
     the policy as trained. ``spec`` is then the finer row (``ndp.envs.spec.finer_spec``)."""
     _generator: torch.Generator | None = field(default=None, repr=False, compare=False)
     """Sampler of the stochastic actions (:meth:`reset` with a seed); None: torch's global."""
+    exported: dict[str, Any] | None = field(default=None, repr=False, compare=False)
+    """For a policy loaded from an export: that export's ``evaluation`` and ``commit`` (a
+    re-export carries them on when it is given no evaluation of its own); None otherwise."""
     training: dict[str, Any] | None = field(default=None, repr=False, compare=False)
     """Where the weights come from, as far as recorded: ``{"commands": [...], "commits":
     [...]}`` (a run's ``provenance.json`` sessions, or an export's ``"training"``); None when
@@ -255,7 +258,10 @@ class Policy:
         if format not in EXPORT_FORMATS:
             raise ValueError(f"format: expected one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
         if format == "onnx":
-            return write_onnx_export(self, out_dir)
+            out = write_onnx_export(self, out_dir)
+            meta, evaluation = export_meta(self, evaluation)
+            atomic_write_text(out / "README.md", model_card(meta, evaluation, out.name, onnx=True))
+            return out
         return _write_export(self, Path(out_dir), evaluation)
 
 
@@ -376,6 +382,10 @@ def load_policy(path: str | Path) -> Policy:
         pol = _build(cfg, meta["obs_dim"], state, meta["obs_norm"], str(weights), meta.get("spec"))
         training = meta.get("training")
         pol.training = training if isinstance(training, dict) else None
+        evaluation = meta.get("evaluation")
+        if not isinstance(evaluation, dict):  # exports before the field: their card's numbers
+            evaluation = card_evaluation(path / "README.md")
+        pol.exported = {"evaluation": evaluation, "commit": meta.get("commit")}
         return pol
     if (path / "config.json").is_file():
         cfg = load_config(path / "config.json")
@@ -597,8 +607,23 @@ def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | No
     out_dir.mkdir(parents=True, exist_ok=True)
     state = {k: v.detach().contiguous().clone() for k, v in policy.model.state_dict().items()}
     atomic_write_bytes(out_dir / "policy.safetensors", save(state))
+    meta, evaluation = export_meta(policy, evaluation)
+    atomic_write_text(out_dir / "policy.json", json.dumps(meta, indent=1) + "\n")
+    atomic_write_text(out_dir / "README.md", model_card(meta, evaluation, out_dir.name))
+    return out_dir
+
+
+def export_meta(
+    policy: Policy, evaluation: dict[str, Any] | None
+) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    """``(policy.json's fields, the evaluation the card reports)`` of an export of ``policy``:
+    a re-export of an export given no ``evaluation`` keeps the source's results and commit (its
+    weights are the same); the evaluation is recorded in ``policy.json`` too."""
+    src = policy.exported or {}
+    if evaluation is None and isinstance(src.get("evaluation"), dict):
+        evaluation = src["evaluation"]
     norm = policy.obs_norm.state_dict()
-    meta = {
+    meta: dict[str, Any] = {
         "format": EXPORT_FORMAT,
         "version": EXPORT_VERSION,
         "task": policy.cfg.task,
@@ -612,11 +637,38 @@ def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | No
             "count": float(norm["count"]),
         },
         "versions": installed_versions(),
-        "commit": git_commit(),
+        "commit": str(src.get("commit") or git_commit()),
         "spec": spec_record(policy.spec),
     }
     if policy.training is not None:
         meta["training"] = policy.training
-    atomic_write_text(out_dir / "policy.json", json.dumps(meta, indent=1) + "\n")
-    atomic_write_text(out_dir / "README.md", model_card(meta, evaluation, out_dir.name))
-    return out_dir
+    if evaluation is not None:
+        meta["evaluation"] = evaluation
+    return meta, evaluation
+
+
+def card_evaluation(card: Path) -> dict[str, Any] | None:
+    """The evaluation an export's card reports (its front matter's ``success_rate``,
+    ``episodes``, ``evaluation_command``), for exports written before ``policy.json`` held
+    it; None without one."""
+    import re
+
+    try:
+        head = card.read_text().split("---")[1]
+    except (OSError, IndexError):
+        return None
+    found = {}
+    for key in ("success_rate", "episodes", "evaluation_command"):
+        m = re.search(rf"^{key}: (.+)$", head, re.MULTILINE)
+        if m:
+            found[key] = m.group(1).strip().strip('"')
+    try:
+        out: dict[str, Any] = {
+            "success": float(found["success_rate"]),
+            "episodes": int(found["episodes"]),
+        }
+    except (KeyError, ValueError):
+        return None
+    if found.get("evaluation_command") not in (None, "not recorded"):
+        out["command"] = found["evaluation_command"]
+    return out

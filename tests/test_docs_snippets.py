@@ -1,7 +1,9 @@
 """Every ```python snippet of README.md and docs/*.md runs as written.
 
 A snippet that cannot run on its own says so on its first line, ``# not run: <reason>``, and is
-only compiled. Each runs in a fresh namespace with the repository root as working directory.
+only compiled. Each runs in a fresh namespace: README.md's from an empty temporary directory
+outside the checkout, against the installed package (what a user who installed it meets); the
+docs' with the repository root as working directory.
 """
 
 from __future__ import annotations
@@ -38,12 +40,12 @@ def test_the_docs_have_python_snippets():
 
 
 @pytest.mark.parametrize("where,code", SNIPPETS, ids=[s for s, _ in SNIPPETS])
-def test_snippet_runs(where, code, monkeypatch):
+def test_snippet_runs(where, code, monkeypatch, tmp_path):
     first = code.splitlines()[0] if code.strip() else ""
     compiled = compile(code, where, "exec")
     skip = NOT_RUN.search(first)
     if skip:
         pytest.skip(f"marked not run: {skip.group(1)}")
-    monkeypatch.chdir(ROOT)
+    monkeypatch.chdir(tmp_path if where.startswith("README.md") else ROOT)
     monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))
     exec(compiled, {"__name__": "__snippet__"})

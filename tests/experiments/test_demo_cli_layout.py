@@ -64,6 +64,7 @@ LEAVES = {
     "provenance",
     "checks",
     "chunk_info",
+    "act_inputs",
     "gym_ids",
 }  # leaf helper modules anyone may import
 

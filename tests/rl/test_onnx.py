@@ -53,6 +53,7 @@ def _record(policy: Policy, steps: int = 3, seed: int = 0) -> list[tuple[np.ndar
 def _run(session, policy: Policy, obs: np.ndarray, info: dict) -> np.ndarray:
     ky, kdy = policy.state_keys
     feed = {"obs": obs, "y0": np.asarray(info[ky]), "dy0": np.asarray(info[kdy])}
+    feed = {k: np.asarray(v, dtype=np.float32) for k, v in feed.items()}  # the graph's inputs
     return session.run(["actions"], feed)[0]
 
 
@@ -250,3 +251,20 @@ def test_load_policy_of_a_missing_path_names_the_zoo(tmp_path, monkeypatch):
         ndp.load_policy("runs/push-v3-ndpp")
     with pytest.raises(FileNotFoundError, match="load as 'zoo:NAME'"):
         ndp.load_policy("nothing/like/it")
+
+
+def test_the_graph_takes_float32_inputs(tmp_path):
+    """Deployment runtimes feed float32: the graph's three inputs are float32 (the normaliser
+    computes in float64 inside), and the wrapper accepts any real dtype."""
+    import ndp
+
+    pol = ndp.load_policy("zoo:push-v3-ppo-multi")
+    out = pol.export(tmp_path / "o", format="onnx")
+    model = onnx.load(str(out / "policy.onnx"))
+    assert [i.type.tensor_type.elem_type for i in model.graph.input] == [onnx.TensorProto.FLOAT] * 3
+    assert onnx_metadata(out)["input_dtype"] == "float32"
+    onnx_pol = ndp.load_policy(out)
+    obs = np.zeros(39, dtype=np.float32)
+    state = {k: np.zeros(4, dtype=np.float16) for k in onnx_pol.state_keys}
+    np.testing.assert_allclose(onnx_pol.act(obs, state), pol.act(obs.astype(np.float64), state),
+                               atol=1e-5)  # fmt: skip

@@ -46,8 +46,11 @@ if TYPE_CHECKING:
 
 ONNX_FORMAT = "ndp-policy-onnx"
 """``format`` entry of the ONNX file's metadata."""
-ONNX_VERSION = 1
-"""``version`` entry of the metadata (incremented on incompatible changes)."""
+ONNX_VERSION = 2
+"""``version`` entry of the metadata (incremented on incompatible changes: 2 takes float32
+inputs, 1 took float64; both load)."""
+ONNX_VERSIONS = (1, 2)
+"""Versions :func:`onnx_metadata` reads."""
 ONNX_FILE = "policy.onnx"
 """File name of the graph inside the export directory."""
 OPSET = 17
@@ -65,7 +68,8 @@ class DecisionModule(nn.Module):
         policy: a trained policy (not an ``at_exec_k`` copy); its actor-critic is shared, not
             copied.
 
-    Shapes: obs [E, O], y0 and dy0 [E, D] float64 -> actions [E, k, A] float32.
+    Shapes: obs [E, O], y0 and dy0 [E, D] float32 (what deployment runtimes feed; the
+    normaliser still computes in float64 inside) -> actions [E, k, A] float32.
     """
 
     # buffers registered in __init__
@@ -106,8 +110,9 @@ class DecisionModule(nn.Module):
 
 
 def probe_inputs(policy: Policy, batch: int, seed: int = 0) -> tuple[torch.Tensor, ...]:
-    """Float64 inputs spread around the normaliser's statistics (observations within 3 std,
-    some beyond the clip) and robot states in [-1, 1], for tracing and verification."""
+    """Float32 inputs (the graph's input type) spread around the normaliser's statistics
+    (observations within 3 std, some beyond the clip) and robot states in [-1, 1], for tracing
+    and verification."""
     gen = np.random.default_rng(seed)
     norm = policy.obs_norm
     std = np.sqrt(np.asarray(norm.rms.var, dtype=np.float64) + 1e-8)
@@ -115,7 +120,7 @@ def probe_inputs(policy: Policy, batch: int, seed: int = 0) -> tuple[torch.Tenso
     d = int(policy.spec.dmp_dofs)
     y0 = gen.uniform(-1.0, 1.0, (batch, d))
     dy0 = gen.uniform(-1.0, 1.0, (batch, d))
-    return tuple(torch.as_tensor(a, dtype=torch.float64) for a in (obs, y0, dy0))
+    return tuple(torch.as_tensor(a, dtype=torch.float32) for a in (obs, y0, dy0))
 
 
 def _require(name: str) -> Any:
@@ -234,7 +239,7 @@ def onnx_metadata_of(policy: Policy) -> dict[str, str]:
         "dmp_dofs": int(spec.dmp_dofs),
         "inputs": list(INPUTS),
         "outputs": list(OUTPUTS),
-        "input_dtype": "float64",
+        "input_dtype": "float32",
         "output_dtype": "float32",
         "state_keys": [ky, kdy],
         "dmp_state": frame_of_keys(ky),
@@ -285,10 +290,10 @@ def onnx_metadata(path: str | Path) -> dict[str, Any]:
             meta[entry.key] = json.loads(entry.value)
         except json.JSONDecodeError:
             meta[entry.key] = entry.value
-    if meta.get("format") != ONNX_FORMAT or meta.get("version") != ONNX_VERSION:
+    if meta.get("format") != ONNX_FORMAT or meta.get("version") not in ONNX_VERSIONS:
         raise ValueError(
             f"{path}: format {meta.get('format')!r} version {meta.get('version')!r}; expected "
-            f"{ONNX_FORMAT!r} version {ONNX_VERSION}"
+            f"{ONNX_FORMAT!r} version {' or '.join(map(str, ONNX_VERSIONS))}"
         )
     return meta
 
@@ -323,6 +328,11 @@ class OnnxPolicy:
                 f"{path}: onnxruntime cannot load the graph ({type(exc).__name__}: "
                 f"{str(exc).splitlines()[0][:160]})"
             ) from None
+        # the graph's input types (float32 from version 2; float64 in version 1 files)
+        self._dtypes = {
+            i.name: np.float64 if i.type == "tensor(double)" else np.float32
+            for i in self.session.get_inputs()
+        }
         config = self.meta.get("config") or {}
         velocity = (config.get("policy") or {}).get("dmp_velocity", "zero")
         self._checks = {
@@ -350,7 +360,10 @@ class OnnxPolicy:
                 "with the torch policy (ndp.load_policy of the run or its safetensors export)"
             )
         o, y0, dy0, single = check_act_inputs(obs, info, **self._checks)
-        feed = {"obs": o, "y0": y0, "dy0": dy0}
+        feed = {
+            name: value.astype(self._dtypes[name])
+            for name, value in (("obs", o), ("y0", y0), ("dy0", dy0))
+        }
         try:
             out: np.ndarray = self.session.run(None, feed)[0]
         except Exception as exc:  # onnxruntime's own error kinds

@@ -35,7 +35,8 @@ class GymId:
     """One registration: the arguments of ``gymnasium.register``."""
 
     id: str
-    """``ndp/<name>`` (per-step env) or ``ndp/<name>-k<k>`` (chunked env)."""
+    """``ndp/<name>`` (per-step env) or ``ndp/<name>-k<k>`` (chunked env); a task row's older
+    id (``ndp/JacoThrow-v0``) as a deprecated alias of ``ndp/<name>``."""
     entry_point: str
     """:data:`PER_STEP` or :data:`CHUNKED` (a string: registering imports no env class)."""
     kwargs: dict[str, Any] = field(default_factory=dict)
@@ -65,7 +66,14 @@ def expand(
     ks = [int(k) for k in chunked_ks]
     out: list[GymId] = []
     for name, (env_id, horizon) in tasks.items():
-        out.append(GymId(env_id, PER_STEP, {"name": name}, int(horizon)))
+        # one scheme: ndp/<task name> and ndp/<task name>-k<k>; a task row's older id
+        # (ndp/JacoThrow-v0, ndp/PointMass2D-v0) stays registered as a deprecated alias
+        canonical = f"ndp/{name}"
+        out.append(GymId(canonical, PER_STEP, {"name": name}, int(horizon)))
+        if env_id != canonical:
+            out.append(
+                GymId(env_id, PER_STEP, {"name": name, "deprecated_id": canonical}, int(horizon))
+            )
         for k in ks:
             out.append(
                 GymId(

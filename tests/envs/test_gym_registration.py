@@ -9,6 +9,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 gym = pytest.importorskip("gymnasium")
@@ -20,9 +21,17 @@ from ndp.envs.factory import CHUNKED_KS, gym_id_table  # noqa: E402
 SRC = Path(ndp.__file__).resolve().parents[1]
 
 
+OLD_IDS = sum(s.env_id != f"ndp/{n}" for n, s in TASKS.items())
+"""Task rows whose older id (ndp/JacoThrow-v0, ndp/PointMass2D-v0, ...) stays registered as a
+deprecated alias of ndp/<name>."""
+
+
 def test_every_id_has_the_task_horizon_as_max_episode_steps():
     ids = set(register_envs()) | set(register_torque_envs())
-    assert len(ids) == len(TASKS) * (1 + len(CHUNKED_KS)) + len(TORQUE_TASKS)
+    assert len(ids) == len(TASKS) * (1 + len(CHUNKED_KS)) + len(TORQUE_TASKS) + OLD_IDS
+    assert OLD_IDS == 4  # JacoThrow-v0, JacoPick-v0, PointMass2D-v0, PointMass3D-v0
+    for name in TASKS:  # one scheme: ndp/<task> and ndp/<task>-k<k> for every task
+        assert f"ndp/{name}" in ids and f"ndp/{name}-k5" in ids
     for name, spec in TASKS.items():
         assert (
             gym.spec(spec.env_id).max_episode_steps
@@ -73,6 +82,7 @@ import sys
 import time
 
 t = time.perf_counter()
+import numpy as np
 import gymnasium
 import_s = time.perf_counter() - t
 heavy = sorted(m for m in sys.modules if m.split(".")[0] in ("torch", "mujoco", "metaworld")
@@ -115,7 +125,7 @@ def test_import_gymnasium_alone_registers_the_ids_through_the_startup_hook(tmp_p
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
     out = json.loads(next(x for x in r.stdout.splitlines() if x.startswith("RESULT "))[7:])
     assert out["heavy"] == []  # registering imported no simulator, torch or env module
-    assert out["n_ids"] == len(TASKS) * (1 + len(CHUNKED_KS)) + len(TORQUE_TASKS)
+    assert out["n_ids"] == len(TASKS) * (1 + len(CHUNKED_KS)) + len(TORQUE_TASKS) + OLD_IDS
     assert out["steps"] == out["max_steps"] == 150
     # and the switch turns it off
     r = subprocess.run(
@@ -256,3 +266,20 @@ def test_make_by_module_prefix_without_importing_ndp_and_episodes_end_at_the_hor
     out = json.loads(next(x for x in r.stdout.splitlines() if x.startswith("RESULT "))[7:])
     # the env's own horizon and gymnasium's TimeLimit end the episode at the same step
     assert out == {"max_steps": 150, "steps": 150, "chunked_max": 30, "decisions": 30}
+
+
+def test_old_ids_are_deprecated_aliases_of_the_one_scheme():
+    import warnings
+
+    register_envs()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        old = gym.make("ndp/JacoThrow-v0")
+    assert any("use gymnasium.make('ndp/throw')" in str(w.message) for w in caught)
+    new = gym.make("ndp/throw")
+    o1, _ = old.reset(seed=3)
+    o2, _ = new.reset(seed=3)
+    np.testing.assert_array_equal(o1, o2)
+    assert gym.spec("ndp/point-mass").max_episode_steps == 50
+    old.close()
+    new.close()

@@ -1,6 +1,7 @@
 """One factory for every task, and gymnasium registration.
 
-Ids: ``ndp/<name>`` for the per-step env (``ndp/push-v3``, ``ndp/JacoThrow-v0``) and
+Ids: ``ndp/<name>`` for the per-step env (``ndp/push-v3``, ``ndp/throw``; the older
+``ndp/JacoThrow-v0`` style ids are deprecated aliases) and
 ``ndp/<name>-k<k>`` for the chunked env with k sub-steps per decision (k in :data:`CHUNKED_KS`,
 e.g. ``gymnasium.make("ndp/push-v3-k5")``). Each id has its ``max_episode_steps``: the task's
 horizon in env steps (150), and ``ceil(horizon / k)`` decisions for the chunked ids, the same
@@ -211,8 +212,18 @@ def fixed_goal_seed(run_seed: int) -> int:
     return int(np.random.SeedSequence([int(run_seed), 0x6F41]).generate_state(1)[0])
 
 
-def _make_registered(name: str, **kw: Any) -> gym.Env:
-    """gymnasium entry point (per-step env)."""
+def _make_registered(name: str, deprecated_id: str | None = None, **kw: Any) -> gym.Env:
+    """gymnasium entry point (per-step env); ``deprecated_id``: the id to use instead (the
+    registration is an old name, said once per make)."""
+    if deprecated_id is not None:
+        import warnings
+
+        warnings.warn(
+            f"this id is deprecated: use gymnasium.make({deprecated_id!r}) (ids are "
+            "ndp/<task> and ndp/<task>-k<k>)",
+            DeprecationWarning,
+            stacklevel=3,
+        )
     return make_env(name, **kw)
 
 
@@ -235,7 +246,7 @@ def register_envs() -> list[str]:
     ``max_episode_steps`` (decisions for the chunked ids); :mod:`ndp.gym_ids` holds the rule.
 
     Returns:
-        The registered ids, e.g. ``"ndp/push-v3"``, ``"ndp/JacoThrow-v0"``.
+        The registered ids, e.g. ``"ndp/push-v3"``, ``"ndp/throw"``.
     """
     return register(expand({n: (s.env_id, s.horizon) for n, s in TASKS.items()}, CHUNKED_KS))
 

@@ -335,6 +335,7 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "ndp-regimes",
         "ndp-settings",
         "digits-head",
+        "mt50-attribution",
     }
     # the new studies: every arm accepted on its tasks; every condition's arms exist and run
     # the condition's method

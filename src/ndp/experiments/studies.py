@@ -609,6 +609,27 @@ def _converged_arms() -> tuple[ArmSpec, ...]:
     )
 
 
+MT50_ATTRIBUTION_TASKS = (
+    "button-press-v3",
+    "door-unlock-v3",
+    "faucet-close-v3",
+    "plate-slide-v3",
+    "sweep-into-v3",
+    "window-close-v3",
+    "window-open-v3",
+)
+"""The Meta-World tasks where NDP's and PPO's final success differed by more than 0.1 at seed 0
+in docs/results/mt50_100k.csv (100k env steps), fixed before any run of mt50-attribution."""
+
+
+def _mt50_attribution_arms() -> tuple[ArmSpec, ...]:
+    return (
+        ArmSpec("ndp", "ndp", (), "NDP (default head)"),
+        ArmSpec("ppo-multi", "ppo-multi", (), "PPO-multi"),
+        ArmSpec("ppo", "ppo", (), "PPO"),
+    )
+
+
 HEAD_LRS = ("1e-3", "3e-3", "1e-2")
 """The learning-rate grid of digits-head (NDP's best converged lr sat at the top of the old
 grid, 3e-3, on several sizes)."""
@@ -854,6 +875,28 @@ STUDIES: dict[str, Study] = {
             arms=_digits_arms,
             steps=71,
             kind="il",
+        ),
+        Study(
+            name="mt50-attribution",
+            title="MT50 at 100k: NDP vs PPO-multi vs PPO where seed 0 told them apart",
+            doc=(
+                "The 7 Meta-World tasks where NDP's and PPO's final success differed by more "
+                "than 0.1 at seed 0 of mt50 (docs/results/mt50_100k.csv) x NDP, PPO-multi, PPO, "
+                "100k env steps, seeds 0-2, deterministic evaluation: whether the MT50 "
+                "direction (NDP slightly ahead of PPO) holds with spread and against PPO-multi. "
+                "Report with the per-task intervals and the over-tasks IQM (--study "
+                "mt50-attribution)."
+            ),
+            tasks=lambda: MT50_ATTRIBUTION_TASKS,
+            arms=_mt50_attribution_arms,
+            steps=100_000,
+            conditions=(
+                Condition(
+                    "fair",
+                    "v2 rewards, random goals, 100k env steps",
+                    (("ndp", "ndp"), ("ppo-multi", "ppo-multi"), ("ppo", "ppo")),
+                ),
+            ),  # fmt: skip
         ),
         Study(
             name="digits-head",

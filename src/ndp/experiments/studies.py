@@ -896,7 +896,7 @@ STUDIES: dict[str, Study] = {
                     "v2 rewards, random goals, 100k env steps",
                     (("ndp", "ndp"), ("ppo-multi", "ppo-multi"), ("ppo", "ppo")),
                 ),
-            ),  # fmt: skip
+            ),
         ),
         Study(
             name="digits-head",

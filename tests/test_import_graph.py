@@ -137,6 +137,7 @@ LAYERS = {
     "checks": 0,
     "provenance": 0,
     "chunk_info": 0,
+    "act_inputs": 0,
     "gym_ids": 0,
     "zoo": 0,
     # numerical core and run infrastructure

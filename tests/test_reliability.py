@@ -119,7 +119,10 @@ def test_overwrite_says_what_it_removes_and_keeps_other_files(tmp_path, capsys):
     (run / "notes.txt").write_text("mine")
     capsys.readouterr()
     assert ndp_main(_rl(run, 520)) == 2
-    assert "--overwrite" in capsys.readouterr().err
+    # a run that can resume is pointed to --resume, never offered --overwrite (which deletes it;
+    # issue "one run driver"); --overwrite given explicitly still replaces it
+    refusal = capsys.readouterr().err
+    assert f"--resume {run}" in refusal and "--overwrite" not in refusal
     assert ndp_main([*_rl(run, 520), "--overwrite"]) == 0
     err = capsys.readouterr().err
     assert "removing the earlier run" in err and "checkpoint.pt" in err and "metrics.csv" in err

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ndp.io import check_output_path as check_path
+
 
 def check_video_size(name: str, value: int) -> int:
     """``value`` if the mp4 encoder accepts it as a frame side: H.264 in yuv420p, which every
@@ -84,6 +86,4 @@ def check_output_path(path: str | Path) -> Path:
     """Make ``path``'s folder (if needed) and check that a file can be written there, before
     any expensive work (:func:`ndp.io.check_output_path`); raises ``OSError`` in one line
     naming the path and the cause."""
-    from ndp.io import check_output_path as check
-
-    return check(path, "path")
+    return check_path(path, "path")

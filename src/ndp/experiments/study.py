@@ -39,6 +39,7 @@ import numpy as np
 from ndp.experiments.run_kinds import kind_of_algo, run_kind
 from ndp.io import atomic_write_text
 from ndp.runs import metrics_path, read_metrics
+from ndp.runs.layout import run_name
 from ndp.runs.session import read_manifest
 
 
@@ -82,8 +83,6 @@ class Arm:
 def run_dir(runs_dir: Path, task: str, arm: Arm, seed: int) -> Path:
     """Directory of one run: ``<runs_dir>/<task>-<label>-s<seed>``
     (:func:`ndp.runs.layout.run_name`)."""
-    from ndp.runs.layout import run_name
-
     return Path(runs_dir) / run_name(task, arm.label, seed)
 
 

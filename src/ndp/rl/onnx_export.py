@@ -37,6 +37,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from ndp.act_inputs import check_act_inputs
 from ndp.chunk_info import frame_of_keys
 from ndp.io import atomic_write_bytes
 from ndp.provenance import git_commit, installed_versions
@@ -352,8 +353,6 @@ class OnnxPolicy:
         refuses what it refuses, with the same one-line messages (:mod:`ndp.act_inputs`).
         ``deterministic=False`` is refused: the graph holds the mode only (sample with the
         torch policy, ``ndp.load_policy`` of the run or its safetensors export)."""
-        from ndp.act_inputs import check_act_inputs
-
         if not deterministic:
             raise ValueError(
                 "deterministic: an ONNX export holds the deterministic decision only; sample "

@@ -58,12 +58,12 @@ from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text
 from ndp.policies import ActorCritic, build_actor_critic
 from ndp.policies.task import PolicySpec, check_record, spec_record
-from ndp.provenance import git_commit, installed_versions, portable_path
+from ndp.provenance import git_commit, installed_versions, portable_command, portable_path
 from ndp.rl.card import model_card
 from ndp.rl.config import EVAL_SEED, TrainConfig, load_config
 from ndp.rl.exec_k import at_exec_k
 from ndp.rl.normalize import ObsNormalizer
-from ndp.rl.onnx_export import write_onnx_export
+from ndp.rl.onnx_export import OnnxPolicy, write_onnx_export
 from ndp.runs import load_checkpoint
 from ndp.runs.layout import PROVENANCE_NAME, run_commits
 
@@ -429,8 +429,6 @@ def load_any_policy(path: str | Path) -> Policy | Any:
     try:
         return load_policy(path)
     except OnnxExportFound as found:
-        from ndp.rl.onnx_export import OnnxPolicy
-
         return OnnxPolicy(found.path)
 
 
@@ -465,8 +463,6 @@ def run_training(run_dir: Path) -> dict[str, Any] | None:
         return None
     if not isinstance(sessions, list):
         return None
-    from ndp.provenance import portable_command
-
     commands = [
         shlex.join(portable_command([str(a) for a in e["argv"]]))
         for e in sessions

@@ -61,7 +61,7 @@ def acquire(run_dir: str | Path) -> None:
         key.mkdir(parents=True, exist_ok=True)
         fh = (key / RUN_LOCK_NAME).open("a+")
     except (FileExistsError, NotADirectoryError):
-        raise OSError(f"run_dir: cannot create {run_dir}: a part of that path is a file") from None
+        raise OSError(f"run_dir: cannot create {run_dir}: a parent is a file") from None
     except PermissionError:
         raise OSError(f"run_dir: {run_dir} is not writable (permission denied)") from None
     try:

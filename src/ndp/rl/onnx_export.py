@@ -6,8 +6,9 @@ sub-actions; PPO: one action; PPO-multi: k actions; VICES: the impedance action;
 decoded k actions) -> the distribution's mode -> clip to the task's action bounds. It computes
 exactly what ``Policy.act(obs, info, deterministic=True)`` computes:
 
-- inputs ``obs`` [E, O], ``y0`` [E, D], ``dy0`` [E, D], all float64 (as the env and its info
-  give them; the normaliser runs in float64 like the eager policy's, the rest in float32). y0
+- inputs ``obs`` [E, O], ``y0`` [E, D], ``dy0`` [E, D], all float32 (what deployment runtimes
+  feed; format version 1 took float64; the normaliser runs in float64 inside like the eager
+  policy's, the rest in float32). y0
   and dy0 are the DMP start, read from the chunked env's info keys named in the metadata
   (``state_keys``: ``cmd_y0`` / ``cmd_dy0`` for the commanded state, ``dmp_y0`` / ``dmp_dy0``
   for the measured one). Heads without a DMP ignore their values (every graph takes the three

@@ -40,7 +40,7 @@ from torch import nn
 
 from ndp.act_inputs import check_act_inputs
 from ndp.chunk_info import frame_of_keys
-from ndp.io import atomic_write_bytes
+from ndp.io import atomic_write_bytes, check_output_path
 from ndp.provenance import git_commit, installed_versions
 
 if TYPE_CHECKING:
@@ -259,6 +259,7 @@ def write_onnx_export(policy: Policy, out_dir: str | Path) -> Path:
     """Write ``out_dir/policy.onnx`` (a new directory, or one without that file); returns
     ``out_dir``."""
     out = Path(out_dir)
+    check_output_path(out, "out_dir", folder=True, create=False)  # before the export's work
     if (out / ONNX_FILE).exists():
         raise FileExistsError(f"out_dir: {out} already holds {ONNX_FILE}; choose another")
     data = onnx_model_bytes(policy)

@@ -55,7 +55,7 @@ import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES'
 from ndp import zoo
 from ndp.act_inputs import RobotState, check_act_inputs
 from ndp.chunk_info import dmp_start_keys
-from ndp.io import atomic_write_bytes, atomic_write_text
+from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
 from ndp.policies.task import PolicySpec, check_record, spec_record
 from ndp.provenance import git_commit, installed_versions, portable_command, portable_path
@@ -598,6 +598,7 @@ def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | No
         raise ValueError(
             "policy: an exec-k evaluation copy cannot be exported; export the trained policy"
         )
+    check_output_path(out_dir, "out_dir", folder=True, create=False)  # the one path check
     if (out_dir / "policy.json").exists():
         raise FileExistsError(f"out_dir: {out_dir} already holds an export; choose another")
     out_dir.mkdir(parents=True, exist_ok=True)

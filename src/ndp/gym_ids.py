@@ -26,6 +26,11 @@ TABLE = Path(__file__).with_name("gym_ids.json")
 """The shipped table: ``{"tasks": {name: [env_id, horizon]}, "chunked_ks": [k, ...],
 "torque": {name: [env_id, horizon]}}``."""
 
+LEGACY_IDS = frozenset({"ndp/JacoThrow-v0", "ndp/JacoPick-v0", "ndp/PointMass2D-v0",
+                        "ndp/PointMass3D-v0"})  # fmt: skip
+"""The built-in rows' older ids: each stays registered as a deprecated alias of ``ndp/<name>``
+(a task a user registers keeps the id it gives, alone)."""
+
 PER_STEP = "ndp.envs.factory:_make_registered"
 CHUNKED = "ndp.envs.factory:_make_registered_chunked"
 
@@ -69,11 +74,13 @@ def expand(
         # one scheme: ndp/<task name> and ndp/<task name>-k<k>; a task row's older id
         # (ndp/JacoThrow-v0, ndp/PointMass2D-v0) stays registered as a deprecated alias
         canonical = f"ndp/{name}"
-        out.append(GymId(canonical, PER_STEP, {"name": name}, int(horizon)))
-        if env_id != canonical:
+        if env_id in LEGACY_IDS:
+            out.append(GymId(canonical, PER_STEP, {"name": name}, int(horizon)))
             out.append(
                 GymId(env_id, PER_STEP, {"name": name, "deprecated_id": canonical}, int(horizon))
             )
+        else:
+            out.append(GymId(env_id, PER_STEP, {"name": name}, int(horizon)))
         for k in ks:
             out.append(
                 GymId(

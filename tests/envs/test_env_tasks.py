@@ -53,7 +53,9 @@ def test_check_env_and_same_seed_same_episode(name):
 
 def test_registered_with_gymnasium_and_seed_in_factory():
     ids = register_envs()
-    old = sum(s.env_id != f"ndp/{n}" for n, s in TASKS.items())  # deprecated aliases (4)
+    from ndp.gym_ids import LEGACY_IDS
+
+    old = sum(s.env_id in LEGACY_IDS for s in TASKS.values())  # deprecated aliases (4)
     assert len(ids) == 2 * len(TASKS) + old and "ndp/JacoThrow-v0" in ids
     assert "ndp/push-v3-k5" in ids and "ndp/throw" in ids
     env = gym.make("ndp/push-v3", seed=3)

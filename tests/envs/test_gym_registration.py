@@ -17,11 +17,12 @@ gym = pytest.importorskip("gymnasium")
 import ndp  # noqa: E402
 from ndp.envs import TASKS, TORQUE_TASKS, register_envs, register_torque_envs  # noqa: E402
 from ndp.envs.factory import CHUNKED_KS, gym_id_table  # noqa: E402
+from ndp.gym_ids import LEGACY_IDS  # noqa: E402
 
 SRC = Path(ndp.__file__).resolve().parents[1]
 
 
-OLD_IDS = sum(s.env_id != f"ndp/{n}" for n, s in TASKS.items())
+OLD_IDS = sum(s.env_id in LEGACY_IDS for s in TASKS.values())
 """Task rows whose older id (ndp/JacoThrow-v0, ndp/PointMass2D-v0, ...) stays registered as a
 deprecated alias of ndp/<name>."""
 

@@ -40,6 +40,26 @@ def _key(run_dir: str | Path) -> Path:
     return Path(run_dir).resolve()
 
 
+def try_flock(fh: IO[str]) -> str | None:
+    """Take an exclusive, non-blocking flock on the open lock file ``fh`` and write this
+    process's pid and host into it; where another process holds it, close ``fh`` and return
+    what the file says of the holder (the one flock of this run lock and of the sweep's)."""
+    import fcntl
+
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        fh.seek(0)
+        holder = fh.read().strip() or "another process"
+        fh.close()
+        return holder
+    fh.seek(0)
+    fh.truncate()
+    fh.write(f"pid {os.getpid()} on {socket.gethostname()}\n")
+    fh.flush()
+    return None
+
+
 def acquire(run_dir: str | Path) -> None:
     """Take the run's lock (re-entrant within the process; the directory is made if missing).
 
@@ -47,8 +67,6 @@ def acquire(run_dir: str | Path) -> None:
         RunBusyError: another process holds it; the message names the run and the holder.
         OSError: the directory cannot be made or the lock file written (one line).
     """
-    import fcntl
-
     key = _key(run_dir)
     if key in _HELD:
         fh, n, made = _HELD[key]
@@ -64,21 +82,13 @@ def acquire(run_dir: str | Path) -> None:
         raise OSError(f"run_dir: cannot create {run_dir}: a parent is a file") from None
     except PermissionError:
         raise OSError(f"run_dir: {run_dir} is not writable (permission denied)") from None
-    try:
-        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        fh.seek(0)
-        holder = fh.read().strip() or "another process"
-        fh.close()
+    holder = try_flock(fh)
+    if holder is not None:
         _remove_if_bare(key, made)
         raise RunBusyError(
             f"run_dir: {run_dir} is being trained now ({holder}); wait for it to finish or "
             "stop it (Ctrl-C keeps its last checkpoint), or choose another run directory"
-        ) from None
-    fh.seek(0)
-    fh.truncate()
-    fh.write(f"pid {os.getpid()} on {socket.gethostname()}\n")
-    fh.flush()
+        )
     _HELD[key] = (fh, 1, made)
 
 

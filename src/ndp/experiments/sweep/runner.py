@@ -24,6 +24,7 @@ from ndp.experiments.study import (
     prepare_run,
 )
 from ndp.experiments.sweep.jobs import FAILED_NAME, LOCK_NAME, RUN_ENV, STOP_GRACE_S, Job, Outcome
+from ndp.runs.lock import try_flock
 
 # ----------------------------------------------------------------------------- one run
 
@@ -42,22 +43,10 @@ class _RunLock:
 
     @staticmethod
     def take(run: Path) -> _RunLock | str:
-        import fcntl
-
         run.mkdir(parents=True, exist_ok=True)
         fh = (run / LOCK_NAME).open("a+")
-        try:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            fh.seek(0)
-            holder = fh.read().strip() or "another process"
-            fh.close()
-            return holder
-        fh.seek(0)
-        fh.truncate()
-        fh.write(f"pid {os.getpid()} on {socket.gethostname()}\n")
-        fh.flush()
-        return _RunLock(fh)
+        holder = try_flock(fh)
+        return _RunLock(fh) if holder is None else holder
 
     def fileno(self) -> int:
         return self.fh.fileno()

@@ -598,13 +598,19 @@ def make_learner(cfg: TrainConfig, resume: bool = False, resolved: bool = False)
 
 
 def train(
-    cfg: TrainConfig, max_updates: int | None = None, overwrite: bool = False
+    cfg: TrainConfig,
+    max_updates: int | None = None,
+    overwrite: bool = False,
+    resolved: bool = False,
 ) -> dict[str, float]:
     """Train a fresh run (see :class:`Trainer`); returns the last update's metrics.
 
     ``overwrite``: remove an earlier run in the run directory first (its files are named on
-    stderr); without it such a directory is refused."""
-    cfg = resolve_config(cfg)  # once: the learner gets it resolved
+    stderr); without it such a directory is refused. ``resolved``: ``cfg`` is already
+    :func:`ndp.rl.config.resolve_config`'s output (``ndp rl train`` resolves it to name the run
+    directory)."""
+    if not resolved:
+        cfg = resolve_config(cfg)  # once: the learner gets it resolved
     with lock.held(cfg.run_dir or "."):  # never overwrite a run another process trains
         if overwrite:
             RunDir(cfg.run_dir or ".").create(overwrite=True)

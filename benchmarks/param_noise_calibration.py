@@ -32,9 +32,9 @@ from ndp.io import atomic_write_text
 from ndp.policies import build_actor_critic
 from ndp.policies.config import PolicyConfig
 from ndp.rl.config import TrainConfig, resolve_config
+from ndp.rl.envs import decision_start as _robot_state
 from ndp.rl.envs import resolve_task
 from ndp.rl.normalize import ObsNormalizer
-from ndp.rl.trainer import _robot_state
 
 GRID = tuple(np.round(np.arange(-3.0, 0.51, 0.25), 2))
 """init_log_std values tried for the parameter noise."""

@@ -8,8 +8,9 @@ mini-batches, 10 epochs, [100, 100] tanh, observation and return normalisation):
   process (resets included): what one core can simulate;
 - ``raw-N``: the same in N processes at once (N = cores, one per core, started together behind
   a barrier), summed: the practical limit of this machine;
-- ``ndp`` / ``ppo`` / ``ppo-multi``: ``ndp.rl.trainer.Trainer.train`` for ``--steps`` env steps
-  with the default vector env (``auto``: env slices in the main process and N - 1 workers) and,
+- ``ndp`` / ``ppo`` / ``ppo-multi``: a run through the run driver (``ndp.rl.run.open_run``),
+  for ``--steps`` env steps with the default vector env (``auto``: env slices in the main
+  process and N - 1 workers) and,
   as ``<method>-sync``, in one process; setup (process start) excluded; the run's rollout and
   update times are reported apart (seconds per update);
 - ``vices`` / ``vices-sync``: ``ndp rl train --algo vices`` likewise (PPO on the torque-actuated
@@ -118,7 +119,7 @@ def bench_ours(
     import dataclasses
 
     from ndp.rl.config import DyneConfig, TrainConfig
-    from ndp.rl.trainer import make_learner
+    from ndp.rl.run import open_run
     from ndp.runs import read_metrics
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -139,14 +140,15 @@ def bench_ours(
                 steps=steps + cfg.env_steps_per_update,
                 dyne=DyneConfig(explore_steps=1, embed_updates=200, decoder_updates=200),
             )
-        tr = make_learner(cfg)
+        opened = open_run(cfg)
+        tr = opened.learner
         try:
             skip = getattr(tr, "n_explore", 0)
             if skip:
-                tr.train(max_updates=skip)
+                opened.train(skip)
             g0 = tr.global_step
             w0 = time.perf_counter()
-            tr.train()
+            opened.train()
             w = time.perf_counter() - w0
             rows = read_metrics(Path(tmp) / "r" / "metrics.csv")[skip:]
             return {
@@ -155,7 +157,7 @@ def bench_ours(
                 "update_s": float(np.mean([r["time/update_s"] for r in rows])),
             }
         finally:
-            tr.close()
+            opened.close()
 
 
 def bench_sb3(task: str, steps: int, num_envs: int, seed: int, subproc: bool) -> float:

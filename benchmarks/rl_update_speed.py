@@ -29,10 +29,11 @@ from ndp.provenance import git_commit
 
 
 def _trainer(task: str, algo: str, tmp: str):
+    """The run of ``algo`` on ``task``, opened by the run driver (``.learner``: the Trainer)."""
     from ndp.rl.config import TrainConfig
-    from ndp.rl.trainer import Trainer
+    from ndp.rl.run import open_run
 
-    return Trainer(
+    return open_run(
         TrainConfig(
             task=task,
             algo=algo,
@@ -47,7 +48,8 @@ def _trainer(task: str, algo: str, tmp: str):
 
 def time_update(task: str, algo: str, repeats: int, compile_mlps: bool) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
-        tr = _trainer(task, algo, tmp)
+        opened = _trainer(task, algo, tmp)
+        tr = opened.learner
         try:
             if compile_mlps:
                 tr.model.actor = torch.compile(tr.model.actor, dynamic=True)
@@ -62,7 +64,7 @@ def time_update(task: str, algo: str, repeats: int, compile_mlps: bool) -> dict[
                 tr.learn(batch)
                 times.append(time.perf_counter() - t0)
         finally:
-            tr.close()
+            opened.close()
     return {"update_s": statistics.median(times), "first_update_s": first}
 
 

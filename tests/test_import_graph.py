@@ -144,16 +144,18 @@ LAYERS = {
     "dmp": 1,
     "nets": 1,
     "runs": 1,
+    # the one task schema (what a task is for a DMP, a policy and an export)
+    "schema": 2,
     # the data flow: environments -> policies -> learners -> studies -> command line
-    "envs": 2,
-    "policies": 3,
-    "rl": 4,
-    "il": 4,
-    "bc": 5,
-    "sb3": 5,
-    "experiments": 6,
-    "cli": 7,
-    "": 7,  # the package facade (ndp/__init__.py)
+    "envs": 3,
+    "policies": 4,
+    "rl": 5,
+    "il": 5,
+    "bc": 6,
+    "sb3": 6,
+    "experiments": 7,
+    "cli": 8,
+    "": 8,  # the package facade (ndp/__init__.py)
 }
 """Each top-level part of ``src/ndp`` and its layer (docs/design: data flow first); a part may
 import only parts of a lower layer."""

@@ -103,7 +103,7 @@ def test_release9_observation_is_hand_object_goal_and_trains(tmp_path):
     from ndp.envs.factory import RELEASE9
     from ndp.rl.config import TrainConfig
     from ndp.rl.evaluate import load_policy
-    from ndp.rl.trainer import train
+    from ndp.rl.run import train
 
     full = ndp.make_env("push-v3", k=5)
     small = ndp.make_env("push-v3", k=5, observation="release9")

@@ -129,7 +129,7 @@ def test_a_new_family_is_one_registration_and_everything_works_on_it(slider, tmp
     # every on-policy method trains on it with the shared trainer
     from ndp.rl.config import PPOConfig, TrainConfig
     from ndp.rl.evaluate import evaluate
-    from ndp.rl.trainer import train
+    from ndp.rl.run import train
 
     for algo in ("ndp", "ppo", "ppo-multi"):
         run = tmp_path / algo

@@ -52,12 +52,23 @@ ALLOWED = {
     "dmp": set(),
     "nets": set(),
     "runs": set(),  # run infrastructure (run dirs, metrics, checkpoints, typed CLIs)
-    "envs": {"dmp"},
-    "policies": {"dmp", "nets", "envs", "runs"},
+    "envs": {"dmp", "schema"},
+    "policies": {"dmp", "nets", "envs", "runs", "schema"},
     "il": {"dmp", "nets", "runs"},
-    "rl": {"dmp", "nets", "envs", "policies", "runs"},
-    "bc": {"dmp", "nets", "envs", "policies", "rl", "runs"},
-    "experiments": {"dmp", "nets", "envs", "policies", "rl", "il", "bc", "sb3", "runs"},
+    "rl": {"dmp", "nets", "envs", "policies", "runs", "schema"},
+    "bc": {"dmp", "nets", "envs", "policies", "rl", "runs", "schema"},
+    "experiments": {
+        "dmp",
+        "nets",
+        "envs",
+        "policies",
+        "rl",
+        "il",
+        "bc",
+        "sb3",
+        "runs",
+        "schema",
+    },
 }
 LEAVES = {
     "io",

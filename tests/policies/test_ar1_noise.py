@@ -88,14 +88,15 @@ def test_trainer_with_ar1_noise_has_consistent_log_probs(tmp_path, algo):
     """A short run with --noise ar1 trains; before the first update the update's recomputed
     log-probs equal the rollout's (the carry is stored with each decision)."""
     from ndp.rl.config import TrainConfig
-    from ndp.rl.trainer import Trainer
+    from ndp.rl.run import open_run
 
     cfg = TrainConfig(
         task="point-mass", algo=algo, steps=800, num_envs=2, vector="sync", seed=0,
         run_dir=str(tmp_path / "r"), progress=False, tensorboard=False, eval_every=0,
         policy=PolicyConfig(noise="ar1", noise_corr=0.9),
     )  # fmt: skip
-    tr = Trainer(cfg)
+    opened = open_run(cfg)
+    tr = opened.learner
     try:
         batch = tr.collect()
         assert batch["carry"] is not None and batch["carry"].shape[1] == tr.spec.action_dim
@@ -104,4 +105,4 @@ def test_trainer_with_ar1_noise_has_consistent_log_probs(tmp_path, algo):
         torch.testing.assert_close(again, batch["logp"], atol=2e-5, rtol=1e-5)
         tr.learn(batch)
     finally:
-        tr.close()
+        opened.close()

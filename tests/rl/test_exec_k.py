@@ -26,7 +26,7 @@ from ndp.rl.evaluate import evaluate_policy, exec_k_table
 from ndp.rl.exec_k import dmp_steps_at, exec_k_values
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.policy import Policy
-from ndp.rl.trainer import train
+from ndp.rl.run import train
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 

@@ -11,7 +11,7 @@ from ndp.envs import ChunkedEnv, make_env
 from ndp.rl.config import TrainConfig
 from ndp.rl.logger import TIME_METRICS
 from ndp.rl.periodic_eval import EVAL_METRICS, eval_due
-from ndp.rl.trainer import train
+from ndp.rl.run import train
 from ndp.runs import read_metrics
 
 

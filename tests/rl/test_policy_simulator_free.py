@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 import ndp
-from ndp.policies.task import PolicySpec, check_record, spec_record
+from ndp.schema import PolicySpec, check_record, spec_record
 
 ROOT = Path(__file__).resolve().parents[2]
 SRC = Path(ndp.__file__).resolve().parents[1]

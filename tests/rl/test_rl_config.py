@@ -16,7 +16,7 @@ from ndp.rl.config import (
     TrainConfig,
     resolve_config,
 )
-from ndp.rl.trainer import Trainer
+from ndp.rl.run import open_run
 
 
 def test_resolved_defaults_are_the_supplements():
@@ -41,7 +41,7 @@ def test_resolution_per_method(algo, head, k):
 
 
 def test_trainer_runs_what_the_config_says(tmp_path):
-    tr = Trainer(
+    opened = open_run(
         TrainConfig(
             task="point-mass",
             algo="ndp",
@@ -50,6 +50,7 @@ def test_trainer_runs_what_the_config_says(tmp_path):
             tensorboard=False,
         )
     )
+    tr = opened.learner
     try:
         g = tr.opt.param_groups[0]
         assert g["lr"] == 3e-4 and g["eps"] == 1e-5
@@ -65,7 +66,7 @@ def test_trainer_runs_what_the_config_says(tmp_path):
         saved = json.loads((tmp_path / "r" / "config.json").read_text())
         assert saved["ppo"]["ent_coef"] == 0.0 and saved["policy"]["ndp"]["dmp_steps"] == 35
     finally:
-        tr.close()
+        opened.close()
 
 
 def test_cli_parses_every_field_flat_and_roundtrips():
@@ -140,7 +141,7 @@ def test_bad_input_fails_before_any_env(monkeypatch, tmp_path, kwargs, match):
             kwargs = {"policy": PolicyConfig.from_dict(kwargs["policy"])}
         if "ppo" in kwargs:
             kwargs = {"ppo": PPOConfig(**kwargs["ppo"])}
-        Trainer(TrainConfig(run_dir=str(tmp_path), **kwargs))
+        open_run(TrainConfig(run_dir=str(tmp_path), **kwargs))
 
 
 def test_docs_preset_table_matches_the_task_table():
@@ -218,14 +219,15 @@ def test_task_options_reach_every_env_of_the_run_and_its_evaluation(tmp_path):
         steps=200, num_envs=2, vector="sync", run_dir=str(run), progress=False,
         tensorboard=False,
     )  # fmt: skip
-    tr = Trainer(cfg)
+    opened = open_run(cfg)
+    tr = opened.learner
     try:
         for env in tr.envs.envs:
             base = env.unwrapped
             assert base.fixed_goal == fixed_goal_seed(3) and base.reward_version == "v1"
-        tr.train()
+        opened.train()
     finally:
-        tr.close()
+        opened.close()
     saved = json.loads((run / "config.json").read_text())
     assert saved["goals"] == "per-seed" and saved["reward_version"] == "v1"  # 'fixed': old name
     env = load_policy(run).make_env()

@@ -35,10 +35,11 @@ def _cfg(tmp_path, name="r", task="point-mass", steps=6000, dyne=FAST, **kw):
     )
 
 
-def _learner(cfg, resume=False):
-    from ndp.rl.dyne import DyneLearner
+def _open(cfg, resume=False):
+    """The Dyn-E run of ``cfg``, opened by the run driver (``.learner`` is the DyneLearner)."""
+    from ndp.rl.run import open_run
 
-    return DyneLearner(resolve_config(cfg), resume)
+    return open_run(resolve_config(cfg), resume=resume, resolved=True)
 
 
 def test_dyne_is_registered_with_the_td3_actor():
@@ -59,14 +60,15 @@ def test_embedding_prediction_loss_falls_and_decoder_reconstructs(tmp_path):
     # measured (seeds 0, 1): prediction loss 0.36 over the first 10% of the steps -> 0.13,
     # cycle and predicted-effect errors 0.001, displacement error 0.08-0.11 of its spread
     cfg = _cfg(tmp_path, dyne=dataclasses.replace(FAST, embed_updates=1000, decoder_updates=1000))
-    lr = _learner(cfg)
+    opened = _open(cfg)
+    lr = opened.learner
     try:
         for _ in range(lr.n_explore):
             lr._explore_iteration()
         data = [np.concatenate(x) for x in zip(*lr._explore_data, strict=True)]
         stats = lr._fit_embedding()
     finally:
-        lr.close()
+        opened.close()
     s0, act, delta = (torch.as_tensor(x, dtype=torch.float32) for x in data)
     assert act.shape[1:] == (5, 2) and s0.shape[1] == delta.shape[1] == 4
     assert stats["sequences"] >= 350  # 2000 env steps = 400 chunks, the full ones
@@ -96,11 +98,11 @@ def test_td3_in_the_latent_improves_on_point_mass_fast(tmp_path):
     """Small budget (6000 env steps, 2000 of them exploration; ~10 s): TD3 beats the random
     exploration phase clearly."""
     cfg = _cfg(tmp_path)
-    lr = _learner(cfg)
+    opened = _open(cfg)
     try:
-        last = lr.train()
+        last = opened.train()
     finally:
-        lr.close()
+        opened.close()
     rows = read_metrics(tmp_path / "r")
     assert len(rows) == 12 and rows[-1]["global_step"] == 6000
     explore = [r for r in rows if r["update"] <= 4]
@@ -118,11 +120,11 @@ def test_td3_in_the_latent_solves_point_mass(tmp_path):
     """Default Dyn-E settings, 20k env steps (5k exploration): measured success 1.0 from about
     10k env steps on; 2-3 min."""
     cfg = _cfg(tmp_path, steps=20_000, dyne=DyneConfig(), ppo=PPOConfig(steps_per_update=1000))
-    lr = _learner(cfg)
+    opened = _open(cfg)
     try:
-        lr.train()
+        opened.train()
     finally:
-        lr.close()
+        opened.close()
     rows = read_metrics(tmp_path / "r")
     assert np.mean([r["charts/success_any"] for r in rows[-3:]]) >= 0.9
     from ndp.rl.evaluate import evaluate
@@ -156,25 +158,27 @@ def _same(a, b, path="") -> None:
 def test_checkpoint_round_trip_includes_the_replay_buffer(tmp_path):
     small = dataclasses.replace(FAST, embed_updates=100, decoder_updates=100, updates_per_step=0.1)
     cfg = _cfg(tmp_path, dyne=small)
-    lr = _learner(cfg)
+    opened = _open(cfg)
+    lr = opened.learner
     try:
-        lr.train(max_updates=6)  # 4 exploration iterations (checkpoint), then 2 of TD3
-        lr.save()
+        opened.train(6)  # 4 exploration iterations (checkpoint), then 2 of TD3
+        opened.save()
         before = _state(lr)
         draws = (lr.rng.random(), torch.rand(1))
     finally:
-        lr.close()
+        opened.close()
     ckpt = load_checkpoint(tmp_path / "r", kind="rl")
     assert set(POLICY_CHECKPOINT_KEYS) <= set(ckpt)
     replay = ckpt["dyne"]["replay"]
     assert replay["size"] == 2 * 500 // 5 and replay["data"]["obs"].shape == (200, 6)
-    again = _learner(cfg, resume=True)
+    opened_again = _open(cfg, resume=True)
+    again = opened_again.learner
     try:
         _same(_state(again), before)
         assert (again.rng.random(), torch.rand(1)) == draws  # the RNGs continue too
-        again.train()  # the budget to the end
+        opened_again.train()  # the budget to the end
     finally:
-        again.close()
+        opened_again.close()
     rows = read_metrics(tmp_path / "r")
     assert [r["update"] for r in rows] == list(range(1, 13))
     assert load_checkpoint(tmp_path / "r", kind="rl")["dyne"]["replay"]["size"] == 800
@@ -231,7 +235,7 @@ def test_bad_input_fails_before_any_env(monkeypatch, tmp_path, kwargs, match):
     with pytest.raises(ValueError, match=match):
         if "dyne" in kwargs:
             kwargs = {"dyne": DyneConfig(**{"explore_steps": 2000, **kwargs["dyne"]})}
-        _learner(_cfg(tmp_path, **kwargs))
+        _open(_cfg(tmp_path, **kwargs))
     assert not (tmp_path / "r" / "checkpoint.pt").exists()
 
 
@@ -239,17 +243,18 @@ def test_nan_stops_training_and_keeps_the_last_good_checkpoint(tmp_path):
     from ndp.rl.trainer import TrainingDivergedError
 
     cfg = _cfg(tmp_path, dyne=dataclasses.replace(FAST, embed_updates=50, decoder_updates=50))
-    lr = _learner(cfg)
+    opened = _open(cfg)
+    lr = opened.learner
     try:
-        lr.train(max_updates=5)  # exploration (checkpoint at update 4) + one TD3 iteration
+        opened.train(5)  # exploration (checkpoint at update 4) + one TD3 iteration
         good = load_checkpoint(tmp_path / "r", kind="rl")
         assert good["update"] == 4
         with torch.no_grad():
             next(lr.critic.parameters()).fill_(float("nan"))
         with pytest.raises(TrainingDivergedError, match="last good checkpoint is kept"):
-            lr.train()
+            opened.train()
     finally:
-        lr.close()
+        opened.close()
     kept = load_checkpoint(tmp_path / "r", kind="rl")
     assert kept["update"] == 4
     _same(kept["model"], good["model"])
@@ -261,12 +266,13 @@ def test_smoke_real_tasks(tmp_path, task, record_actions):
                       updates_per_step=0.2, batch_size=16)  # fmt: skip
     cfg = _cfg(tmp_path, task=task, steps=300, dyne=dyne, num_envs=2, horizon=25,
                ppo=PPOConfig(steps_per_update=100))  # fmt: skip
-    lr = _learner(cfg)
+    opened = _open(cfg)
+    lr = opened.learner
     try:
         seen = record_actions(lr.envs)
-        metrics = lr.train()
+        metrics = opened.train()
     finally:
-        lr.close()
+        opened.close()
     acts = np.concatenate(seen)
     assert acts.shape[1:] == (5, lr.spec.action_dim)
     assert acts.min() >= -1.0 and acts.max() <= 1.0

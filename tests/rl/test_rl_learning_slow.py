@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ndp.rl.config import TrainConfig
-from ndp.rl.trainer import train
+from ndp.rl.run import train
 from ndp.runs import read_metrics
 
 

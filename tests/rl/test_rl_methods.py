@@ -10,7 +10,9 @@ import torch
 from ndp.cli import main as ndp_main
 from ndp.policies.distributions import SubActionGaussian
 from ndp.policies.heads import HEAD_BUILDERS, ActionHead, register_head
+from ndp.rl.logger import METRICS
 from ndp.rl.methods import METHODS, Method, register_method
+from ndp.runs.session import CountsUpdates
 
 
 class RepeatHead(ActionHead):
@@ -84,41 +86,42 @@ def test_a_learner_entry_point_is_checked_at_registration_and_imported_at_build(
             Method("x", "step", "bad entry point", learner=bad)
     m = Method("x", "step", "missing", learner="ndp.rl.no_such_module:Learner")
     with pytest.raises(ValueError, match=r"learner: method 'x' names .*no_such_module"):
-        m.build_learner(None, False)
+        m.build_learner(None, None)
     got = Method("x", "step", "ok", learner="collections:namedtuple")
     assert got.build_learner("P", ["a"])._fields == ("a",)  # the entry point, called
-    assert Method("x", "step", "shared trainer").build_learner(None, False) is None
+    assert Method("x", "step", "shared trainer").build_learner(None, None) is None
     # the built-in that uses one names a real class (not imported by the registry itself)
     assert METHODS["dyne"].learner == "ndp.rl.dyne:DyneLearner"
 
 
-class RandomSearch:
-    """A toy off-policy-style learner (hill climbing on the actor's weights) that uses only the
-    public seams: the resolved config, ``make_vector_env``, ``ndp.runs``, the policy checkpoint
-    keys. Its runs are then evaluated by ``ndp rl eval`` like any PPO run."""
+class RandomSearch(CountsUpdates):
+    """A toy learner (hill climbing on the actor's weights) written against the public seams
+    only: an ``RLLearner`` built from the resolved config and the run session, its envs from
+    ``make_vector_env``, a state with the policy checkpoint keys. The run driver opens, seeds,
+    drives and checkpoints it; its runs are then evaluated by ``ndp rl eval`` like PPO's."""
 
-    def __init__(self, cfg, resume):
+    columns = METRICS
+
+    def __init__(self, cfg, session):
         import numpy as np
 
         from ndp.policies import build_actor_critic
         from ndp.rl.envs import make_vector_env, resolve_task
         from ndp.rl.normalize import ObsNormalizer
-        from ndp.runs import RunDir
 
-        self.cfg, self.run = cfg, RunDir(cfg.run_dir)
-        assert not resume
-        self.run.create()
+        self.cfg, self.session = cfg, session
         task = resolve_task(cfg.task)
         self.envs = make_vector_env(task, cfg.k, cfg.num_envs, vector="sync")
         self.obs_dim = int(np.prod(self.envs.single_observation_space.shape))
         self.model = build_actor_critic(self.obs_dim, task.spec, cfg.policy)
         self.norm = ObsNormalizer(self.obs_dim, enabled=False)
-        self.run.write_config(cfg.to_dict())
+        self.update = self.global_step = 0
+        self.best = None
 
     def _score(self, seed):
         obs, _ = self.envs.reset(seed=[seed + i for i in range(self.cfg.num_envs)])
         total, steps = 0.0, 0
-        for _ in range(20):
+        for _ in range(self.cfg.decisions_per_env):
             o = torch.as_tensor(obs, dtype=torch.float32).reshape(self.cfg.num_envs, -1)
             with torch.no_grad():
                 dist, _ = self.model.distribution(o, torch.zeros(len(o), 2), torch.zeros(len(o), 2))
@@ -126,38 +129,30 @@ class RandomSearch:
             total, steps = total + float(r.sum()), steps + self.cfg.num_envs * self.cfg.k
         return total / self.cfg.num_envs, steps
 
-    def train(self, max_updates=None):
-        from ndp.rl.logger import METRICS
-        from ndp.runs import MetricsLogger, save_checkpoint
+    def iterate(self):
+        if self.best is None:
+            self.best, _ = self._score(0)
+        keep = {k: v.clone() for k, v in self.model.state_dict().items()}
+        with torch.no_grad():
+            for prm in self.model.actor.parameters():
+                prm.add_(0.05 * torch.randn_like(prm))
+        score, n = self._score(0)
+        if score < self.best:
+            self.model.load_state_dict(keep)
+        self.best = max(self.best, score)
+        self.update, self.global_step = self.update + 1, self.global_step + n
+        return {"update": self.update, "global_step": self.global_step,
+                "charts/episode_return": self.best}  # fmt: skip
 
-        update = step = 0
-        best, _ = self._score(0)
-        with MetricsLogger(self.run.path, METRICS, step="global_step", tensorboard=False) as log:
-            while step < self.cfg.steps:
-                keep = {k: v.clone() for k, v in self.model.state_dict().items()}
-                with torch.no_grad():
-                    for prm in self.model.actor.parameters():
-                        prm.add_(0.05 * torch.randn_like(prm))
-                score, n = self._score(0)
-                if score < best:
-                    self.model.load_state_dict(keep)
-                best = max(best, score)
-                update, step = update + 1, step + n
-                metrics = {"update": update, "global_step": step, "charts/episode_return": best}
-                log.log(metrics)
-        save_checkpoint(
-            self.run.checkpoint,
-            {
-                "model": self.model.state_dict(),
-                "obs_norm": self.norm.state_dict(),
-                "obs_dim": self.obs_dim,
-                "config": self.cfg.to_dict(),
-                "update": update,
-                "global_step": step,
-            },
-            kind="rl",
-        )
-        return metrics
+    def state_dict(self):
+        return {"model": self.model.state_dict(), "obs_norm": self.norm.state_dict(),
+                "obs_dim": self.obs_dim, "update": self.update, "global_step": self.global_step,
+                "best": self.best}  # fmt: skip
+
+    def load_state_dict(self, state):
+        self.model.load_state_dict(state["model"])
+        self.update, self.global_step = state["update"], state["global_step"]
+        self.best = state["best"]
 
     def close(self):
         self.envs.close()
@@ -171,7 +166,8 @@ def test_a_registered_learner_trains_and_its_run_evaluates(tmp_path, capsys):
     try:
         run = tmp_path / "rs"
         args = ["rl", "train", "--task", "point-mass", "--algo", "random-search", "--steps",
-                "400", "--run-dir", str(run), "--no-progress"]  # fmt: skip
+                "400", "--steps-per-update", "80", "--run-dir", str(run),
+                "--no-progress"]  # fmt: skip
         assert ndp_main(args) == 0
         rows = read_metrics(run)
         assert (

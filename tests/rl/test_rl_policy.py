@@ -11,7 +11,7 @@ import pytest
 
 import ndp
 from ndp.rl.config import PPOConfig, TrainConfig
-from ndp.rl.trainer import train
+from ndp.rl.run import train
 
 FAST = PPOConfig(steps_per_update=512, minibatches=4)
 

@@ -173,7 +173,7 @@ def test_a_refused_resume_names_each_field_and_both_values(tmp_path):
     """Another instance of the class: a config edited under a run (or a checkpoint of another
     run copied in) is refused naming the fields, never 'config differs' alone."""
     from ndp.rl.config import TrainConfig, load_config
-    from ndp.rl.trainer import Trainer
+    from ndp.rl.run import open_run
     from ndp.runs.resume import config_differences
 
     run = tmp_path / "run"
@@ -183,7 +183,7 @@ def test_a_refused_resume_names_each_field_and_both_values(tmp_path):
     assert config_differences(cfg, changed) == [("seed", 0, 7), ("ppo.lr", 3e-4, 1e-2)]
     assert config_differences(cfg, dataclasses.replace(cfg, run_dir="/x")) == []
     with pytest.raises(ValueError, match=r"seed: 0 in the checkpoint, 7 now; ppo\.lr: 0\.0003"):
-        Trainer(TrainConfig.from_dict(changed.to_dict()), resume=True)
+        open_run(TrainConfig.from_dict(changed.to_dict()), resume=True)
 
 
 def test_ctrl_c_before_the_first_checkpoint_says_so_and_the_same_command_restarts(tmp_path):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ndp.rl.config import PPOConfig, TrainConfig
-from ndp.rl.trainer import Trainer
+from ndp.rl.run import open_run
 from ndp.runs import read_metrics
 
 
@@ -26,12 +26,13 @@ def test_smoke_real_tasks(tmp_path, task, algo, record_actions):
         tensorboard=False,
         ppo=PPOConfig(steps_per_update=100, minibatches=2, epochs=2),
     )
-    tr = Trainer(cfg)
+    opened = open_run(cfg)
+    tr = opened.learner
     try:
         seen = record_actions(tr.envs)
-        metrics = tr.train()
+        metrics = opened.train()
     finally:
-        tr.close()
+        opened.close()
     acts = np.concatenate(seen)
     assert acts.shape[1:] == (tr.k, tr.spec.action_dim)
     assert acts.min() >= -1.0 and acts.max() <= 1.0  # bounded before the simulator

@@ -15,7 +15,8 @@ from ndp.policies import NDPHeadConfig, PolicyConfig
 from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.rl.evaluate import evaluate
 from ndp.rl.logger import TIME_METRICS
-from ndp.rl.trainer import Trainer, TrainingDivergedError, train
+from ndp.rl.run import open_run, train
+from ndp.rl.trainer import TrainingDivergedError
 from ndp.runs import load_checkpoint, read_metrics
 
 FAST = PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3)
@@ -97,32 +98,33 @@ def test_same_seed_identical_metrics_and_different_seed_differs(tmp_path):
 
 
 def test_nan_parameter_stops_training_and_keeps_last_good_checkpoint(tmp_path):
-    tr = Trainer(_cfg(tmp_path, checkpoint_every=1))
+    opened = open_run(_cfg(tmp_path, checkpoint_every=1))
+    tr = opened.learner
     try:
-        tr.train(max_updates=1)
+        opened.train(1)
         ckpt = tmp_path / "run" / "checkpoint.pt"
         before = ckpt.read_bytes()
         with torch.no_grad():
             tr.model.actor.net[0].weight[0, 0] = float("nan")
         with pytest.raises(TrainingDivergedError, match="last good checkpoint is kept"):
-            tr.train(max_updates=1)
+            opened.train(1)
         assert ckpt.read_bytes() == before
         state = load_checkpoint(ckpt)
         assert state["update"] == 1
         assert all(torch.isfinite(v).all() for v in state["model"].values())
     finally:
-        tr.close()
+        opened.close()
 
 
 def test_nan_loss_stops_training(tmp_path, monkeypatch):
-    tr = Trainer(_cfg(tmp_path, algo="ppo-multi"))
+    opened = open_run(_cfg(tmp_path, algo="ppo-multi"))
     try:
         monkeypatch.setattr("ndp.rl.trainer.value_loss", lambda *a, **k: torch.tensor(float("nan")))
         with pytest.raises(TrainingDivergedError, match="non-finite loss"):
-            tr.train(max_updates=1)
+            opened.train(1)
         assert not (tmp_path / "run" / "checkpoint.pt").exists()
     finally:
-        tr.close()
+        opened.close()
 
 
 def test_terminated_episodes_and_all_methods_run(tmp_path, monkeypatch):
@@ -138,7 +140,8 @@ def test_terminated_episodes_and_all_methods_run(tmp_path, monkeypatch):
 
     monkeypatch.setattr(rl_trainer, "resolve_task", toy_terminating)
     for algo in ("ndp", "ppo", "ppo-multi"):
-        tr = Trainer(_cfg(tmp_path, algo, algo=algo, steps=1040))
+        opened = open_run(_cfg(tmp_path, algo, algo=algo, steps=1040))
+        tr = opened.learner
         try:
             batch = tr.collect()
             m = batch["mask"].numpy()
@@ -149,7 +152,7 @@ def test_terminated_episodes_and_all_methods_run(tmp_path, monkeypatch):
             stats = tr.learn(batch)
             assert all(math.isfinite(stats[k]) for k in ("policy", "value", "approx_kl"))
         finally:
-            tr.close()
+            opened.close()
 
 
 def test_param_noise_trains(tmp_path):
@@ -172,13 +175,16 @@ def test_param_noise_uses_one_decision_level_advantage(tmp_path, monkeypatch):
 
     monkeypatch.setattr(trainer_mod, "policy_loss", spy)
     ppo = PPOConfig(steps_per_update=512, minibatches=1, epochs=1, lr=1e-3)
-    tr = Trainer(_cfg(tmp_path, ppo=ppo, policy=PolicyConfig(ndp=NDPHeadConfig(param_noise=True))))
+    opened = open_run(
+        _cfg(tmp_path, ppo=ppo, policy=PolicyConfig(ndp=NDPHeadConfig(param_noise=True)))
+    )
+    tr = opened.learner
     try:
         batch = tr.collect()
         torch.manual_seed(0)
         tr.learn(batch)
     finally:
-        tr.close()
+        opened.close()
     ((shape, adv, mask),) = seen
     assert shape[1] == 1 and adv.shape[1] == 1 and mask.shape[1] == 1
     expected = normalize_advantages(batch["adv"][:, :1], batch["mask"][:, :1])
@@ -223,7 +229,8 @@ def test_every_head_gets_the_advantage_its_distribution_asks_for(tmp_path, monke
     monkeypatch.setattr(trainer_mod, "policy_loss", spy_pl)
     monkeypatch.setattr(trainer_mod, "gaussian_policy_loss", spy_gl)
     ppo = PPOConfig(steps_per_update=256, minibatches=1, epochs=1)
-    tr = Trainer(_cfg(tmp_path, algo=algo, task=task, ppo=ppo, num_envs=2, steps=256))
+    opened = open_run(_cfg(tmp_path, algo=algo, task=task, ppo=ppo, num_envs=2, steps=256))
+    tr = opened.learner
     try:
         batch = tr.collect()
         obs = torch.zeros(1, tr.obs_dim)
@@ -231,7 +238,7 @@ def test_every_head_gets_the_advantage_its_distribution_asks_for(tmp_path, monke
         dist, _ = tr.model.distribution(obs, y0, y0)
         tr.learn(batch)
     finally:
-        tr.close()
+        opened.close()
     assert batch["per_decision"] == dist.per_decision
     ((logp_cols, adv_cols),) = seen
     if dist.per_decision:
@@ -254,11 +261,12 @@ def test_minibatch_advantage_normalisation(tmp_path, monkeypatch):
 
     monkeypatch.setattr(trainer_mod, "gaussian_policy_loss", spy)
     ppo = PPOConfig(steps_per_update=512, minibatches=4, epochs=1, adv_norm_scope="minibatch")
-    tr = Trainer(_cfg(tmp_path, algo="ppo", ppo=ppo))
+    opened = open_run(_cfg(tmp_path, algo="ppo", ppo=ppo))
+    tr = opened.learner
     try:
         tr.learn(tr.collect())
     finally:
-        tr.close()
+        opened.close()
     assert len(seen) == 4
     for adv, mask in seen:  # each mini-batch on its own has mean 0 and std 1
         a = adv[mask > 0]
@@ -318,14 +326,15 @@ def test_worker_vector_env_gives_the_sync_rollout(tmp_path, task, algo):
             vector=vector,
             env_workers=2 if vector == "workers" else None,
         )
-        tr = Trainer(cfg)
+        opened = open_run(cfg)
+        tr = opened.learner
         try:
             if vector == "workers":
                 assert type(tr.envs).__name__ == "WorkerVectorEnv"
                 assert tr.envs.num_workers == 2
             batches.append(tr.collect())
         finally:
-            tr.close()
+            opened.close()
     a, b = batches
     assert len(a["episodes"]) > 0 and a["episodes"] == b["episodes"]
     for key in ("obs", "y0", "dy0", "z", "logp", "adv", "returns", "mask"):
@@ -351,13 +360,14 @@ def test_device_option_is_checked_before_anything_runs():
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
 def test_update_on_cuda_rollout_on_cpu(tmp_path):
     from ndp.rl.config import TrainConfig
-    from ndp.rl.trainer import Trainer
+    from ndp.rl.run import open_run
 
     cfg = TrainConfig(task="point-mass", algo="ndp", steps=1040, device="cuda", vector="sync",
                       run_dir=str(tmp_path / "r"), progress=False, tensorboard=False)  # fmt: skip
-    tr = Trainer(cfg)
+    opened = open_run(cfg)
+    tr = opened.learner
     try:
-        m = tr.train()
+        m = opened.train()
         assert math.isfinite(m["losses/policy"])
         assert next(tr.model.parameters()).device.type == "cuda"
         assert next(tr.rollout_model.parameters()).device.type == "cpu"
@@ -365,4 +375,4 @@ def test_update_on_cuda_rollout_on_cpu(tmp_path):
         for name, a in learner.items():
             assert torch.equal(a.cpu(), actor[name])  # the rollout acts with the updated policy
     finally:
-        tr.close()
+        opened.close()

@@ -97,16 +97,13 @@ def test_an_interrupt_before_anything_is_written_leaves_no_run_directory(tmp_pat
     """Ctrl-C while the learner is being built (after its session locked and made the run
     folder, before config.json): no empty folder stays for --resume to stumble on, and the
     lock is free again."""
-    from ndp.rl import trainer as T
+    from ndp.rl import run as T
     from ndp.rl.config import TrainConfig
 
-    real_open = T.open_rl_session
-
-    def open_then_interrupt(*args, **kwargs):
-        real_open(*args, **kwargs)
+    def interrupt_the_build(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(T, "open_rl_session", open_then_interrupt)
+    monkeypatch.setattr(T, "Trainer", interrupt_the_build)
     run = tmp_path / "fresh"
     cfg = TrainConfig(task="point-mass", steps=200, run_dir=str(run), progress=False,
                       tensorboard=False, vector="sync")  # fmt: skip

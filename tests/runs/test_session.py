@@ -14,11 +14,11 @@ import torch
 from ndp.runs.session import (
     MANIFEST_NAME,
     Learner,
+    LearnerDefaults,
     Manifest,
     RunSession,
     TrainingDivergedError,
     checkpoint_due,
-    drive,
     global_rng_state,
     nonfinite_parameter,
     read_manifest,
@@ -37,7 +37,7 @@ class Cfg:
 SAFE = ("steps",)
 
 
-class Counter:
+class Counter(LearnerDefaults):
     """A minimal Learner: one parameter, a step counter, a draw from every global RNG."""
 
     def __init__(self) -> None:
@@ -87,7 +87,9 @@ def _run(tmp_path, stop, resume=False, cfg=None):
         if checkpoint_due(lr.step, 2, cfg.steps):
             session.save(lr.state_dict(), lr.step, dataclasses.asdict(cfg))
 
-    drive(lr, stop, lambda row: None, save_if_due)
+    while lr.step < stop:  # the driver's loop (ndp.runs.driver.drive), by hand
+        lr.iterate()
+        save_if_due()
     return session, lr
 
 
@@ -162,7 +164,7 @@ def test_global_rng_state_has_the_three_generators():
 def test_ppo_and_dyne_runs_write_run_json_and_finish_it(tmp_path, algo):
     pytest.importorskip("gymnasium")
     from ndp.rl.config import PPOConfig, TrainConfig
-    from ndp.rl.trainer import make_learner
+    from ndp.rl.run import RLLearner, open_run
 
     extra = {}
     if algo == "dyne":
@@ -181,16 +183,17 @@ def test_ppo_and_dyne_runs_write_run_json_and_finish_it(tmp_path, algo):
         ppo=PPOConfig(steps_per_update=256, minibatches=2),
         **extra,
     )
-    lr = make_learner(cfg)
+    opened = open_run(cfg)
+    lr = opened.learner
     try:
-        assert isinstance(lr, Learner)
+        assert isinstance(lr, Learner) and isinstance(lr, RLLearner)
         started = read_manifest(tmp_path / "r")
         assert started is not None and not started.finished and started.done == 0
-        lr.train(max_updates=1)
+        opened.train(1)
         assert not read_manifest(tmp_path / "r").finished
-        lr.train()
+        opened.train()
     finally:
-        lr.close()
+        opened.close()
     m = read_manifest(tmp_path / "r")
     assert (m.kind, m.task, m.label, m.seed, m.unit) == ("rl", "point-mass", algo, 1, "env_steps")
     assert m.finished and m.reason == "budget" and m.budget == 520  # rounded up to whole decisions
@@ -220,7 +223,7 @@ def test_sweeps_and_reports_read_what_run_json_says(tmp_path):
 
 def test_one_train_call_resolves_its_config_once(tmp_path, monkeypatch):
     pytest.importorskip("gymnasium")
-    from ndp.rl import trainer as trainer_module
+    from ndp.rl import run as trainer_module
     from ndp.rl.config import PPOConfig, TrainConfig
     from ndp.rl.config import resolve_config as real
 

@@ -24,6 +24,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Annotated, Any
 
@@ -32,6 +33,8 @@ import numpy as np
 from ndp.checks import plain_numbers
 from ndp.policies.config import PolicyConfig
 from ndp.runs.cli import cli
+from ndp.runs.driver import run
+from ndp.runs.session import LearnerDefaults
 
 BC_MODELS = {"ndp": "ndp", "nn": "ppo-multi", "nn-step": "ppo"}
 """BC model -> the RL method whose actor it trains."""
@@ -110,7 +113,7 @@ def _windows(episode: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     return idx, mask
 
 
-class CloningLearner:
+class CloningLearner(LearnerDefaults):
     """Behaviour cloning, an epoch per :meth:`iterate` (an :class:`ndp.runs.session.Learner`):
     Adam on the mean squared error of the policy's mean sub-actions against the demonstrated
     ones (the actor only: not the critic, not the exploration std).
@@ -121,10 +124,12 @@ class CloningLearner:
     """
 
     def __init__(self, model: Any, session: Any, *, obs: Any, y0: Any, dy0: Any, target: Any,
-                 mask: Any, train_idx: Any, val_idx: Any, cfg: BCConfig) -> None:  # fmt: skip
+                 mask: Any, train_idx: Any, val_idx: Any, cfg: BCConfig, rl_cfg: Any,
+                 obs_norm: Any, meta: dict[str, Any]) -> None:  # fmt: skip
         import torch
 
         self.model, self.session, self.cfg = model, session, cfg
+        self.rl_cfg, self.obs_norm, self.meta = rl_cfg, obs_norm, meta
         self.obs, self.y0, self.dy0, self.target, self.mask = obs, y0, dy0, target, mask
         self.train_idx, self.val_idx = train_idx, val_idx
         params = [q for name, q in model.named_parameters()
@@ -165,6 +170,8 @@ class CloningLearner:
         with torch.no_grad():
             val = float(self.loss_of(self.val_idx)[0]) if len(self.val_idx) else math.nan
         self.step += 1
+        if self.step >= self.cfg.epochs:  # the fit is done: its error is the exploration std
+            self.set_exploration_std()
         return {"epoch": self.step, "train/loss": total / max(seen, 1), "val/loss": val,
                 "time/epoch_s": time.perf_counter() - t0}  # fmt: skip
 
@@ -179,14 +186,38 @@ class CloningLearner:
             self.model.head.log_std.copy_(per_dim.sqrt().clamp(0.05, 1.0).log())
 
     def state_dict(self) -> dict[str, Any]:
-        return {"model": self.model.state_dict(), "optimizer": self.opt.state_dict(),
-                "epoch": self.step, "generator": self.gen.get_state()}  # fmt: skip
+        """The cloned policy as an RL run's state at update 0 (what ``ndp rl train --resume``
+        fine-tunes with PPO: a fresh optimiser and return statistics), plus ``bc.json``'s
+        record. Cloning itself does not resume."""
+        import torch
+
+        from ndp.rl.normalize import ReturnNormalizer
+        from ndp.rl.optim import FlatAdam
+        from ndp.rl.trainer import ppo_state
+
+        p = self.rl_cfg.ppo
+        with torch.no_grad():
+            model = copy.deepcopy(self.model)
+        state = ppo_state(
+            self.model,
+            FlatAdam(model, lr=p.lr, eps=p.adam_eps),
+            self.obs_norm,
+            ReturnNormalizer(self.rl_cfg.num_envs, p.gamma, p.clip_reward, p.norm_return),
+            update=0,
+            global_step=0,
+            obs_dim=int(self.obs.shape[1]),
+        )
+        return {**state, "bc": self.meta}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        """The policy of :meth:`state_dict` (its weights and observation statistics)."""
         self.model.load_state_dict(state["model"])
-        self.opt.load_state_dict(state["optimizer"])
-        self.step = int(state["epoch"])
-        self.gen.set_state(state["generator"])
+        self.obs_norm.load_state_dict(state["obs_norm"])
+
+    def nonfinite(self) -> str | None:
+        from ndp.runs.session import nonfinite_parameter
+
+        return nonfinite_parameter(self.model.named_parameters())
 
     def close(self) -> None:
         pass
@@ -208,17 +239,9 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
     Raises:
         FileNotFoundError, ValueError: bad demonstrations file or settings (one line).
     """
-    import torch
-
     from ndp.bc.demos import load_demos
-    from ndp.policies import build_actor_critic
     from ndp.rl.config import TrainConfig, resolve_config
     from ndp.rl.envs import resolve_task
-    from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
-    from ndp.rl.optim import FlatAdam
-    from ndp.rl.trainer import ppo_state
-    from ndp.runs import MetricsLogger
-    from ndp.runs.session import RunSession, drive, seed_everything
 
     if not cfg.demos:
         raise ValueError("demos: expected a demonstrations file (--demos FILE)")
@@ -244,7 +267,6 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
         ),
         spec,
     )
-    obs_dim = demos.obs.shape[1]
     if demos.actions.shape[1] != spec.action_dim:
         raise ValueError(
             f"actions: {cfg.demos} has {demos.actions.shape[1]} action dimensions, task "
@@ -263,29 +285,55 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
             "metrics.csv, null in the summary); give more episodes for a validation split",
             file=sys.stderr,
         )
-    session, _ = RunSession.open(
-        cfg.run_dir,
-        kind="rl",  # the run is an RL run at update 0 (see the module docstring)
-        config=rl_cfg,
-        config_from_dict=TrainConfig.from_dict,
-        safe_on_resume=(),
-        resume=False,  # ndp il bc has no --resume
-        unit="epoch",
-        hint="Try a lower --lr.",
-        overwrite=overwrite,
-        resumable=False,
-    )
-    with contextlib.closing(session):  # releases the run lock (ndp.runs.lock)
-        run = session.run
-        session.start(rl_cfg.to_dict(), bc_manifest(cfg, spec.name, 0))
+    recipe = CloningRecipe(cfg, demos, spec, rl_cfg)
+    return run(recipe, overwrite=overwrite)
+
+
+class CloningRecipe:
+    """The run driver's recipe of a cloning run (:mod:`ndp.runs.driver`): the run is an RL run
+    at update 0 (kind ``rl``, ``config.json`` the RL config), counted in epochs, not
+    resumable, with one checkpoint at the end: the cloned policy as the RL checkpoint that
+    ``ndp rl train --resume`` fine-tunes (:meth:`CloningLearner.state_dict`)."""
+
+    def __init__(self, cfg: BCConfig, demos: Any, spec: Any, rl_cfg: Any) -> None:
+        from pathlib import Path
+
+        from ndp.rl.config import TrainConfig
+        from ndp.runs.driver import RunPlan
+
+        self.cfg, self.demos, self.spec, self.rl_cfg = cfg, demos, spec, rl_cfg
+        self.plan = RunPlan(
+            run_dir=Path(cfg.run_dir),
+            kind="rl",  # the run is an RL run at update 0 (see the module docstring)
+            unit="epoch",
+            seed=int(cfg.seed),
+            budget=int(cfg.epochs),
+            config=rl_cfg,
+            config_dict=rl_cfg.to_dict(),
+            config_from_dict=TrainConfig.from_dict,
+            threads=int(cfg.threads),
+            hint="Try a lower --lr.",
+            resumable=False,  # ndp il bc has no --resume
+        )
+        self.meta = {"bc": cfg.to_dict(), "demos": str(cfg.demos), "episodes": demos.n_episodes,
+                     "steps": len(demos.obs), "demos_meta": demos.meta}  # fmt: skip
+        self.t_run = time.perf_counter()
+
+    def check_checkpoint(self, ckpt: dict[str, Any]) -> None:
+        pass  # never resumed
+
+    def build(self, session: Any, fresh: bool) -> CloningLearner:
+        import torch
+
         from ndp.io import atomic_write_text
+        from ndp.policies import build_actor_critic
+        from ndp.rl.normalize import ObsNormalizer
 
-        meta = {"bc": cfg.to_dict(), "demos": str(cfg.demos), "episodes": demos.n_episodes,
-                "steps": len(demos.obs), "demos_meta": demos.meta}  # fmt: skip
-        atomic_write_text(run.path / "bc.json", json.dumps(meta, indent=2, default=str) + "\n")
-
-        torch.set_num_threads(cfg.threads)
-        seed_everything(cfg.seed)
+        cfg, demos, spec, rl_cfg = self.cfg, self.demos, self.spec, self.rl_cfg
+        atomic_write_text(
+            session.run.path / "bc.json", json.dumps(self.meta, indent=2, default=str) + "\n"
+        )
+        obs_dim = demos.obs.shape[1]
         model = build_actor_critic(obs_dim, spec, rl_cfg.policy)
         k = rl_cfg.k
         p = rl_cfg.ppo
@@ -299,7 +347,7 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
         n_val = round(cfg.val_fraction * n_ep) if n_ep >= 2 else 0
         val_eps = set(rng.choice(n_ep, size=n_val, replace=False).tolist()) if n_val else set()
         is_val = np.isin(demos.episode, list(val_eps))
-        learner = CloningLearner(
+        return CloningLearner(
             model,
             session,
             obs=torch.from_numpy(obs_norm(demos.obs)),
@@ -314,41 +362,50 @@ def train_bc(cfg: BCConfig, overwrite: bool = False) -> dict[str, Any]:
             train_idx=torch.as_tensor(np.flatnonzero(~is_val)),
             val_idx=torch.as_tensor(np.flatnonzero(is_val)),
             cfg=cfg,
+            rl_cfg=rl_cfg,
+            obs_norm=obs_norm,
+            meta=self.meta,
         )
-        tr, va = learner.train_idx, learner.val_idx
 
+    def manifest(self, learner: CloningLearner) -> Any:
+        return bc_manifest(self.cfg, self.spec.name, learner.step)
+
+    @contextlib.contextmanager
+    def log(self, learner: CloningLearner, session: Any) -> Iterator[Callable[[Any], None]]:
         from tqdm import tqdm
 
-        bar = tqdm(total=cfg.epochs, disable=not cfg.progress, desc=f"bc {cfg.model} {spec.name}")
-        t_run = time.perf_counter()
+        from ndp.runs import MetricsLogger
 
-        def log_row(row: dict[str, float]) -> None:
-            log.log(row)
-            bar.update(1)
-            bar.set_postfix(loss=f"{row['train/loss']:.4f}")
+        cfg = self.cfg
+        bar = tqdm(total=cfg.epochs, disable=not cfg.progress,
+                   desc=f"bc {cfg.model} {self.spec.name}")  # fmt: skip
+        self.t_run = time.perf_counter()
+        with MetricsLogger(session.run.path, BC_METRICS, step="epoch",
+                           tensorboard=cfg.tensorboard, filename="bc_metrics.csv",
+                           tb_dir="tb_bc") as metrics:  # fmt: skip
 
-        with MetricsLogger(run.path, BC_METRICS, step="epoch", tensorboard=cfg.tensorboard,
-                           filename="bc_metrics.csv", tb_dir="tb_bc") as log:  # fmt: skip
-            row = drive(learner, cfg.epochs, log_row, lambda: None)  # one checkpoint, at the end
-        bar.close()
-        learner.set_exploration_std()
-        state = ppo_state(
-            model,
-            FlatAdam(copy.deepcopy(model), lr=p.lr, eps=p.adam_eps),
-            obs_norm,
-            ReturnNormalizer(rl_cfg.num_envs, p.gamma, p.clip_reward, p.norm_return),
-            update=0,
-            global_step=0,
-            obs_dim=obs_dim,
-        )
-        session.save({**state, "bc": meta}, 0, rl_cfg.to_dict())
-        session.finish(bc_manifest(cfg, spec.name, learner.step))
+            def log_row(row: dict[str, float]) -> None:
+                metrics.log(row)
+                bar.update(1)
+                bar.set_postfix(loss=f"{row['train/loss']:.4f}")
+
+            try:
+                yield log_row
+            finally:
+                bar.close()
+
+    def checkpoint_due(self, learner: CloningLearner) -> bool:
+        return learner.step >= self.cfg.epochs  # one checkpoint, at the end
+
+    def summary(
+        self, learner: CloningLearner, last: dict[str, float], session: Any
+    ) -> dict[str, Any]:
         return {
-            "run_dir": str(run.path),
-            "algo": rl_cfg.algo,
-            "episodes": demos.n_episodes,
-            "train_steps": len(tr),
-            "val_steps": len(va),
-            "final": {**row, "val/loss": None if not len(va) else row["val/loss"]},
-            "train_wall_s": time.perf_counter() - t_run,
+            "run_dir": str(session.run.path),
+            "algo": self.rl_cfg.algo,
+            "episodes": self.demos.n_episodes,
+            "train_steps": len(learner.train_idx),
+            "val_steps": len(learner.val_idx),
+            "final": {**last, "val/loss": None if not len(learner.val_idx) else last["val/loss"]},
+            "train_wall_s": time.perf_counter() - self.t_run,
         }

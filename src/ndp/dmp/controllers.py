@@ -12,7 +12,7 @@ another controller, not an edit of ``TaskSpec``. :data:`CONTROLLERS` names the k
   It is linear, so the NDP head can fold it into the DMP's linear map (``linear_parts``).
 
 The module is torch only (no simulator), so that a trained policy rebuilds its head from the
-task data its export records (``ndp.policies.task.PolicySpec``); the task table imports it as
+task data its export records (``ndp.schema.PolicySpec``); the task table imports it as
 ``ndp.envs.controllers``.
 """
 

@@ -31,9 +31,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 from dataclasses import dataclass, field
-from typing import Literal
-
-import torch
+from typing import Literal  # noqa: F401  # the inherited fields' annotations resolve here
 
 from ndp.dmp.controllers import DeltaController
 from ndp.envs import jaco, point_mass, torque
@@ -42,6 +40,7 @@ from ndp.envs.impedance import ImpedanceController
 from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metaworld_env_names
 from ndp.envs.presets import DEFAULT as DEFAULT_PRESET
 from ndp.envs.presets import NDP_PRESETS, NDPPreset
+from ndp.schema import TaskSchema
 
 Family = str
 """A robot family: ``"metaworld"``, ``"jaco"``, ``"toy"``, or one added with
@@ -49,42 +48,11 @@ Family = str
 
 
 @dataclass(frozen=True)
-class TaskSpec:
-    """Everything the trainer needs to know about one task."""
+class TaskSpec(TaskSchema):
+    """A row of the task table: the task's schema (:class:`ndp.schema.TaskSchema`: DMP
+    coordinates, actions, controller, clocks; what a policy and its export see), plus what
+    only the environments and the trainer's presets need."""
 
-    name: str
-    """Canonical task name (a key of :data:`TASKS`)."""
-    family: Family
-    """``"metaworld"`` (Sawyer, end-effector control), ``"jaco"`` (joint-angle control) or
-    ``"toy"`` (the point mass)."""
-    env_id: str
-    """Registered gymnasium id, usable with ``gymnasium.make``."""
-    dmp_dofs: int
-    """D: coordinates a DMP drives (Meta-World 4: hand xyz, gripper; Jaco 7: 6 joints, fingers)."""
-    dof_names: tuple[str, ...]
-    """Name of each DMP coordinate, length D."""
-    dof_units: tuple[str, ...]
-    """Physical unit of each DMP coordinate (``m``, ``rad``, ``cmd``), length D."""
-    y0_source: str
-    """Where ``robot_pos`` / ``robot_vel`` (the DMP's y0, dy0) are read, in words."""
-    action_dim: int
-    """A: size of one env action."""
-    action_low: tuple[float, ...]
-    """Lower bounds of one env action (out-of-range actions are clipped to these)."""
-    action_high: tuple[float, ...]
-    """Upper bounds of one env action."""
-    action_scale: tuple[float, ...]
-    """Physical change per unit action, per DMP coordinate (0 where the action is absolute)."""
-    action_absolute: tuple[bool, ...]
-    """True where the action is the trajectory value itself rather than a scaled delta."""
-    horizon: int
-    """Default episode length in env steps (Meta-World: 150 as in the paper; Jaco: 150)."""
-    control_dt: float
-    """Seconds per env step (= per sub-step of a chunked decision)."""
-    sim_dt: float
-    """MuJoCo timestep (s); ``control_dt / sim_dt`` simulator steps per env step."""
-    obs_dim: int
-    """Observation size."""
     metaworld_name: str | None = None
     """The metaworld v3 name for Meta-World tasks, else None."""
     reward_from_obs: bool = False
@@ -93,48 +61,18 @@ class TaskSpec:
     measured per task (``ndp.envs.metaworld_env.REWARD_FROM_OBS``)."""
     aliases: tuple[str, ...] = field(default=())
     """Other names :func:`get_task_spec` accepts for this task."""
+    ndp: NDPPreset | None = None
+    """The NDP head's per-task DMP settings (``ndp.envs.presets``); None: the task's row of
+    ``NDP_PRESETS`` (or its ``DEFAULT``)."""
     controller: DeltaController | ImpedanceController | None = None
     """The low-level controller, trajectory points -> actions (``ndp.envs.controllers``); None:
     a :class:`DeltaController` built from the ``action_*`` fields. Torque-actuated rows hold an
     :class:`ndp.envs.impedance.ImpedanceController` (their action layout and gains)."""
-    actuation: Literal["position", "torque"] = "position"
-    """How the arm is driven: ``"position"`` (mocap / joint position targets, the paper's
-    tasks) or ``"torque"`` (torque actuators under ``controller``, the VICES baseline)."""
-    base_task: str | None = None
-    """Torque-actuated rows: the position-controlled row they are a variant of (same rewards,
-    success, observations, horizon); None for the position-controlled rows."""
-    ndp: NDPPreset | None = None
-    """The NDP head's per-task DMP settings (``ndp.envs.presets``); None: the task's row of
-    ``NDP_PRESETS`` (or its ``DEFAULT``)."""
 
     def __post_init__(self) -> None:
         if self.ndp is None:
             object.__setattr__(self, "ndp", NDP_PRESETS.get(self.name, DEFAULT_PRESET))
-        if self.controller is None:
-            ctrl = DeltaController(
-                scale=tuple(float(x) for x in self.action_scale),
-                absolute=tuple(bool(x) for x in self.action_absolute),
-                low=tuple(float(x) for x in self.action_low),
-                high=tuple(float(x) for x in self.action_high),
-            )
-            object.__setattr__(self, "controller", ctrl)
-
-    def inverse_controller(
-        self, traj: torch.Tensor, robot_pos: torch.Tensor | None = None, clip: bool = True
-    ) -> torch.Tensor:
-        """Map DMP trajectory points to env actions with the task's controller.
-
-        Args:
-            traj: [..., k+1, D] trajectory points in physical units; ``traj[..., 0, :]`` is the
-                robot's state at the decision.
-            robot_pos: Optional [..., D] measured start replacing ``traj[..., 0, :]``.
-            clip: Clip to the action bounds (False for a policy's mean).
-
-        Returns:
-            [..., k, A] actions, within ``[action_low, action_high]`` when ``clip``.
-        """
-        assert self.controller is not None  # set in __post_init__
-        return self.controller(traj, robot_pos, clip)
+        super().__post_init__()
 
 
 def _metaworld_spec(name: str) -> TaskSpec:

@@ -47,7 +47,7 @@ import json
 import math
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -56,10 +56,12 @@ import numpy as np
 
 from ndp.io import atomic_write_text
 from ndp.rl.config import EVAL_SEED, PPOConfig
+from ndp.rl.sac.config import SACConfig
 from ndp.runs import MetricsLogger
-from ndp.runs.session import Manifest, RunSession
+from ndp.runs.driver import RunPlan, run
+from ndp.runs.session import LearnerDefaults, Manifest, RunSession
 
-SB3_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi")
+SB3_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac")
 """The methods this module trains (the ``sb3`` run kind's arms)."""
 SB3_K = 5
 """Env steps per decision of ``sb3-ndp`` and ``sb3-multi`` unless ``--k`` says otherwise."""
@@ -170,12 +172,44 @@ class SB3RunConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
-        if self.method == "sb3-ppo" and self.k != 1:
-            raise ValueError(f"k: sb3-ppo runs one env step per decision, got k={self.k}")
+        if self.method in ("sb3-ppo", "sb3-sac") and self.k != 1:
+            raise ValueError(f"k: {self.method} runs one env step per decision, got k={self.k}")
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> SB3RunConfig:
         return cls(**d)
+
+
+SB3_SAC_ROLLOUT = 2048
+"""Env steps per :meth:`SB3Learner.iterate` of ``sb3-sac`` (one metrics row; SB3's SAC itself
+steps the envs once and takes its gradient steps between)."""
+
+
+def make_sb3_sac(venv: Any, seed: int, num_envs: int) -> Any:
+    """SB3's SAC with the settings of ``ndp.rl.sac.config.SACConfig``'s defaults: buffer 1M,
+    batch 256, lr 3e-4, tau 0.005, gamma 0.99, automatic temperature (initial 1), 256-256 ReLU,
+    5,000 random env steps first, and one gradient step per env step (``gradient_steps`` =
+    ``num_envs`` after each vector step, as ``ndp rl train --algo sac`` with as many envs)."""
+    from stable_baselines3 import SAC
+
+    c = SACConfig()
+    return SAC(
+        "MlpPolicy",
+        venv,
+        learning_rate=c.lr,
+        buffer_size=c.buffer_size,
+        learning_starts=c.random_steps,  # SB3 counts env steps (num_envs per vector step)
+        batch_size=c.batch_size,
+        tau=c.tau,
+        gamma=0.99,
+        train_freq=1,
+        gradient_steps=num_envs,
+        ent_coef=f"auto_{c.init_alpha}",
+        seed=seed,
+        device="cpu",
+        verbose=0,
+        policy_kwargs={"net_arch": [256, 256]},
+    )
 
 
 def make_sb3_chunked(venv: Any, method: str, seed: int, k: int) -> Any:
@@ -191,7 +225,7 @@ def make_sb3_chunked(venv: Any, method: str, seed: int, k: int) -> Any:
 
 def _env_maker(cfg: SB3RunConfig) -> Callable[[], Any]:
     """A function building one env of the run (per-step env, or chunked one for k > 1)."""
-    if cfg.method == "sb3-ppo":
+    if cfg.method in ("sb3-ppo", "sb3-sac"):
         from ndp.rl.envs import resolve_task
 
         h = resolve_task(cfg.task)
@@ -209,8 +243,12 @@ def _env_maker(cfg: SB3RunConfig) -> Callable[[], Any]:
 
 def evaluate_sb3(model: Any, venv: Any, make: Callable[[], Any], episodes: int) -> dict[str, Any]:
     """The deterministic policy over ``episodes`` fresh episodes (reset seeds from
-    :data:`ndp.rl.config.EVAL_SEED`), observations normalised by ``venv``'s frozen statistics:
-    success at any step (the mean of the per-episode flags) and the mean raw return."""
+    :data:`ndp.rl.config.EVAL_SEED`), observations normalised by ``venv``'s frozen statistics
+    (as they are where ``venv`` does not normalise: ``sb3-sac``): success at any step (the mean
+    of the per-episode flags) and the mean raw return."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    norm = venv.normalize_obs if isinstance(venv, VecNormalize) else (lambda o: o)
     venv.training = False
     env = make()
     succ, rets = [], []
@@ -219,7 +257,7 @@ def evaluate_sb3(model: Any, venv: Any, make: Callable[[], Any], episodes: int) 
             obs, info = env.reset(seed=EVAL_SEED + ep)
             done, ret, hit = False, 0.0, False
             while not done:
-                act, _ = model.predict(venv.normalize_obs(obs), deterministic=True)
+                act, _ = model.predict(norm(obs), deterministic=True)
                 obs, r, term, trunc, info = env.step(act)
                 hit |= bool(info.get("success_decision", info.get("success", False)))
                 ret += float(r)
@@ -248,7 +286,8 @@ def train_sb3(
     k: int | None = None,
     eval_episodes: int = 0,
 ) -> Path:
-    """Train one of :data:`SB3_METHODS`; returns the run directory (see the module docstring).
+    """Train one of :data:`SB3_METHODS` through the run driver; returns the run directory (see
+    the module docstring).
 
     Args:
         task: the task name (``push-v3``, ``point-mass``).
@@ -262,106 +301,167 @@ def train_sb3(
         k: env steps per decision (None: 1 for sb3-ppo, :data:`SB3_K` otherwise).
         eval_episodes: deterministic evaluation episodes after training (0: none).
     """
-    import torch
-    from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
-    torch.set_num_threads(1)
-    run_dir = Path(run_dir)
+    per_step = method in ("sb3-ppo", "sb3-sac")
     cfg = SB3RunConfig(task, int(steps), int(seed), int(num_envs), horizon, str(run_dir), method,
-                       (1 if method == "sb3-ppo" else SB3_K) if k is None else int(k),
+                       (1 if per_step else SB3_K) if k is None else int(k),
                        int(eval_episodes))  # fmt: skip
-    kk = cfg.k  # env steps per decision
-    make = _env_maker(cfg)  # an unknown task fails here, before the run folder is made
-    session, _ = RunSession.open(
-        run_dir,
-        kind="sb3",
-        config=cfg,
-        config_from_dict=SB3RunConfig.from_dict,
-        safe_on_resume=(),
-        resume=False,
-        resumable=False,
-    )
-    with contextlib.closing(session):  # releases the run lock (ndp.runs.lock)
+    recipe = SB3Recipe(cfg)
+    return run(recipe)
 
-        def manifest(done: int) -> Manifest:
-            end = done >= steps
-            return Manifest(kind="sb3", task=task, label=method, seed=int(seed),
-                            budget=int(steps), unit="env_steps", done=int(done), finished=end,
-                            reason="budget" if end else "")  # fmt: skip
 
-        session.start(dataclasses.asdict(cfg), manifest(0))
-        raw_venv = DummyVecEnv([make for _ in range(num_envs)])
-        raw_venv.seed(seed)
-        if method == "sb3-ppo":
+def rollout_decisions(cfg: SB3RunConfig) -> int:
+    """Decisions (SB3 steps, over all envs) per rollout of the method's PPO."""
+    if cfg.method == "sb3-sac":
+        return SB3_SAC_ROLLOUT
+    per_env = PPOConfig().steps_per_update // cfg.num_envs if cfg.method == "sb3-ppo" else 128
+    return per_env * cfg.num_envs
+
+
+def rollouts(cfg: SB3RunConfig) -> int:
+    """Rollouts of a run: SB3's ``learn(ceil(steps / k))`` runs whole rollouts until it has
+    that many decisions."""
+    decisions = -(-cfg.steps // cfg.k)
+    return -(-decisions // rollout_decisions(cfg))
+
+
+class SB3Learner(LearnerDefaults):
+    """SB3's PPO as a :class:`ndp.runs.session.Learner`: one :meth:`iterate` is one SB3
+    rollout and its update (``learn`` continued with ``reset_num_timesteps=False``; SB3's
+    schedules are constant here, so the sequence equals one ``learn`` call). After the last
+    rollout it runs the deterministic evaluation (``eval_episodes``) and writes ``done.json``.
+    """
+
+    def __init__(self, cfg: SB3RunConfig, session: RunSession) -> None:
+        from stable_baselines3.common.callbacks import BaseCallback
+        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+        self.cfg, self.session = cfg, session
+        kk = cfg.k
+        self.make = make = _env_maker(cfg)
+        raw_venv = DummyVecEnv([make for _ in range(cfg.num_envs)])
+        raw_venv.seed(cfg.seed)
+        self.venv: Any
+        if cfg.method == "sb3-sac":  # SAC's usual setting: no normalisation
+            self.venv = raw_venv
+            self.model = make_sb3_sac(self.venv, cfg.seed, cfg.num_envs)
+        elif cfg.method == "sb3-ppo":
             p = PPOConfig()
-            venv = VecNormalize(
+            self.venv = VecNormalize(
                 raw_venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward
             )
-            model = make_sb3_ppo(venv, seed, num_envs)
+            self.model = make_sb3_ppo(self.venv, cfg.seed, cfg.num_envs)
         else:
-            keys = ["obs"] if method == "sb3-ndp" else None
-            venv = VecNormalize(raw_venv, gamma=0.99**kk, norm_obs_keys=keys)
-            model = make_sb3_chunked(venv, method, seed, kk)
-        counter = EpisodeCounter(num_envs)
-        log = MetricsLogger(run_dir, FIELDS, step="global_step", tensorboard=False)
-        t0 = time.perf_counter()
+            keys = ["obs"] if cfg.method == "sb3-ndp" else None
+            self.venv = VecNormalize(raw_venv, gamma=0.99**kk, norm_obs_keys=keys)
+            self.model = make_sb3_chunked(self.venv, cfg.method, cfg.seed, kk)
+        self.step = 0
+        self.rollout = rollout_decisions(cfg)
+        self.budget = rollouts(cfg)
+        counter = EpisodeCounter(cfg.num_envs)
+        self.t0 = time.perf_counter()
 
-        class _Log(BaseCallback):
-            def __init__(self) -> None:
-                super().__init__()
-                self.update = 0
+        self.counter = counter
 
+        class _Episodes(BaseCallback):
             def _on_step(self) -> bool:
-                norm = self.training_env
-                assert isinstance(norm, VecNormalize)  # the model's env is the venv above
-                raw = norm.get_original_reward()  # unnormalised rewards
+                env = self.training_env
+                # unnormalised rewards (SAC's venv is not normalised)
+                raw = env.get_original_reward() if isinstance(env, VecNormalize) else None
+                raw = self.locals["rewards"] if raw is None else raw
                 counter.step(raw, self.locals["dones"], self.locals["infos"])
                 return True
 
-            def _on_rollout_end(self) -> None:
-                self.update += 1
-                n, succ, ret = counter.pop()
-                log.log(
-                    {
-                        "update": self.update,
-                        "global_step": self.num_timesteps * kk,
-                        "charts/episodes": n,
-                        "charts/success_any": succ,
-                        "charts/episode_return": ret,
-                        "time/wall_s": time.perf_counter() - t0,
-                    }
-                )
+        self.callback = _Episodes()
 
-        try:
-            model.learn(total_timesteps=-(-steps // kk), callback=_Log())
-            wall = time.perf_counter() - t0
-            if eval_episodes:
-                ev = evaluate_sb3(model, venv, make, eval_episodes)
-                name = f"eval-det-e{eval_episodes}.json"
-                atomic_write_text(run_dir / name, json.dumps(ev) + "\n")
-        finally:
-            log.close()
-            venv.close()
-        done = int(model.num_timesteps) * kk
-        atomic_write_text(
-            run_dir / "done.json",
-            json.dumps(
-                {
-                    "task": task,
-                    "method": method,
-                    "steps": steps,
-                    "seed": seed,
-                    "num_envs": num_envs,
-                    "k": kk,
-                    "global_step": done,
-                    "wall_s": wall,
-                }
-            )
-            + "\n",
+    def iterate(self) -> dict[str, float]:
+        self.model.learn(total_timesteps=self.rollout, callback=self.callback,
+                         reset_num_timesteps=self.step == 0)  # fmt: skip
+        self.step += 1
+        n, succ, ret = self.counter.pop()
+        row = {
+            "update": self.step,
+            "global_step": self.global_step,
+            "charts/episodes": n,
+            "charts/success_any": succ,
+            "charts/episode_return": ret,
+            "time/wall_s": time.perf_counter() - self.t0,
+        }
+        if self.step >= self.budget:
+            self._finish()
+        return row
+
+    def _finish(self) -> None:
+        cfg, run_dir = self.cfg, self.session.run.path
+        wall = time.perf_counter() - self.t0
+        if cfg.eval_episodes:
+            ev = evaluate_sb3(self.model, self.venv, self.make, cfg.eval_episodes)
+            name = f"eval-det-e{cfg.eval_episodes}.json"
+            atomic_write_text(run_dir / name, json.dumps(ev) + "\n")
+        done = {"task": cfg.task, "method": cfg.method, "steps": cfg.steps, "seed": cfg.seed,
+                "num_envs": cfg.num_envs, "k": cfg.k, "global_step": self.global_step,
+                "wall_s": wall}  # fmt: skip
+        atomic_write_text(run_dir / "done.json", json.dumps(done) + "\n")
+
+    @property
+    def global_step(self) -> int:
+        """Env steps run (decisions x k)."""
+        return int(self.model.num_timesteps) * self.cfg.k
+
+    def state_dict(self) -> dict[str, Any]:
+        raise NotImplementedError("SB3 reference runs are not checkpointed (restarted instead)")
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        raise NotImplementedError("SB3 reference runs do not resume")
+
+    def close(self) -> None:
+        self.venv.close()
+
+
+class SB3Recipe:
+    """The run driver's recipe of an SB3 reference run: kind ``sb3``, counted in rollouts,
+    never checkpointed (a killed run restarts; SB3 runs are short)."""
+
+    def __init__(self, cfg: SB3RunConfig) -> None:
+        self.cfg = cfg
+        _env_maker(cfg)  # an unknown task fails here, before the run folder is made
+        self.plan = RunPlan(
+            run_dir=Path(cfg.run_dir),
+            kind="sb3",
+            unit="update",
+            seed=cfg.seed,
+            budget=rollouts(cfg),
+            config=cfg,
+            config_dict=dataclasses.asdict(cfg),
+            config_from_dict=SB3RunConfig.from_dict,
+            threads=1,
+            resumable=False,
         )
-        session.finish(manifest(done))
-        return run_dir
+
+    def check_checkpoint(self, ckpt: dict[str, Any]) -> None:
+        pass  # never resumed
+
+    def build(self, session: RunSession, fresh: bool) -> SB3Learner:
+        return SB3Learner(self.cfg, session)
+
+    def manifest(self, learner: SB3Learner) -> Manifest:
+        cfg = self.cfg
+        done = learner.global_step
+        end = done >= cfg.steps
+        return Manifest(kind="sb3", task=cfg.task, label=cfg.method, seed=int(cfg.seed),
+                        budget=int(cfg.steps), unit="env_steps", done=int(done), finished=end,
+                        reason="budget" if end else "")  # fmt: skip
+
+    @contextlib.contextmanager
+    def log(self, learner: SB3Learner, session: RunSession) -> Iterator[Callable[[Any], None]]:
+        with MetricsLogger(session.run.path, FIELDS, step="global_step",
+                           tensorboard=False) as metrics:  # fmt: skip
+            yield metrics.log
+
+    def checkpoint_due(self, learner: SB3Learner) -> bool:
+        return False
+
+    def summary(self, learner: SB3Learner, last: dict[str, float], session: RunSession) -> Path:
+        return session.run.path
 
 
 def main(argv: list[str] | None = None) -> int:

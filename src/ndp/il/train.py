@@ -23,6 +23,7 @@ import dataclasses
 import json
 import math
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -60,7 +61,8 @@ from ndp.il.synthetic import SyntheticConfig
 from ndp.io import atomic_save_npz, atomic_write_text
 from ndp.runs import MetricsLogger, save_checkpoint
 from ndp.runs import load_checkpoint as _load_run_checkpoint
-from ndp.runs.session import Manifest, RunSession, TrainingDivergedError, drive, seed_everything
+from ndp.runs.driver import RunPlan, run
+from ndp.runs.session import LearnerDefaults, Manifest, RunSession, TrainingDivergedError
 
 METRICS = (
     "epoch",
@@ -247,7 +249,7 @@ def _set_threads(n: int) -> None:
 # --------------------------------------------------------------------------------------------
 
 
-class ImitationLearner:
+class ImitationLearner(LearnerDefaults):
     """One model trained on one split, an epoch per :meth:`iterate` (an
     :class:`ndp.runs.session.Learner`; :func:`train` runs it inside the run session).
 
@@ -428,8 +430,7 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
         FileNotFoundError, ValueError: bad data paths or files; a refused resume.
     """
     check_device_available(cfg.device)  # before the run folder is made
-    _set_threads(cfg.threads)
-    seed_everything(cfg.seed)
+    _set_threads(cfg.threads)  # the driver seeds, once, before the model is built
     device = torch.device(cfg.device)
     data = load_data(cfg.data, cfg.model.n_points, progress=cfg.progress)
     if cfg.model.frame != data.frame[1]:  # the data set's pixel frame (derived, not chosen)
@@ -446,53 +447,84 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
     tr_idx, va_idx = validation_split(
         tr_idx, cfg.val_fraction, cfg.data.split_seed, data.writers if by_writer else None
     )
-    session, ckpt = RunSession.open(
-        cfg.run_dir,
-        kind="il",
-        config=cfg,
-        config_from_dict=TrainConfig.from_dict,
-        safe_on_resume=SAFE_ON_RESUME,
-        resume=resume,
-        unit="epoch",
-        hint="Try a lower --lr.",
-        overwrite=overwrite,
-    )
-    with contextlib.closing(session):  # releases the run lock (ndp.runs.lock)
-        if ckpt is not None and cfg.epochs < int(ckpt["epoch"]):
+    x_all = torch.from_numpy(data.images)
+    y_all = torch.from_numpy(data.trajs)
+    splits = {
+        name: (x_all[idx].to(device), y_all[idx].to(device))
+        for name, idx in (("train", tr_idx), ("val", va_idx), ("test", te_idx))
+    }
+    return run(ImitationRecipe(cfg, splits, device), resume=resume, overwrite=overwrite)
+
+
+class ImitationRecipe:
+    """The run driver's recipe of an imitation run (:mod:`ndp.runs.driver`): kind ``il``,
+    counted in epochs, checkpointed every epoch; ``done.json`` when it finishes (budget or
+    patience); :func:`train`'s summary.
+
+    Args:
+        cfg: the run's config (its ``model.frame`` already the data set's).
+        splits: ``(x, y)`` tensors of the train, validation and test splits, on ``device``.
+        device: where the model trains.
+    """
+
+    def __init__(
+        self,
+        cfg: TrainConfig,
+        splits: dict[str, tuple[torch.Tensor, torch.Tensor]],
+        device: torch.device,
+    ) -> None:
+        self.cfg, self.splits, self.device = cfg, splits, device
+        self.plan = RunPlan(
+            run_dir=Path(cfg.run_dir),
+            kind="il",
+            unit="epoch",
+            seed=int(cfg.seed),
+            budget=int(cfg.epochs),
+            config=cfg,
+            config_dict=cfg.as_dict(),
+            config_from_dict=TrainConfig.from_dict,
+            safe_on_resume=tuple(SAFE_ON_RESUME),
+            threads=None,  # train() set them before the data was loaded
+            hint="Try a lower --lr.",
+        )
+        self.t_run = time.perf_counter()
+
+    def check_checkpoint(self, ckpt: dict[str, Any]) -> None:
+        if self.cfg.epochs < int(ckpt["epoch"]):
             raise ValueError(
-                f"epochs: the run has trained {int(ckpt['epoch'])} epochs; --epochs {cfg.epochs} "
-                "would cut its budget below that (give at least that many, or start a new run)"
+                f"epochs: the run has trained {int(ckpt['epoch'])} epochs; --epochs "
+                f"{self.cfg.epochs} would cut its budget below that (give at least that many, or "
+                "start a new run)"
             )
-        x_all = torch.from_numpy(data.images)
-        y_all = torch.from_numpy(data.trajs)
-        splits = {
-            name: (x_all[idx].to(device), y_all[idx].to(device))
-            for name, idx in (("train", tr_idx), ("val", va_idx), ("test", te_idx))
-        }
-        learner = ImitationLearner(cfg, session, splits, device, fresh=ckpt is None)
-        if ckpt is not None:
-            learner.load_state_dict(ckpt)
-            session.restored(ckpt, learner.step)
-        start_epoch = learner.step
-        run_dir = session.run.path
-        done_path = run_dir / DONE_NAME
+
+    def build(self, session: RunSession, fresh: bool) -> ImitationLearner:
+        return ImitationLearner(self.cfg, session, self.splits, self.device, fresh=fresh)
+
+    def manifest(self, learner: ImitationLearner) -> Manifest:
+        return il_manifest(self.cfg, learner.step, learner.stopped)
+
+    @contextlib.contextmanager
+    def log(
+        self, learner: ImitationLearner, session: RunSession
+    ) -> Iterator[Callable[[dict[str, float]], None]]:
+        cfg, start = self.cfg, learner.step
+        done_path = session.run.path / DONE_NAME
         if done_path.exists() and not learner.stopped:
             done_path.unlink()  # a run extended by --epochs is no longer finished
-        session.start(cfg.as_dict(), il_manifest(cfg, start_epoch, learner.stopped))
         logger = MetricsLogger(
-            run_dir,
+            session.run.path,
             METRICS,
             step="epoch",
             tensorboard=cfg.tensorboard,
-            resume_index=start_epoch if ckpt is not None else None,
-            resume_step=start_epoch if ckpt is not None else None,
+            resume_index=start if session.resumed else None,
+            resume_step=start if session.resumed else None,
         )
         bar = None
         if cfg.progress:
             from tqdm import tqdm
 
             bar = tqdm(
-                total=(cfg.epochs - start_epoch) * learner.steps_per_epoch,
+                total=(cfg.epochs - start) * learner.steps_per_epoch,
                 desc=f"il {cfg.model.kind}",
                 unit="batch",
                 dynamic_ncols=True,
@@ -504,44 +536,44 @@ def train(cfg: TrainConfig, resume: bool = False, overwrite: bool = False) -> di
                 bar.set_postfix(epoch=epoch, loss=f"{loss:.3g}")
 
             learner.on_batch = on_batch
-
-        def save() -> None:  # every epoch
-            session.save(learner.state_dict(), learner.step, cfg.as_dict())
-
-        t_run = time.perf_counter()
-        row: dict[str, float] = {}
+        self.t_run = time.perf_counter()
         try:
-            if not learner.stopped:
-                row = drive(learner, cfg.epochs, logger.log, save)
+            yield logger.log
         finally:
             if bar is not None:
                 bar.close()
             logger.close()
-        early = learner.early
-        last = learner.step
-        row = {k: v for k, v in row.items() if k != "epoch"}
-        manifest = il_manifest(cfg, last, learner.stopped)
-        done = {
-            "finished": True,
-            "epoch": last,
-            "reason": manifest.reason,
-            "best_epoch": early["best_epoch"] or None,
-            "best_val_mse_px2": early["best_val"] if early["best_epoch"] else None,
-            "train_wall_s": time.perf_counter() - t_run,
-        }
+
+    def checkpoint_due(self, learner: ImitationLearner) -> bool:
+        return True  # every epoch
+
+    def summary(
+        self, learner: ImitationLearner, last: dict[str, float], session: RunSession
+    ) -> dict[str, Any]:
+        cfg, early = self.cfg, learner.early
+        row = {k: v for k, v in last.items() if k != "epoch"}
+        manifest = il_manifest(cfg, learner.step, learner.stopped)
+        wall = time.perf_counter() - self.t_run
         if manifest.finished:
-            atomic_write_text(done_path, json.dumps(done, indent=1) + "\n")
-        session.finish(manifest)
+            done = {
+                "finished": True,
+                "epoch": learner.step,
+                "reason": manifest.reason,
+                "best_epoch": early["best_epoch"] or None,
+                "best_val_mse_px2": early["best_val"] if early["best_epoch"] else None,
+                "train_wall_s": wall,
+            }
+            atomic_write_text(session.run.path / DONE_NAME, json.dumps(done, indent=1) + "\n")
         return {
-            "run_dir": str(run_dir),
+            "run_dir": str(session.run.path),
             "checkpoint": str(session.run.checkpoint),
             "stopped_early": learner.stopped,
             "best_epoch": early["best_epoch"] or None,
             "epochs": cfg.epochs,
-            "train_wall_s": time.perf_counter() - t_run,
+            "train_wall_s": wall,
             "final": row,
             "n_train": learner.n_train,
-            "n_val": len(va_idx),
+            "n_val": int(self.splits["val"][0].shape[0]),
             "n_test": int(learner.x_te.shape[0]),
         }
 

@@ -15,6 +15,9 @@ if TYPE_CHECKING:
 HEADS = ("step", "multi", "ndp", "dyne")
 """Built-in action heads: one raw action per step, k raw actions per decision, DMP parameters,
 a Dyn-E latent decoded into k actions (more register with ``ndp.policies.heads.register_head``)."""
+DMP_HEADS = ("ndp", "ndp-squashed")
+"""Heads that run a DMP and read the NDP head's settings (``PolicyConfig.ndp``): NDP's, and
+NDP-SAC's squashed form of it."""
 FORCING = ("amplitude", "goal")
 """NDP forcing-weight forms: bounded amplitude per DoF, or the paper's f proportional to g - y0."""
 ABSOLUTE_MODES = ("direct", "dmp")

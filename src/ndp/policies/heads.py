@@ -38,9 +38,14 @@ from torch import nn
 from ndp.dmp import DMPConfig, DMPLayer
 from ndp.dmp.controllers import DeltaController
 from ndp.dmp.integrate import _linear_map_f64, check_finite, recording
-from ndp.policies.base import ActionHead
+from ndp.policies.base import HEAD_BUILDERS as HEAD_BUILDERS  # the registry, re-exported:
+from ndp.policies.base import SINGLE_STEP_HEADS as SINGLE_STEP_HEADS  # importing this module
+from ndp.policies.base import ActionHead  # registers every built-in head before it is read
+from ndp.policies.base import register_head as register_head
 from ndp.policies.distributions import ParamGaussian, PolicyDistribution, SubActionGaussian
 from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
+from ndp.policies.squashed import SquashedActionHead as SquashedActionHead  # the SAC family's
+from ndp.policies.squashed import SquashedNDPHead as SquashedNDPHead  # heads, registered there
 
 
 class _RawActionHead(ActionHead):
@@ -333,33 +338,6 @@ class NDPHead(ActionHead):
             f"start_at_rest={self.start_at_rest}, only_g={self.only_g}, "
             f"learn_az={self.learn_az}"
         )
-
-
-HEAD_BUILDERS: dict[str, Callable[[Any, Any], ActionHead]] = {}
-"""Head name -> ``build(policy_cfg, spec) -> ActionHead`` (see :func:`register_head`)."""
-SINGLE_STEP_HEADS: set[str] = set()
-"""Heads that run one action per decision (k = 1)."""
-
-
-def register_head(
-    name: str, single_step: bool = False
-) -> Callable[[Callable[[Any, Any], ActionHead]], Callable[[Any, Any], ActionHead]]:
-    """Register an action head builder under ``name`` (a decorator).
-
-    Args:
-        name: the ``PolicyConfig.head`` value that selects it.
-        single_step: the head emits one action per decision (k is forced to 1).
-    """
-
-    def deco(fn: Callable[[Any, Any], ActionHead]) -> Callable[[Any, Any], ActionHead]:
-        if name in HEAD_BUILDERS:
-            raise ValueError(f"name: head {name!r} is already registered")
-        HEAD_BUILDERS[name] = fn
-        if single_step:
-            SINGLE_STEP_HEADS.add(name)
-        return fn
-
-    return deco
 
 
 def build_head(cfg: Any, spec: Any) -> ActionHead:

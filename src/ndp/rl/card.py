@@ -20,6 +20,9 @@ from typing import Any
 
 import numpy as np
 
+from ndp.policies.config import DMP_HEADS
+from ndp.rl.methods import METHODS
+
 NOT_RECORDED = "not recorded"
 """The value of a card field the export does not record."""
 
@@ -222,7 +225,9 @@ def model_card(
     pol = cfg.get("policy", {})
     spec = meta.get("spec") or {}
     k = pol.get("k", NOT_RECORDED)
-    method = _METHODS.get(str(meta["algo"]), str(meta["algo"]))
+    algo = str(meta["algo"])
+    registered = METHODS.get(algo)
+    method = _METHODS.get(algo, registered.description if registered is not None else algo)
     lines = ["---", to_yaml(fields), "---", "", f"# {name}", ""]
     lines += [
         f"A policy for the `{meta['task']}` task. Method: {method}. Trained with the "
@@ -254,7 +259,7 @@ def model_card(
             f"env step of {spec.get('control_dt')} s.",
             "",
         ]
-    if pol.get("head") == "ndp":
+    if pol.get("head") in DMP_HEADS:
         head = pol.get("ndp") or pol  # nested since NDPHeadConfig; flat in older exports
         lines += [
             f"DMP: N = {head.get('n_basis')} basis functions, a_z = {head.get('a_z')}, "

@@ -148,7 +148,7 @@ def train_command(argv: list[str]) -> int:
 
     # the trainer (torch, the simulators) is imported only once the options are parsed
     def trainer() -> Any:
-        from ndp.rl import trainer as module
+        from ndp.rl import run as module
 
         return module
 

@@ -27,6 +27,7 @@ from typing import Any
 
 from ndp.checks import plain_numbers
 from ndp.policies.config import PolicyConfig
+from ndp.rl.sac.config import SACConfig
 
 EVAL_SEED = 10_000
 """Reset seed of the first evaluation episode (episodes ``EVAL_SEED .. EVAL_SEED + N - 1``) for
@@ -274,6 +275,8 @@ class TrainConfig:
     """Actor-critic and action-head settings (head follows algo)."""
     dyne: DyneConfig = field(default_factory=DyneConfig)
     """Dyn-E settings (``--algo dyne`` only)."""
+    sac: SACConfig = field(default_factory=SACConfig)
+    """SAC, chunked SAC and NDP-SAC settings (``--algo sac / sac-chunk / ndp-sac`` only)."""
 
     def __post_init__(self) -> None:
         plain_numbers(self)
@@ -362,7 +365,7 @@ class TrainConfig:
         return {"stale_world": self.stale_world, "execution": self.execution}
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (nested for ``ppo``, ``policy`` and ``dyne``)."""
+        """JSON-ready dict (nested for ``ppo``, ``policy``, ``dyne`` and ``sac``)."""
         return dataclasses.asdict(self)
 
     @staticmethod
@@ -379,7 +382,8 @@ class TrainConfig:
         try:
             ppo = PPOConfig(**d.pop("ppo", {}))
             dyne = DyneConfig(**d.pop("dyne", {}))  # configs written before Dyn-E: defaults
-            return TrainConfig(ppo=ppo, policy=policy, dyne=dyne, **d)
+            sac = SACConfig(**d.pop("sac", {}))  # configs written before SAC: defaults
+            return TrainConfig(ppo=ppo, policy=policy, dyne=dyne, sac=sac, **d)
         except TypeError as exc:
             raise ValueError(f"config: {exc}") from None
 
@@ -464,11 +468,11 @@ def unused_head_options(cfg: TrainConfig) -> list[str]:
     (``--algo ppo --n-basis 3``): ``["n_basis=3", ...]``, empty when none or when the method runs
     the NDP head. Such options are accepted and not used (a sweep's ``-o`` overrides span every
     arm); ``ndp rl train`` names them in a note so that they are not dropped silently."""
-    from ndp.policies.config import NDPHeadConfig
+    from ndp.policies.config import DMP_HEADS, NDPHeadConfig
     from ndp.rl.methods import METHODS
 
     method = METHODS.get(cfg.algo)
-    if method is None or method.head == "ndp":
+    if method is None or method.head in DMP_HEADS:
         return []
     default = NDPHeadConfig()
     return [

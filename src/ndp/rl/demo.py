@@ -81,7 +81,7 @@ def run_rl_demo(out_dir: Path, quick: bool = True) -> dict[str, Any]:
     import shutil
 
     from ndp.rl.evaluate import evaluate, render
-    from ndp.rl.trainer import train
+    from ndp.rl.run import train
 
     out_dir = Path(out_dir)
     cfg = demo_config(out_dir, quick)

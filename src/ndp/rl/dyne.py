@@ -41,7 +41,6 @@ import copy
 import dataclasses
 import math
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -59,13 +58,12 @@ from ndp.rl.logger import METRICS
 from ndp.rl.methods import DYNE_METRICS
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.periodic_eval import PeriodicEvaluator
-from ndp.rl.progress import TrainProgress, episode_charts, last_update
-from ndp.rl.trainer import open_rl_session, rl_manifest
+from ndp.rl.progress import episode_charts
 from ndp.runs.session import (
     CountsUpdates,
+    RunSession,
     TrainingDivergedError,
     checkpoint_due,
-    drive,
     nonfinite_parameter,
 )
 
@@ -294,19 +292,20 @@ def _soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
 class DyneLearner(CountsUpdates):
     """Dyn-E on the shared run infrastructure (see the module docstring).
 
+    An :class:`ndp.rl.run.RLLearner`: the run driver opens the run, seeds, restores and
+    drives it.
+
     Args:
         cfg: the resolved config (``resolve_config``); ``dyne.explore_steps`` is filled here.
-        resume: continue from ``cfg.run_dir``'s checkpoint (same config required).
+        session: the run's session (paths, the divergence message).
     """
 
-    def __init__(self, cfg: TrainConfig, resume: bool = False) -> None:
+    def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
         cfg = resolve_dyne_config(cfg)
         check_budget(cfg)  # before any env is built
         self.cfg, self.spec = cfg, task.spec
-        self.session, ckpt = open_rl_session(
-            cfg, resume, "Try smaller --actor-lr / --critic-lr or check the task's reward."
-        )
+        self.session = session
         self.run = self.session.run
         self.rng = np.random.default_rng(cfg.seed)
         self.gen = torch.Generator().manual_seed(cfg.seed)
@@ -351,17 +350,18 @@ class DyneLearner(CountsUpdates):
         self.embed_stats: dict[str, float] = {}
         self.embedded = False
         self._explore_data: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-        if ckpt is not None:
-            self.load_state_dict(ckpt)
-            self.session.restored(ckpt, self.update)
-        self.session.start(cfg.to_dict(), rl_manifest(cfg, self.global_step, self.update))
         self._tracker = rl_envs.EpisodeTracker(self.E)
-        # one seed per env (gymnasium types VectorEnv.reset's seed as one int; its vector envs
-        # and ndp.envs.vector take a list)
-        seeds = rl_envs.env_seeds(cfg.seed, self.E, epoch=self.update)
+        self._started = False  # the envs are reset at the first iteration, after any restore
+
+    def _start(self) -> None:
+        """Reset the envs, one seed per env from the iteration the run continues at
+        (gymnasium types VectorEnv.reset's seed as one int; its vector envs and
+        ndp.envs.vector take a list)."""
+        seeds = rl_envs.env_seeds(self.cfg.seed, self.E, epoch=self.update)
         obs, info = self.envs.reset(seed=seeds)  # type: ignore[arg-type]
         self._obs = np.asarray(obs, dtype=np.float64).reshape(self.E, self.obs_dim)
         self._state = _robot_state(info, self.E)
+        self._started = True
 
     # ----------------------------------------------------------------------- state
     def state_dict(self) -> dict[str, Any]:
@@ -417,14 +417,23 @@ class DyneLearner(CountsUpdates):
         self.embedding.requires_grad_(False)
         self.head.requires_grad_(False)
 
-    def save(self) -> Path:
-        """Write the checkpoint atomically (only with finite parameters)."""
-        name = nonfinite_parameter(
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """``metrics.csv``'s columns (docs/metrics.md)."""
+        return COLUMNS
+
+    def nonfinite(self) -> str | None:
+        """The first actor or critic parameter holding NaN / Inf, else None."""
+        return nonfinite_parameter(
             [*self.model.actor.named_parameters(), *self.critic.named_parameters()]
         )
-        if name is not None:
-            raise self._diverged(f"parameter {name} holds NaN/Inf before saving a checkpoint")
-        return self.session.save(self.state_dict(), self.update, self.cfg.to_dict())
+
+    def checkpoint_due(self, every: int, last: int) -> bool:
+        """Checkpoints start once the embedding is fitted (at the end of exploration), then
+        follow the default cadence."""
+        return self.embedded and (
+            self.update == self.n_explore or checkpoint_due(self.update, every, last)
+        )
 
     def _diverged(self, what: str) -> TrainingDivergedError:
         return self.session.diverged(what, self.update)
@@ -452,6 +461,8 @@ class DyneLearner(CountsUpdates):
 
     def _explore_iteration(self) -> dict[str, Any]:
         """T decisions of uniformly random k-action sequences; keeps the full chunks."""
+        if not self._started:
+            self._start()
         E, k, A = self.E, self.k, self.spec.action_dim
         episodes: list[tuple[float, float, float, float, float]] = []
         executed = 0
@@ -500,6 +511,8 @@ class DyneLearner(CountsUpdates):
         return np.clip(z + noise, -m, m).astype(np.float32)
 
     def _rl_iteration(self) -> dict[str, Any]:
+        if not self._started:
+            self._start()
         episodes: list[tuple[float, float, float, float, float]] = []
         executed = 0
         losses: dict[str, list[float]] = {"critic": [], "actor": [], "q": []}
@@ -606,32 +619,6 @@ class DyneLearner(CountsUpdates):
             row.update(self.evaluator.maybe(before, self.global_step, last, self.model,
                                             self.obs_norm))  # fmt: skip
         return row
-
-    def train(self, max_updates: int | None = None) -> dict[str, float]:
-        """Train until ``cfg.steps`` (or ``max_updates`` more iterations); returns the last
-        metrics row. Checkpoints start once the embedding is fitted (at the end of
-        exploration), then follow the default cadence.
-
-        Raises:
-            TrainingDivergedError: NaN / Inf in a loss or parameter (the last good checkpoint
-                is kept).
-        """
-        cfg = self.cfg
-
-        def save_if_due() -> None:
-            if self.embedded and (
-                self.update == self.n_explore
-                or checkpoint_due(self.update, cfg.checkpoint_every, cfg.num_updates)
-            ):
-                self.save()
-
-        stop = last_update(cfg.num_updates, self.update, max_updates)
-        with TrainProgress(
-            self.run.path, COLUMNS, cfg, self.update, self.global_step, self.session.resumed
-        ) as progress:
-            metrics = drive(self, stop, progress.log, save_if_due)
-        self.session.finish(rl_manifest(cfg, self.global_step, self.update))
-        return metrics
 
     def _metrics(
         self, batch: dict[str, Any], embed: dict[str, float], t_roll: float, t_upd: float

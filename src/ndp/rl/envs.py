@@ -27,6 +27,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv
 
+from ndp.chunk_info import dmp_start, dmp_start_keys
 from ndp.envs import get_task_spec, make_env, task_options
 from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.factory import RELEASE9, check_observation
@@ -220,3 +221,23 @@ class FrameRecorder(gym.Wrapper):
         out = self.env.step(action)
         self.frames.append(np.asarray(self.env.render()))
         return out
+
+
+def decision_start(
+    info: dict[str, Any], n: int, source: str = "measured"
+) -> tuple[np.ndarray, np.ndarray]:
+    """The next decision's DMP start (physical y0, dy0) [E, D] from a vector env's info.
+
+    ``source``: 'measured' (the robot) or 'commanded' (the target the actions move)
+    (:func:`ndp.chunk_info.dmp_start`); an env without them: its ``robot_pos`` / ``robot_vel``."""
+    ky, _ = dmp_start_keys(source)
+    if ky in info:
+        return dmp_start(info, source, n)
+    else:
+        y0, dy0 = info["robot_pos"], info["robot_vel"]
+        if np.ndim(y0) == 3:  # [E, k+1, D] step info: the state after the last sub-step
+            y0, dy0 = y0[:, -1], dy0[:, -1]
+    return (
+        np.asarray(y0, dtype=np.float64).reshape(n, -1),
+        np.asarray(dy0, dtype=np.float64).reshape(n, -1),
+    )

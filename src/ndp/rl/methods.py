@@ -5,16 +5,19 @@ Adding an on-policy method = its head (``ndp.policies.heads.register_head``) and
 :func:`register_method` line; ``ndp rl train --algo NAME`` then trains it with the shared
 trainer, envs, evaluation and rendering (``tests/rl/test_rl_methods.py`` does exactly that).
 
-An off-policy (or any other) learner plugs in through :attr:`Method.learner`: it gets the
-resolved config and builds its envs with :func:`ndp.rl.envs.make_vector_env`, writes its run
-with :mod:`ndp.runs` and leaves a checkpoint with the keys of :data:`POLICY_CHECKPOINT_KEYS`;
+An off-policy (or any other) learner plugs in through :attr:`Method.learner`: an
+:class:`ndp.rl.run.RLLearner` built from the resolved config and the run session, which builds
+its envs with :func:`ndp.rl.envs.make_vector_env`; the run driver (:mod:`ndp.runs.driver`)
+opens, seeds, restores, drives and checkpoints it, and its ``state_dict`` holds the keys of
+:data:`POLICY_CHECKPOINT_KEYS`;
 ``ndp rl eval / render / export`` and ``ndp.load_policy`` then work on its runs unchanged
 (``tests/rl/test_rl_methods.py`` registers a toy random-search learner and evaluates it).
 
 Every built-in method is registered below (``ppo``, ``ppo-multi``, ``ppo-repeat``, ``ndp``,
-``dyne``, ``vices``, ``vices-pos``, ``vices-low-freq``). The registry imports no learner and
-no trainer: Dyn-E's learner is named by its entry point, so the learners and the config may
-import the registry without an import circle (``tests/test_import_graph.py``).
+``dyne``, ``sac``, ``sac-chunk``, ``ndp-sac``, ``vices``, ``vices-pos``, ``vices-low-freq``).
+The registry imports no learner and no trainer: Dyn-E's and SAC's learners are named by their
+entry points, so the learners and the config may import the registry without an import circle
+(``tests/test_import_graph.py``).
 """
 
 from __future__ import annotations
@@ -70,13 +73,15 @@ class Method:
     task_variant: Callable[[Any], Any] | None = None
     """``task spec -> the task-table row this method runs on`` (VICES: the torque-actuated
     variant of the requested task, ``ndp.envs.torque_variant``); None: the requested row."""
-    learner: Callable[[Any, bool], Any] | str | None = None
-    """``learner(resolved TrainConfig, resume) -> object with train(max_updates=None) -> last
-    metrics and close()``, for a method with its own learning loop (off-policy, evolution, ...),
-    or its entry point ``"package.module:name"`` (imported at the first :meth:`build_learner`,
-    as gymnasium's registry imports an env's ``entry_point``: the registry imports no learner,
-    so a learner module may import the registry and the config); None: the shared PPO trainer
+    learner: Callable[[Any, Any], Any] | str | None = None
+    """``learner(resolved TrainConfig, RunSession) -> ndp.rl.run.RLLearner``, for a method with
+    its own learning loop (off-policy, evolution, ...), or its entry point
+    ``"package.module:name"`` (imported at the first :meth:`build_learner`, as gymnasium's
+    registry imports an env's ``entry_point``: the registry imports no learner, so a learner
+    module may import the registry and the config); None: the shared PPO trainer
     (:class:`ndp.rl.trainer.Trainer`)."""
+    hint: str = "Try a smaller learning rate or check the task's reward / actions."
+    """What to try after the run diverges (ends the divergence error's message)."""
 
     def __post_init__(self) -> None:
         if isinstance(self.learner, str):
@@ -87,9 +92,10 @@ class Method:
                     f"got {self.learner!r}"
                 )
 
-    def build_learner(self, cfg: Any, resume: bool) -> Any:
-        """The learner of a resolved config (``learner`` called, its entry point imported
-        first); None when the method trains with the shared PPO trainer."""
+    def build_learner(self, cfg: Any, session: Any) -> Any:
+        """The learner of a resolved config in its run ``session`` (``learner`` called, its
+        entry point imported first); None when the method trains with the shared PPO
+        trainer."""
         if self.learner is None:
             return None
         build = self.learner
@@ -102,7 +108,7 @@ class Method:
                     f"learner: method {self.name!r} names {self.learner!r}, which does not "
                     f"import ({e})"
                 ) from e
-        return build(cfg, resume)
+        return build(cfg, session)
 
 
 POLICY_CHECKPOINT_KEYS = ("model", "obs_norm", "obs_dim", "config", "update", "global_step")
@@ -181,8 +187,65 @@ register_method(
         resolve=resolve_dyne,
         metrics=DYNE_METRICS,
         learner="ndp.rl.dyne:DyneLearner",  # torch and the simulators only once it trains
+        hint="Try smaller --actor-lr / --critic-lr or check the task's reward.",
     )
 )
+
+
+SAC_METRICS = (
+    "sac/alpha",
+    "sac/alpha_loss",
+    "sac/q",
+    "sac/replay",
+    "sac/gradient_steps",
+)
+"""Extra ``metrics.csv`` columns of the SAC family's runs (docs/metrics.md)."""
+
+
+def _sac_networks(policy: Any) -> dict[str, Any]:
+    """SAC's networks: 256-256 ReLU (actor and each critic) unless ``hidden`` / ``activation``
+    were changed from the PPO defaults ((100, 100), tanh)."""
+    out: dict[str, Any] = {}
+    if tuple(policy.hidden) == (100, 100):
+        out["hidden"] = (256, 256)
+    if policy.activation == "tanh":
+        out["activation"] = "relu"
+    return out
+
+
+def resolve_sac(policy: Any, spec: Any) -> dict[str, Any]:
+    """SAC: one action per decision (k = 1), no DMP, 256-256 ReLU."""
+    return {**no_dmp(policy, spec), **_sac_networks(policy), "k": 1}
+
+
+def resolve_sac_chunk(policy: Any, spec: Any) -> dict[str, Any]:
+    """Chunked SAC: k actions per decision (``--k``), no DMP, 256-256 ReLU."""
+    return {**no_dmp(policy, spec), **_sac_networks(policy)}
+
+
+def resolve_ndp_sac(policy: Any, spec: Any) -> dict[str, Any]:
+    """NDP-SAC: the NDP head's task presets (:func:`resolve_ndp`), 256-256 ReLU."""
+    return {**resolve_ndp(policy, spec), **_sac_networks(policy)}
+
+
+_SAC = "ndp.rl.sac.learner:SACLearner"
+_SAC_HINT = "Try a smaller --sac-lr or check the task's reward."
+register_method(
+    Method("sac", "squashed", "SAC: twin critics, automatic temperature, tanh-squashed "
+           "Gaussian, one action per env step", resolve=resolve_sac, metrics=SAC_METRICS,
+           learner=_SAC, hint=_SAC_HINT)
+)  # fmt: skip
+register_method(
+    Method("sac-chunk", "squashed", "Chunked SAC: k actions per decision executed open-loop, "
+           "a critic of the whole chunk on the k-step return (Q-chunking)",
+           resolve=resolve_sac_chunk, metrics=SAC_METRICS, learner=_SAC, hint=_SAC_HINT)
+)  # fmt: skip
+register_method(
+    Method("ndp-sac", "ndp-squashed", "NDP-SAC: SAC over the DMP's goal and forcing weights "
+           "(entropy over the parameters), the NDP head turning them into k actions",
+           resolve=resolve_ndp_sac, metrics=(*SAC_METRICS, "dmp/goal_norm", "dmp/weight_norm"),
+           learner=_SAC, hint=_SAC_HINT)
+)  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------------

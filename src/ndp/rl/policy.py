@@ -7,7 +7,7 @@ chunked env the policy was trained for (its k, stale-world rule and horizon).
 
 Without the simulators (a robot, another simulator; only torch, numpy and safetensors
 installed), an export still loads and acts: its ``policy.json`` records the task's spec
-(``"spec"``: DMP coordinates, action bounds and scale, clocks; ``ndp.policies.task``), and
+(``"spec"``: DMP coordinates, action bounds and scale, clocks; ``ndp.schema``), and
 ``act(obs, robot_state)`` takes the DMP start as a mapping with the keys
 :attr:`Policy.state_keys` or a :class:`RobotState`.
 ``policy.at_exec_k(K2)`` is an evaluation copy that runs each decision as K2 = k * m sub-steps of
@@ -57,7 +57,6 @@ from ndp.act_inputs import RobotState, check_act_inputs
 from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
-from ndp.policies.task import PolicySpec, check_record, spec_record
 from ndp.provenance import git_commit, installed_versions, portable_command, portable_path
 from ndp.rl.card import model_card
 from ndp.rl.config import EVAL_SEED, TrainConfig, load_config
@@ -66,6 +65,7 @@ from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.onnx_export import OnnxPolicy, write_onnx_export
 from ndp.runs import load_checkpoint
 from ndp.runs.layout import PROVENANCE_NAME, run_commits
+from ndp.schema import PolicySpec, check_record, spec_record
 
 EXPORT_FORMAT = "ndp-policy"
 """``format`` field of ``policy.json``."""
@@ -89,7 +89,7 @@ class Policy:
     """The run's resolved config (method, task, k, head settings)."""
     spec: Any
     """The task spec: the task table's row (``ndp.envs.TaskSpec``), or, when the simulators are
-    not installed, the one the export recorded (``ndp.policies.task.PolicySpec``, the same
+    not installed, the one the export recorded (``ndp.schema.PolicySpec``, the same
     fields the head and :meth:`act` read)."""
     model: ActorCritic
     """The actor-critic, in eval mode."""
@@ -130,13 +130,13 @@ class Policy:
     def needs_robot_state(self) -> bool:
         """Whether :meth:`act` reads the robot state (the NDP head's DMP start); the other
         heads ignore it, and ``act(obs)`` without one works for them."""
-        return self.cfg.policy.head == "ndp"
+        return bool(self.model.head.needs_robot_state)
 
     @property
     def simulator_free(self) -> bool:
         """True when the task spec is the one recorded in the export (``PolicySpec``: the
         simulators were not importable at load time); :meth:`make_env` then needs them."""
-        return isinstance(self.spec, PolicySpec)
+        return type(self.spec) is PolicySpec  # a task-table row (TaskSpec) extends it
 
     def reset(self, seed: int | None = None) -> None:
         """Start a new episode. The policy keeps no state between decisions; ``seed`` seeds the
@@ -482,7 +482,7 @@ EXPORT_SCHEMA: dict[str, tuple[type, ...]] = {
 }
 """Required fields of ``policy.json`` and their JSON types (``versions`` and ``commit`` are
 provenance, optional when loading; ``spec``, the task's spec for loading without the simulators
-(``ndp.policies.task``), and ``training``, the run's command lines and commits, are optional:
+(``ndp.schema``), and ``training``, the run's command lines and commits, are optional:
 exports older than them load too)."""
 
 

@@ -79,9 +79,9 @@ class TrainProgress:
         """Write one iteration's row and advance the bar to its ``global_step``."""
         self.logger.log(metrics)
         self.bar.update(min(int(metrics["global_step"]), self.steps) - self.bar.n)
-        self.bar.set_postfix(
-            success=f"{metrics['charts/success_any']:.2f}",
-            ret=f"{metrics['charts/episode_return']:.1f}",
+        self.bar.set_postfix(  # a learner may leave either out (NaN: none ended)
+            success=f"{metrics.get('charts/success_any', math.nan):.2f}",
+            ret=f"{metrics.get('charts/episode_return', math.nan):.1f}",
         )
 
     def close(self) -> None:

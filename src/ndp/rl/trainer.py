@@ -17,10 +17,8 @@ bounds. A non-finite loss, gradient or parameter stops training with
 from __future__ import annotations
 
 import copy
-import dataclasses
 import itertools
 import math
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -28,14 +26,14 @@ from typing import Any
 import numpy as np
 import torch
 
-from ndp.chunk_info import dmp_start, dmp_start_keys
 from ndp.envs.base import CTRL_INFO
 from ndp.policies import build_actor_critic
 from ndp.policies.distributions import SubActionGaussian, correlate
-from ndp.rl.config import SAFE_ON_RESUME, TrainConfig, load_config, resolve_config
+from ndp.rl.config import TrainConfig
 from ndp.rl.envs import (
     EpisodeTracker,
     decision_rewards,
+    decision_start,
     env_seeds,
     make_vector_env,
     resolve_task,
@@ -43,7 +41,6 @@ from ndp.rl.envs import (
 )
 from ndp.rl.gae import bootstrap_truncated, gae_substeps
 from ndp.rl.logger import METRICS
-from ndp.rl.methods import METHODS
 from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
 from ndp.rl.optim import FlatAdam
 from ndp.rl.periodic_eval import PeriodicEvaluator
@@ -54,47 +51,38 @@ from ndp.rl.ppo import (
     policy_loss,
     value_loss,
 )
-from ndp.rl.progress import TrainProgress, episode_charts, last_update
-from ndp.runs import RunDir, lock
+from ndp.rl.progress import episode_charts
 from ndp.runs.session import (
     CountsUpdates,
-    Manifest,
     RunSession,
     TrainingDivergedError,
-    checkpoint_due,
-    drive,
     nonfinite_parameter,
-    seed_everything,
 )
 
-__all__ = ["Trainer", "TrainingDivergedError", "make_learner", "resume", "train"]
+__all__ = ["Trainer", "TrainingDivergedError", "ppo_state"]
 
 
 class Trainer(CountsUpdates):
     """PPO over chunked decisions; the method is only the actor-critic's action head.
 
+    A :class:`ndp.rl.run.RLLearner`: the run driver (:mod:`ndp.runs.driver`, through
+    :class:`ndp.rl.run.RLRecipe`) opens the run, seeds, builds it, restores its state, drives
+    :meth:`iterate` and writes the checkpoints.
+
     Args:
-        cfg: run configuration (resolved here against the task before any env is built).
-        resume: continue from ``cfg.run_dir``'s checkpoint (same config required).
-        resolved: ``cfg`` is already :func:`ndp.rl.config.resolve_config`'s output.
+        cfg: the run's config, resolved (:func:`ndp.rl.config.resolve_config`).
+        session: the run's session (paths, the divergence message).
     """
 
-    def __init__(self, cfg: TrainConfig, resume: bool = False, resolved: bool = False) -> None:
-        if not resolved:  # train() / resume() resolve once and say so
-            cfg = resolve_config(cfg)
+    def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         # the row the method runs (VICES: the torque variant) with the run's task options
         task = resolve_task(cfg.task, **cfg.env_options())
         self.cfg = cfg
         self.spec = task.spec
         self.run_dir = Path(cfg.run_dir or ".")
-        self.session, ckpt = open_rl_session(
-            cfg, resume, "Try a smaller learning rate or check the task's reward / actions."
-        )
-        self.run = self.session.run
+        self.session = session
+        self.run = session.run
         self.ckpt_path = self.run.checkpoint
-        if ckpt is not None:
-            check_budget_not_below(int(ckpt["update"]), cfg)
-        say_budget(cfg)
 
         self.k = cfg.k
         self.num_envs = cfg.num_envs
@@ -130,24 +118,29 @@ class Trainer(CountsUpdates):
         self.update = 0
         self.global_step = 0
         self.evaluator = PeriodicEvaluator(cfg, self.spec)
-        if ckpt is not None:
-            self.load_state_dict(ckpt)
-            self.session.restored(ckpt, self.update)
-        self.session.start(cfg.to_dict(), rl_manifest(cfg, self.global_step))
         # Episode bookkeeping.
         self._episodes = EpisodeTracker(cfg.num_envs)
-        # one seed per env (gymnasium types VectorEnv.reset's seed as one int; its vector envs
-        # and ndp.envs.vector take a list)
-        seeds = env_seeds(cfg.seed, cfg.num_envs, epoch=self.update)
-        obs, info = self.envs.reset(seed=seeds)  # type: ignore[arg-type]
-        self._obs = np.asarray(obs, dtype=np.float64).reshape(cfg.num_envs, obs_dim)
         frame = cfg.policy.dmp_state
         assert frame is not None  # resolve_config fills it from the task's preset
         self._dmp_frame: str = frame
-        self._y0, self._dy0 = _robot_state(info, cfg.num_envs, self._dmp_frame)
         # AR(1) exploration: each env's last unit noise, the next decision's carry (None: white)
         self._rho = float(cfg.policy.noise_corr) if cfg.policy.noise == "ar1" else None
-        self._carry = None if self._rho is None else torch.randn(cfg.num_envs, self.spec.action_dim)
+        self._carry: torch.Tensor | None = None
+        self._started = False  # the envs are reset at the first update, after any restore
+
+    def _start(self) -> None:
+        """Reset the envs (one seed per env, from the update the run continues at) and draw
+        the AR(1) carry: at the first update, so that a restored run starts where it stopped."""
+        cfg = self.cfg
+        # gymnasium types VectorEnv.reset's seed as one int; its vector envs and
+        # ndp.envs.vector take a list
+        seeds = env_seeds(cfg.seed, cfg.num_envs, epoch=self.update)
+        obs, info = self.envs.reset(seed=seeds)  # type: ignore[arg-type]
+        self._obs = np.asarray(obs, dtype=np.float64).reshape(cfg.num_envs, self.obs_dim)
+        self._y0, self._dy0 = decision_start(info, cfg.num_envs, self._dmp_frame)
+        if self._rho is not None:
+            self._carry = torch.randn(cfg.num_envs, self.spec.action_dim)
+        self._started = True
 
     def _explore(self, dist: Any, carry: torch.Tensor | None) -> Any:
         """The exploration distribution the run samples from: ``dist`` itself (white noise) or
@@ -185,22 +178,29 @@ class Trainer(CountsUpdates):
         if self.rollout_model is not self.model:
             self.rollout_model.load_state_dict(self.model.state_dict())
 
-    def save(self) -> Path:
-        """Write the checkpoint atomically (only with finite parameters)."""
-        self._check_params("before saving a checkpoint")
-        return self.session.save(self.state_dict(), self.update, self.cfg.to_dict())
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """``metrics.csv``'s columns (docs/metrics.md)."""
+        return METRICS
+
+    def nonfinite(self) -> str | None:
+        """The first parameter holding NaN / Inf, else None (the driver checks it before every
+        checkpoint)."""
+        return nonfinite_parameter(self.model.named_parameters())
 
     def _diverged(self, what: str) -> TrainingDivergedError:
         return self.session.diverged(what, self.update)
 
     def _check_params(self, when: str) -> None:
-        name = nonfinite_parameter(self.model.named_parameters())
+        name = self.nonfinite()
         if name is not None:
             raise self._diverged(f"parameter {name} holds NaN/Inf {when}")
 
     # ----------------------------------------------------------------------- rollout
     def collect(self) -> dict[str, Any]:
         """Run T decisions in every env; returns the rollout (tensors / arrays) and stats."""
+        if not self._started:
+            self._start()
         E, T, k, D = self.num_envs, self.T, self.k, self._y0.shape[1]
         gamma = self.cfg.ppo.gamma
         obs_b = torch.zeros(T, E, self.obs_dim)
@@ -275,7 +275,7 @@ class Trainer(CountsUpdates):
                     fresh = torch.from_numpy(done)
                     self._carry[fresh] = torch.randn(int(done.sum()), self._carry.shape[1])
             self._obs = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
-            self._y0, self._dy0 = _robot_state(infos, E, self._dmp_frame)
+            self._y0, self._dy0 = decision_start(infos, E, self._dmp_frame)
 
         with torch.no_grad():
             last_obs = torch.from_numpy(self.obs_norm(self._obs))
@@ -437,26 +437,6 @@ class Trainer(CountsUpdates):
             **evaluation,
         }
 
-    def train(self, max_updates: int | None = None) -> dict[str, float]:
-        """Train until ``cfg.steps`` (or ``max_updates`` more updates); returns the last metrics.
-
-        Raises:
-            TrainingDivergedError: NaN / Inf in a loss, gradient or parameter.
-        """
-        cfg = self.cfg
-
-        def save_if_due() -> None:
-            if checkpoint_due(self.update, cfg.checkpoint_every, cfg.num_updates):
-                self.save()
-
-        stop = last_update(cfg.num_updates, self.update, max_updates)
-        with TrainProgress(
-            self.run_dir, METRICS, cfg, self.update, self.global_step, self.session.resumed
-        ) as progress:
-            metrics = drive(self, stop, progress.log, save_if_due)
-        self.session.finish(rl_manifest(cfg, self.global_step, self.update))
-        return metrics
-
     def _ctrl_metrics(self, batch: dict[str, Any]) -> dict[str, float]:
         """Controller counters of the torque-actuated tasks (NaN for the others): gain entries
         clipped and non-finite torques over the update, saturated torque entries per env
@@ -477,46 +457,6 @@ class Trainer(CountsUpdates):
         self.envs.close()
         self.evaluator.close()
         self.session.close()
-
-
-def _robot_state(
-    info: dict[str, Any], n: int, source: str = "measured"
-) -> tuple[np.ndarray, np.ndarray]:
-    """The next decision's DMP start (physical y0, dy0) [E, D] from a vector env's info.
-
-    ``source``: 'measured' (the robot) or 'commanded' (the target the actions move)
-    (:func:`ndp.chunk_info.dmp_start`); an env without them: its ``robot_pos`` / ``robot_vel``."""
-    ky, _ = dmp_start_keys(source)
-    if ky in info:
-        return dmp_start(info, source, n)
-    else:
-        y0, dy0 = info["robot_pos"], info["robot_vel"]
-        if np.ndim(y0) == 3:  # [E, k+1, D] step info: the state after the last sub-step
-            y0, dy0 = y0[:, -1], dy0[:, -1]
-    return (
-        np.asarray(y0, dtype=np.float64).reshape(n, -1),
-        np.asarray(dy0, dtype=np.float64).reshape(n, -1),
-    )
-
-
-def open_rl_session(
-    cfg: TrainConfig, resume: bool, hint: str
-) -> tuple[RunSession, dict[str, Any] | None]:
-    """The run session of an RL learner (PPO, Dyn-E, a registered learner): create or resume
-    ``cfg.run_dir`` under the RL resume rule (:data:`SAFE_ON_RESUME`), then set the torch
-    threads and seed every generator. Returns the session and the checkpoint (None: new run)."""
-    session, ckpt = RunSession.open(
-        cfg.run_dir or ".",
-        kind="rl",
-        config=cfg,
-        config_from_dict=TrainConfig.from_dict,
-        safe_on_resume=SAFE_ON_RESUME,
-        resume=resume,
-        hint=hint,
-    )
-    torch.set_num_threads(cfg.torch_threads)
-    seed_everything(cfg.seed)
-    return session, ckpt
 
 
 def ppo_state(
@@ -540,113 +480,3 @@ def ppo_state(
         "global_step": int(global_step),
         "obs_dim": int(obs_dim),
     }
-
-
-def rl_manifest(cfg: TrainConfig, global_step: int, update: int = 0) -> Manifest:
-    """The :class:`ndp.runs.session.Manifest` of a PPO / Dyn-E run at ``update``."""
-    finished = update >= cfg.num_updates
-    return Manifest(
-        kind="rl",
-        task=cfg.task,
-        label=cfg.algo,
-        seed=int(cfg.seed),
-        budget=int(cfg.num_updates * cfg.env_steps_per_update),
-        unit="env_steps",
-        done=int(global_step),
-        finished=finished,
-        reason="budget" if finished else "",
-    )
-
-
-def say_budget(cfg: TrainConfig) -> None:
-    """The one place a PPO run's budget is rounded and said: ``steps`` rounds up to whole
-    updates of ``env_steps_per_update`` (itself ``steps_per_update`` rounded up to
-    ``k * num_envs``); where that changes the number, stderr says what will be trained."""
-    trained = cfg.num_updates * cfg.env_steps_per_update
-    if trained != cfg.steps or cfg.env_steps_per_update != cfg.ppo.steps_per_update:
-        print(
-            f"ndp: budget: --steps {cfg.steps:,} trains {trained:,} env steps: "
-            f"{cfg.num_updates:,} update(s) of {cfg.env_steps_per_update:,} env steps "
-            f"(--steps-per-update {cfg.ppo.steps_per_update:,} rounded up to whole decisions of "
-            f"k={cfg.k} x num_envs={cfg.num_envs})",
-            file=sys.stderr,
-        )
-
-
-def check_budget_not_below(done_updates: int, cfg: TrainConfig) -> None:
-    """A resume may extend a run's budget, never cut it below what it has trained (its
-    config.json and record would then claim less than ran).
-
-    Raises:
-        ValueError: ``steps`` gives fewer updates than the checkpoint's.
-    """
-    if cfg.num_updates < done_updates:
-        raise ValueError(
-            f"steps: the run has trained {done_updates} updates "
-            f"({done_updates * cfg.env_steps_per_update:,} env steps); --steps {cfg.steps:,} "
-            "would cut its budget below that (give at least that many, or start a new run)"
-        )
-
-
-def make_learner(cfg: TrainConfig, resume: bool = False, resolved: bool = False) -> Any:
-    """The learner of ``cfg.algo``: its registered :attr:`ndp.rl.methods.Method.learner`, else
-    :class:`Trainer`; ``cfg`` is resolved here unless ``resolved`` (once per run either way)."""
-    if not resolved:
-        cfg = resolve_config(cfg)
-    learner = METHODS[cfg.algo].build_learner(cfg, resume)
-    return Trainer(cfg, resume=resume, resolved=True) if learner is None else learner
-
-
-def train(
-    cfg: TrainConfig,
-    max_updates: int | None = None,
-    overwrite: bool = False,
-    resolved: bool = False,
-) -> dict[str, float]:
-    """Train a fresh run (see :class:`Trainer`); returns the last update's metrics.
-
-    ``overwrite``: remove an earlier run in the run directory first (its files are named on
-    stderr); without it such a directory is refused. ``resolved``: ``cfg`` is already
-    :func:`ndp.rl.config.resolve_config`'s output (``ndp rl train`` resolves it to name the run
-    directory)."""
-    if not resolved:
-        cfg = resolve_config(cfg)  # once: the learner gets it resolved
-    with lock.held(cfg.run_dir or "."):  # never overwrite a run another process trains
-        if overwrite:
-            RunDir(cfg.run_dir or ".").create(overwrite=True)
-        trainer = make_learner(cfg, resolved=True)
-        try:
-            metrics: dict[str, float] = trainer.train(max_updates)
-        finally:
-            trainer.close()
-    return metrics
-
-
-def resume(
-    run_dir: str | Path, max_updates: int | None = None, **overrides: Any
-) -> dict[str, float]:
-    """Continue a run from its directory's checkpoint (at most one interval is lost).
-
-    Args:
-        run_dir: a directory written by :func:`train`.
-        max_updates: stop after this many more updates.
-        **overrides: fields of :data:`SAFE_ON_RESUME` (``steps`` extends the budget); any
-            other field is refused with its name.
-    """
-    run_dir = Path(run_dir)
-    cfg = load_config(RunDir(run_dir).config)
-    refused = sorted(set(overrides) - set(SAFE_ON_RESUME))
-    if refused:
-        raise ValueError(
-            f"resume: these options would change the run and are refused: {refused} (only "
-            f"{list(SAFE_ON_RESUME)} may change; start a new run for the others)"
-        )
-    cfg = dataclasses.replace(cfg, run_dir=str(run_dir), **overrides)
-    RunDir(run_dir).open_for_resume()
-    with lock.held(run_dir):
-        trainer = make_learner(cfg, resume=True)
-        try:
-            metrics: dict[str, float] = trainer.train(max_updates)
-        finally:
-            trainer.close()
-    return metrics

@@ -1,8 +1,8 @@
-"""The run skeleton every trainer runs inside: what a run does that is not learning.
+"""The pieces of a run that are not learning, which the run driver (:mod:`ndp.runs.driver`)
+puts together for every trainer.
 
-A trainer is a :class:`Learner` (its state, one :meth:`Learner.iterate` per update or epoch,
-its own metrics); :class:`RunSession` owns the rest, written once:
-
+- the one learner protocol, :class:`Learner` (its state, one :meth:`Learner.iterate` per update
+  or epoch, its own metrics, its finite-parameter check);
 - create-or-resume: a new run refuses a directory that holds one (:meth:`RunDir.create`); a
   resume loads the checkpoint of the expected ``kind`` and refuses a config that differs outside
   the fields the config class declares safe (:func:`ndp.runs.resume.check_resume`);
@@ -11,22 +11,10 @@ its own metrics); :class:`RunSession` owns the rest, written once:
 - ``config.json``, one provenance entry per session, and ``run.json`` (:class:`Manifest`: what
   the run is and whether it finished, which sweeps and reports read instead of inferring it);
 - checkpoints: atomic, only from finite parameters, on a cadence (:func:`checkpoint_due`);
-- one divergence error, :class:`TrainingDivergedError`, that names the last good checkpoint;
-- the loop (:func:`drive`): iterate, log, checkpoint, until the budget or a cap.
+- one divergence error, :class:`TrainingDivergedError`, that names the last good checkpoint.
 
-Example (a learner of ``num_updates`` updates)::
-
-    session, ckpt = RunSession.open(cfg.run_dir, kind="rl", unit="update", config=cfg,
-                                    config_from_dict=TrainConfig.from_dict,
-                                    safe_on_resume=SAFE_ON_RESUME, resume=resume)
-    seed_everything(cfg.seed)
-    learner = MyLearner(cfg)                 # builds nets, envs, optimisers
-    if ckpt is not None:
-        learner.load_state_dict(ckpt)
-        session.restored(ckpt, step=learner.step)
-    session.start(cfg.to_dict(), manifest)
-    drive(session, learner, stop=cfg.num_updates, every=cfg.checkpoint_every,
-          last=cfg.num_updates, log=progress.log)
+Trainers do not call these themselves: a trainer is a recipe and a learner given to
+:func:`ndp.runs.driver.run` (its docstring shows the order).
 """
 
 from __future__ import annotations
@@ -157,10 +145,19 @@ def write_manifest(run_dir: str | Path, manifest: Manifest) -> None:
 
 @runtime_checkable
 class Learner(Protocol):
-    """What a trainer computes; :class:`RunSession` and :func:`drive` do the rest."""
+    """The one learner protocol: what a method computes. The run driver
+    (:func:`ndp.runs.driver.run`) does the rest: open, seed, build, restore, drive,
+    checkpoint, signals, finish."""
 
-    step: int
-    """Updates (RL) or epochs (imitation) done."""
+    @property
+    def step(self) -> int:
+        """Updates (RL) or epochs (imitation) done; the budget is counted in it."""
+        ...
+
+    @property
+    def stopped(self) -> bool:
+        """The learner stopped by its own rule before the budget (imitation's patience)."""
+        ...
 
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to continue (the session adds the global RNG state and config)."""
@@ -171,15 +168,37 @@ class Learner(Protocol):
         ...
 
     def iterate(self) -> dict[str, float]:
-        """One update or epoch; advances :attr:`step` and returns its metrics row."""
+        """One update or epoch; advances :attr:`step` and returns its metrics row.
+
+        Raises:
+            TrainingDivergedError: a loss or gradient became NaN / Inf."""
+        ...
+
+    def nonfinite(self) -> str | None:
+        """The name of a parameter holding NaN / Inf, else None (checked before every
+        checkpoint: a checkpoint is only ever written from finite parameters)."""
         ...
 
     def close(self) -> None:
-        """Release environments and workers."""
+        """Release environments and workers (called once, also after an error)."""
         ...
 
 
-class CountsUpdates:
+class LearnerDefaults:
+    """Defaults of :class:`Learner` members most learners do not need: never stops early,
+    nothing to check before a checkpoint."""
+
+    @property
+    def stopped(self) -> bool:
+        """False: the learner runs to its budget."""
+        return False
+
+    def nonfinite(self) -> str | None:
+        """None (override where the learner has parameters)."""
+        return None
+
+
+class CountsUpdates(LearnerDefaults):
     """Mixin of RL learners that count ``update`` and keep a :class:`RunSession` as
     ``session``: the :class:`Learner` counter and the last good checkpoint's update."""
 
@@ -195,6 +214,10 @@ class CountsUpdates:
     def last_ckpt_update(self) -> int | None:
         """The update of the last good checkpoint (None: none yet)."""
         return self.session.last_saved
+
+    def checkpoint_due(self, every: int, last: int) -> bool:
+        """The default cadence (:func:`checkpoint_due`) at the current update."""
+        return checkpoint_due(self.update, every, last)
 
 
 class RunSession:
@@ -309,20 +332,3 @@ def nonfinite_parameter(named: Iterable[tuple[str, Any]]) -> str | None:
         if not bool(torch.isfinite(prm).all()):
             return str(name)
     return None
-
-
-def drive(
-    learner: Any,
-    stop: int,
-    log: Callable[[dict[str, float]], None],
-    save_if_due: Callable[[], None],
-) -> dict[str, float]:
-    """The loop every trainer runs: iterate until ``learner.step`` reaches ``stop`` (or the
-    learner says it ``stopped``, e.g. early stopping), log each row, then checkpoint when due;
-    returns the last row (empty when nothing ran)."""
-    metrics: dict[str, float] = {}
-    while learner.step < stop and not getattr(learner, "stopped", False):
-        metrics = learner.iterate()
-        log(metrics)
-        save_if_due()
-    return metrics

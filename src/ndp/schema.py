@@ -1,20 +1,23 @@
-"""What a trained policy needs to know about its task, without the simulators.
+"""The one task schema: what a task is, for a DMP, a policy and an export, without the
+simulators.
 
-A policy's action head is built from its task's row of the task table (``ndp.envs.TaskSpec``):
-the DMP coordinates, the action bounds and scale, the low-level controller, the clocks. The
-table itself lives in :mod:`ndp.envs`, which imports gymnasium, MuJoCo and Meta-World. An export
-(``policy.json``, field ``"spec"``) records those fields; :class:`PolicySpec` is that record as an
-object with the attributes and the ``inverse_controller`` the heads read, so that
-``ndp.load_policy(path).act(obs, robot_state)`` runs with torch, numpy and safetensors only.
+:class:`TaskSchema` is declared once, here, at the bottom of the data flow: the DMP
+coordinates, the action bounds and scale, the low-level controller, the clocks. The task table
+(``ndp.envs.TaskSpec``, which imports gymnasium, MuJoCo and Meta-World) extends it with what
+only the environments need (the Meta-World name, the NDP preset, aliases); a trained policy's
+export (``policy.json``, field ``"spec"``) records exactly the schema's fields, and
+``TaskSchema.from_record`` reads them back, so that ``ndp.load_policy(path).act(obs,
+robot_state)`` runs with torch, numpy and safetensors only (:data:`PolicySpec`: the schema as
+read from an export).
 
-``spec_record(task_spec)`` writes the record; ``PolicySpec.from_record(record)`` reads it back.
+``spec_record(spec)`` writes the record; ``TaskSchema.from_record(record)`` reads it back.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal, Protocol
 
 import torch
 
@@ -43,13 +46,23 @@ RECORD_FIELDS: dict[str, type | tuple[type, ...]] = {
 """Fields of ``policy.json``'s ``"spec"`` and their JSON types."""
 
 
-@dataclass(frozen=True)
-class PolicySpec:
-    """The fields of a task's row a trained policy acts with (recorded in its export).
+class InverseController(Protocol):
+    """Trajectory points [..., k+1, D] -> actions [..., k, A] (``ndp.dmp.controllers``)."""
 
-    Attribute names and meanings are ``ndp.envs.TaskSpec``'s; ``controller`` is rebuilt from
-    the action fields for position-actuated tasks and is None for torque-actuated ones (their
-    impedance controller runs inside the env; their policies output its commands directly).
+    def __call__(
+        self, traj: torch.Tensor, robot_pos: torch.Tensor | None = None, clip: bool = True
+    ) -> torch.Tensor: ...
+
+
+@dataclass(frozen=True)
+class TaskSchema:
+    """The fields of a task every layer reads: the task table's rows extend it
+    (``ndp.envs.TaskSpec``), a trained policy acts with it and its export records it.
+
+    ``controller`` is built from the action fields for position-actuated tasks where not given;
+    torque-actuated rows of the task table hold their impedance controller, and a torque task
+    read back from an export has none (its controller runs inside the env; its policies output
+    its commands directly).
     """
 
     name: str
@@ -84,12 +97,13 @@ class PolicySpec:
     """Simulator step (s)."""
     obs_dim: int
     """Observation size."""
-    actuation: str = "position"
+    actuation: Literal["position", "torque"] = "position"
     """``"position"`` or ``"torque"`` (VICES rows)."""
     base_task: str | None = None
     """Torque rows: the position-controlled task they vary; else None."""
-    controller: DeltaController | None = field(default=None, compare=False)
-    """The position-actuated tasks' controller (from the action fields); None for torque."""
+    controller: InverseController | None = field(default=None, compare=False)
+    """The low-level controller, trajectory points -> actions; None: a ``DeltaController``
+    built from the ``action_*`` fields (position-actuated tasks)."""
 
     def __post_init__(self) -> None:
         if self.controller is None and self.actuation == "position":
@@ -104,7 +118,17 @@ class PolicySpec:
     def inverse_controller(
         self, traj: torch.Tensor, robot_pos: torch.Tensor | None = None, clip: bool = True
     ) -> torch.Tensor:
-        """Trajectory points [..., k+1, D] -> actions [..., k, A] (``TaskSpec``'s method)."""
+        """Map DMP trajectory points to env actions with the task's controller.
+
+        Args:
+            traj: [..., k+1, D] trajectory points in physical units; ``traj[..., 0, :]`` is the
+                robot's state at the decision.
+            robot_pos: Optional [..., D] measured start replacing ``traj[..., 0, :]``.
+            clip: Clip to the action bounds (False for a policy's mean).
+
+        Returns:
+            [..., k, A] actions, within ``[action_low, action_high]`` when ``clip``.
+        """
         if self.controller is None:
             raise ValueError(
                 f"spec: {self.name!r} is torque-actuated; its controller runs inside the env "
@@ -113,7 +137,7 @@ class PolicySpec:
         return self.controller(traj, robot_pos, clip)
 
     @classmethod
-    def from_record(cls, record: Any, source: str = "spec") -> PolicySpec:
+    def from_record(cls, record: Any, source: str = "spec") -> TaskSchema:
         """The spec of a ``policy.json`` ``"spec"`` record.
 
         Raises:
@@ -131,9 +155,13 @@ class PolicySpec:
         return cls(**{k: kw[k] for k in RECORD_FIELDS})
 
 
-def spec_record(spec: Any) -> dict[str, Any]:
-    """The ``"spec"`` record of ``policy.json`` for a task spec (``TaskSpec`` or
-    :class:`PolicySpec`): plain JSON values."""
+PolicySpec = TaskSchema
+"""The schema as a trained policy's export records it (``TaskSchema.from_record``)."""
+
+
+def spec_record(spec: TaskSchema) -> dict[str, Any]:
+    """The ``"spec"`` record of ``policy.json`` for a task's schema (a ``TaskSpec`` row or a
+    :class:`TaskSchema` read back): plain JSON values."""
 
     def floats(xs: Any) -> list[float]:
         return [float(x) for x in xs]

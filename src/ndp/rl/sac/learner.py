@@ -1,0 +1,351 @@
+"""SAC, chunked SAC and NDP-SAC: one learner (an :class:`ndp.rl.run.RLLearner`).
+
+Data flow of one iteration (E envs, T decisions per env, k sub-steps, A actions, D DMP DoF,
+P bounded parameters per decision, C the critic's action input)::
+
+    obs [E, O], robot state y0, dy0 [E, D] --actor--> squashed Gaussian over u [E, P]
+    u (random in the bounded space for the first random_steps) --head decode--> [E, k, A]
+    --ChunkedEnv x E--> sub-rewards [E, k], mask [E, k] --> chunk return, bootstrap weight
+    --> replay (one row per decision) --> updates_per_step x k gradient steps per decision:
+        critics on the k-step soft target, actor on alpha log pi - min Q, temperature
+
+The actor is the run's :class:`ndp.policies.ActorCritic` (its ``squashed`` or
+``ndp-squashed`` head; its PPO critic is unused), so evaluation, rendering, ONNX export and
+``ndp.load_policy`` read a SAC run like a PPO one; the twin critics, their targets, the
+optimisers, the temperature and the replay buffer are saved under the checkpoint's ``sac`` key.
+Observations are not normalised (SAC's usual setting; the identity statistics are saved as
+every RL run's).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from ndp.chunk_info import dmp_start_keys
+from ndp.nets.mlp import MLP
+from ndp.policies import build_actor_critic
+from ndp.policies.squashed import SquashedGaussian, SquashedNDPHead
+from ndp.rl import envs as rl_envs
+from ndp.rl.config import TrainConfig
+from ndp.rl.logger import METRICS
+from ndp.rl.methods import SAC_METRICS
+from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.periodic_eval import PeriodicEvaluator
+from ndp.rl.progress import episode_charts
+from ndp.rl.sac.losses import (
+    actor_loss,
+    alpha_loss,
+    bootstrap_discount,
+    chunk_return,
+    critic_loss,
+    critic_target,
+    soft_update,
+)
+from ndp.rl.sac.replay import DecisionReplay
+from ndp.runs.session import CountsUpdates, RunSession, TrainingDivergedError, nonfinite_parameter
+
+COLUMNS = (*METRICS, *SAC_METRICS)
+"""Columns of a SAC-family run's ``metrics.csv``."""
+
+
+class TwinQ(nn.Module):
+    """Two critics ``Q_i(s, c)`` [B] of a state [B, O] and its action input [B, C]."""
+
+    def __init__(self, obs_dim: int, in_dim: int, hidden: tuple[int, ...], activation: str):
+        super().__init__()
+        self.q1 = MLP(obs_dim + in_dim, hidden, 1, activation)
+        self.q2 = MLP(obs_dim + in_dim, hidden, 1, activation)
+
+    def forward(self, obs: torch.Tensor, c: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        x = torch.cat([obs, c], dim=-1)
+        return self.q1(x)[:, 0], self.q2(x)[:, 0]
+
+
+class SACLearner(CountsUpdates):
+    """SAC over decisions of k env steps (see the module docstring).
+
+    Args:
+        cfg: the resolved config (``cfg.sac``: :class:`ndp.rl.sac.config.SACConfig`).
+        session: the run's session (paths, the divergence message).
+    """
+
+    def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
+        task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
+        self.cfg, self.spec, self.session = cfg, task.spec, session
+        self.run = session.run
+        s = cfg.sac
+        self.k, self.E, self.T = cfg.k, cfg.num_envs, cfg.decisions_per_env
+        self.gamma = float(cfg.ppo.gamma)
+        self.envs = rl_envs.make_vector_env(
+            task, self.k, self.E, cfg.stale_world, cfg.horizon, cfg.vector, cfg.env_workers,
+            cfg.execution,
+        )  # fmt: skip
+        obs_shape = self.envs.single_observation_space.shape
+        assert obs_shape is not None  # a Box (ChunkedEnv's observation space is the task's)
+        self.obs_dim = int(np.prod(obs_shape))
+        self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
+        self.P = self.model.head.n_params // 2
+        self.is_ndp = isinstance(self.model.head, SquashedNDPHead)
+        self.scores_params = self.is_ndp and s.critic_input == "params"
+        c_dim = self.P if self.scores_params else self.k * self.spec.action_dim
+        pol = cfg.policy
+        self.critic = TwinQ(self.obs_dim, c_dim, tuple(pol.hidden), pol.activation)
+        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        self.log_alpha = torch.tensor(math.log(s.init_alpha), requires_grad=True)
+        self.actor_opt = torch.optim.Adam(self.model.actor.parameters(), lr=s.lr)
+        self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=s.lr)
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=s.lr)
+        self.target_entropy = float(-self.P if s.target_entropy is None else s.target_entropy)
+        D = int(self.spec.dmp_dofs)
+        dims = {"obs": self.obs_dim, "next_obs": self.obs_dim, "u": self.P, "critic_in": c_dim,
+                "y0": D, "dy0": D, "next_y0": D, "next_dy0": D}  # fmt: skip
+        self.replay = DecisionReplay(-(-s.buffer_size // self.k), dims)
+        self.obs_norm = ObsNormalizer(self.obs_dim, cfg.ppo.clip_obs, enabled=False)
+        self.evaluator = PeriodicEvaluator(cfg, self.spec)
+        self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
+        self.high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
+        self.rng = np.random.default_rng(cfg.seed)
+        frame = cfg.policy.dmp_state
+        assert frame is not None  # resolve_config fills it from the task's preset
+        self.frame: str = frame
+        self.update = 0
+        self.global_step = 0
+        self.grad_steps = 0
+        self.update_debt = 0.0
+        self._tracker = rl_envs.EpisodeTracker(self.E)
+        self._started = False  # the envs are reset at the first iteration, after any restore
+
+    # ----------------------------------------------------------------------- protocol
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """``metrics.csv``'s columns (docs/metrics.md)."""
+        return COLUMNS
+
+    def nonfinite(self) -> str | None:
+        """The first actor or critic parameter (or the temperature) holding NaN / Inf."""
+        named = [*self.model.actor.named_parameters(), *self.critic.named_parameters(),
+                 ("log_alpha", self.log_alpha)]  # fmt: skip
+        return nonfinite_parameter(named)
+
+    def state_dict(self) -> dict[str, Any]:
+        """The policy checkpoint keys (``ndp.rl.methods.POLICY_CHECKPOINT_KEYS``) plus ``sac``:
+        critics, targets, optimisers, temperature, replay, generator, counters."""
+        return {
+            "model": self.model.state_dict(),
+            "obs_norm": self.obs_norm.state_dict(),
+            "obs_dim": self.obs_dim,
+            "update": self.update,
+            "global_step": self.global_step,
+            "sac": {
+                "critic": self.critic.state_dict(),
+                "critic_target": self.critic_target.state_dict(),
+                "actor_opt": self.actor_opt.state_dict(),
+                "critic_opt": self.critic_opt.state_dict(),
+                "alpha_opt": self.alpha_opt.state_dict(),
+                "log_alpha": self.log_alpha.detach().clone(),
+                "replay": self.replay.state_dict(),
+                "rng": self.rng.bit_generator.state,
+                "grad_steps": self.grad_steps,
+                "update_debt": self.update_debt,
+            },
+        }
+
+    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
+        """Continue from :meth:`state_dict`'s output (the session restores the global RNGs)."""
+        self.model.load_state_dict(ckpt["model"])
+        self.obs_norm.load_state_dict(ckpt["obs_norm"])
+        self.update, self.global_step = int(ckpt["update"]), int(ckpt["global_step"])
+        s = ckpt["sac"]
+        self.critic.load_state_dict(s["critic"])
+        self.critic_target.load_state_dict(s["critic_target"])
+        self.actor_opt.load_state_dict(s["actor_opt"])
+        self.critic_opt.load_state_dict(s["critic_opt"])
+        self.alpha_opt.load_state_dict(s["alpha_opt"])
+        with torch.no_grad():
+            self.log_alpha.copy_(s["log_alpha"])
+        self.replay.load_state_dict(s["replay"])
+        self.rng.bit_generator.state = s["rng"]
+        self.grad_steps, self.update_debt = int(s["grad_steps"]), float(s["update_debt"])
+
+    def close(self) -> None:
+        """Close the environments (training and evaluation)."""
+        self.envs.close()
+        self.evaluator.close()
+
+    # ----------------------------------------------------------------------- acting
+    def _start(self) -> None:
+        seeds = rl_envs.env_seeds(self.cfg.seed, self.E, epoch=self.update)
+        obs, info = self.envs.reset(seed=seeds)  # type: ignore[arg-type]
+        self._obs = np.asarray(obs, dtype=np.float64).reshape(self.E, self.obs_dim)
+        self._y0, self._dy0 = rl_envs.decision_start(info, self.E, self.frame)
+        self._started = True
+
+    def _dist(self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor) -> SquashedGaussian:
+        dist, _ = self.model.distribution(obs, y0, dy0)
+        assert isinstance(dist, SquashedGaussian)  # the squashed heads
+        return dist
+
+    def critic_input(self, u: torch.Tensor, dist: SquashedGaussian) -> torch.Tensor:
+        """What the critics score with the state [B, C]: the bounded parameters ``tanh(u)``
+        (NDP-SAC, 'params') or the k actions ``u`` gives, inside the bounds (differentiable)."""
+        if self.scores_params:
+            return torch.tanh(u)
+        act = torch.maximum(torch.minimum(dist.decode(u), self.high), self.low)
+        return act.flatten(1)
+
+    def _random_u(self) -> torch.Tensor:
+        """Raw parameters [E, P] uniform in the bounded space (tanh(u) ~ U(-1, 1)^P)."""
+        p = self.rng.uniform(-1.0 + 1e-6, 1.0 - 1e-6, size=(self.E, self.P))
+        return torch.as_tensor(np.arctanh(p), dtype=torch.float32)
+
+    def _next_start(self, infos: dict[str, Any], done: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The robot state (y0, dy0) [E, D] after the decision: the finished step's where an
+        episode ended (the next state of its last transition), else the env's."""
+        ky, kdy = dmp_start_keys(self.frame)
+        y0, dy0 = rl_envs.decision_start(infos, self.E, self.frame)
+        if done.any() and ky in infos.get("final_info", {}):
+            y0 = rl_envs.step_info(infos, done, ky).reshape(self.E, -1)
+            dy0 = rl_envs.step_info(infos, done, kdy).reshape(self.E, -1)
+        return y0, dy0
+
+    # ----------------------------------------------------------------------- learning
+    def iterate(self) -> dict[str, float]:
+        """T decisions per env, with ``updates_per_step`` gradient steps per env step once the
+        random steps are done; returns the iteration's metrics row.
+
+        Raises:
+            TrainingDivergedError: NaN / Inf in a loss or parameter.
+        """
+        if not self._started:
+            self._start()
+        t0 = time.perf_counter()
+        s, E, k = self.cfg.sac, self.E, self.k
+        episodes: list[tuple[float, float, float, float, float]] = []
+        losses: dict[str, list[float]] = {"critic": [], "actor": [], "alpha": [], "q": []}
+        executed, t_update = 0, 0.0
+        for _ in range(self.T):
+            obs = torch.as_tensor(self._obs, dtype=torch.float32)
+            y0 = torch.as_tensor(self._y0, dtype=torch.float32)
+            dy0 = torch.as_tensor(self._dy0, dtype=torch.float32)
+            with torch.no_grad():
+                dist = self._dist(obs, y0, dy0)
+                acting = self.global_step + executed >= s.random_steps
+                u = dist.sample() if acting else self._random_u()
+                act = torch.maximum(torch.minimum(dist.actions(u), self.high), self.low)
+                c = self.critic_input(u, dist)
+            if not bool(torch.isfinite(act).all()):
+                raise self.session.diverged("non-finite actions (check the observations)",
+                                            self.update)  # fmt: skip
+            nxt, _, term, trunc, infos = self.envs.step(act.numpy())
+            term = np.asarray(term, dtype=bool)
+            done = term | np.asarray(trunc, dtype=bool)
+            sub_r, live, mask = rl_envs.decision_rewards(infos, done, E, k)
+            self._tracker.add(infos, done, sub_r, live, mask, episodes)
+            ret, n = chunk_return(torch.as_tensor(sub_r), torch.as_tensor(mask), self.gamma)
+            discount = bootstrap_discount(n, torch.as_tensor(term, dtype=n.dtype), self.gamma)
+            nxt = np.asarray(nxt, dtype=np.float64).reshape(E, self.obs_dim)
+            final = nxt.copy()
+            if done.any() and "final_obs" in infos:
+                for i in np.flatnonzero(done):
+                    final[i] = np.asarray(infos["final_obs"][i], dtype=np.float64).reshape(-1)
+            next_y0, next_dy0 = self._next_start(infos, done)
+            self.replay.add(obs=self._obs, y0=self._y0, dy0=self._dy0, u=u.numpy(),
+                            critic_in=c.numpy(), ret=ret.numpy(), discount=discount.numpy(),
+                            next_obs=final, next_y0=next_y0, next_dy0=next_dy0)  # fmt: skip
+            n_exec = int(mask.sum())
+            executed += n_exec
+            self._obs = nxt
+            self._y0, self._dy0 = rl_envs.decision_start(infos, E, self.frame)
+            if self.global_step + executed >= s.random_steps and self.replay.size >= s.batch_size:
+                self.update_debt += s.updates_per_step * n_exec
+                t1 = time.perf_counter()
+                while self.update_debt >= 1.0:
+                    self._gradient_step(losses)
+                    self.update_debt -= 1.0
+                t_update += time.perf_counter() - t1
+        self.update += 1
+        before, self.global_step = self.global_step, self.global_step + executed
+        wall = time.perf_counter() - t0
+        row = self._metrics(episodes, losses, executed, wall - t_update, t_update)
+        last = self.update >= self.cfg.num_updates
+        row.update(self.evaluator.maybe(before, self.global_step, last, self.model, self.obs_norm))
+        return row
+
+    def _gradient_step(self, losses: dict[str, list[float]]) -> None:
+        """One step of the critics, the actor and the temperature on a replay batch."""
+        s = self.cfg.sac
+        b = self.replay.sample(s.batch_size, self.rng)
+        alpha = self.log_alpha.detach().exp()
+        with torch.no_grad():
+            dist_n = self._dist(b["next_obs"], b["next_y0"], b["next_dy0"])
+            u_n = dist_n.sample()
+            q1_t, q2_t = self.critic_target(b["next_obs"], self.critic_input(u_n, dist_n))
+            logp_n = dist_n.log_prob(u_n)[:, 0]
+            y = critic_target(b["ret"][:, 0], b["discount"][:, 0], q1_t, q2_t, logp_n, alpha)
+        q1, q2 = self.critic(b["obs"], b["critic_in"])
+        lc = critic_loss(q1, q2, y)
+        self._step(self.critic_opt, lc, "critic")
+        dist = self._dist(b["obs"], b["y0"], b["dy0"])
+        u = dist.rsample()
+        logp = dist.log_prob(u)[:, 0]
+        self.critic.requires_grad_(False)
+        try:
+            q1_pi, q2_pi = self.critic(b["obs"], self.critic_input(u, dist))
+        finally:
+            self.critic.requires_grad_(True)
+        la = actor_loss(logp, q1_pi, q2_pi, alpha)
+        self._step(self.actor_opt, la, "actor")
+        lt = alpha_loss(self.log_alpha, logp, self.target_entropy)
+        self._step(self.alpha_opt, lt, "temperature")
+        soft_update(self.critic_target, self.critic, s.tau)
+        self.grad_steps += 1
+        losses["critic"].append(float(lc.detach()))
+        losses["actor"].append(float(la.detach()))
+        losses["alpha"].append(float(lt.detach()))
+        losses["q"].append(float(torch.minimum(q1, q2).detach().mean()))
+
+    def _step(self, opt: torch.optim.Optimizer, loss: torch.Tensor, what: str) -> None:
+        if not bool(torch.isfinite(loss)):
+            raise self._diverged(f"the {what} loss became {float(loss)}")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
+        opt.step()
+
+    def _diverged(self, what: str) -> TrainingDivergedError:
+        return self.session.diverged(what, self.update)
+
+    def _metrics(
+        self,
+        episodes: list[tuple[float, float, float, float, float]],
+        losses: dict[str, list[float]],
+        executed: int,
+        t_roll: float,
+        t_upd: float,
+    ) -> dict[str, float]:
+        def mean(key: str) -> float:
+            v = losses[key]
+            return float(np.mean(v)) if v else math.nan
+
+        return {
+            "update": self.update,
+            "global_step": self.global_step,
+            **episode_charts(episodes),
+            "charts/env_steps_per_s": executed / max(t_roll + t_upd, 1e-9),
+            "charts/learning_rate": self.cfg.sac.lr,
+            "losses/policy": mean("actor"),
+            "losses/value": mean("critic"),
+            "time/rollout_s": t_roll,
+            "time/update_s": t_upd,
+            "sac/alpha": float(self.log_alpha.detach().exp()),
+            "sac/alpha_loss": mean("alpha"),
+            "sac/q": mean("q"),
+            "sac/replay": float(self.replay.size),
+            "sac/gradient_steps": float(self.grad_steps),
+        }

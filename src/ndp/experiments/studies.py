@@ -513,6 +513,11 @@ def _regime_arms() -> tuple[ArmSpec, ...]:
                 in_default=False,
             )
         )
+    # NDP with ndp-settings' winner (docs/results/ndp_settings.md: N 10; lr, a_z and the init
+    # std stay at their defaults), added after that study, before any of these runs
+    arms.append(ArmSpec("ndp-tuned", "ndp", ("--n-basis", "10"),
+                        "NDP, k = 5, white noise, the ndp-settings winner (N 10)",
+                        in_default=False))  # fmt: skip
     return tuple(arms)
 
 

@@ -62,6 +62,15 @@ class PolicyDistribution(Protocol):
     def actions(self, z: torch.Tensor) -> torch.Tensor: ...
 
 
+def gaussian_draw(
+    mean: torch.Tensor, log_std: torch.Tensor, generator: torch.Generator | None = None
+) -> torch.Tensor:
+    """``mean + exp(log_std) * N(0, I)`` [shape of ``mean``], reparameterised (the gradient
+    reaches ``mean`` and ``log_std``; ``log_std`` broadcasts)."""
+    noise = torch.randn(mean.shape, generator=generator, dtype=mean.dtype, device=mean.device)
+    return mean + noise * log_std.exp()
+
+
 class SubActionGaussian:
     """Independent diagonal Gaussians around each of the k sub-actions of a decision.
 
@@ -78,10 +87,7 @@ class SubActionGaussian:
 
     def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
         """Draw sub-actions [B, k, A] (no gradient)."""
-        noise = torch.randn(
-            self.mean.shape, generator=generator, dtype=self.mean.dtype, device=self.mean.device
-        )
-        return (self.mean + noise * self.log_std.exp()).detach()
+        return gaussian_draw(self.mean, self.log_std, generator).detach()
 
     def mode(self) -> torch.Tensor:
         """The means [B, k, A]."""
@@ -126,10 +132,7 @@ class ParamGaussian:
 
     def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
         """Draw raw parameters [B, P] (no gradient)."""
-        noise = torch.randn(
-            self.mean.shape, generator=generator, dtype=self.mean.dtype, device=self.mean.device
-        )
-        return (self.mean + noise * self.log_std.exp()).detach()
+        return gaussian_draw(self.mean, self.log_std, generator).detach()
 
     def mode(self) -> torch.Tensor:
         """The mean parameters [B, P]."""

@@ -29,6 +29,7 @@ import torch
 from torch import nn
 
 from ndp.policies.base import HEAD_BUILDERS, ActionHead, register_head
+from ndp.policies.distributions import ParamGaussian, gaussian_draw
 
 LOG_STD_MIN = -20.0
 """Smallest log std of the raw parameters (SAC's usual bound)."""
@@ -41,9 +42,10 @@ def tanh_log_det(u: torch.Tensor) -> torch.Tensor:
     return 2.0 * (math.log(2.0) - u - torch.nn.functional.softplus(-2.0 * u))
 
 
-class SquashedGaussian:
+class SquashedGaussian(ParamGaussian):
     """A state-dependent diagonal Gaussian over raw parameters ``u`` [B, P], bounded by tanh;
-    one log-prob per decision (a :class:`ndp.policies.distributions.PolicyDistribution`).
+    one log-prob per decision (a :class:`ndp.policies.distributions.PolicyDistribution`;
+    sampling, the mode and the actions are :class:`ndp.policies.distributions.ParamGaussian`'s).
 
     Args:
         mean: [B, P].
@@ -51,32 +53,14 @@ class SquashedGaussian:
         decode: ``u`` [B, P] -> sub-actions [B, k, A] (differentiable).
     """
 
-    per_decision = True
-
-    def __init__(
-        self,
-        mean: torch.Tensor,
-        log_std: torch.Tensor,
-        decode: Callable[[torch.Tensor], torch.Tensor],
-    ) -> None:
-        self.mean = mean
-        self.log_std = log_std
-        self.decode = decode
+    def decode(self, u: torch.Tensor) -> torch.Tensor:
+        """Sub-actions [B, k, A] of raw parameters ``u`` [B, P], with the gradient (the actor's
+        loss reaches the parameters through it)."""
+        return self._decode(u)
 
     def rsample(self, generator: torch.Generator | None = None) -> torch.Tensor:
         """A reparameterised draw of ``u`` [B, P] (gradient to the mean and std)."""
-        noise = torch.randn(
-            self.mean.shape, generator=generator, dtype=self.mean.dtype, device=self.mean.device
-        )
-        return self.mean + noise * self.log_std.exp()
-
-    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
-        """A draw of ``u`` [B, P] (no gradient)."""
-        return self.rsample(generator).detach()
-
-    def mode(self) -> torch.Tensor:
-        """The mean of ``u`` [B, P] (the deterministic policy's parameters)."""
-        return self.mean.detach()
+        return gaussian_draw(self.mean, self.log_std, generator)
 
     def log_prob(self, u: torch.Tensor) -> torch.Tensor:
         """Log density of the bounded parameters ``tanh(u)`` [B, 1] (see the module docstring)."""
@@ -89,11 +73,6 @@ class SquashedGaussian:
         closed form; SAC estimates it from :meth:`log_prob` of a sample)."""
         return (self.log_std + 0.5 * math.log(2 * math.pi * math.e)).sum(-1, keepdim=True)
 
-    def actions(self, u: torch.Tensor) -> torch.Tensor:
-        """Sub-actions [B, k, A] of raw parameters ``u`` [B, P] (no gradient)."""
-        with torch.no_grad():
-            return self.decode(u)
-
 
 def split_mean_log_std(raw: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """The actor's output [B, 2P] -> mean [B, P] and clamped log std [B, P]."""
@@ -101,7 +80,32 @@ def split_mean_log_std(raw: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return mean, log_std.clamp(LOG_STD_MIN, LOG_STD_MAX)
 
 
-class SquashedActionHead(ActionHead):
+class SquashedHead(ActionHead):
+    """A head whose actor output [B, 2P] is a squashed Gaussian's mean and log std over P raw
+    parameters; a subclass says how raw parameters become the k sub-actions."""
+
+    def decode(self, u: torch.Tensor) -> torch.Tensor:
+        """``u`` [B, P] -> sub-actions [B, k, A] (heads that do not read the robot state)."""
+        raise NotImplementedError
+
+    def decoder(
+        self, y0: torch.Tensor | None, dy0: torch.Tensor | None
+    ) -> Callable[[torch.Tensor], torch.Tensor]:
+        """``u`` [B, P] -> sub-actions [B, k, A] for the decision's robot state (default:
+        :meth:`decode`, which does not read it)."""
+        return self.decode
+
+    def distribution(
+        self,
+        raw: torch.Tensor,
+        y0: torch.Tensor | None = None,
+        dy0: torch.Tensor | None = None,
+    ) -> tuple[SquashedGaussian, dict[str, torch.Tensor]]:
+        mean, log_std = split_mean_log_std(raw)
+        return SquashedGaussian(mean, log_std, self.decoder(y0, dy0)), {}
+
+
+class SquashedActionHead(SquashedHead):
     """SAC's head: k actions per decision (k = 1: SAC; k > 1: chunked SAC), each inside the
     task's action bounds by ``tanh``.
 
@@ -126,15 +130,6 @@ class SquashedActionHead(ActionHead):
         a = u.view(u.shape[0], self.k, self.action_dim)
         return self.low + (torch.tanh(a) + 1.0) * 0.5 * (self.high - self.low)
 
-    def distribution(
-        self,
-        raw: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
-    ) -> tuple[SquashedGaussian, dict[str, torch.Tensor]]:
-        mean, log_std = split_mean_log_std(raw)
-        return SquashedGaussian(mean, log_std, self.decode), {}
-
 
 class DecodingHead(Protocol):
     """What NDP-SAC needs of the NDP head (:class:`ndp.policies.heads.NDPHead`)."""
@@ -148,7 +143,7 @@ class DecodingHead(Protocol):
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]: ...
 
 
-class SquashedNDPHead(ActionHead):
+class SquashedNDPHead(SquashedHead):
     """NDP-SAC's head: the NDP head's parameters (goal and forcing weights, bounded by tanh
     inside ``NDPHead.decode``) under a state-dependent squashed Gaussian.
 
@@ -165,21 +160,17 @@ class SquashedNDPHead(ActionHead):
         self.k, self.action_dim = ndp.k, ndp.action_dim
         self.n_params = 2 * ndp.n_params
 
-    def distribution(
-        self,
-        raw: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
-    ) -> tuple[SquashedGaussian, dict[str, torch.Tensor]]:
+    def decoder(
+        self, y0: torch.Tensor | None, dy0: torch.Tensor | None
+    ) -> Callable[[torch.Tensor], torch.Tensor]:
         if y0 is None or dy0 is None:
             raise ValueError("SquashedNDPHead: the robot state y0, dy0 [B, D] is required")
-        mean, log_std = split_mean_log_std(raw)
         ndp = self.ndp
 
         def decode(u: torch.Tensor) -> torch.Tensor:
             return ndp.decode(u, y0, dy0)[0]
 
-        return SquashedGaussian(mean, log_std, decode), {}
+        return decode
 
 
 @register_head("squashed")

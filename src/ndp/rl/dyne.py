@@ -313,13 +313,7 @@ class DyneLearner(CountsUpdates):
         self.k, self.E = cfg.k, cfg.num_envs
         self.T = cfg.decisions_per_env
         self.n_explore = explore_iterations(cfg)
-        self.envs = rl_envs.make_vector_env(
-            task, self.k, self.E, cfg.stale_world, cfg.horizon, cfg.vector, cfg.env_workers,
-            cfg.execution,
-        )  # fmt: skip
-        obs_shape = self.envs.single_observation_space.shape
-        assert obs_shape is not None  # a Box (ChunkedEnv's observation space is the task's)
-        self.obs_dim = int(np.prod(obs_shape))
+        self.envs, self.obs_dim = rl_envs.run_envs(cfg, task)
         self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         head = self.model.head
         assert isinstance(head, DyneHead)

@@ -241,3 +241,14 @@ def decision_start(
         np.asarray(y0, dtype=np.float64).reshape(n, -1),
         np.asarray(dy0, dtype=np.float64).reshape(n, -1),
     )
+
+
+def run_envs(cfg: Any, task: Any) -> tuple[gym.vector.VectorEnv, int]:
+    """The training envs of an RL run and their observation size: ``cfg.num_envs`` chunked
+    copies of ``task`` (:func:`make_vector_env`) with the run's k, stale-world rule, horizon,
+    vector kind, workers and execution (``cfg``: a resolved ``TrainConfig``)."""
+    envs = make_vector_env(task, cfg.k, cfg.num_envs, cfg.stale_world, cfg.horizon, cfg.vector,
+                           cfg.env_workers, cfg.execution)  # fmt: skip
+    shape = envs.single_observation_space.shape
+    assert shape is not None  # a Box (ChunkedEnv's observation space is the task's)
+    return envs, int(np.prod(shape))

@@ -35,8 +35,8 @@ from ndp.rl.envs import (
     decision_rewards,
     decision_start,
     env_seeds,
-    make_vector_env,
     resolve_task,
+    run_envs,
     step_info,
 )
 from ndp.rl.gae import bootstrap_truncated, gae_substeps
@@ -87,19 +87,7 @@ class Trainer(CountsUpdates):
         self.k = cfg.k
         self.num_envs = cfg.num_envs
         self.T = cfg.decisions_per_env
-        self.envs = make_vector_env(
-            task,
-            self.k,
-            cfg.num_envs,
-            cfg.stale_world,
-            cfg.horizon,
-            cfg.vector,
-            cfg.env_workers,
-            cfg.execution,
-        )
-        obs_shape = self.envs.single_observation_space.shape
-        assert obs_shape is not None  # a Box (ChunkedEnv's observation space is the task's)
-        obs_dim = int(np.prod(obs_shape))
+        self.envs, obs_dim = run_envs(cfg, task)
         self.obs_dim = obs_dim
         self.device = torch.device(cfg.device)
         model = build_actor_critic(obs_dim, self.spec, cfg.policy)

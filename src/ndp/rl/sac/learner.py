@@ -83,13 +83,7 @@ class SACLearner(CountsUpdates):
         s = cfg.sac
         self.k, self.E, self.T = cfg.k, cfg.num_envs, cfg.decisions_per_env
         self.gamma = float(cfg.ppo.gamma)
-        self.envs = rl_envs.make_vector_env(
-            task, self.k, self.E, cfg.stale_world, cfg.horizon, cfg.vector, cfg.env_workers,
-            cfg.execution,
-        )  # fmt: skip
-        obs_shape = self.envs.single_observation_space.shape
-        assert obs_shape is not None  # a Box (ChunkedEnv's observation space is the task's)
-        self.obs_dim = int(np.prod(obs_shape))
+        self.envs, self.obs_dim = rl_envs.run_envs(cfg, task)
         self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         self.P = self.model.head.n_params // 2
         self.is_ndp = isinstance(self.model.head, SquashedNDPHead)

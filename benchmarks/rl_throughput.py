@@ -22,16 +22,23 @@ mini-batches, 10 epochs, [100, 100] tanh, observation and return normalisation):
   hundred steps, done first) are excluded from the rate; rollout / update seconds per iteration;
 - ``sb3-dummy`` / ``sb3-subproc``: stable-baselines3 PPO with ``DummyVecEnv`` and with
   ``SubprocVecEnv`` (+ ``VecNormalize``), same hyperparameters, same per-step env; the better
-  of the two is ``sb3-best``.
+  of the two is ``sb3-best``;
+- ``sac`` / ``sac-chunk`` / ``ndp-sac`` (not in the default set: ``--methods``): the SAC family
+  (``ndp.rl.sac``) at one gradient step of batch 256 per env step, after its random steps (one
+  update of random steps and buffer filling first, not timed), against ``sb3-sac``:
+  stable-baselines3's SAC with the same settings on ``DummyVecEnv`` (its ``learning_starts``
+  passed first, not timed); ratio ``vs_sb3-sac``.
 
 Ratios are against ``raw-N`` (the issue's targets: NDP and PPO-multi >= 0.6, PPO >= 0.45),
 ``raw-1`` and ``sb3-best`` (>= 2x). ``ndp_1M_push_minutes`` vs ``raw1_1M_minutes``: the wall
 time of a 1M-step NDP run at the measured rate, against one core merely stepping 1M times.
 
-Example (the table of docs/rl.md)::
+Examples (the table of docs/rl.md; the SAC rows)::
 
     python benchmarks/rl_throughput.py --tasks reach-v3 push-v3 --steps 10240 --repeats 3 \
         --out docs/results/rl_throughput
+    python benchmarks/rl_throughput.py --tasks push-v3 --steps 4096 --repeats 1 \
+        --methods sac-sync ndp-sac-sync sac-chunk-sync sb3-sac --out docs/results/sac_throughput
 """
 
 from __future__ import annotations
@@ -51,6 +58,8 @@ import numpy as np
 from ndp.experiments.provenance import git_commit
 
 OURS = ("ppo", "ppo-multi", "ndp", "dyne")
+SAC_FAMILY = ("sac", "sac-chunk", "ndp-sac")
+"""The SAC rows (``--methods``; not in the default set: a gradient step per env step)."""
 VICES = ("vices", "vices-sync", "raw-1-vices")
 """The VICES rows (``--methods``; in the default set)."""
 
@@ -120,6 +129,7 @@ def bench_ours(
 
     from ndp.rl.config import DyneConfig, TrainConfig
     from ndp.rl.run import open_run
+    from ndp.rl.sac.config import SACConfig
     from ndp.runs import read_metrics
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -140,10 +150,16 @@ def bench_ours(
                 steps=steps + cfg.env_steps_per_update,
                 dyne=DyneConfig(explore_steps=1, embed_updates=200, decoder_updates=200),
             )
+        sac = algo in SAC_FAMILY
+        if sac:  # one update of random steps (the replay fills), then timed learning
+            sac_cfg = SACConfig(random_steps=cfg.env_steps_per_update)
+            cfg = dataclasses.replace(
+                cfg, steps=steps + cfg.env_steps_per_update, eval_every=0, sac=sac_cfg
+            )
         opened = open_run(cfg)
         tr = opened.learner
         try:
-            skip = getattr(tr, "n_explore", 0)
+            skip = 1 if sac else getattr(tr, "n_explore", 0)
             if skip:
                 opened.train(skip)
             g0 = tr.global_step
@@ -181,6 +197,27 @@ def bench_sb3(task: str, steps: int, num_envs: int, seed: int, subproc: bool) ->
     return done / w
 
 
+def bench_sb3_sac(task: str, steps: int, num_envs: int, seed: int) -> float:
+    """Env steps/s of SB3's SAC (``ndp.experiments.sb3_ppo.make_sb3_sac``) after its
+    ``learning_starts`` (passed first, not timed)."""
+    import torch
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from ndp.experiments.sb3_ppo import make_sb3_sac
+    from ndp.rl.envs import resolve_task
+
+    torch.set_num_threads(1)
+    h = resolve_task(task)
+    venv = DummyVecEnv([h.make for _ in range(num_envs)])
+    model = make_sb3_sac(venv, seed, num_envs)
+    model.learn(total_timesteps=model.learning_starts + 256)
+    w0 = time.perf_counter()
+    model.learn(total_timesteps=steps, reset_num_timesteps=False)
+    rate = steps / (time.perf_counter() - w0)
+    venv.close()
+    return rate
+
+
 def measure(
     method: str, task: str, steps: int, num_envs: int, seed: int, cores: int
 ) -> dict[str, float]:
@@ -193,6 +230,8 @@ def measure(
         return {"wall": _raw_loop(torque_task(task), steps, num_envs, seed)}
     if method == "raw-N":
         return {"wall": bench_raw_parallel(task, steps, num_envs, seed, cores)}
+    if method == "sb3-sac":
+        return {"wall": bench_sb3_sac(task, steps, num_envs, seed)}
     if method.startswith("sb3-"):
         return {"wall": bench_sb3(task, steps, num_envs, seed, method == "sb3-subproc")}
     if method.endswith("-sync"):
@@ -213,7 +252,7 @@ def main(argv: list[str] | None = None) -> int:
         nargs="+",
         default=None,
         help="subset of: raw-1 raw-N ppo ppo-multi ndp dyne <m>-sync vices vices-sync "
-        "raw-1-vices sb3-dummy sb3-subproc",
+        "raw-1-vices sb3-dummy sb3-subproc sac sac-chunk ndp-sac sb3-sac",
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="write <out>.json and <out>.md")
@@ -252,6 +291,9 @@ def main(argv: list[str] | None = None) -> int:
             for base in ("raw-N", "raw-1", "sb3-best"):
                 if base in res and m != base and not m.startswith("raw"):
                     v[f"vs_{base}"] = v["wall"] / res[base]["wall"]
+        for m in (*SAC_FAMILY, *(f"{a}-sync" for a in SAC_FAMILY)):
+            if m in res and "sb3-sac" in res:
+                res[m]["vs_sb3-sac"] = res[m]["wall"] / res["sb3-sac"]["wall"]
         for m in ("vices", "vices-sync"):
             if m in res and "raw-1-vices" in res:
                 res[m]["vs_raw-1-vices"] = res[m]["wall"] / res["raw-1-vices"]["wall"]

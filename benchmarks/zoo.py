@@ -251,9 +251,9 @@ def write_cards(out: Path, readme: bool = True) -> list[Path]:
     ``policy.json`` lacks it, the task's spec (``"spec"``, from the task table; nothing else in
     the file changes); ``readme``: also ``OUT/README.md`` from ``OUT/zoo.json``."""
     from ndp.io import atomic_write_text
-    from ndp.policies.task import spec_record
     from ndp.rl.card import model_card
     from ndp.rl.envs import resolve_task
+    from ndp.schema import spec_record
 
     meta = json.loads((out / "zoo.json").read_text())
     written = []

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-EXTERNAL_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi")
+EXTERNAL_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac")
 """Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``): the
 Stable-Baselines3 runs of :mod:`ndp.experiments.sb3_ppo` (``SB3_METHODS`` there; kept here as
 a literal so that ``ndp --help`` imports nothing of it)."""
@@ -144,7 +144,7 @@ def _sb3_command(
     cmd = [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task,
            "--steps", str(steps), "--seed", str(seed), "--num-envs", str(num_envs),
            "--run-dir", str(run)]  # fmt: skip
-    if arm.algo != "sb3-ppo":  # the chunked methods (sb3-ppo's command is as it always was)
+    if arm.algo != "sb3-ppo":  # the others (sb3-ppo's command is as it always was)
         cmd += ["--method", arm.algo, "--eval-episodes", str(SB3_EVAL_EPISODES)]
     return cmd
 

@@ -329,6 +329,31 @@ def _sb3_ndp_arms() -> tuple[ArmSpec, ...]:
     )
 
 
+def _sac_vs_sb3_arms() -> tuple[ArmSpec, ...]:
+    return (
+        ArmSpec("sac", "sac", (), "this package's SAC (ndp.rl.sac; evaluation every 15,000 env "
+                "steps)"),
+        ArmSpec("sb3-sac", "sb3-sac", (), "Stable-Baselines3 2.x SAC, the same settings; 20 "
+                "deterministic episodes at the end"),
+    )  # fmt: skip
+
+
+OFF_POLICY_TASKS = ("push-v3", "throw")
+"""Tasks of the off-policy study (those of ndp-regimes, whose fair on-policy arms it is read
+beside)."""
+
+
+def _off_policy_arms() -> tuple[ArmSpec, ...]:
+    """SAC, chunked SAC and NDP-SAC at k = 5 (the chunk-size study has no best k yet)."""
+    return (
+        ArmSpec("sac", "sac", (), "SAC, one action per env step"),
+        ArmSpec("sac-chunk-k5", "sac-chunk", (), "chunked SAC, k = 5 (critic of the chunk)"),
+        ArmSpec("ndp-sac-k5", "ndp-sac", (), "NDP-SAC, k = 5, critic of (s, DMP parameters)"),
+        ArmSpec("ndp-sac-act-k5", "ndp-sac", ("--sac-critic-input", "actions"),
+                "NDP-SAC, k = 5, critic of (s, the k actions)", in_default=False),
+    )  # fmt: skip
+
+
 RELEASE_1M_TASKS = ("push-v3", "throw")
 """The 1M-step stage of the release-conditions study: a Meta-World task and a Jaco task."""
 
@@ -761,6 +786,34 @@ STUDIES: dict[str, Study] = {
             tasks=lambda: PPO_VS_SB3_TASKS,
             arms=_ppo_vs_sb3_arms,
             steps=150_000,
+        ),
+        Study(
+            name="sac-vs-sb3",
+            title="Our SAC vs Stable-Baselines3's SAC on push-v3",
+            doc=(
+                "push-v3 x this package's SAC (ndp.rl.sac) and SB3's SAC with the same settings "
+                "(buffer 1M, batch 256, lr 3e-4, tau 0.005, 5,000 random env steps, automatic "
+                "temperature, 256-256 ReLU, one gradient step per env step; "
+                "ndp.experiments.sb3_ppo), 3 seeds: the check that ours is level with the "
+                "reference within noise (training-episode success; deterministic at the end)."
+            ),
+            tasks=lambda: ("push-v3",),
+            arms=_sac_vs_sb3_arms,
+            steps=100_000,
+        ),
+        Study(
+            name="off-policy",
+            title="Off-policy learners: SAC, chunked SAC and NDP-SAC",
+            doc=(
+                "push-v3 and Throw x SAC, chunked SAC (k = 5) and NDP-SAC (k = 5), 300k env "
+                "steps, 3 seeds, deterministic evaluation every 15,000 env steps; read beside "
+                "ndp-regimes' fair on-policy arms (ndp-k5, ppo-multi-k5, ppo) on the same "
+                "tasks, budget, seeds and evaluation (ndp report RUNS/off_policy "
+                "RUNS/ndp_regimes). docs/offpolicy.md."
+            ),
+            tasks=lambda: OFF_POLICY_TASKS,
+            arms=_off_policy_arms,
+            steps=300_000,
         ),
         Study(
             name="sb3-ndp",

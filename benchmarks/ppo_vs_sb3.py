@@ -3,7 +3,7 @@
 Both use the supplement's PPO settings (2048 env steps per update over 4 envs, 32 mini-batches,
 10 epochs, clip 0.1, Adam 3e-4 / eps 1e-5, gamma 0.99, GAE 0.95, [100, 100] tanh, observation
 and return normalisation) on the same per-step env; success is counted per env and per episode
-in both (see ndp.experiments.sb3_ppo). Extra ``ndp rl train`` options for our PPO go after
+in both (see ndp.sb3.runs). Extra ``ndp rl train`` options for our PPO go after
 ``--`` with a ``--label`` of their own (for example ``--label ppo-vclip -- --clip-value-loss`` to
 measure the release's value clip). Runs are resumable (ndp.experiments.study); re-running the
 command continues or re-plots.

@@ -180,8 +180,8 @@ def bench_sb3(task: str, steps: int, num_envs: int, seed: int, subproc: bool) ->
     import torch
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    from ndp.experiments.sb3_ppo import make_sb3_ppo
     from ndp.rl.envs import resolve_task
+    from ndp.sb3.runs import make_sb3_ppo
 
     torch.set_num_threads(1)
     h = resolve_task(task)
@@ -198,13 +198,13 @@ def bench_sb3(task: str, steps: int, num_envs: int, seed: int, subproc: bool) ->
 
 
 def bench_sb3_sac(task: str, steps: int, num_envs: int, seed: int) -> float:
-    """Env steps/s of SB3's SAC (``ndp.experiments.sb3_ppo.make_sb3_sac``) after its
+    """Env steps/s of SB3's SAC (``ndp.sb3.runs.make_sb3_sac``) after its
     ``learning_starts`` (passed first, not timed)."""
     import torch
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from ndp.experiments.sb3_ppo import make_sb3_sac
     from ndp.rl.envs import resolve_task
+    from ndp.sb3.runs import make_sb3_sac
 
     torch.set_num_threads(1)
     h = resolve_task(task)

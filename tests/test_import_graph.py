@@ -185,14 +185,14 @@ def test_every_import_between_parts_goes_down_a_layer():
 
 def test_the_layer_check_sees_an_upward_and_a_sideways_import():
     graph = {
-        "ndp.dmp.layer": {"ndp.rl.trainer", "ndp.io"},
-        "ndp.rl.trainer": {"ndp.il.train"},
+        "ndp.dmp.layer": {"ndp.rl.onpolicy.trainer", "ndp.io"},
+        "ndp.rl.onpolicy.trainer": {"ndp.il.train"},
         "ndp.il.train": set(),
         "ndp.io": set(),
     }
     assert upward_imports(graph) == [
-        "ndp.dmp.layer -> ndp.rl.trainer",
-        "ndp.rl.trainer -> ndp.il.train",
+        "ndp.dmp.layer -> ndp.rl.onpolicy.trainer",
+        "ndp.rl.onpolicy.trainer -> ndp.il.train",
     ]
 
 

@@ -8,13 +8,13 @@ import math
 
 import pytest
 
-from ndp.experiments import sb3_ppo
 from ndp.experiments.report import report
 from ndp.experiments.run_kinds import EXTERNAL_METHODS, SB3_EVAL_EPISODES, kind_of_algo
-from ndp.experiments.sb3_ppo import SB3_K, SB3_METHODS, SB3RunConfig, train_sb3
 from ndp.experiments.studies import STUDIES
 from ndp.experiments.study import Arm, train_command
 from ndp.runs import read_metrics
+from ndp.sb3 import runs as sb3_ppo
+from ndp.sb3.runs import SB3_K, SB3_METHODS, SB3RunConfig, train_sb3
 
 
 @pytest.fixture
@@ -43,7 +43,7 @@ def test_sweep_commands_name_the_method_and_evaluation_for_the_chunked_methods(t
 @pytest.mark.parametrize(
     ("kw", "match"),
     [
-        ({"method": "sb3-sac"}, "method: expected one of sb3-ppo, sb3-ndp, sb3-multi"),
+        ({"method": "sb3-td3"}, "method: expected one of sb3-ppo, sb3-ndp, sb3-multi, sb3-sac"),
         ({"method": "sb3-ppo", "k": 5}, "k: sb3-ppo runs one env step per decision"),
         ({"method": "sb3-ndp", "k": 0}, "k: expected an integer >= 1"),
         ({"eval_episodes": -1}, "eval_episodes: expected an integer >= 0"),

@@ -9,7 +9,6 @@ import math
 import numpy as np
 import pytest
 
-from ndp.experiments.sb3_ppo import EpisodeCounter
 from ndp.experiments.study import (
     Arm,
     _check_arm,
@@ -20,6 +19,7 @@ from ndp.experiments.study import (
     summarise,
     train_command,
 )
+from ndp.sb3.runs import EpisodeCounter
 
 
 def _write_run(path, xs, ys, done=True):

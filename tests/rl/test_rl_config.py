@@ -135,7 +135,7 @@ def _no_env(*a, **k):
 )
 def test_bad_input_fails_before_any_env(monkeypatch, tmp_path, kwargs, match):
     monkeypatch.setattr(rl_envs, "make_vector_env", _no_env)
-    monkeypatch.setattr("ndp.rl.trainer.make_vector_env", _no_env)
+    monkeypatch.setattr("ndp.rl.onpolicy.trainer.make_vector_env", _no_env)
     with pytest.raises(ValueError, match=match):
         if "policy" in kwargs:
             kwargs = {"policy": PolicyConfig.from_dict(kwargs["policy"])}

@@ -240,7 +240,7 @@ def test_bad_input_fails_before_any_env(monkeypatch, tmp_path, kwargs, match):
 
 
 def test_nan_stops_training_and_keeps_the_last_good_checkpoint(tmp_path):
-    from ndp.rl.trainer import TrainingDivergedError
+    from ndp.rl.onpolicy.trainer import TrainingDivergedError
 
     cfg = _cfg(tmp_path, dyne=dataclasses.replace(FAST, embed_updates=50, decoder_updates=50))
     opened = _open(cfg)

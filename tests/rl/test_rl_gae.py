@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ndp.rl.gae import bootstrap_truncated, gae_substeps
+from ndp.rl.onpolicy.gae import bootstrap_truncated, gae_substeps
 
 GAMMA, LAM = 0.9, 0.8
 

@@ -7,7 +7,7 @@ import math
 import pytest
 import torch
 
-from ndp.rl.ppo import entropy_mean, normalize_advantages, policy_loss, value_loss
+from ndp.rl.onpolicy.losses import entropy_mean, normalize_advantages, policy_loss, value_loss
 
 
 def test_policy_loss_clips_positive_and_negative_advantages():
@@ -84,7 +84,7 @@ def test_fused_gaussian_loss_equals_autograd(clip):
     """The fused surrogate has the value, KL, clip fraction and gradients of the composed one
     (float64, ratios spread over both sides of the clip range, masked sub-steps)."""
     from ndp.policies.distributions import diag_gaussian_log_prob
-    from ndp.rl.ppo import gaussian_policy_loss, policy_loss
+    from ndp.rl.onpolicy.losses import gaussian_policy_loss, policy_loss
 
     g = torch.Generator().manual_seed(0)
     m_, k, a = 40, 5, 3

@@ -15,8 +15,8 @@ from ndp.policies import NDPHeadConfig, PolicyConfig
 from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.rl.evaluate import evaluate
 from ndp.rl.logger import TIME_METRICS
+from ndp.rl.onpolicy.trainer import TrainingDivergedError
 from ndp.rl.run import open_run, train
-from ndp.rl.trainer import TrainingDivergedError
 from ndp.runs import load_checkpoint, read_metrics
 
 FAST = PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3)
@@ -119,7 +119,9 @@ def test_nan_parameter_stops_training_and_keeps_last_good_checkpoint(tmp_path):
 def test_nan_loss_stops_training(tmp_path, monkeypatch):
     opened = open_run(_cfg(tmp_path, algo="ppo-multi"))
     try:
-        monkeypatch.setattr("ndp.rl.trainer.value_loss", lambda *a, **k: torch.tensor(float("nan")))
+        monkeypatch.setattr(
+            "ndp.rl.onpolicy.trainer.value_loss", lambda *a, **k: torch.tensor(float("nan"))
+        )
         with pytest.raises(TrainingDivergedError, match="non-finite loss"):
             opened.train(1)
         assert not (tmp_path / "run" / "checkpoint.pt").exists()
@@ -129,7 +131,7 @@ def test_nan_loss_stops_training(tmp_path, monkeypatch):
 
 def test_terminated_episodes_and_all_methods_run(tmp_path, monkeypatch):
     # Episodes that end mid-decision (terminate on success) exercise masks and termination.
-    import ndp.rl.trainer as rl_trainer
+    import ndp.rl.onpolicy.trainer as rl_trainer
     from ndp.rl import envs as rl_envs
 
     orig = rl_envs.resolve_task
@@ -163,8 +165,8 @@ def test_param_noise_trains(tmp_path):
 def test_param_noise_uses_one_decision_level_advantage(tmp_path, monkeypatch):
     """Parameter-space exploration: one clipped term per decision whose advantage is the
     decision's own GAE advantage A[:, 0] (normalised over decisions), not a mean over k."""
-    import ndp.rl.trainer as trainer_mod
-    from ndp.rl.ppo import normalize_advantages
+    import ndp.rl.onpolicy.trainer as trainer_mod
+    from ndp.rl.onpolicy.losses import normalize_advantages
 
     seen = []
     real = trainer_mod.policy_loss
@@ -213,7 +215,7 @@ def test_every_head_gets_the_advantage_its_distribution_asks_for(tmp_path, monke
     from a head attribute: a per-decision distribution gets the decision's advantage A[:, :1],
     a per-sub-action one the k sub-step advantages. vices-low-freq (HoldHead, a ParamGaussian
     without param_noise) was trained with the k sub-step advantages before this rule."""
-    import ndp.rl.trainer as trainer_mod
+    import ndp.rl.onpolicy.trainer as trainer_mod
 
     seen = []
     real_pl, real_gl = trainer_mod.policy_loss, trainer_mod.gaussian_policy_loss
@@ -250,7 +252,7 @@ def test_every_head_gets_the_advantage_its_distribution_asks_for(tmp_path, monke
 
 
 def test_minibatch_advantage_normalisation(tmp_path, monkeypatch):
-    import ndp.rl.trainer as trainer_mod
+    import ndp.rl.onpolicy.trainer as trainer_mod
 
     seen = []
     real = trainer_mod.gaussian_policy_loss  # PPO's Gaussian takes the fused surrogate

@@ -245,23 +245,23 @@ def test_every_trainer_of_the_package_runs_through_the_driver():
     """The trainers' modules hold no lifecycle of their own: none opens a RunSession, seeds or
     drives a loop; each supplies a recipe to ndp.runs.driver."""
     root = Path(__file__).resolve().parents[2] / "src" / "ndp"
-    trainers = ["rl/trainer.py", "rl/dyne.py", "rl/run.py", "il/train.py", "bc/train.py",
-                "experiments/sb3_ppo.py"]  # fmt: skip
+    trainers = ["rl/onpolicy/trainer.py", "rl/dyne.py", "rl/run.py", "il/train.py", "bc/train.py",
+                "sb3/runs.py"]  # fmt: skip
     for rel in trainers:
         src = (root / rel).read_text()
         for lifecycle in ("RunSession.open(", "seed_everything(", "set_num_threads(cfg.torch",
                           " drive(", "session.start(", "session.finish("):  # fmt: skip
             assert lifecycle not in src, (rel, lifecycle)
     uses = [rel for rel in trainers if "ndp.runs.driver" in (root / rel).read_text()]
-    assert set(uses) >= {"rl/run.py", "il/train.py", "bc/train.py", "experiments/sb3_ppo.py"}
+    assert set(uses) >= {"rl/run.py", "il/train.py", "bc/train.py", "sb3/runs.py"}
 
 
 def test_the_learners_satisfy_the_one_protocol():
     from ndp.bc.train import CloningLearner
-    from ndp.experiments.sb3_ppo import SB3Learner
     from ndp.il.train import ImitationLearner
     from ndp.rl.dyne import DyneLearner
-    from ndp.rl.trainer import Trainer
+    from ndp.rl.onpolicy.trainer import Trainer
+    from ndp.sb3.runs import SB3Learner
 
     for cls in (Trainer, DyneLearner, ImitationLearner, CloningLearner, SB3Learner):
         for name in ("step", "stopped", "state_dict", "load_state_dict", "iterate", "nonfinite",

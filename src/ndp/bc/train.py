@@ -192,8 +192,8 @@ class CloningLearner(LearnerDefaults):
         import torch
 
         from ndp.rl.normalize import ReturnNormalizer
+        from ndp.rl.onpolicy.trainer import ppo_state
         from ndp.rl.optim import FlatAdam
-        from ndp.rl.trainer import ppo_state
 
         p = self.rl_cfg.ppo
         with torch.no_grad():

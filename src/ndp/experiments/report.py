@@ -346,7 +346,7 @@ def det_success(path: Path, episodes: int, compute: bool = True) -> float:
 
     Cached in ``<run>/eval-det-e<episodes>.json`` (atomic), so a report is cheap to redo. A run
     that ``ndp rl eval`` cannot act with (``compute`` False: the Stable-Baselines3 runs, which
-    write the file themselves when they evaluate, :mod:`ndp.experiments.sb3_ppo`) gives NaN
+    write the file themselves when they evaluate, :mod:`ndp.sb3.runs`) gives NaN
     without the file.
     """
     cache = path / DET_EVAL_FILE.format(episodes=episodes)
@@ -701,7 +701,7 @@ def _markdown(
                 f" Deterministic: success (any step) of the trained policy's mode over "
                 f"{eval_episodes} fresh episodes per run (`ndp rl eval`, seeds from {EVAL_SEED:,}; "
                 "Stable-Baselines3 runs: their own evaluation at the end of training, the same "
-                "seeds, `ndp.experiments.sb3_ppo`)."
+                "seeds, `ndp.sb3.runs`)."
                 if eval_episodes
                 else ""
             ),

@@ -18,7 +18,7 @@ from typing import Any
 
 EXTERNAL_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac")
 """Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``): the
-Stable-Baselines3 runs of :mod:`ndp.experiments.sb3_ppo` (``SB3_METHODS`` there; kept here as
+Stable-Baselines3 runs of :mod:`ndp.sb3.runs` (``SB3_METHODS`` there; kept here as
 a literal so that ``ndp --help`` imports nothing of it)."""
 SB3_EVAL_EPISODES = 20
 """Deterministic evaluation episodes a sweep's ``sb3-ndp`` / ``sb3-multi`` run ends with
@@ -141,7 +141,7 @@ def _sb3_algos() -> tuple[str, ...]:
 def _sb3_command(
     task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
-    cmd = [sys.executable, "-m", "ndp.experiments.sb3_ppo", "--task", task,
+    cmd = [sys.executable, "-m", "ndp.sb3.runs", "--task", task,
            "--steps", str(steps), "--seed", str(seed), "--num-envs", str(num_envs),
            "--run-dir", str(run)]  # fmt: skip
     if arm.algo != "sb3-ppo":  # the others (sb3-ppo's command is as it always was)

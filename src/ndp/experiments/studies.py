@@ -780,7 +780,7 @@ STUDIES: dict[str, Study] = {
             doc=(
                 "reach-v3, push-v3, window-close-v3, drawer-open-v3, button-press-v3 x this "
                 "package's PPO (k = 1) and SB3's PPO with the same hyperparameters "
-                "(ndp.experiments.sb3_ppo). docs/results/ppo_vs_sb3.md was made with "
+                "(ndp.sb3.runs). docs/results/ppo_vs_sb3.md was made with "
                 "benchmarks/ppo_vs_sb3.py, which runs these arms."
             ),
             tasks=lambda: PPO_VS_SB3_TASKS,
@@ -794,7 +794,7 @@ STUDIES: dict[str, Study] = {
                 "push-v3 x this package's SAC (ndp.rl.sac) and SB3's SAC with the same settings "
                 "(buffer 1M, batch 256, lr 3e-4, tau 0.005, 5,000 random env steps, automatic "
                 "temperature, 256-256 ReLU, one gradient step per env step; "
-                "ndp.experiments.sb3_ppo), 3 seeds: the check that ours is level with the "
+                "ndp.sb3.runs), 3 seeds: the check that ours is level with the "
                 "reference within noise (training-episode success; deterministic at the end)."
             ),
             tasks=lambda: ("push-v3",),
@@ -821,7 +821,7 @@ STUDIES: dict[str, Study] = {
             doc=(
                 "The toy point-mass x SB3's PPO with ndp.sb3.NDPPolicy and with SB3's "
                 "MlpPolicy, on the same chunked env (k = 5), hyperparameters, seeds and budget "
-                "(ndp.experiments.sb3_ppo); each run ends with 20 deterministic episodes "
+                "(ndp.sb3.runs); each run ends with 20 deterministic episodes "
                 "(report with --eval-episodes 20). It shows the NDP layer training inside "
                 "another library's PPO; other tasks with --tasks."
             ),

@@ -1,7 +1,7 @@
 """Learning studies: named arms x tasks x seeds, resumable, run in parallel, summarised.
 
 An :class:`Arm` is one configuration: a method (``ndp``, ``ppo``, ``ppo-multi``, or ``sb3-ppo``,
-Stable-Baselines3's PPO, see :mod:`ndp.experiments.sb3_ppo`) plus extra ``ndp rl train`` options;
+Stable-Baselines3's PPO, see :mod:`ndp.sb3.runs`) plus extra ``ndp rl train`` options;
 or an imitation model (``il-ndp``, ``il-cnn``, ``il-cnn-dmp``: ``ndp il train --model ...`` on the
 data set the "task" names, see :data:`ndp.experiments.run_kinds.IL_METHODS` and
 :func:`ndp.experiments.run_kinds.il_data_args`).

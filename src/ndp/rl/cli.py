@@ -192,7 +192,7 @@ def train_command(argv: list[str]) -> int:
                     print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "
                           f"--algo {cfg.algo} does not run; not used", file=sys.stderr)  # fmt: skip
                 metrics = trainer().train(cfg, overwrite=overwrite, resolved=True)
-    except FloatingPointError as exc:  # ndp.rl.trainer.TrainingDivergedError
+    except FloatingPointError as exc:  # ndp.rl.onpolicy.trainer.TrainingDivergedError
         print(f"ndp: error: {exc}", file=sys.stderr)
         return 3
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (ndp.runs.signals.Terminated)

@@ -79,7 +79,7 @@ class Method:
     ``"package.module:name"`` (imported at the first :meth:`build_learner`, as gymnasium's
     registry imports an env's ``entry_point``: the registry imports no learner, so a learner
     module may import the registry and the config); None: the shared PPO trainer
-    (:class:`ndp.rl.trainer.Trainer`)."""
+    (:class:`ndp.rl.onpolicy.trainer.Trainer`)."""
     hint: str = "Try a smaller learning rate or check the task's reward / actions."
     """What to try after the run diverges (ends the divergence error's message)."""
 

@@ -2,7 +2,7 @@
 (:mod:`ndp.runs.driver`), and the ``train`` / ``resume`` entry points.
 
 A method supplies only its learner (an :class:`RLLearner`: the shared on-policy
-:class:`ndp.rl.trainer.Trainer` for PPO, PPO-multi, PPO-repeat, NDP and VICES; Dyn-E's
+:class:`ndp.rl.onpolicy.trainer.Trainer` for PPO, PPO-multi, PPO-repeat, NDP and VICES; Dyn-E's
 :class:`ndp.rl.dyne.DyneLearner`; any learner registered with
 :attr:`ndp.rl.methods.Method.learner`). :class:`RLRecipe` gives the driver the rest: the run
 plan from the resolved :class:`ndp.rl.config.TrainConfig` (kind ``rl``, counted in updates,
@@ -22,8 +22,8 @@ from typing import Any, Protocol, runtime_checkable
 
 from ndp.rl.config import SAFE_ON_RESUME, TrainConfig, load_config, resolve_config
 from ndp.rl.methods import METHODS
+from ndp.rl.onpolicy.trainer import Trainer
 from ndp.rl.progress import TrainProgress
-from ndp.rl.trainer import Trainer
 from ndp.runs import RunDir
 from ndp.runs.driver import Checkpoint, Row, Run, RunPlan, run
 from ndp.runs.session import Learner, Manifest, RunSession

@@ -33,8 +33,8 @@ runs are short; nothing partial is reported as finished).
 
 Usage::
 
-    python -m ndp.experiments.sb3_ppo --task push-v3 --steps 150000 --seed 0 --run-dir DIR
-    python -m ndp.experiments.sb3_ppo --method sb3-ndp --task point-mass --steps 100000 \\
+    python -m ndp.sb3.runs --task push-v3 --steps 150000 --seed 0 --run-dir DIR
+    python -m ndp.sb3.runs --method sb3-ndp --task point-mass --steps 100000 \\
         --eval-episodes 20 --run-dir DIR
 """
 

@@ -39,18 +39,18 @@ from ndp.rl.envs import (
     run_envs,
     step_info,
 )
-from ndp.rl.gae import bootstrap_truncated, gae_substeps
 from ndp.rl.logger import METRICS
 from ndp.rl.normalize import ObsNormalizer, ReturnNormalizer
-from ndp.rl.optim import FlatAdam
-from ndp.rl.periodic_eval import PeriodicEvaluator
-from ndp.rl.ppo import (
+from ndp.rl.onpolicy.gae import bootstrap_truncated, gae_substeps
+from ndp.rl.onpolicy.losses import (
     entropy_mean,
     gaussian_policy_loss,
     normalize_advantages,
     policy_loss,
     value_loss,
 )
+from ndp.rl.optim import FlatAdam
+from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
 from ndp.runs.session import (
     CountsUpdates,

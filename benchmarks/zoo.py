@@ -251,7 +251,7 @@ def write_cards(out: Path, readme: bool = True) -> list[Path]:
     ``policy.json`` lacks it, the task's spec (``"spec"``, from the task table; nothing else in
     the file changes); ``readme``: also ``OUT/README.md`` from ``OUT/zoo.json``."""
     from ndp.io import atomic_write_text
-    from ndp.rl.card import model_card
+    from ndp.rl.card import write_card
     from ndp.rl.envs import resolve_task
     from ndp.schema import spec_record
 
@@ -266,8 +266,7 @@ def write_cards(out: Path, readme: bool = True) -> list[Path]:
         card_meta = dict(pmeta)
         if "training" not in card_meta and row.get("trained_at"):
             card_meta["training"] = {"commands": [], "commits": list(row["trained_at"])}
-        card = model_card(card_meta, card_evaluation(row, meta), row["policy"])
-        atomic_write_text(d / "README.md", card)
+        write_card(d, card_meta, card_evaluation(row, meta), date=meta.get("date"))
         written.append(d / "README.md")
     if readme:
         atomic_write_text(out / "README.md", zoo_readme(meta))

@@ -166,3 +166,36 @@ def test_every_export_writes_a_card_and_a_re_export_keeps_its_results(tmp_path):
     assert "OnnxPolicy" in ocard and "make_env" not in ocard
     for text in (card, ocard, zoo_card):
         assert "pypi.org" not in text
+
+
+@pytest.mark.parametrize("name", ndp.zoo.list())
+def test_every_zoo_policy_has_its_hub_eval_results_with_the_cards_number(name):
+    yaml = pytest.importorskip("yaml")
+    row = ndp.zoo.info(name)
+    task = json.loads((ndp.zoo.path(name) / "policy.json").read_text())["task"]  # VICES: torque
+    files = list((ndp.zoo.path(name) / ".eval_results").glob("*.yaml"))
+    assert [f.name for f in files] == [f"{task}.yaml"]
+    (entry,) = yaml.safe_load(files[0].read_text())
+    assert entry["dataset"] == {"id": f"ndp/{task}", "task_id": "success_any_deterministic"}
+    assert entry["value"] == pytest.approx(row["success"])
+    assert entry["date"] == ndp.zoo.index()["date"]
+    assert "50 episodes" in entry["notes"] and "Wilson" in entry["notes"]
+
+
+def test_an_export_without_results_writes_no_eval_results_and_a_measured_one_does(tmp_path):
+    yaml = pytest.importorskip("yaml")
+    from ndp.rl.card import EVAL_RESULTS_DIR, eval_results, write_card
+
+    meta = json.loads((ndp.zoo.path("throw-ndp") / "policy.json").read_text())
+    assert eval_results(meta, None) == {}
+    out = tmp_path / "exp"
+    out.mkdir()
+    write_card(
+        out, meta, {"success": 0.75, "episodes": 20, "first_seed": 10_000}, date="2026-01-02"
+    )
+    (entry,) = yaml.safe_load((out / EVAL_RESULTS_DIR / "throw.yaml").read_text())
+    assert entry["value"] == 0.75 and entry["date"] == "2026-01-02"
+    assert "from seed 10000" in entry["notes"]
+    write_card(out, meta, None)  # re-written without results: the stale file goes
+    assert not (out / EVAL_RESULTS_DIR).exists()
+    assert (out / "README.md").is_file()

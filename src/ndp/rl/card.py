@@ -170,6 +170,70 @@ def card_fields(
     return fields
 
 
+EVAL_RESULTS_DIR = ".eval_results"
+"""The folder of a card's evaluation results in the Hugging Face Hub's ``.eval_results/``
+format (one YAML file per benchmark, each a list of results)."""
+
+
+def eval_results(
+    meta: dict[str, Any], evaluation: dict[str, Any] | None, date: str | None = None
+) -> dict[str, str]:
+    """The ``.eval_results/`` files of an export: ``{file name: YAML text}``, one file named
+    after the task holding the measured success rate, or nothing where no evaluation was
+    recorded (a card never claims a number it does not have).
+
+    Each entry has the Hub's fields: ``dataset.id`` (the task's gymnasium id, ``ndp/<task>``;
+    not a Hub dataset, so it shows on the model page but joins no leaderboard), ``task_id``
+    (the metric: success at any step of an episode, deterministic or stochastic policy),
+    ``value`` (the rate in [0, 1]), ``date`` and ``notes`` (episodes, first episode seed, the
+    95% Wilson interval, the command that measured it)."""
+    fields = card_fields(meta, evaluation)
+    if evaluation is None or fields["success_rate"] == NOT_RECORDED:
+        return {}
+    task = str(meta["task"])
+    mode = "deterministic" if evaluation.get("deterministic", True) else "stochastic"
+    lo, hi = fields["success_rate_ci95"]
+    notes = (f"success at any step, {mode} policy, {fields['episodes']} episodes"
+             + (f" from seed {evaluation['first_seed']}" if "first_seed" in evaluation else "")
+             + f"; 95% Wilson interval [{lo}, {hi}]; measured by: "
+             + str(fields.get("evaluation_command", NOT_RECORDED)))  # fmt: skip
+    entry: dict[str, Any] = {
+        "dataset": {"id": f"ndp/{task}", "task_id": f"success_any_{mode}"},
+        "value": fields["success_rate"],
+    }
+    if date:
+        entry["date"] = date
+    entry["notes"] = notes
+    return {f"{task}.yaml": to_yaml([entry]) + "\n"}
+
+
+def write_card(
+    out: Any,
+    meta: dict[str, Any],
+    evaluation: dict[str, Any] | None,
+    onnx: bool = False,
+    date: str | None = None,
+) -> None:
+    """Write an export's model card ``README.md`` and its ``.eval_results/`` files (a stale
+    results file of an earlier card is replaced, never left beside a card without results);
+    ``date``: when the results were measured (ISO; default today)."""
+    import datetime as dt
+    import shutil
+    from pathlib import Path
+
+    from ndp.io import atomic_write_text
+
+    out = Path(out)
+    atomic_write_text(out / "README.md", model_card(meta, evaluation, out.name, onnx=onnx))
+    files = eval_results(meta, evaluation, date or dt.date.today().isoformat())
+    folder = out / EVAL_RESULTS_DIR
+    if folder.is_dir():
+        shutil.rmtree(folder)
+    for name, text in files.items():
+        folder.mkdir(exist_ok=True)
+        atomic_write_text(folder / name, text)
+
+
 def to_yaml(obj: Any, indent: int = 0) -> str:
     """Block YAML of JSON-like data (dicts, lists, strings, numbers, booleans, None); strings
     are written as JSON strings, which YAML reads as double-quoted scalars."""

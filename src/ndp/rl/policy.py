@@ -58,7 +58,7 @@ from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
 from ndp.provenance import git_commit, installed_versions, portable_command, portable_path
-from ndp.rl.card import model_card
+from ndp.rl.card import write_card
 from ndp.rl.config import EVAL_SEED, TrainConfig, load_config
 from ndp.rl.exec_k import at_exec_k
 from ndp.rl.normalize import ObsNormalizer
@@ -260,7 +260,7 @@ class Policy:
         if format == "onnx":
             out = write_onnx_export(self, out_dir)
             meta, evaluation = export_meta(self, evaluation)
-            atomic_write_text(out / "README.md", model_card(meta, evaluation, out.name, onnx=True))
+            write_card(out, meta, evaluation, onnx=True)
             return out
         return _write_export(self, Path(out_dir), evaluation)
 
@@ -606,7 +606,7 @@ def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | No
     atomic_write_bytes(out_dir / "policy.safetensors", save(state))
     meta, evaluation = export_meta(policy, evaluation)
     atomic_write_text(out_dir / "policy.json", json.dumps(meta, indent=1) + "\n")
-    atomic_write_text(out_dir / "README.md", model_card(meta, evaluation, out_dir.name))
+    write_card(out_dir, meta, evaluation)
     return out_dir
 
 

@@ -36,9 +36,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ndp.experiments.grid import add_study_arguments, run_study
 from ndp.experiments.studies import get_study
 from ndp.experiments.study import Arm
+from ndp.experiments.sweep.grid import add_study_arguments, run_study
 
 ARMS = [a.arm() for a in get_study("ndp-head-ablation").arm_specs() if a.in_default]
 """The default arms (in this order): the named study ``ndp-head-ablation``'s."""

@@ -22,9 +22,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ndp.experiments.grid import add_study_arguments, run_study
 from ndp.experiments.studies import get_study
 from ndp.experiments.study import Arm
+from ndp.experiments.sweep.grid import add_study_arguments, run_study
 
 TASKS = list(get_study("ppo-vs-sb3").task_list())  # the named study ppo-vs-sb3
 

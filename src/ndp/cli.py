@@ -24,7 +24,7 @@ _COMMAND_MODULES = (
     "ndp.il.cli",
     "ndp.bc.cli",
     "ndp.rl.cli",
-    "ndp.experiments.sweep_cli",
+    "ndp.experiments.sweep.cli",
 )
 # The command and the extra of the modules that need one: without it installed, the command is
 # still listed and says what to install instead of failing the whole ``ndp`` command.

@@ -9,9 +9,9 @@ import pytest
 
 from ndp.experiments import studies
 from ndp.experiments import sweep as sw
-from ndp.experiments.bc_job import DEMOS_EPISODES, demos_file
 from ndp.experiments.run_kinds import RUN_KINDS
 from ndp.experiments.study import Arm
+from ndp.experiments.sweep.bc_job import DEMOS_EPISODES, demos_file
 
 
 def _toy() -> tuple[str, ...]:

@@ -1,4 +1,4 @@
-"""The rliable protocol (ndp.experiments.stats) against hand-computed cases and rliable's own
+"""The rliable protocol (ndp.experiments.report.stats) against hand-computed cases and rliable's own
 numbers."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ndp.experiments import stats as S
+from ndp.experiments.report import stats as S
 
 # rliable 1.2.0 on these scores (runs x tasks): metrics.aggregate_iqm -> 0.544,
 # metrics.probability_of_improvement(X, Y) -> 0.7037037; library.get_interval_estimates with

@@ -336,6 +336,8 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "ndp-settings",
         "digits-head",
         "mt50-attribution",
+        "sac-vs-sb3",
+        "off-policy",
     }
     # the new studies: every arm accepted on its tasks; every condition's arms exist and run
     # the condition's method
@@ -352,7 +354,8 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
     assert rg["ndp-k20"].args == ("--k", "20", "--minibatches", "8")
     assert [a for a in rg if a.startswith("ndp-ar1-k") and rg[a].in_default] == ["ndp-ar1-k5"]
     # the benchmarks' grids, as named studies
-    for name in ("ndp-head-ablation", "ppo-vs-sb3", "sb3-ndp", "il-robot"):
+    for name in ("ndp-head-ablation", "ppo-vs-sb3", "sb3-ndp", "il-robot", "sac-vs-sb3",
+                 "off-policy"):  # fmt: skip
         st = get_study(name)
         sw.check_arms([a.arm() for a in st.arm_specs()], list(st.task_list()), name)
     for name in ("release-conditions", "release-goals-1m"):  # every condition's arms exist
@@ -445,9 +448,9 @@ def test_overrides_make_grid_axes():
 
 
 def test_run_grid_of_the_benchmarks_runs_on_the_sweep(tmp_path, monkeypatch):
-    """ndp.experiments.grid.run_grid (benchmarks/ndp_ablation.py, ppo_vs_sb3.py) goes through
+    """ndp.experiments.sweep.grid.run_grid (benchmarks/ndp_ablation.py, ppo_vs_sb3.py) goes through
     the sweep: every run once, seed-major, a failure raised after the others finished."""
-    from ndp.experiments.grid import run_grid
+    from ndp.experiments.sweep.grid import run_grid
 
     ran = []
 
@@ -473,8 +476,8 @@ def test_pack_and_unpack_carry_finished_runs_to_a_fresh_runs_directory(tmp_path,
     the archive grows across sessions and refuses members that are not run files."""
     import tarfile
 
-    from ndp.experiments.archive import unpack
     from ndp.experiments.report import report
+    from ndp.experiments.sweep.archive import unpack
 
     runs, fresh, archive = tmp_path / "runs", tmp_path / "fresh", tmp_path / "a" / "runs.tar.gz"
     base = ["sweep", *TINY, "--methods", "ppo", "--jobs", "1", "--vector", "sync"]

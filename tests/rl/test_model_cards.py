@@ -9,7 +9,7 @@ import math
 import pytest
 
 import ndp
-from ndp.experiments.stats import wilson_interval
+from ndp.experiments.report.stats import wilson_interval
 from ndp.rl.card import NOT_RECORDED, card_fields, model_card, to_yaml
 
 yaml = pytest.importorskip("yaml")

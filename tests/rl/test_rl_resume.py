@@ -241,7 +241,7 @@ def test_an_unfinished_run_archived_with_its_checkpoint_resumes_on_a_fresh_machi
     completes every update; packed again once finished, its entry loses the checkpoint."""
     import tarfile
 
-    from ndp.experiments.archive import pack, unpack
+    from ndp.experiments.sweep.archive import pack, unpack
 
     run = tmp_path / "runs" / "point-mass-ndp-s0"
     n_updates = 12

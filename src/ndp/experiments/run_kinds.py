@@ -150,13 +150,13 @@ def _sb3_command(
 
 
 BC_METHODS = {"bc-ndp": "ndp", "bc-nn": "nn", "bc-nn-step": "nn-step"}
-"""Behaviour-cloning arms (``ndp il bc --model VALUE``, run by :mod:`ndp.experiments.bc_job`);
+"""Behaviour-cloning arms (``ndp il bc --model VALUE``, run by :mod:`ndp.experiments.sweep.bc_job`);
 their budget is in epochs and their demonstrations are recorded once per task and folder."""
 
 
 BC_DEMOS_EPISODES = 400
 """Successful expert episodes recorded per task for a folder of cloning runs (the largest
-demonstration count of the ``il-robot`` study; :mod:`ndp.experiments.bc_job`)."""
+demonstration count of the ``il-robot`` study; :mod:`ndp.experiments.sweep.bc_job`)."""
 
 
 def _bc_algos() -> tuple[str, ...]:
@@ -166,7 +166,7 @@ def _bc_algos() -> tuple[str, ...]:
 def _bc_command(
     task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
-    return [sys.executable, "-m", "ndp.experiments.bc_job", "--task", task, "--",
+    return [sys.executable, "-m", "ndp.experiments.sweep.bc_job", "--task", task, "--",
             "--model", BC_METHODS[arm.algo], "--seed", str(seed), "--epochs", str(steps),
             "--run-dir", str(run), "--no-progress", "--no-tensorboard", "--threads", "1",
             *arm.args]  # fmt: skip
@@ -216,7 +216,7 @@ class RunKind:
     name: str
     """``"rl"`` (``ndp rl train``: PPO, NDP, PPO-multi, VICES, Dyn-E), ``"il"`` (``ndp il
     train``: digit writing), ``"sb3"`` (the Stable-Baselines3 reference) or ``"bc"``
-    (behaviour cloning on the robot tasks, :mod:`ndp.experiments.bc_job`)."""
+    (behaviour cloning on the robot tasks, :mod:`ndp.experiments.sweep.bc_job`)."""
     unit: str
     """The budget's unit in messages and tables: ``"env steps"`` or ``"epochs"``."""
     progress_column: str

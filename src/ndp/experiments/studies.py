@@ -90,7 +90,7 @@ class Study:
     arm is its own column."""
     selection: tuple[tuple[str, tuple[str, ...]], ...] = field(default=())
     """(model, candidate arm labels): the report picks per task the candidate with the lowest
-    mean validation MSE and reports its test MSE (``ndp.experiments.selection``)."""
+    mean validation MSE and reports its test MSE (``ndp.experiments.report.selection``)."""
 
     def task_list(self) -> tuple[str, ...]:
         return tuple(self.tasks())

@@ -215,7 +215,7 @@ def run_one(
 ) -> Path:
     """Train, resume or reuse one run in this process's foreground; returns its directory.
 
-    (:func:`ndp.experiments.grid.run_grid` and ``ndp sweep`` run many at once with retries:
+    (:func:`ndp.experiments.sweep.grid.run_grid` and ``ndp sweep`` run many at once with retries:
     :mod:`ndp.experiments.sweep`.)"""
     run = run_dir(runs_dir, task, arm, seed)
     _check_arm(run, arm, steps, task, seed)

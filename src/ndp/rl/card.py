@@ -4,7 +4,7 @@ A card is YAML front matter between ``---`` lines, then a short text. The front 
 Hub's keys (``library_name``, ``license``, ``tags``, and a ``model-index`` with the success rate
 when one was measured) and plain keys a script can read without knowing the Hub's schema:
 ``task``, ``method``, ``success_rate``, ``success_rate_ci95`` (the Wilson score interval,
-``ndp.experiments.stats.wilson_interval``), ``episodes``, ``budget_env_steps``, ``seeds``,
+``ndp.experiments.report.stats.wilson_interval``), ``episodes``, ``budget_env_steps``, ``seeds``,
 ``command``, ``commit``. Whatever the export does not record is written ``"not recorded"``.
 
 Every export writes its card (:func:`ndp.rl.policy.export_policy`); the zoo's are written by
@@ -15,11 +15,15 @@ tests parse it with PyYAML.
 
 from __future__ import annotations
 
+import datetime as dt
 import json
+import shutil
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ndp.io import atomic_write_text
 from ndp.policies.config import DMP_HEADS
 from ndp.rl.methods import METHODS
 
@@ -217,12 +221,6 @@ def write_card(
     """Write an export's model card ``README.md`` and its ``.eval_results/`` files (a stale
     results file of an earlier card is replaced, never left beside a card without results);
     ``date``: when the results were measured (ISO; default today)."""
-    import datetime as dt
-    import shutil
-    from pathlib import Path
-
-    from ndp.io import atomic_write_text
-
     out = Path(out)
     atomic_write_text(out / "README.md", model_card(meta, evaluation, out.name, onnx=onnx))
     files = eval_results(meta, evaluation, date or dt.date.today().isoformat())

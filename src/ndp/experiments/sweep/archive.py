@@ -67,7 +67,7 @@ def _done_record(run: Path) -> bytes:
         "update": last.get("update"),
         "global_step": last.get("global_step"),
         "epoch": last.get("epoch"),
-        "note": "archived without its checkpoint (ndp.experiments.archive)",
+        "note": "archived without its checkpoint (ndp.experiments.sweep.archive)",
     }
     return (json.dumps(rec, indent=1) + "\n").encode()
 

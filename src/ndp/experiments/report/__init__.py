@@ -45,9 +45,9 @@ from typing import Any
 
 import numpy as np
 
-from ndp.experiments.conditions import conditions_section
+from ndp.experiments.report.conditions import conditions_section
+from ndp.experiments.report.selection import selection_section
 from ndp.experiments.run_kinds import REPORT_KIND, RUN_KINDS, kind_of_algo, run_kind
-from ndp.experiments.selection import selection_section
 from ndp.experiments.studies import get_study
 from ndp.experiments.study import final_success, is_finished, smooth, success_area
 from ndp.il.config import data_task_name
@@ -326,7 +326,7 @@ def il_numbers(info: RunInfo) -> dict[str, Any]:
 
 def bc_numbers(info: RunInfo) -> dict[str, Any]:
     """One behaviour-cloning run's closed-loop evaluation (``eval.json`` of
-    :mod:`ndp.experiments.bc_job`): success, fit (last validation loss), jerk, SPARC."""
+    :mod:`ndp.experiments.sweep.bc_job`): success, fit (last validation loss), jerk, SPARC."""
     ev = _json(info.path / "eval.json") or {}
 
     def num(key: str) -> float:
@@ -482,9 +482,9 @@ def report(
     """Write ``<out>.md``, ``<out>.csv`` and ``<out>-<task>.png`` (see the module doc).
 
     ``study``: a named study; where it has conditions (``release-conditions``), the report adds
-    the condition x method section (:mod:`ndp.experiments.conditions`: bootstrap intervals, IQM,
-    probability of improvement; ``<out>-conditions.csv`` and ``<out>-conditions.png``), and
-    ``methods`` defaults to the study's arms.
+    the condition x method section (:mod:`ndp.experiments.report.conditions`: bootstrap
+    intervals, IQM, probability of improvement; ``<out>-conditions.csv`` and
+    ``<out>-conditions.png``), and ``methods`` defaults to the study's arms.
 
     ``budgets``: env steps at which to give the success (default: a quarter, half and all of
     the largest budget). ``eval_episodes`` > 0 adds the success of each finished RL run's

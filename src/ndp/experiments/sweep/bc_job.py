@@ -1,6 +1,6 @@
 """One behaviour-cloning run of a study (run kind ``"bc"``): demonstrations, cloning, evaluation.
 
-``python -m ndp.experiments.bc_job --task TASK [--demos-episodes N] [--eval-episodes E] --
+``python -m ndp.experiments.sweep.bc_job --task TASK [--demos-episodes N] [--eval-episodes E] --
 BC-OPTIONS`` (the sweep builds this command; ``BC-OPTIONS`` are those of ``ndp il bc``:
 ``--model``, ``--episodes``, ``--seed``, ``--epochs``, ``--run-dir``, the policy's options):
 
@@ -126,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     if "--" not in argv:
         raise SystemExit("bc_job: expected 'JOB-OPTIONS -- NDP-IL-BC-OPTIONS'")
     cut = argv.index("--")
-    p = argparse.ArgumentParser(prog="python -m ndp.experiments.bc_job", description=__doc__)
+    p = argparse.ArgumentParser(prog="python -m ndp.experiments.sweep.bc_job", description=__doc__)
     p.add_argument("--task", required=True)
     p.add_argument("--demos-episodes", type=int, default=DEMOS_EPISODES)
     p.add_argument("--eval-episodes", type=int, default=EVAL_EPISODES)

@@ -9,13 +9,13 @@ every condition and method this section gives:
   over seeds with a 95% percentile-bootstrap interval;
 - over the tasks where every cell has every seed: the IQM of each number over all runs with a
   95% stratified-bootstrap interval, and the probability that NDP beats each other method
-  (:mod:`ndp.experiments.stats`, the rliable protocol), with the paper's ordering
+  (:mod:`ndp.experiments.report.stats`, the rliable protocol), with the paper's ordering
   (NDP > PPO-multi > PPO) checked on the IQM of the success area.
 
 Where the runs have a periodic deterministic evaluation (``eval/*``, ndp.rl.periodic_eval), its
 numbers come first and the **headline** is the deterministic success area; else the training
 episodes' success area. For the headline the section adds the t-interval beside the bootstrap
-(with :data:`ndp.experiments.stats.COVERAGE_NOTE`), the optimality gap over tasks (rliable),
+(with :data:`ndp.experiments.report.stats.COVERAGE_NOTE`), the optimality gap over tasks (rliable),
 exact permutation p-values for every pair of methods in a condition (per task and stratified
 over the tasks), and a performance-profile figure per study (``<out>-profiles.png``).
 
@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ndp.experiments import stats
+from ndp.experiments.report import stats
 
 METRICS = (
     ("area", "success area"),
@@ -307,7 +307,7 @@ def _pairwise(
 ) -> list[dict[str, Any]]:  # fmt: skip
     """For every condition and pair of its methods (table order) with every seed on ``tasks``:
     the mean difference of ``head`` over the tasks and the exact stratified permutation
-    p-values of "A > B" and "B > A" (:func:`ndp.experiments.stats.permutation_test`)."""
+    p-values of "A > B" and "B > A" (:func:`ndp.experiments.report.stats.permutation_test`)."""
     rows = []
     where = tasks[0] if len(tasks) == 1 else "over " + ", ".join(tasks)
     for cond in conditions:

@@ -291,8 +291,8 @@ def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
 def _pack(jobs: Any, out: Path, unfinished: bool = False) -> None:
     """Write the finished runs of ``jobs`` to the archive ``out`` (``--pack``), and with
     ``unfinished`` those that have a checkpoint to resume from (``--pack-unfinished``)."""
-    from ndp.experiments.archive import CHECKPOINT, pack
     from ndp.experiments.study import is_finished
+    from ndp.experiments.sweep.archive import CHECKPOINT, pack
 
     done, partial = [], []
     for j in jobs:
@@ -348,7 +348,7 @@ def sweep_command(argv: list[str]) -> int:
     from ndp.experiments.sweep import check_plan
 
     if args.unpack is not None:
-        from ndp.experiments.archive import unpack
+        from ndp.experiments.sweep.archive import unpack
 
         restored, kept = unpack(args.unpack, runs_dir)
         partial = sum(not (runs_dir / n / "done.json").is_file() for n in restored)

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ndp.experiments import stats
+from ndp.experiments.report import stats
 from ndp.experiments.run_kinds import il_data_args
 
 FLOOR_N = (10, 20, 30)

@@ -47,8 +47,12 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/dmp_speed.py
 
 # the API reference from the docstrings, browsable: open build/api/index.html (warnings are errors)
-api: $(STAMP)
-	$(BIN)/python docs/api/build.py --out build/api
+# The API reference needs the package importable and pdoc, nothing of the [dev] install: it
+# uses .venv when there is one (else $(PYTHON)) and adds pdoc (pinned) only if it is missing.
+API_PY = $(if $(wildcard $(BIN)/python),$(BIN)/python,$(PYTHON))
+api:
+	$(API_PY) -c "import pdoc" 2>/dev/null || $(API_PY) -m pip install -c constraints.txt pdoc
+	$(API_PY) docs/api/build.py --out build/api
 
 clean:
 	rm -rf $(VENV) runs build/api

@@ -119,3 +119,19 @@ def test_build_refuses_to_replace_a_folder_it_did_not_write(tmp_path):
     with pytest.raises(build.ReferenceBuildError, match="not an API reference"):
         build.build(tmp_path, ["ndp.zoo"])
     assert (tmp_path / "notes.txt").read_text() == "keep"
+
+
+def test_make_api_needs_only_pdoc_not_the_dev_install():
+    """``make api`` has no prerequisite on the [dev] install (issue "a user's first day, part 2",
+    item 9): it runs the build with the environment at hand and installs pdoc alone if missing.
+    ``make -n`` shows the commands without running them."""
+    text = (ROOT / "Makefile").read_text()
+    rule = text[text.index("\napi:") + 1 :].split("\n\n")[0]
+    head = rule.splitlines()[0]
+    assert head.strip() == "api:", head  # no $(STAMP): nothing installs [dev] first
+    out = subprocess.run(
+        ["make", "-n", "api"], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    assert "pip install -c constraints.txt pdoc" in out.stdout
+    assert "docs/api/build.py --out build/api" in out.stdout
+    assert ".[dev]" not in out.stdout

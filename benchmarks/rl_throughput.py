@@ -33,7 +33,7 @@ Ratios are against ``raw-N`` (the issue's targets: NDP and PPO-multi >= 0.6, PPO
 ``raw-1`` and ``sb3-best`` (>= 2x). ``ndp_1M_push_minutes`` vs ``raw1_1M_minutes``: the wall
 time of a 1M-step NDP run at the measured rate, against one core merely stepping 1M times.
 
-Examples (the table of docs/rl.md; the SAC rows)::
+Examples (the table of docs/rl-results.md; the SAC rows)::
 
     python benchmarks/rl_throughput.py --tasks reach-v3 push-v3 --steps 10240 --repeats 3 \
         --out docs/results/rl_throughput

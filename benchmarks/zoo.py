@@ -21,7 +21,7 @@ does only that and rewrites ``OUT/README.md`` from ``OUT/zoo.json`` (no runs nee
 weights are never touched).
 
 The zoo ships inside the package (``src/ndp/zoo/policies``; ``zoo/`` in a checkout points
-there): load one with ``ndp.load_policy("zoo:push-v3-ndp")`` (docs/rl.md, "Trained policies").
+there): load one with ``ndp.load_policy("zoo:push-v3-ndp")`` (docs/policies.md, "Trained policies").
 """
 
 from __future__ import annotations
@@ -201,7 +201,7 @@ def zoo_readme(meta: dict[str, Any]) -> str:
         'Load one with `ndp.load_policy("zoo:<policy>")` (or `ndp rl eval zoo/<policy>`, '
         "`ndp rl render zoo/<policy>` in a checkout); the policies ship with the package "
         "(`ndp.zoo.list()`), each with its model card (`<policy>/README.md`); the format is in "
-        'docs/rl.md, "Trained policies". '
+        'docs/policies.md, "Trained policies". '
         f"Each is the seed with the best deterministic success over {meta['select_episodes']} "
         f"episodes (seeds {SELECT_SEED:,} on) of its task x method; **success** is measured "
         f"again from the export over {meta['episodes']} other episodes (seeds {PUBLISH_SEED:,} "

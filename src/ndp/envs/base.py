@@ -101,7 +101,7 @@ def check_substeps(substeps: Any, frame_skip: int) -> int:
     """``int(substeps)`` if it divides ``frame_skip`` (the simulator steps of one env step).
 
     An env built with ``substeps = m`` cuts each of its env steps into m shorter ones of
-    ``frame_skip / m`` simulator steps each (``ndp rl eval --exec-k``; docs/rl.md).
+    ``frame_skip / m`` simulator steps each (``ndp rl eval --exec-k``; docs/policies.md).
 
     Raises:
         ValueError: ``substeps: expected a divisor of the frame skip 5 (1, 5), got 2``.

@@ -80,7 +80,7 @@ def add_subparser(sub: Any) -> None:
         help="run each decision (same duration) as K2 = k * m sub-steps of an env step m times "
         "shorter, m a divisor of the simulator steps per env step (Meta-World: K2 in k, 5k; "
         "Jaco: k, 2k, 5k, 10k); several values: one JSON line each. Success compares across "
-        "K2, the return does not (docs/rl.md, 'Inference at a higher rate')",
+        "K2, the return does not (docs/policies.md, 'Inference at a higher rate')",
     )
     ev.set_defaults(func=_cmd_eval)
 
@@ -97,7 +97,7 @@ def add_subparser(sub: Any) -> None:
         help="safetensors: policy.safetensors + policy.json, loaded by ndp.load_policy "
         "(default); onnx: policy.onnx, the whole deterministic decision (normaliser, actor, "
         "head, DMP, action bounds) as one graph with inputs obs, y0, dy0 and output actions "
-        "(needs the [onnx] extra; docs/rl.md, 'Export formats')",
+        "(needs the [onnx] extra; docs/policies.md, 'Export formats')",
     )
     ex.set_defaults(func=_cmd_export)
 

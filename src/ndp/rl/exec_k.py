@@ -5,7 +5,7 @@ Here a policy trained with k sub-steps per decision runs each decision, of the S
 ``k * control_dt`` seconds, as ``K2 = k * m`` sub-steps of a finer env whose env step lasts
 ``control_dt / m`` seconds.
 
-Clocks (docs/rl.md "Inference at a higher rate"):
+Clocks (docs/policies.md "Inference at a higher rate"):
 
 - simulator step ``sim_dt``: unchanged;
 - env step: ``control_dt / m`` s = ``frame_skip / m`` simulator steps, so m must divide the

@@ -8,9 +8,8 @@ import torch
 from torch import nn
 
 from ndp.nets.mlp import MLP
-from ndp.policies.base import ActionHead
+from ndp.policies.base import ActionHead, HeadOutput
 from ndp.policies.config import PolicyConfig
-from ndp.policies.distributions import PolicyDistribution
 from ndp.policies.heads import build_head
 
 
@@ -51,11 +50,8 @@ class ActorCritic(nn.Module):
         )
 
     def distribution(
-        self,
-        obs: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
-    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
+        self, obs: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
+    ) -> HeadOutput:
         """Exploration distribution over the decision's k sub-actions, plus head diagnostics."""
         return self.head.distribution(self.actor(obs), y0, dy0)
 

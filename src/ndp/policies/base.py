@@ -13,7 +13,12 @@ from torch import nn
 
 from ndp.policies.distributions import PolicyDistribution
 
-__all__ = ["HEAD_BUILDERS", "SINGLE_STEP_HEADS", "ActionHead", "register_head"]
+__all__ = ["HEAD_BUILDERS", "SINGLE_STEP_HEADS", "ActionHead", "HeadOutput", "register_head"]
+
+
+HeadOutput = tuple[PolicyDistribution, dict[str, torch.Tensor]]
+"""What :meth:`ActionHead.distribution` returns: the distribution over the decision's k
+sub-actions and the head's diagnostics (name -> [B] tensors; empty during updates)."""
 
 
 class ActionHead(nn.Module):
@@ -25,11 +30,8 @@ class ActionHead(nn.Module):
     needs_robot_state: bool = False
 
     def distribution(
-        self,
-        raw: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
-    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
+        self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
+    ) -> HeadOutput:
         """Map the actor output [B, P] to a distribution over [B, k, A] plus diagnostics."""
         raise NotImplementedError
 

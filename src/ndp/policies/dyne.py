@@ -25,8 +25,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from ndp.policies.base import ActionHead
-from ndp.policies.distributions import PolicyDistribution, SubActionGaussian
+from ndp.policies.base import ActionHead, HeadOutput
+from ndp.policies.distributions import SubActionGaussian
 
 HIDDEN = 400
 """Width of every embedding network's hidden layers (the original's)."""
@@ -193,11 +193,8 @@ class DyneHead(ActionHead):
         return actions
 
     def distribution(
-        self,
-        raw: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
-    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
+        self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
+    ) -> HeadOutput:
         return SubActionGaussian(self.decode(self.latent(raw)), self.log_std), {}
 
     def extra_repr(self) -> str:

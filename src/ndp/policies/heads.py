@@ -40,9 +40,9 @@ from ndp.dmp.controllers import DeltaController
 from ndp.dmp.integrate import _linear_map_f64, check_finite, recording
 from ndp.policies.base import HEAD_BUILDERS as HEAD_BUILDERS  # the registry, re-exported:
 from ndp.policies.base import SINGLE_STEP_HEADS as SINGLE_STEP_HEADS  # importing this module
-from ndp.policies.base import ActionHead  # registers every built-in head before it is read
+from ndp.policies.base import ActionHead, HeadOutput  # registers every built-in head first
 from ndp.policies.base import register_head as register_head
-from ndp.policies.distributions import ParamGaussian, PolicyDistribution, SubActionGaussian
+from ndp.policies.distributions import ParamGaussian, SubActionGaussian
 from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
 from ndp.policies.squashed import SquashedActionHead as SquashedActionHead  # the SAC family's
 from ndp.policies.squashed import SquashedNDPHead as SquashedNDPHead  # heads, registered there
@@ -67,11 +67,8 @@ class StepHead(_RawActionHead):
         super().__init__(1, action_dim, action_dim, init_log_std)
 
     def distribution(
-        self,
-        raw: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
-    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
+        self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
+    ) -> HeadOutput:
         return SubActionGaussian(raw.view(raw.shape[0], 1, self.action_dim), self.log_std), {}
 
 
@@ -82,11 +79,8 @@ class MultiHead(_RawActionHead):
         super().__init__(k, action_dim, int(k) * int(action_dim), init_log_std)
 
     def distribution(
-        self,
-        raw: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
-    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
+        self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
+    ) -> HeadOutput:
         mean = raw.view(raw.shape[0], self.k, self.action_dim)
         return SubActionGaussian(mean, self.log_std), {}
 
@@ -308,11 +302,8 @@ class NDPHead(ActionHead):
         return actions, goal, weights
 
     def distribution(
-        self,
-        raw: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
-    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
+        self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
+    ) -> HeadOutput:
         if y0 is None or dy0 is None:
             raise ValueError("NDPHead: the robot state y0, dy0 [B, D] is required")
         mean_actions, goal, weights = self.decode(raw, y0, dy0)
@@ -456,11 +447,8 @@ class HoldHead(_RawActionHead):
         super().__init__(k, action_dim, action_dim, init_log_std)
 
     def distribution(
-        self,
-        raw: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
-    ) -> tuple[PolicyDistribution, dict[str, torch.Tensor]]:
+        self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
+    ) -> HeadOutput:
         k = self.k
 
         def repeat(z: torch.Tensor) -> torch.Tensor:

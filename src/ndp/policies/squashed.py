@@ -96,10 +96,7 @@ class SquashedHead(ActionHead):
         return self.decode
 
     def distribution(
-        self,
-        raw: torch.Tensor,
-        y0: torch.Tensor | None = None,
-        dy0: torch.Tensor | None = None,
+        self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
     ) -> tuple[SquashedGaussian, dict[str, torch.Tensor]]:
         mean, log_std = split_mean_log_std(raw)
         return SquashedGaussian(mean, log_std, self.decoder(y0, dy0)), {}

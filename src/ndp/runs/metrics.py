@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ndp.runs.layout import LEGACY_METRICS_NAMES, METRICS_NAME, TB_DIR
+from ndp.runs.signals import deferred_stops
 
 
 def metrics_path(run_dir: str | Path) -> Path:
@@ -118,16 +119,19 @@ class MetricsLogger:
                 row[name] = ""
             else:
                 row[name] = repr(float(v)) if isinstance(v, float) else str(v)
-        self._csv.writerow(row)
-        self._file.flush()
-        if self._tb is not None:
-            x = int(metrics[self.step])
-            for name, v in metrics.items():
-                if name in (self.index, self.step) or v is None:
-                    continue
-                if not (isinstance(v, float) and math.isnan(v)):
-                    self._tb.add_scalar(name, float(v), x)
-            self._tb.flush()
+        # a stop (SIGTERM / Ctrl-C under stop_on_sigterm) waits until the row is written: raised
+        # inside TensorBoard's writer it could leave its lock held and hang the close
+        with deferred_stops():
+            self._csv.writerow(row)
+            self._file.flush()
+            if self._tb is not None:
+                x = int(metrics[self.step])
+                for name, v in metrics.items():
+                    if name in (self.index, self.step) or v is None:
+                        continue
+                    if not (isinstance(v, float) and math.isnan(v)):
+                        self._tb.add_scalar(name, float(v), x)
+                self._tb.flush()
 
     def close(self) -> None:
         """Flush and close."""

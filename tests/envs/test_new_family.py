@@ -169,3 +169,49 @@ def test_a_taken_name_or_a_family_without_a_factory_is_refused(slider):
     with pytest.raises(ValueError, match="family 'nowhere' has no env factory"):
         register_task(other)
     assert "slider-2" not in TASKS
+
+
+def test_builtin_families_register_through_register_task(monkeypatch):
+    """The built-in tables are exactly what ``register_task`` makes of the built-in rows: the
+    Meta-World, Jaco and toy families take the path a user's family takes (no table is built
+    any other way)."""
+    from ndp.envs import factory, spec
+    from ndp.gym_ids import shipped
+
+    builtin = {"metaworld", "jaco", "toy"}  # (other tests of this file add a "slider" family)
+    tasks = {n: s for n, s in spec.TASKS.items() if s.family in builtin}
+    torque = {n: s for n, s in spec.TORQUE_TASKS.items() if s.family in builtin}
+    names = {*tasks, *torque}
+    aliases = {a: n for a, n in spec._ALIASES.items() if n in names}
+    before = (tasks, torque, aliases)
+    families = tuple(
+        {f: m for f, m in t.items() if f in builtin}
+        for t in (factory.FAMILIES, factory.TORQUE_FAMILIES)
+    )
+    for mod, name in ((spec, "TASKS"), (spec, "TORQUE_TASKS"), (spec, "_ALIASES"),
+                      (factory, "FAMILIES"), (factory, "TORQUE_FAMILIES")):  # fmt: skip
+        getattr(mod, name)  # exists
+        monkeypatch.setattr(mod, name, {})
+    monkeypatch.setattr(factory, "TASKS", spec.TASKS)  # the factory's name for the same table
+    monkeypatch.setattr(factory, "TORQUE_TASKS", spec.TORQUE_TASKS)
+    calls: list[str] = []
+    real = factory.register_task
+
+    def counting(row: Any, *a: Any, **kw: Any) -> list[str]:
+        calls.append(row.name)
+        return real(row, *a, **kw)
+
+    monkeypatch.setattr(factory, "register_task", counting)
+    factory.register_builtin_families()
+    assert calls == list(before[0])  # one call per position row, in the table's order
+    assert (spec.TASKS, spec.TORQUE_TASKS, spec._ALIASES) == before
+    assert (factory.FAMILIES, factory.TORQUE_FAMILIES) == families
+    assert set(families[0]) == {"metaworld", "jaco", "toy"}
+    assert set(families[1]) == {"metaworld", "jaco"}
+    # the start-up hook's shipped id table is the one these registrations give
+    assert factory.gym_id_table() == {
+        "tasks": {n: [s.env_id, s.horizon] for n, s in before[0].items()},
+        "chunked_ks": list(factory.CHUNKED_KS),
+        "torque": {n: [s.env_id, s.horizon] for n, s in before[1].items()},
+    }
+    assert {g.id for g in shipped()} <= set(__import__("gymnasium").registry)

@@ -103,3 +103,40 @@ def test_a_new_study_is_one_entry_and_sweeps_and_reports(tmp_path, monkeypatch, 
     table = out.with_suffix(".md").read_text()
     assert "| point-mass | ndp |" in table and "| point-mass | ppo-k |" in table
     capsys.readouterr()
+
+
+def _count_numbers(info: Any, budgets: Any, episodes: int, evaluable: bool) -> dict[str, Any]:
+    """The counter's row: its last value as every success-table number (a real kind reads its
+    run's own files the same way)."""
+    import math
+
+    import numpy as np
+
+    lines = (info.path / "metrics.csv").read_text().splitlines()[1:]
+    x = np.array([float(r.split(",")[0]) for r in lines])
+    y = np.array([float(r.split(",")[1]) for r in lines])
+    nums = ("area", "final", "final_last", "return", "det", "det_area", "det_final")
+    out: dict[str, Any] = {k: float(y[-1]) for k in nums}
+    out.update({f"at:{b}": math.nan for b in budgets}, det_final_last=math.nan)
+    out.update(curve=(x, y), det_curve=(x[:0], y[:0]))
+    return out
+
+
+def test_a_new_kind_reports_through_its_own_row(tmp_path, monkeypatch):
+    """The report reads a kind's numbers and CSV columns from its row of the run-kind table:
+    no branch of the report names the kind."""
+    import dataclasses
+
+    from ndp.experiments.report import report
+    from ndp.experiments.rows import ReportRow
+
+    row = ReportRow("success", _count_numbers, lambda budgets: [("last_value", "final")])
+    monkeypatch.setitem(run_kinds.RUN_KINDS, "count", dataclasses.replace(COUNT_KIND, report=row))
+    jobs = sw.make_jobs(["point-mass"], [Arm("counter", "counter")], [0, 1], 5, tmp_path)
+    assert [sw.execute(j).status for j in jobs] == ["done", "done"]
+    res = report([tmp_path], tmp_path / "t", "test", plots=False, eval_episodes=0)
+    (r,) = res["rows"]
+    assert (r["kind"], r["method"], r["n_seeds"]) == ("count", "counter", 2)
+    assert r["last_value_mean"] == 25.0 and r["last_value_std"] == 0.0
+    assert "success_area_mean" not in r  # the SUCCESS_ROW's columns are not the counter's
+    assert "| point-mass | counter |" in (tmp_path / "t.md").read_text()

@@ -15,6 +15,7 @@ from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.factory import (
     fixed_goal_seed,
     make_env,
+    register_builtin_families,
     register_envs,
     register_task,
     register_torque_envs,
@@ -33,8 +34,8 @@ from ndp.envs.spec import (
     torque_variant,
 )
 
-register_envs()
-register_torque_envs()
+# the built-in tasks are registered (tables and gymnasium ids) by ndp.envs.factory's import:
+# register_builtin_families, through the register_task a user calls
 
 __all__ = [
     "TASKS",
@@ -47,6 +48,7 @@ __all__ = [
     "fixed_goal_seed",
     "get_task_spec",
     "make_env",
+    "register_builtin_families",
     "register_envs",
     "register_task",
     "register_torque_envs",

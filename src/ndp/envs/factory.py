@@ -23,26 +23,42 @@ import gymnasium as gym
 from ndp.envs.base import check_fixed_goal, defer_seed
 from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.jaco import JacoEnv
-from ndp.envs.metaworld_env import V1_REWARD_BROKEN, MetaWorldEnv, check_reward_version
+from ndp.envs.metaworld_env import (
+    V1_REWARD_BROKEN,
+    MetaWorldEnv,
+    check_reward_version,
+    metaworld_env_names,
+)
 from ndp.envs.point_mass import PointMassEnv
 from ndp.envs.release import RELEASE_GOAL_TASKS
-from ndp.envs.spec import TASKS, TORQUE_TASKS, add_task, finer_spec, get_task_spec
+from ndp.envs.spec import (
+    TASKS,
+    TORQUE_TASKS,
+    add_task,
+    finer_spec,
+    get_task_spec,
+    jaco_spec,
+    metaworld_spec,
+    torque_rows,
+    toy_spec,
+)
 from ndp.envs.torque import JacoTorqueEnv, MetaWorldTorqueEnv
 from ndp.gym_ids import TABLE, expand, register
 from ndp.io import atomic_write_text
 
-FAMILIES: dict[str, Callable[..., gym.Env]] = {
-    "metaworld": lambda spec, horizon, render_mode, **kw: MetaWorldEnv(
+
+def _make_metaworld(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+    return MetaWorldEnv(
         spec.metaworld_name or spec.name, horizon=horizon, render_mode=render_mode, **kw
-    ),
-    "jaco": lambda spec, horizon, render_mode, **kw: JacoEnv(
-        spec.name, horizon=horizon, render_mode=render_mode, **kw
-    ),
-    "toy": lambda spec, horizon, render_mode, **kw: PointMassEnv(
-        dim=spec.dmp_dofs, horizon=horizon, render_mode=render_mode, **kw
-    ),
-}
-"""Task family -> ``(spec, horizon, render_mode, **kw) -> env`` (a new family is one row)."""
+    )
+
+
+def _make_jaco(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+    return JacoEnv(spec.name, horizon=horizon, render_mode=render_mode, **kw)
+
+
+def _make_toy(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+    return PointMassEnv(dim=spec.dmp_dofs, horizon=horizon, render_mode=render_mode, **kw)
 
 
 def _torque_metaworld(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
@@ -54,11 +70,13 @@ def _torque_jaco(spec: Any, horizon: int, render_mode: str | None, **kw: Any) ->
     return JacoTorqueEnv(spec.base_task, spec.controller, horizon, render_mode, **kw)
 
 
-TORQUE_FAMILIES: dict[str, Callable[..., gym.Env]] = {
-    "metaworld": _torque_metaworld,
-    "jaco": _torque_jaco,
-}
-"""Task family -> env factory of its torque-actuated rows (``spec.actuation == "torque"``)."""
+FAMILIES: dict[str, Callable[..., gym.Env]] = {}
+"""Task family -> ``(spec, horizon, render_mode, **kw) -> env``: filled by :func:`register_task`
+(the built-in ``metaworld``, ``jaco`` and ``toy`` by :func:`register_builtin_families`)."""
+
+TORQUE_FAMILIES: dict[str, Callable[..., gym.Env]] = {}
+"""Task family -> env factory of its torque-actuated rows (``spec.actuation == "torque"``;
+``register_task(..., torque=...)``)."""
 CHUNKED_KS = (5,)
 """k of the registered chunked-env ids ``ndp/<name>-k<k>`` (any k: ``ndp.make_env``)."""
 
@@ -266,11 +284,17 @@ def write_gym_id_table() -> None:
     atomic_write_text(TABLE, json.dumps(gym_id_table(), indent=1) + "\n")
 
 
-def register_task(spec: Any, make: Callable[..., gym.Env] | None = None) -> list[str]:
+def register_task(
+    spec: Any,
+    make: Callable[..., gym.Env] | None = None,
+    *,
+    torque: Callable[..., gym.Env] | None = None,
+) -> list[str]:
     """Add a task, and with ``make`` its robot family, so that everything built on the task
     table works on it: ``ndp.make_env(name, k)``, ``ndp rl train --task NAME`` (every method),
     evaluation, export, sweeps, and its gymnasium ids. A new robot family is one module that
-    defines its env and calls this once per task.
+    defines its env and calls this once per task; the built-in families are registered the same
+    way (:func:`register_builtin_families`).
 
     Args:
         spec: the task's :class:`ndp.envs.spec.TaskSpec` row (its ``family`` names the family;
@@ -279,21 +303,48 @@ def register_task(spec: Any, make: Callable[..., gym.Env] | None = None) -> list
             :data:`FAMILIES` (the env: an :class:`ndp.envs.base.NDPEnv`, which the chunked env
             reads the robot state and the stale-world reward from); None: the family's
             existing factory.
+        torque: the family's factory of torque-actuated envs (VICES; the rows of
+            :func:`ndp.envs.spec.torque_rows`, which are then added with the task); None: the
+            family's existing one, if any.
 
     Returns:
-        The gymnasium ids registered (per-step and chunked).
+        The gymnasium ids registered (per-step and chunked; the torque rows' per-step ids).
 
     Raises:
-        ValueError: the name, an alias or the env id is taken, or the family has no factory.
+        ValueError: the name, an alias or the env id is taken, or the family has no factory
+            (or already has another one).
     """
     if make is None and spec.family not in FAMILIES:
         raise ValueError(
             f"make: family {spec.family!r} has no env factory yet ({', '.join(FAMILIES)}); "
             "pass make=(spec, horizon, render_mode, **kw) -> env"
         )
-    if make is not None and spec.family in FAMILIES and FAMILIES[spec.family] is not make:
-        raise ValueError(f"family: {spec.family!r} already has an env factory")
+    for name, given, table in (("make", make, FAMILIES), ("torque", torque, TORQUE_FAMILIES)):
+        if given is not None and table.get(spec.family, given) is not given:
+            raise ValueError(f"{name}: family {spec.family!r} already has an env factory")
     add_task(spec)
     if make is not None:
         FAMILIES[spec.family] = make
-    return register(expand({spec.name: (spec.env_id, spec.horizon)}, CHUNKED_KS))
+    if torque is not None:
+        TORQUE_FAMILIES[spec.family] = torque
+    rows = torque_rows(spec) if spec.family in TORQUE_FAMILIES else []
+    for row in rows:
+        add_task(row)
+    per_torque = {r.name: (r.env_id, r.horizon) for r in rows}
+    return register(expand({spec.name: (spec.env_id, spec.horizon)}, CHUNKED_KS, per_torque))
+
+
+def register_builtin_families() -> None:
+    """Register the built-in tasks through :func:`register_task`, as a user's family would: the
+    50 Meta-World v3 tasks (with their ``-osc`` torque rows), Jaco ``throw`` / ``pick`` (with
+    ``-joint`` / ``-osc``) and the toy point masses (2-D, 3-D). Called once, when
+    :mod:`ndp.envs` is imported."""
+    for name in metaworld_env_names():
+        register_task(metaworld_spec(name), _make_metaworld, torque=_torque_metaworld)
+    for task in ("throw", "pick"):
+        register_task(jaco_spec(task), _make_jaco, torque=_torque_jaco)
+    for dim in (2, 3):
+        register_task(toy_spec(dim), _make_toy)
+
+
+register_builtin_families()

@@ -37,7 +37,7 @@ from ndp.dmp.controllers import DeltaController
 from ndp.envs import jaco, point_mass, torque
 from ndp.envs.base import divisors
 from ndp.envs.impedance import ImpedanceController
-from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS, metaworld_env_names
+from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS
 from ndp.envs.presets import DEFAULT as DEFAULT_PRESET
 from ndp.envs.presets import NDP_PRESETS, NDPPreset
 from ndp.schema import TaskSchema
@@ -75,7 +75,7 @@ class TaskSpec(TaskSchema):
         super().__post_init__()
 
 
-def _metaworld_spec(name: str) -> TaskSpec:
+def metaworld_spec(name: str) -> TaskSpec:
     return TaskSpec(
         name=name,
         family="metaworld",
@@ -102,7 +102,7 @@ def _metaworld_spec(name: str) -> TaskSpec:
     )
 
 
-def _jaco_spec(task: str) -> TaskSpec:
+def jaco_spec(task: str) -> TaskSpec:
     return TaskSpec(
         name=task,
         family="jaco",
@@ -253,39 +253,33 @@ def _torque_spec(base: TaskSpec, space: str, learn_damping: bool, period: int) -
     )
 
 
-def _build_torque_table(tasks: dict[str, TaskSpec]) -> dict[str, TaskSpec]:
-    table = {}
-    for base in tasks.values():
-        spaces = {"metaworld": ("osc",), "jaco": ("joint", "osc")}.get(base.family, ())
-        for space in spaces:
-            for damping in (False, True):
-                for period in TORQUE_PERIODS:
-                    spec = _torque_spec(base, space, damping, period)
-                    table[spec.name] = spec
-    return table
+def torque_rows(base: TaskSpec) -> list[TaskSpec]:
+    """The torque-actuated rows of a position-controlled row: every space of its family
+    (Meta-World: ``osc``; Jaco: ``joint`` and ``osc``), with and without a learnt damping ratio,
+    at each of :data:`TORQUE_PERIODS`; none for a family without an impedance controller."""
+    spaces = {"metaworld": ("osc",), "jaco": ("joint", "osc")}.get(base.family, ())
+    if base.actuation != "position":
+        return []
+    return [
+        _torque_spec(base, space, damping, period)
+        for space in spaces
+        for damping in (False, True)
+        for period in TORQUE_PERIODS
+    ]
 
 
-def _build_table() -> dict[str, TaskSpec]:
-    table = {n: _metaworld_spec(n) for n in metaworld_env_names()}
-    for task in ("throw", "pick"):
-        table[task] = _jaco_spec(task)
-    for dim in (2, 3):  # the toy tasks of the tests and demo
-        spec = toy_spec(dim)
-        table[spec.name] = spec
-    return table
+TASKS: dict[str, TaskSpec] = {}
+"""name -> TaskSpec of every position-controlled task: the 50 Meta-World v3 tasks,
+``"throw"`` / ``"pick"``, the toy ``"point-mass"`` / ``"point-mass-3d"``, and any task a user
+added. Filled by :func:`ndp.envs.factory.register_task` only, the built-in families included
+(:func:`ndp.envs.factory.register_builtin_families`, when :mod:`ndp.envs` is imported)."""
 
-
-TASKS: dict[str, TaskSpec] = _build_table()
-"""name -> TaskSpec for the 50 Meta-World v3 tasks, ``"throw"`` / ``"pick"`` and the toy
-``"point-mass"`` / ``"point-mass-3d"``."""
-
-TORQUE_TASKS: dict[str, TaskSpec] = _build_torque_table(TASKS)
+TORQUE_TASKS: dict[str, TaskSpec] = {}
 """name -> TaskSpec of the torque-actuated variants (VICES): ``push-v3-osc``, ``throw-joint``,
-``throw-osc``, ... (see the module docstring); looked up by :func:`get_task_spec` like
-:data:`TASKS`."""
+``throw-osc``, ... (see the module docstring; :func:`torque_rows`); looked up by
+:func:`get_task_spec` like :data:`TASKS`, added with their position row by ``register_task``."""
 
-_ALIASES: dict[str, str] = {a: s.name for s in TASKS.values() for a in (*s.aliases, s.env_id)}
-_ALIASES.update({s.env_id: s.name for s in TORQUE_TASKS.values()})
+_ALIASES: dict[str, str] = {}
 
 
 def torque_variant(
@@ -324,17 +318,19 @@ def torque_variant(
 
 
 def add_task(spec: TaskSpec) -> TaskSpec:
-    """Add a row to :data:`TASKS` (and its names to the lookup of :func:`get_task_spec`);
-    :func:`ndp.envs.factory.register_task` is the public way, which also gives the family its
-    env factory and registers the gymnasium ids.
+    """Add a row to :data:`TASKS` or, for a torque-actuated row, :data:`TORQUE_TASKS` (and its
+    names to the lookup of :func:`get_task_spec`); :func:`ndp.envs.factory.register_task` is
+    the public way, which also gives the family its env factory, adds the row's torque variants
+    and registers the gymnasium ids.
 
     Raises:
         ValueError: the name, an alias or the env id already names a task.
     """
+    table = TORQUE_TASKS if spec.actuation == "torque" else TASKS
     for n in (spec.name, *spec.aliases, spec.env_id):
-        if n in TASKS or n in _ALIASES:
+        if n in TASKS or n in TORQUE_TASKS or n in _ALIASES:
             raise ValueError(f"name: {n!r} already names a task ({_ALIASES.get(n, n)})")
-    TASKS[spec.name] = spec
+    table[spec.name] = spec
     _ALIASES.update({a: spec.name for a in (*spec.aliases, spec.env_id)})
     return spec
 

@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ndp.experiments.rows import CLONING_ROW, IMITATION_ROW, SUCCESS_ROW, ReportRow
+
 EXTERNAL_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac")
 """Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``): the
 Stable-Baselines3 runs of :mod:`ndp.sb3.runs` (``SB3_METHODS`` there; kept here as
@@ -258,6 +260,9 @@ class RunKind:
     ``metrics.csv``, :func:`ndp.runs.metrics_path`)."""
     checkpoint_finished: Callable[[Path], bool] = field(default=_never_from_checkpoint)
     """For runs written before ``run.json``: whether the checkpoint completed the budget."""
+    report: ReportRow = SUCCESS_ROW
+    """What one of its runs contributes to ``ndp report``: its table, numbers and CSV columns
+    (:mod:`ndp.experiments.rows`)."""
 
 
 RUN_KINDS: dict[str, RunKind] = {
@@ -302,6 +307,7 @@ RUN_KINDS: dict[str, RunKind] = {
             argv=_il_argv,
             check=_il_check,
             checkpoint_finished=_il_checkpoint_finished,
+            report=IMITATION_ROW,
             reserved=(
                 "--data",
                 "--split",
@@ -343,6 +349,7 @@ RUN_KINDS: dict[str, RunKind] = {
             argv=_bc_argv,
             check=_bc_check,
             metrics_file="bc_metrics.csv",
+            report=CLONING_ROW,
             reserved=(
                 "--demos",
                 "--data",
@@ -357,10 +364,6 @@ RUN_KINDS: dict[str, RunKind] = {
     )
 }
 """Run kind name -> :class:`RunKind`."""
-
-REPORT_KIND = {"rl": "rl", "il": "il", "sb3": "rl", "bc": "bc"}
-"""Which table a kind's runs go to: success tables ("rl"), imitation error tables ("il") or the
-behaviour-cloning table ("bc": closed-loop success, fit and smoothness of each cloned policy)."""
 
 
 def config_class(kind: RunKind) -> type:

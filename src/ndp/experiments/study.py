@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from ndp.experiments.rows import final_success, smooth, success_area
 from ndp.experiments.run_kinds import kind_of_algo, run_kind
 from ndp.io import atomic_write_text
 from ndp.runs import metrics_path, read_metrics
@@ -251,25 +252,6 @@ def load_curve(run: Path, key: str = "charts/success_any") -> tuple[np.ndarray, 
     y = np.array([r.get(key, math.nan) for r in rows])
     keep = ~np.isnan(y)
     return x[keep], y[keep]
-
-
-def smooth(y: np.ndarray, window: int) -> np.ndarray:
-    """Trailing moving average over ``window`` points (fewer at the start)."""
-    c = np.cumsum(np.insert(np.asarray(y, dtype=np.float64), 0, 0.0))
-    i = np.arange(1, len(y) + 1)
-    lo = np.maximum(0, i - window)
-    return (c[i] - c[lo]) / (i - lo)
-
-
-def success_area(x: np.ndarray, y: np.ndarray, steps: int, points: int = 101) -> float:
-    """The success curve averaged over [0, steps] (0 before the first logged update)."""
-    grid = np.linspace(0, steps, points)
-    return float(np.trapezoid(np.interp(grid, x, y, left=0.0), grid) / steps)
-
-
-def final_success(y: np.ndarray) -> float:
-    """Mean of the last 10% of the updates (at least one)."""
-    return float(np.mean(y[int(len(y) * 0.9) :])) if len(y) >= 10 else float(y[-1])
 
 
 def summarise(

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import csv
 import datetime as dt
-import json
+import io
 import math
 import re
 import warnings
@@ -47,9 +47,22 @@ import numpy as np
 
 from ndp.experiments.report.conditions import conditions_section
 from ndp.experiments.report.selection import selection_section
-from ndp.experiments.run_kinds import REPORT_KIND, RUN_KINDS, kind_of_algo, run_kind
+from ndp.experiments.rows import (  # noqa: F401  # re-exported: the report's public names
+    DET_EVAL_FILE,
+    DET_KEYS,
+    RunInfo,
+    _json,
+    bc_numbers,
+    det_numbers,
+    det_success,
+    has_det,
+    il_numbers,
+    rl_numbers,
+    success_at,
+)
+from ndp.experiments.run_kinds import RUN_KINDS, kind_of_algo, run_kind
 from ndp.experiments.studies import get_study
-from ndp.experiments.study import final_success, is_finished, smooth, success_area
+from ndp.experiments.study import is_finished
 from ndp.il.config import data_task_name
 from ndp.io import atomic_write_text, check_output_path
 from ndp.provenance import git_commit
@@ -62,33 +75,7 @@ class MissingSeedsError(ValueError):
     """Cells of the report lack seeds (the message names them)."""
 
 
-@dataclass
-class RunInfo:
-    """One run directory, identified."""
-
-    path: Path
-    task: str
-    label: str
-    algo: str
-    seed: int
-    steps: int
-    """Budget: env steps (RL), epochs (imitation)."""
-    kind: str
-    """'rl', 'sb3' or 'il'."""
-    finished: bool = False
-    commits: list[str] = field(default_factory=list)
-    problem: str = ""
-    """Why a run that says it is finished does not count (e.g. its metrics.csv was cut)."""
-
-
 # ----------------------------------------------------------------------------- finding runs
-
-
-def _json(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError):
-        return None
 
 
 def _is_run(path: Path) -> bool:
@@ -214,153 +201,6 @@ def _finished(info: RunInfo) -> bool:
     return _record_reaches_budget(info)
 
 
-# ----------------------------------------------------------------------------- numbers
-
-
-def _last_tenth(v: np.ndarray) -> float:
-    v = v[~np.isnan(v)]
-    if len(v) == 0:
-        return math.nan
-    return float(np.mean(v[int(len(v) * 0.9) :])) if len(v) >= 10 else float(v[-1])
-
-
-def success_at(x: np.ndarray, y: np.ndarray, b: float, budget: int) -> float:
-    """Mean success over the updates in the last 10% of [0, b] (NaN past the run's budget)."""
-    if b > budget * (1 + 1e-9) or len(x) == 0:
-        return math.nan
-    hi = b if b < budget else math.inf
-    sel = (x > 0.9 * b) & (x <= hi)
-    if sel.any():
-        return float(np.mean(y[sel]))
-    before = x <= hi
-    return float(y[before][-1]) if before.any() else math.nan
-
-
-def rl_numbers(info: RunInfo, budgets: Sequence[float]) -> dict[str, Any]:
-    """One RL run's numbers and its curve."""
-    rows = read_metrics(info.path)
-    x = np.array([r.get("global_step", math.nan) for r in rows], dtype=np.float64)
-    y = np.array([r.get("charts/success_any", math.nan) for r in rows], dtype=np.float64)
-    y_last = np.array([r.get("charts/success_final", math.nan) for r in rows], dtype=np.float64)
-    key = "charts/episode_return_live"
-    if not rows or key not in rows[0]:
-        key = "charts/episode_return"
-    ret = np.array([r.get(key, math.nan) for r in rows], dtype=np.float64)
-    keep = ~np.isnan(y)
-    xs, ys = x[keep], y[keep]
-    out: dict[str, Any] = {
-        "area": success_area(xs, ys, info.steps) if len(xs) else math.nan,
-        "final": final_success(ys) if len(ys) else math.nan,
-        "final_last": _last_tenth(y_last),
-        "return": _last_tenth(ret),
-        "curve": (xs, smooth(ys, max(1, len(ys) // 20)) if len(ys) else ys),
-    }
-    for b in budgets:
-        out[f"at:{int(b)}"] = success_at(xs, ys, b, info.steps)
-    out.update(det_numbers(rows))
-    return out
-
-
-DET_KEYS = ("det_area", "det_final", "det_final_last")
-"""The numbers of a run's periodic deterministic evaluation (:func:`det_numbers`)."""
-
-
-def det_numbers(rows: Sequence[dict[str, float]]) -> dict[str, Any]:
-    """A run's periodic deterministic evaluation (``eval/*`` columns, ndp.rl.periodic_eval):
-    ``det_area`` the mean of ``eval/success_any`` over its evaluations (taken at about equal
-    env-step intervals: the deterministic success area), ``det_final`` / ``det_final_last``
-    the last evaluation's success at any step / at the final step (the final policy), and
-    ``det_curve`` (env steps, success) of every evaluation; NaN and an empty curve for a run
-    without evaluations (trained before the option, or with ``--eval-every 0``)."""
-    x = np.array([r.get("global_step", math.nan) for r in rows], dtype=np.float64)
-    y = np.array([r.get("eval/success_any", math.nan) for r in rows], dtype=np.float64)
-    y_last = np.array([r.get("eval/success_final", math.nan) for r in rows], dtype=np.float64)
-    keep = ~np.isnan(y)
-    if not keep.any():
-        return {**dict.fromkeys(DET_KEYS, math.nan), "det_curve": (x[keep], y[keep])}
-    return {
-        "det_area": float(np.mean(y[keep])),
-        "det_final": float(y[keep][-1]),
-        "det_final_last": float(y_last[keep][-1]),
-        "det_curve": (x[keep], y[keep]),
-    }
-
-
-def has_det(cells: Sequence[Any]) -> bool:
-    """Whether any run of ``cells`` has a periodic deterministic evaluation."""
-    return any(
-        not math.isnan(n.get("det_area", math.nan)) for c in cells for n in c.numbers.values()
-    )
-
-
-def il_numbers(info: RunInfo) -> dict[str, Any]:
-    """One imitation run's test MSE / DTW and its test-MSE curve (x: epochs)."""
-    rows = read_metrics(info.path)
-    x = np.array([r.get("epoch", math.nan) for r in rows], dtype=np.float64)
-    y = np.array([r.get("test/mse_px2", math.nan) for r in rows], dtype=np.float64)
-    keep = ~np.isnan(y)
-    v = np.array([r.get("val/mse_px2", math.nan) for r in rows], dtype=np.float64)
-    ev = _json(info.path / "eval.json") or {}
-    done = _json(info.path / "done.json") or {}
-    last = float(y[keep][-1]) if keep.any() else math.nan
-    mse = (ev.get("test_mse_px2") or {}).get("mean", last)
-    dtw = (ev.get("test_dtw_px") or {}).get("mean", math.nan)
-    has_val = bool((~np.isnan(v)).any())
-    best = int(np.nanargmin(v)) if has_val else -1
-    curve, curve_of = (x[keep], y[keep]), "test"
-    if has_val and keep.sum() < 2:  # test scored once at the end: draw the validation curve
-        curve, curve_of = (x[~np.isnan(v)], v[~np.isnan(v)]), "validation"
-    wall = np.array([r.get("time/epoch_s", math.nan) for r in rows], dtype=np.float64)
-    return {
-        "mse": float(mse),
-        "dtw": float(dtw),
-        "val": float(v[best]) if has_val else math.nan,
-        "best_epoch": float(x[best]) if has_val else math.nan,
-        "epochs": float(x[-1]) if len(x) else math.nan,
-        "wall_s": float(np.nansum(wall)) if len(wall) else math.nan,
-        "stopped_early": done.get("reason") == "early stop",
-        "curve": curve,
-        "curve_of": curve_of,
-    }
-
-
-def bc_numbers(info: RunInfo) -> dict[str, Any]:
-    """One behaviour-cloning run's closed-loop evaluation (``eval.json`` of
-    :mod:`ndp.experiments.sweep.bc_job`): success, fit (last validation loss), jerk, SPARC."""
-    ev = _json(info.path / "eval.json") or {}
-
-    def num(key: str) -> float:
-        v = ev.get(key)
-        return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
-
-    return {k: num(k) for k in ("success", "val_loss", "jerk", "sparc")}
-
-
-DET_EVAL_FILE = "eval-det-e{episodes}.json"
-"""Per-run cache of the report's deterministic evaluation (``ndp rl eval``, episode seeds from
-``ndp.rl.config.EVAL_SEED``)."""
-
-
-def det_success(path: Path, episodes: int, compute: bool = True) -> float:
-    """Success (any step) of the run's deterministic policy over ``episodes`` fresh episodes.
-
-    Cached in ``<run>/eval-det-e<episodes>.json`` (atomic), so a report is cheap to redo. A run
-    that ``ndp rl eval`` cannot act with (``compute`` False: the Stable-Baselines3 runs, which
-    write the file themselves when they evaluate, :mod:`ndp.sb3.runs`) gives NaN
-    without the file.
-    """
-    cache = path / DET_EVAL_FILE.format(episodes=episodes)
-    data = _json(cache)
-    if data is None and not compute:
-        return math.nan
-    if data is None:
-        from ndp.rl.evaluate import evaluate
-
-        data = evaluate(path, episodes=episodes, deterministic=True)
-        atomic_write_text(cache, json.dumps(data) + "\n")
-    return float(data["success_any"])
-
-
 # ----------------------------------------------------------------------------- the report
 
 
@@ -416,7 +256,7 @@ def build_cells(
     cells: dict[tuple[str, str], Cell] = {}
     by_kind: dict[str, list[RunInfo]] = {}
     for i in infos:
-        by_kind.setdefault(REPORT_KIND[i.kind], []).append(i)
+        by_kind.setdefault(run_kind(i.kind).report.table, []).append(i)
     for group in by_kind.values():
         # the order given (--tasks, --methods), else the order the runs were found in
         task_order = list(dict.fromkeys(i.task for i in group))
@@ -516,9 +356,10 @@ def report(
     cells, expected = build_cells(infos, seeds, tasks, methods)
     if any(c.missing for c in cells) and not allow_missing:
         raise MissingSeedsError(_missing_message(cells, expected))
-    rl_cells = [c for c in cells if REPORT_KIND[c.kind] == "rl"]
-    il_cells = [c for c in cells if REPORT_KIND[c.kind] == "il"]
-    bc_cells = [c for c in cells if REPORT_KIND[c.kind] == "bc"]
+    tables: dict[str, list[Cell]] = {"success": [], "imitation": [], "cloning": []}
+    for c in cells:
+        tables[run_kind(c.kind).report.table].append(c)
+    rl_cells, il_cells, bc_cells = tables["success"], tables["imitation"], tables["cloning"]
     top = max((i.steps for c in rl_cells for i in c.runs.values()), default=0)
     for b in budgets or ():
         if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b <= 0:
@@ -526,18 +367,12 @@ def report(
     at_steps = sorted({int(b) for b in (budgets or [top / 4, top / 2, top]) if b > 0})
     if isinstance(eval_episodes, bool) or not isinstance(eval_episodes, int) or eval_episodes < 0:
         raise ValueError(f"eval_episodes: expected an integer >= 0, got {eval_episodes!r}")
-    for c in rl_cells:
-        c.numbers = {s: rl_numbers(i, at_steps) for s, i in c.runs.items()}
-        for s_, i in c.runs.items():
-            c.numbers[s_]["det"] = (
-                det_success(i.path, eval_episodes, compute=run_kind(i.kind).evaluable)
-                if eval_episodes
-                else math.nan
-            )
-    for c in il_cells:
-        c.numbers = {s: il_numbers(i) for s, i in c.runs.items()}
-    for c in bc_cells:
-        c.numbers = {s: bc_numbers(i) for s, i in c.runs.items()}
+    for c in cells:
+        kind = run_kind(c.kind)
+        c.numbers = {
+            s_: kind.report.numbers(i, at_steps, eval_episodes, kind.evaluable)
+            for s_, i in c.runs.items()
+        }
     prov = {
         "command": command,
         "commit": git_commit(),
@@ -553,27 +388,9 @@ def report(
     if bc_cells:
         at = md.index("", md.index(next(x for x in md if x.startswith("Seeds per cell")))) + 1
         md[at:at] = _bc_markdown(bc_cells)
-    extra_csv: list[Path] = []  # the sections' own tables
-    if conditions:
-        foot = f"{prov['command']}  |  commit {prov['commit']}  |  {prov['date']}"
-        cmd, crows, cpngs = conditions_section(rl_cells, conditions, expected, out, foot, plots)
-        csv_rows = [{**r, "command": prov["command"], "commit": prov["commit"],
-                     "date": prov["date"]} for r in crows]  # fmt: skip
-        _write_csv(out.with_name(out.name + "-conditions.csv"), csv_rows)
-        extra_csv.append(out.with_name(out.name + "-conditions.csv"))
-        # before the per-arm table
-        at = next((i for i, line in enumerate(md) if line.startswith("Success:")), len(md))
-        md[at:at] = cmd
-        pngs = [*cpngs, *pngs]
-    if selection and il_cells:
-        smd, srows = selection_section(il_cells, selection, expected, floor=plots)
-        _write_csv(out.with_name(out.name + "-selection.csv"),
-                   [{**r, "command": prov["command"], "commit": prov["commit"],
-                     "date": prov["date"]} for r in srows])  # fmt: skip
-        extra_csv.append(out.with_name(out.name + "-selection.csv"))
-        at = next((i for i, line in enumerate(md) if line.startswith("Imitation:")), len(md))
-        md[at:at] = smd
-    out.with_suffix(".md").write_text("\n".join(md) + "\n")
+    pngs, extra_csv = _study_sections(md, pngs, tables, conditions, selection, expected, out,
+                                      prov, plots)  # fmt: skip
+    atomic_write_text(out.with_suffix(".md"), "\n".join(md) + "\n")
     return {
         **prov,
         "seeds": expected,
@@ -585,6 +402,45 @@ def report(
         "png": [str(p) for p in pngs],
         "missing": [(c.task, c.label, c.missing) for c in cells if c.missing],
     }
+
+
+def _study_sections(
+    md: list[str],
+    pngs: list[Path],
+    tables: dict[str, list[Cell]],
+    conditions: Sequence[Any],
+    selection: Sequence[Any],
+    expected: Sequence[int],
+    out: Path,
+    prov: dict[str, Any],
+    plots: bool,
+) -> tuple[list[Path], list[Path]]:
+    """A study's own sections, inserted into ``md`` in place: its conditions (before the
+    per-arm success table) and its selection (before the imitation table), each with its CSV.
+    Returns the figures (the sections' first) and the sections' CSV paths."""
+    extra_csv: list[Path] = []
+
+    def write(suffix: str, rows: Sequence[dict[str, Any]]) -> None:
+        path = out.with_name(out.name + suffix)
+        _write_csv(path, [{**r, **{k: prov[k] for k in ("command", "commit", "date")}}
+                          for r in rows])  # fmt: skip
+        extra_csv.append(path)
+
+    if conditions:
+        foot = f"{prov['command']}  |  commit {prov['commit']}  |  {prov['date']}"
+        cmd, crows, cpngs = conditions_section(
+            tables["success"], conditions, expected, out, foot, plots
+        )
+        write("-conditions.csv", crows)
+        at = next((i for i, line in enumerate(md) if line.startswith("Success:")), len(md))
+        md[at:at] = cmd
+        pngs = [*cpngs, *pngs]
+    if selection and tables["imitation"]:
+        smd, srows = selection_section(tables["imitation"], selection, expected, floor=plots)
+        write("-selection.csv", srows)
+        at = next((i for i, line in enumerate(md) if line.startswith("Imitation:")), len(md))
+        md[at:at] = smd
+    return pngs, extra_csv
 
 
 def _csv_rows(
@@ -606,23 +462,7 @@ def _csv_rows(
             "missing_seeds": " ".join(map(str, c.missing)),
             "budget": " ".join(sorted({str(i.steps) for i in c.runs.values()})),
         }
-        if REPORT_KIND[c.kind] == "il":
-            keys = [("test_mse_px2", "mse"), ("test_dtw_px", "dtw")]
-        elif REPORT_KIND[c.kind] == "bc":
-            keys = [("success", "success"), ("fit_val_loss", "val_loss"), ("jerk", "jerk"),
-                    ("sparc", "sparc")]  # fmt: skip
-        else:
-            keys = [(f"success_at_{b}", f"at:{b}") for b in budgets]
-            keys += [
-                ("success_area", "area"),
-                ("final_success", "final"),
-                ("final_success_last_step", "final_last"),
-                ("final_return_live", "return"),
-                ("det_success", "det"),
-                ("det_success_area", "det_area"),
-                ("det_final_success", "det_final"),
-                ("det_final_success_last_step", "det_final_last"),
-            ]
+        keys = run_kind(c.kind).report.columns(budgets)
         for name, key in keys:
             m, s, _ = c.stat(key)
             r[f"{name}_mean"], r[f"{name}_std"] = m, s
@@ -642,13 +482,12 @@ def _write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
         "commit",
         "date",
     ]
-    with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=cols)
-        w.writeheader()
-        for r in rows:
-            w.writerow(
-                {k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in r.items()}
-            )
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=cols)
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if isinstance(v, float) and math.isnan(v) else v) for k, v in r.items()})
+    atomic_write_text(path, buf.getvalue())  # a report redone over an old one never half-writes
 
 
 def _markdown(

@@ -22,6 +22,7 @@ import numpy as np
 
 from ndp.experiments.report import stats
 from ndp.experiments.run_kinds import il_data_args
+from ndp.il.config import DataConfig
 
 FLOOR_N = (10, 20, 30)
 """Numbers of basis functions of the floor rows (30: the models' DMP)."""
@@ -30,8 +31,6 @@ FLOOR_N = (10, 20, 30)
 def data_config(task: str) -> Any:
     """The ``DataConfig`` of an imitation study's "task" (a data set name, as
     :func:`ndp.experiments.run_kinds.il_data_args` reads it)."""
-    from ndp.il.config import DataConfig
-
     args = il_data_args(task)
     opts = dict(zip(args[::2], args[1::2], strict=True))
     kw: dict[str, Any] = {"source": opts["--data"], "split": opts["--split"]}

@@ -28,12 +28,10 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from ndp.bc.demos import Demos, collect, load_demos, save_demos
 from ndp.experiments.run_kinds import BC_DEMOS_EPISODES as DEMOS_EPISODES
-
-if TYPE_CHECKING:
-    from ndp.bc.demos import Demos
 from ndp.io import atomic_write_text
 from ndp.runs import read_metrics
 from ndp.runs.session import read_manifest
@@ -59,8 +57,6 @@ def ensure_demos(path: Path, task: str, episodes: int = DEMOS_EPISODES) -> Demos
     Raises:
         ValueError: ``path`` holds another task's demonstrations, or fewer episodes.
     """
-    from ndp.bc.demos import collect, load_demos, save_demos
-
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path.with_name(path.name + ".lock"), "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)

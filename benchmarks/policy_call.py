@@ -1,0 +1,109 @@
+"""Cost of one rollout decision call (ms) per method: what the main process spends per decision
+besides stepping the envs.
+
+The call a rollout makes each decision (``ndp.rl.onpolicy.trainer.Trainer.collect``): the
+policy's distribution (NDP: the DMP head decoding goal and weights into k sub-actions through
+its fused action map), its exploration wrapper, a sample, its log-prob, the value, the
+actions, and the head's diagnostics; batch = ``--num-envs`` (4), no gradient, one thread.
+Measured on the networks of a run opened through the run driver (``ndp.rl.run.open_run``,
+untrained weights; the cost does not depend on them). Per env step it is the call divided by k
+(5 for NDP and PPO-multi, 1 for PPO).
+
+Example (the numbers of docs/rl-results.md's throughput section)::
+
+    python benchmarks/policy_call.py --methods ppo ppo-multi ndp --calls 2000
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import torch
+
+from ndp.experiments.provenance import git_commit
+
+
+def call_ms(method: str, task: str, num_envs: int, calls: int, repeats: int) -> dict[str, float]:
+    """Median (over ``repeats``) ms per decision call of ``method``, and its k."""
+    from ndp.rl.config import TrainConfig
+    from ndp.rl.run import open_run
+
+    with tempfile.TemporaryDirectory() as tmp:
+        cfg = TrainConfig(
+            task=task,
+            algo=method,
+            steps=1,
+            num_envs=num_envs,
+            run_dir=str(Path(tmp) / "r"),
+            progress=False,
+            tensorboard=False,
+            vector="sync",
+            eval_every=0,
+        )
+        opened = open_run(cfg)
+        try:
+            tr = opened.learner
+            model = tr.rollout_model
+            tr._start()  # the envs reset: the robot state a decision starts from
+            obs = torch.randn(num_envs, tr.obs_dim)
+            y0 = torch.as_tensor(tr._y0, dtype=torch.float32)
+            dy0 = torch.as_tensor(tr._dy0, dtype=torch.float32)
+
+            def one() -> None:
+                with torch.no_grad():
+                    dist, aux = model.distribution(obs, y0, dy0)
+                    dist = tr._explore(dist, None)
+                    z = dist.sample()
+                    dist.log_prob(z)
+                    model.value(obs)
+                    dist.actions(z)
+                    for v in aux.values():
+                        float(v.mean())
+
+            for _ in range(calls // 10):
+                one()
+            times = []
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                for _ in range(calls):
+                    one()
+                times.append((time.perf_counter() - t0) / calls * 1e3)
+            return {"ms_per_call": statistics.median(times), "k": float(tr.k)}
+        finally:
+            opened.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--task", default="push-v3")
+    p.add_argument("--methods", nargs="+", default=["ppo", "ppo-multi", "ndp"])
+    p.add_argument("--num-envs", type=int, default=4)
+    p.add_argument("--calls", type=int, default=2000)
+    p.add_argument("--repeats", type=int, default=3)
+    args = p.parse_args(argv)
+    torch.set_num_threads(1)
+    res = {}
+    for m in args.methods:
+        r = call_ms(m, args.task, args.num_envs, args.calls, args.repeats)
+        r["ms_per_env_step"] = r["ms_per_call"] / r["k"]
+        res[m] = r
+    out = {
+        "task": args.task,
+        "num_envs": args.num_envs,
+        "commit": git_commit(),
+        "command": "python benchmarks/policy_call.py "
+        + " ".join(sys.argv[1:] if argv is None else argv),
+        "results": res,
+    }
+    print(json.dumps(out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

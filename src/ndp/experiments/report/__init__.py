@@ -360,13 +360,7 @@ def report(
     for c in cells:
         tables[run_kind(c.kind).report.table].append(c)
     rl_cells, il_cells, bc_cells = tables["success"], tables["imitation"], tables["cloning"]
-    top = max((i.steps for c in rl_cells for i in c.runs.values()), default=0)
-    for b in budgets or ():
-        if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b <= 0:
-            raise ValueError(f"budgets: expected env steps > 0, got {b!r}")
-    at_steps = sorted({int(b) for b in (budgets or [top / 4, top / 2, top]) if b > 0})
-    if isinstance(eval_episodes, bool) or not isinstance(eval_episodes, int) or eval_episodes < 0:
-        raise ValueError(f"eval_episodes: expected an integer >= 0, got {eval_episodes!r}")
+    at_steps = _budgets(budgets, rl_cells, eval_episodes)
     for c in cells:
         kind = run_kind(c.kind)
         c.numbers = {
@@ -402,6 +396,20 @@ def report(
         "png": [str(p) for p in pngs],
         "missing": [(c.task, c.label, c.missing) for c in cells if c.missing],
     }
+
+
+def _budgets(
+    budgets: Sequence[float] | None, rl_cells: Sequence[Cell], eval_episodes: int
+) -> list[int]:
+    """The env steps the success table reports at (``budgets``, else a quarter, half and all
+    of the largest run's budget); checks ``budgets`` and ``eval_episodes``."""
+    top = max((i.steps for c in rl_cells for i in c.runs.values()), default=0)
+    for b in budgets or ():
+        if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b <= 0:
+            raise ValueError(f"budgets: expected env steps > 0, got {b!r}")
+    if isinstance(eval_episodes, bool) or not isinstance(eval_episodes, int) or eval_episodes < 0:
+        raise ValueError(f"eval_episodes: expected an integer >= 0, got {eval_episodes!r}")
+    return sorted({int(b) for b in (budgets or [top / 4, top / 2, top]) if b > 0})
 
 
 def _study_sections(

@@ -7,7 +7,7 @@ Success compares across K2; the return does not (m times as many env-step reward
 so the table reports it only for reference. The runs are only read.
 
     python benchmarks/exec_k.py /work/runs/ndp_study/push-v3-ndp-s0 \\
-        /work/runs/ndp_study/push-v3-ppo-multi-s0 --episodes 20 --out docs/results/exec_k
+        /work/runs/ndp_study/push-v3-ppo-multi-s0 --episodes 20 --out docs/results/exec_k/exec_k
 
 Writes ``<out>.md`` and ``<out>.csv`` (one row per run and K2), each with the command, the commit
 and the date.
@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--episodes", type=int, default=20)
     p.add_argument("--seed", type=int, default=10_000)
-    p.add_argument("--out", default="docs/results/exec_k")
+    p.add_argument("--out", default="docs/results/exec_k/exec_k")
     args = p.parse_args(argv)
 
     import torch

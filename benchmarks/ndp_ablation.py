@@ -55,7 +55,9 @@ def main(argv: list[str] | None = None) -> int:
         default=[a.label for a in ARMS],
         choices=[a.label for a in (*ARMS, *EXTRA_ARMS)],
     )
-    add_study_arguments(p, "runs/ndp_study", "docs/results/ndp_ablation", 300_000)
+    add_study_arguments(
+        p, "runs/ndp_study", "docs/results/ndp_ablation_push/ndp_ablation_push", 300_000
+    )
     args = p.parse_args(argv)
     arms = [
         Arm(a.label, a.algo, a.args + tuple(args.extra), a.note)

@@ -13,7 +13,7 @@ grid in log space). It does the same for the noise of a decision's summed displa
 white noise adds up as sqrt(k) and parameter noise, correlated over the decision, as up to k.
 
 Usage: python benchmarks/param_noise_calibration.py [--tasks push-v3 throw] [--ks 5 10 20]
-       [--out docs/results/param_noise_calibration.json]
+       [--out docs/results/param_noise_calibration/param_noise_calibration.json]
 """
 
 from __future__ import annotations

@@ -33,7 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--tasks", nargs="+", default=TASKS)
     p.add_argument("--label", default="ppo", help="label of our PPO arm (with extra options)")
-    add_study_arguments(p, "runs/ppo_vs_sb3", "docs/results/ppo_vs_sb3", 150_000)
+    add_study_arguments(p, "runs/ppo_vs_sb3", "docs/results/ppo_vs_sb3/ppo_vs_sb3", 150_000)
     args = p.parse_args(argv)
     ours, sb3 = (a.arm() for a in get_study("ppo-vs-sb3").arm_specs())
     arms = [Arm(args.label, ours.algo, tuple(args.extra), ours.note), sb3]

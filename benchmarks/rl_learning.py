@@ -17,7 +17,7 @@ The issue's protocol (days of CPU on 2 cores; resumable)::
 
     python benchmarks/rl_learning.py --steps 300000 --seeds 0 1 2
     # = ndp sweep paper-five --steps 300000 --seeds 0 1 2 --runs-dir runs/rl_learning \
-    #       --report docs/results/rl_learning
+    #       --report docs/results/rl_learning/rl_learning
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--algos", nargs="+", default=["ndp", "ppo", "ppo-multi"],
                    help="arms of paper-five (default: ndp ppo ppo-multi)")  # fmt: skip
     p.add_argument("--runs-dir", default="runs/rl_learning")
-    p.add_argument("--out", default="docs/results/rl_learning")
+    p.add_argument("--out", default="docs/results/rl_learning/rl_learning")
     p.add_argument("--plot-only", action="store_true", help="only report the existing runs")
     p.add_argument("--seeds", nargs="+")
     p.add_argument("--eval-episodes", default="0", help="with --plot-only: ndp report's option")

@@ -48,9 +48,10 @@ time of a 1M-step NDP run at the measured rate, against one core merely stepping
 Examples (the table of docs/rl-results.md; the SAC rows)::
 
     python benchmarks/rl_throughput.py --tasks reach-v3 push-v3 --steps 10240 --repeats 3 \
-        --out docs/results/rl_throughput
+        --out docs/results/rl_throughput/rl_throughput
     python benchmarks/rl_throughput.py --tasks push-v3 --steps 4096 --repeats 1 \
-        --methods sac-sync ndp-sac-sync sac-chunk-sync sb3-sac --out docs/results/sac_throughput
+        --methods sac-sync ndp-sac-sync sac-chunk-sync sb3-sac \
+        --out docs/results/sac_throughput/sac_throughput
 """
 
 from __future__ import annotations

@@ -9,7 +9,8 @@ task) and SPARC (closer to 0 is smoother; dimensionless). Per-run results are ca
 directory (``smoothness-e<episodes>-s<seed>.json``), so the study resumes.
 
     python benchmarks/smoothness.py /work/runs/ndp_study --tasks push-v3 throw \\
-        --methods ndp ppo ppo-multi --seeds 0 1 2 --episodes 20 --out docs/results/smoothness
+        --methods ndp ppo ppo-multi --seeds 0 1 2 --episodes 20 \\
+        --out docs/results/smoothness/smoothness
 
 Writes ``<out>.md``, ``<out>.csv`` and ``<out>.png`` (jerk and SPARC per task and method,
 mean +- std over seeds), each with the command, commit and date.
@@ -78,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", nargs="+", type=int)
     p.add_argument("--episodes", type=int, default=20)
     p.add_argument("--eval-seed", type=int, default=10_000, help="first evaluation episode seed")
-    p.add_argument("--out", default="docs/results/smoothness")
+    p.add_argument("--out", default="docs/results/smoothness/smoothness")
     args = p.parse_args(argv)
 
     import torch

@@ -287,7 +287,7 @@ per-task frame)."""
 
 
 def _head_ablation_arms() -> tuple[ArmSpec, ...]:
-    """The NDP head ablation (docs/results/ndp_ablation_*): each fix of the first release's
+    """The NDP head ablation (docs/results/ndp_ablation_*/): each fix of the first release's
     head switched off alone, from the commanded frame at rest; ``ndp-v0`` has every fix off."""
     c = HEAD_ABLATION_COMMANDED
     v0 = ("--mean-clip", "--forcing", "goal", "--goal-scale", "1", "--absolute-mode", "dmp",
@@ -492,8 +492,9 @@ larger k compresses more env steps into the same parameters)."""
 PARAM_NOISE_LOG_STD = "0.0"
 """init_log_std of the calibrated parameter-noise arms: the value at which the executed
 (clipped) sub-actions of a fresh NDP policy vary as much as under the white arm's std 1
-(benchmarks/param_noise_calibration.py, docs/results/param_noise_calibration.json: 0.01 to 0.05 on
-push-v3, -0.12 to -0.09 on Throw, for k = 5, 10, 20)."""
+(benchmarks/param_noise_calibration.py,
+docs/results/param_noise_calibration/param_noise_calibration.json: 0.01 to 0.05 on push-v3,
+-0.12 to -0.09 on Throw, for k = 5, 10, 20)."""
 PARAM_NOISE_DISPLACEMENT = {5: "-1.5", 10: "-2.0", 20: "-2.3"}
 """init_log_std at which parameter noise moves a decision's summed displacement as much as the
 white arm (the same benchmark: push-v3 -1.57 / -1.98 / -2.35, Throw -1.46 / -1.84 / -2.19):
@@ -550,8 +551,8 @@ def _regime_arms() -> tuple[ArmSpec, ...]:
                 in_default=False,
             )
         )
-    # NDP with ndp-settings' winner (docs/results/ndp_settings.md: N 10; lr, a_z and the init
-    # std stay at their defaults), added after that study, before any of these runs
+    # NDP with ndp-settings' winner (docs/results/ndp_settings/ndp_settings.md: N 10; lr, a_z
+    # and the init std stay at their defaults), added after that study, before any of these runs
     arms.append(ArmSpec("ndp-tuned", "ndp", ("--n-basis", "10"),
                         "NDP, k = 5, white noise, the ndp-settings winner (N 10)",
                         in_default=False))  # fmt: skip
@@ -649,7 +650,8 @@ MT50_ATTRIBUTION_TASKS = (
     "window-open-v3",
 )
 """The Meta-World tasks where NDP's and PPO's final success differed by more than 0.1 at seed 0
-in docs/results/mt50_100k.csv (100k env steps), fixed before any run of mt50-attribution."""
+in docs/results/mt50_100k/mt50_100k.csv (100k env steps), fixed before any run of
+mt50-attribution."""
 
 
 def _mt50_attribution_arms() -> tuple[ArmSpec, ...]:
@@ -767,7 +769,7 @@ STUDIES: dict[str, Study] = {
                 "NDP head with one fix off at a time from the commanded frame at rest (mean "
                 "clip, goal-proportional forcing, goal bound, gripper DMP, start velocity, "
                 "parameter noise) and with every fix off (ndp-v0); ndp-measured only with "
-                "--arms. The tables of docs/results/ndp_ablation_*.md were made with "
+                "--arms. The tables of docs/results/ndp_ablation_*/ were made with "
                 "benchmarks/ndp_ablation.py, which runs these arms."
             ),
             tasks=lambda: ("push-v3", "point-mass"),
@@ -780,7 +782,7 @@ STUDIES: dict[str, Study] = {
             doc=(
                 "reach-v3, push-v3, window-close-v3, drawer-open-v3, button-press-v3 x this "
                 "package's PPO (k = 1) and SB3's PPO with the same hyperparameters "
-                "(ndp.sb3.runs). docs/results/ppo_vs_sb3.md was made with "
+                "(ndp.sb3.runs). docs/results/ppo_vs_sb3/ppo_vs_sb3.md was made with "
                 "benchmarks/ppo_vs_sb3.py, which runs these arms."
             ),
             tasks=lambda: PPO_VS_SB3_TASKS,
@@ -939,7 +941,8 @@ STUDIES: dict[str, Study] = {
             title="MT50 at 100k: NDP vs PPO-multi vs PPO where seed 0 told them apart",
             doc=(
                 "The 7 Meta-World tasks where NDP's and PPO's final success differed by more "
-                "than 0.1 at seed 0 of mt50 (docs/results/mt50_100k.csv) x NDP, PPO-multi, PPO, "
+                "than 0.1 at seed 0 of mt50 (docs/results/mt50_100k/mt50_100k.csv) x NDP, "
+                "PPO-multi, PPO, "
                 "100k env steps, seeds 0-2, deterministic evaluation: whether the MT50 "
                 "direction (NDP slightly ahead of PPO) holds with spread and against PPO-multi. "
                 "Report with the per-task intervals and the over-tasks IQM (--study "

@@ -335,24 +335,7 @@ def report(
         MissingSeedsError: cells lack seeds and not ``allow_missing`` (nothing written).
         ValueError: no runs, or two runs of one cell and seed.
     """
-    conditions: tuple[Any, ...] = ()
-    selection: tuple[Any, ...] = ()
-    if study is not None:
-        st = get_study(study)
-        conditions = st.conditions
-        selection = st.selection
-        if methods is None and (conditions or selection):
-            methods = [a.label for a in st.arm_specs()]
-    study_tasks = tasks is None and (conditions or selection)
-    if study_tasks:
-        tasks = list(st.task_list())
-    dirs = find_run_dirs(run_dirs)
-    infos = [i for i in (run_info(d) for d in dirs) if i is not None]
-    if not infos:
-        raise ValueError(f"report: no runs found in {', '.join(map(str, run_dirs))}")
-    if study_tasks and tasks is not None:  # the study's order; tasks without runs yet left out
-        found = {i.task for i in infos}
-        tasks = [t for t in tasks if t in found]
+    conditions, selection, infos, tasks, methods = _scope(run_dirs, study, tasks, methods)
     cells, expected = build_cells(infos, seeds, tasks, methods)
     if any(c.missing for c in cells) and not allow_missing:
         raise MissingSeedsError(_missing_message(cells, expected))
@@ -396,6 +379,37 @@ def report(
         "png": [str(p) for p in pngs],
         "missing": [(c.task, c.label, c.missing) for c in cells if c.missing],
     }
+
+
+def _scope(
+    run_dirs: Sequence[str | Path],
+    study: str | None,
+    tasks: Sequence[str] | None,
+    methods: Sequence[str] | None,
+) -> tuple[tuple[Any, ...], tuple[Any, ...], list[RunInfo], Sequence[str] | None,
+           Sequence[str] | None]:  # fmt: skip
+    """The runs a report reads and its scope: the study's conditions and selection (empty
+    without a study), the runs found under ``run_dirs``, and the tasks and methods (a study with
+    sections defaults them to its own, in its order, leaving out tasks without runs yet)."""
+    conditions: tuple[Any, ...] = ()
+    selection: tuple[Any, ...] = ()
+    if study is not None:
+        st = get_study(study)
+        conditions = st.conditions
+        selection = st.selection
+        if methods is None and (conditions or selection):
+            methods = [a.label for a in st.arm_specs()]
+    study_tasks = tasks is None and (conditions or selection)
+    if study_tasks:
+        tasks = list(st.task_list())
+    dirs = find_run_dirs(run_dirs)
+    infos = [i for i in (run_info(d) for d in dirs) if i is not None]
+    if not infos:
+        raise ValueError(f"report: no runs found in {', '.join(map(str, run_dirs))}")
+    if study_tasks and tasks is not None:  # the study's order; tasks without runs yet left out
+        found = {i.task for i in infos}
+        tasks = [t for t in tasks if t in found]
+    return conditions, selection, infos, tasks, methods
 
 
 def _budgets(

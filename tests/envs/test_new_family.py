@@ -178,7 +178,7 @@ def test_builtin_families_register_through_register_task(monkeypatch):
     from ndp.envs import factory, spec
     from ndp.gym_ids import shipped
 
-    builtin = {"metaworld", "jaco", "toy"}  # (other tests of this file add a "slider" family)
+    builtin = {"metaworld", "jaco", "toy"}  # (other tests of this file add a "rail" family)
     tasks = {n: s for n, s in spec.TASKS.items() if s.family in builtin}
     torque = {n: s for n, s in spec.TORQUE_TASKS.items() if s.family in builtin}
     names = {*tasks, *torque}
@@ -215,3 +215,14 @@ def test_builtin_families_register_through_register_task(monkeypatch):
         "torque": {n: [s.env_id, s.horizon] for n, s in before[1].items()},
     }
     assert {g.id for g in shipped()} <= set(__import__("gymnasium").registry)
+
+
+def test_a_torque_factory_for_a_family_without_torque_rows_is_refused():
+    import dataclasses
+
+    from ndp.envs import factory
+
+    other = dataclasses.replace(SPEC, name="slider-torque", env_id="ndp/slider-torque", aliases=())
+    with pytest.raises(ValueError, match="torque: family 'rail' has no torque-actuated rows"):
+        register_task(other, _make, torque=_make)
+    assert "slider-torque" not in TASKS and "rail" not in factory.TORQUE_FAMILIES

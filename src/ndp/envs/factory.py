@@ -322,6 +322,11 @@ def register_task(
     for name, given, table in (("make", make, FAMILIES), ("torque", torque, TORQUE_FAMILIES)):
         if given is not None and table.get(spec.family, given) is not given:
             raise ValueError(f"{name}: family {spec.family!r} already has an env factory")
+    if torque is not None and not torque_rows(spec):
+        raise ValueError(
+            f"torque: family {spec.family!r} has no torque-actuated rows (ndp.envs.spec."
+            "torque_rows knows the impedance controllers of metaworld and jaco only)"
+        )
     add_task(spec)
     if make is not None:
         FAMILIES[spec.family] = make

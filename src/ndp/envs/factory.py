@@ -322,7 +322,9 @@ def register_task(
     for name, given, table in (("make", make, FAMILIES), ("torque", torque, TORQUE_FAMILIES)):
         if given is not None and table.get(spec.family, given) is not given:
             raise ValueError(f"{name}: family {spec.family!r} already has an env factory")
-    if torque is not None and not torque_rows(spec):
+    family_torque = torque if torque is not None else TORQUE_FAMILIES.get(spec.family)
+    rows = torque_rows(spec) if family_torque is not None else []
+    if torque is not None and not rows:
         raise ValueError(
             f"torque: family {spec.family!r} has no torque-actuated rows (ndp.envs.spec."
             "torque_rows knows the impedance controllers of metaworld and jaco only)"
@@ -332,7 +334,6 @@ def register_task(
         FAMILIES[spec.family] = make
     if torque is not None:
         TORQUE_FAMILIES[spec.family] = torque
-    rows = torque_rows(spec) if spec.family in TORQUE_FAMILIES else []
     for row in rows:
         add_task(row)
     per_torque = {r.name: (r.env_id, r.horizon) for r in rows}

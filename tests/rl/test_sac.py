@@ -22,6 +22,7 @@ from ndp.rl.sac.losses import (
     critic_target,
     soft_update,
 )
+from ndp.rl.replay import RingReplay
 from ndp.rl.sac.replay import DecisionReplay
 from ndp.runs import load_checkpoint, read_metrics
 
@@ -101,8 +102,25 @@ def test_replay_round_trip_and_ring():
     rng_a, rng_b = np.random.default_rng(1), np.random.default_rng(1)
     a, b = buf.sample(6, rng_a), again.sample(6, rng_b)
     assert all(torch.equal(a[k], b[k]) for k in a)
-    with pytest.raises(ValueError, match="replay: column u has width"):
+    with pytest.raises(ValueError, match=r"replay: column u has shape \(3,\) in the checkpoint, \(5,\) now"):
         DecisionReplay(4, {**dims, "u": 5}).load_state_dict(buf.state_dict())
+
+
+def test_ring_replay_scalar_columns_and_capacity_check():
+    buf = RingReplay(3, {"obs": (2,), "rew": (4,), "term": ()})
+    buf.add(obs=np.arange(4.0).reshape(2, 2), rew=np.ones((2, 4)), term=np.array([0.0, 1.0]))
+    b = buf.sample(5, np.random.default_rng(0))
+    assert b["obs"].shape == (5, 2) and b["rew"].shape == (5, 4) and b["term"].shape == (5,)
+    rows = {tuple(r) for r in b["obs"].tolist()}
+    assert rows <= {(0.0, 1.0), (2.0, 3.0)}  # only filled rows are drawn
+    # every drawn row keeps its columns together (one gather of whole rows)
+    for o, t in zip(b["obs"].tolist(), b["term"].tolist(), strict=True):
+        assert t == (1.0 if o == [2.0, 3.0] else 0.0)
+    with pytest.raises(ValueError, match="buffer holds 3 decisions, expected 4"):
+        RingReplay(4, buf.shapes).load_state_dict(buf.state_dict())
+    empty = RingReplay(3, buf.shapes)
+    empty.load_state_dict(RingReplay(3, buf.shapes).state_dict())  # an empty buffer round-trips
+    assert empty.size == 0
 
 
 def test_config_refuses_bad_values_naming_the_field():

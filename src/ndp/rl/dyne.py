@@ -57,8 +57,10 @@ from ndp.rl.config import DyneConfig, TrainConfig
 from ndp.rl.logger import METRICS
 from ndp.rl.methods import DYNE_METRICS
 from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.optim import soft_update
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
+from ndp.rl.replay import RingReplay
 from ndp.runs.session import (
     CountsUpdates,
     RunSession,
@@ -224,68 +226,21 @@ class TwinCritic(nn.Module):
         return q
 
 
-class DecisionReplay:
-    """Ring buffer of decisions (float32 numpy arrays); ``state_dict`` holds the filled part."""
+DYNE_REPLAY_FIELDS = ("obs", "z", "rew", "mask", "next_obs", "term")
+"""Dyn-E's replay columns: observation [O], latent action [L], sub-rewards and executed-step
+mask [k], next observation [O], termination (scalar)."""
 
-    FIELDS = ("obs", "z", "rew", "mask", "next_obs", "term")
 
-    def __init__(self, capacity: int, obs_dim: int, latent_dim: int, k: int) -> None:
-        self.capacity = int(capacity)
-        shapes = {
-            "obs": (obs_dim,),
-            "z": (latent_dim,),
-            "rew": (k,),
-            "mask": (k,),
-            "next_obs": (obs_dim,),
-            "term": (),
-        }
-        self.data = {
-            name: np.zeros((self.capacity, *shape), np.float32) for name, shape in shapes.items()
-        }
-        self.ptr = 0
-        self.size = 0
-
-    def add(self, **batch: np.ndarray) -> None:
-        """Append E decisions (every field [E, ...])."""
-        n = len(batch["obs"])
-        idx = (self.ptr + np.arange(n)) % self.capacity
-        for name in self.FIELDS:
-            self.data[name][idx] = batch[name]
-        self.ptr = int((self.ptr + n) % self.capacity)
-        self.size = int(min(self.size + n, self.capacity))
-
-    def sample(self, n: int, rng: np.random.Generator) -> dict[str, torch.Tensor]:
-        idx = rng.integers(0, self.size, size=n)
-        return {name: torch.from_numpy(arr[idx]) for name, arr in self.data.items()}
-
-    def state_dict(self) -> dict[str, Any]:
-        return {
-            "capacity": self.capacity,
-            "ptr": self.ptr,
-            "size": self.size,
-            "data": {name: arr[: self.size].copy() for name, arr in self.data.items()},
-        }
-
-    def load_state_dict(self, d: dict[str, Any]) -> None:
-        if int(d["capacity"]) != self.capacity:
-            raise ValueError(
-                f"replay: the checkpoint's buffer holds {d['capacity']} decisions, "
-                f"expected {self.capacity}"
-            )
-        self.ptr, self.size = int(d["ptr"]), int(d["size"])
-        for name in self.FIELDS:
-            self.data[name][: self.size] = d["data"][name]
+def dyne_replay(capacity: int, obs_dim: int, latent_dim: int, k: int) -> RingReplay:
+    """Dyn-E's ring of decisions (:data:`DYNE_REPLAY_FIELDS`)."""
+    shapes = {"obs": (obs_dim,), "z": (latent_dim,), "rew": (k,), "mask": (k,),
+              "next_obs": (obs_dim,), "term": ()}  # fmt: skip
+    return RingReplay(int(capacity), shapes)
 
 
 def _robot_state(info: dict[str, Any], n: int) -> np.ndarray:
     """The measured robot positions and velocities now [E, 2 D] (the next chunk's start)."""
     return np.concatenate(dmp_start(info, "measured", n), axis=1)
-
-
-def _soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
-    with torch.no_grad():
-        for t, s in zip(target.parameters(), source.parameters(), strict=True):
-            t.mul_(1.0 - tau).add_(s, alpha=tau)
 
 
 # --------------------------------------------------------------------------- learner
@@ -330,7 +285,7 @@ class DyneLearner(CountsUpdates):
         d = cfg.dyne
         self.actor_opt = torch.optim.Adam(self.model.actor.parameters(), lr=d.actor_lr, fused=True)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=d.critic_lr, fused=True)
-        self.replay = DecisionReplay(d.replay_size, self.obs_dim, self.L, self.k)
+        self.replay = dyne_replay(d.replay_size, self.obs_dim, self.L, self.k)
         # identity statistics: TD3 sees raw observations (clipped), as eval will
         self.obs_norm = ObsNormalizer(self.obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
         self.evaluator = PeriodicEvaluator(cfg, self.spec)
@@ -582,8 +537,8 @@ class DyneLearner(CountsUpdates):
             self.actor_opt.step()
             self.critic.requires_grad_(True)
             losses["actor"].append(float(actor_loss.detach()))
-            _soft_update(self.critic_target, self.critic, d.tau)
-            _soft_update(self.actor_target, self.model.actor, d.tau)
+            soft_update(self.critic_target, self.critic, d.tau)
+            soft_update(self.actor_target, self.model.actor, d.tau)
 
     # ----------------------------------------------------------------------- loop
     def iterate(self) -> dict[str, float]:

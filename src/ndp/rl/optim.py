@@ -94,3 +94,14 @@ class FlatAdam:
                     "param_groups": [{**groups[0], "params": [0]}],
                 }
         self.opt.load_state_dict(state)
+
+
+def soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
+    """``target <- (1 - tau) target + tau source`` (``lerp``), every parameter in one
+    ``foreach`` call (the per-tensor loop costs as much as the maths on small critics)."""
+    t = list(target.parameters())
+    s = list(source.parameters())
+    if len(t) != len(s):
+        raise ValueError(f"soft_update: target has {len(t)} parameters, source {len(s)}")
+    with torch.no_grad():
+        torch._foreach_lerp_(t, s, tau)

@@ -15,7 +15,18 @@ temperature minimises ``-log(alpha) (log pi + target_entropy)``.
 from __future__ import annotations
 
 import torch
-from torch import nn
+
+from ndp.rl.optim import soft_update
+
+__all__ = [
+    "actor_loss",
+    "alpha_loss",
+    "bootstrap_discount",
+    "chunk_return",
+    "critic_loss",
+    "critic_target",
+    "soft_update",
+]
 
 
 def chunk_return(
@@ -73,10 +84,3 @@ def alpha_loss(log_alpha: torch.Tensor, logp: torch.Tensor, target_entropy: floa
     """The temperature's loss ``-mean(log_alpha (log pi + target_entropy))`` (log-probs [B]
     detached)."""
     return -(log_alpha * (logp.detach() + target_entropy)).mean()
-
-
-def soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
-    """``target <- (1 - tau) target + tau source``, parameter by parameter."""
-    with torch.no_grad():
-        for t, s in zip(target.parameters(), source.parameters(), strict=True):
-            t.lerp_(s, tau)

@@ -99,8 +99,8 @@ class FlatAdam:
 def soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
     """``target <- (1 - tau) target + tau source`` (``lerp``), every parameter in one
     ``foreach`` call (the per-tensor loop costs as much as the maths on small critics)."""
-    t = list(target.parameters())
-    s = list(source.parameters())
+    t: list[torch.Tensor] = list(target.parameters())
+    s: list[torch.Tensor] = list(source.parameters())
     if len(t) != len(s):
         raise ValueError(f"soft_update: target has {len(t)} parameters, source {len(s)}")
     with torch.no_grad():

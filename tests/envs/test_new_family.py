@@ -226,3 +226,31 @@ def test_a_torque_factory_for_a_family_without_torque_rows_is_refused():
     with pytest.raises(ValueError, match="torque: family 'rail' has no torque-actuated rows"):
         register_task(other, _make, torque=_make)
     assert "slider-torque" not in TASKS and "rail" not in factory.TORQUE_FAMILIES
+
+
+def test_a_clash_in_any_new_row_adds_none_of_them(monkeypatch):
+    """register_task adds a task and its torque rows as one: when a torque row's name is taken,
+    the position row is not left behind half-registered."""
+    import dataclasses
+
+    from ndp.envs import factory, spec
+    from ndp.envs.spec import torque_rows
+
+    for name in ("TASKS", "TORQUE_TASKS", "_ALIASES"):
+        monkeypatch.setattr(spec, name, dict(getattr(spec, name)))
+    monkeypatch.setattr(factory, "TASKS", spec.TASKS)
+    monkeypatch.setattr(factory, "TORQUE_TASKS", spec.TORQUE_TASKS)
+    new = dataclasses.replace(spec.TASKS["push-v3"], name="zz-push", env_id="ndp/ZzPush-v0",
+                              aliases=())  # fmt: skip
+    rows = torque_rows(new)
+    assert rows, "the metaworld family has torque rows"
+    squatter = dataclasses.replace(SPEC, name=rows[0].name, env_id="ndp/Squat-v0", aliases=())
+    spec.add_tasks([squatter])
+    with pytest.raises(ValueError, match=f"'{rows[0].name}' already names a task"):
+        register_task(new)
+    assert "zz-push" not in spec.TASKS and "ndp/ZzPush-v0" not in spec._ALIASES
+    # two new rows that share a name are refused together as well
+    twin = dataclasses.replace(new, name="zz-push-2", env_id="ndp/ZzPush-v0")
+    with pytest.raises(ValueError, match="'ndp/ZzPush-v0' names two of the new rows"):
+        spec.add_tasks([dataclasses.replace(new, aliases=()), twin])
+    assert "zz-push" not in spec.TASKS and "zz-push-2" not in spec.TASKS

@@ -34,7 +34,7 @@ from ndp.envs.release import RELEASE_GOAL_TASKS
 from ndp.envs.spec import (
     TASKS,
     TORQUE_TASKS,
-    add_task,
+    add_tasks,
     finer_spec,
     get_task_spec,
     jaco_spec,
@@ -329,13 +329,11 @@ def register_task(
             f"torque: family {spec.family!r} has no torque-actuated rows (ndp.envs.spec."
             "torque_rows knows the impedance controllers of metaworld and jaco only)"
         )
-    add_task(spec)
+    add_tasks([spec, *rows])  # all or none: a clash of any name adds nothing
     if make is not None:
         FAMILIES[spec.family] = make
     if torque is not None:
         TORQUE_FAMILIES[spec.family] = torque
-    for row in rows:
-        add_task(row)
     per_torque = {r.name: (r.env_id, r.horizon) for r in rows}
     return register(expand({spec.name: (spec.env_id, spec.horizon)}, CHUNKED_KS, per_torque))
 

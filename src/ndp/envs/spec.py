@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal  # noqa: F401  # the inherited fields' annotations resolve here
 
@@ -326,13 +327,30 @@ def add_task(spec: TaskSpec) -> TaskSpec:
     Raises:
         ValueError: the name, an alias or the env id already names a task.
     """
-    table = TORQUE_TASKS if spec.actuation == "torque" else TASKS
-    for n in (spec.name, *spec.aliases, spec.env_id):
-        if n in TASKS or n in TORQUE_TASKS or n in _ALIASES:
-            raise ValueError(f"name: {n!r} already names a task ({_ALIASES.get(n, n)})")
-    table[spec.name] = spec
-    _ALIASES.update({a: spec.name for a in (*spec.aliases, spec.env_id)})
-    return spec
+    return add_tasks([spec])[0]
+
+
+def add_tasks(specs: Sequence[TaskSpec]) -> list[TaskSpec]:
+    """Add several rows as one: every name, alias and env id is checked (against the tables
+    and against each other) before any row is added, so a clash adds none of them.
+
+    Raises:
+        ValueError: a name, an alias or an env id already names a task, or two of the rows
+            share one; nothing was added.
+    """
+    seen: dict[str, str] = {}
+    for spec in specs:
+        for n in dict.fromkeys((spec.name, *spec.aliases, spec.env_id)):
+            if n in TASKS or n in TORQUE_TASKS or n in _ALIASES:
+                raise ValueError(f"name: {n!r} already names a task ({_ALIASES.get(n, n)})")
+            if n in seen:
+                raise ValueError(f"name: {n!r} names two of the new rows ({seen[n]}, {spec.name})")
+            seen[n] = spec.name
+    for spec in specs:
+        table = TORQUE_TASKS if spec.actuation == "torque" else TASKS
+        table[spec.name] = spec
+        _ALIASES.update({a: spec.name for a in (*spec.aliases, spec.env_id)})
+    return list(specs)
 
 
 def get_task_spec(name: str) -> TaskSpec:

@@ -25,8 +25,10 @@ and makes every small kernel several times slower; pass --threads 2 on a quiet m
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import platform
+import shlex
 import sys
 
 import torch
@@ -186,6 +188,10 @@ def main(argv=None) -> int:
         "dtype": args.dtype,
         "torch": torch.__version__,
         "commit": git_commit(),
+        "command": shlex.join(
+            ["python", "benchmarks/dmp_speed.py", *(sys.argv[1:] if argv is None else argv)]
+        ),
+        "date": datetime.date.today().isoformat(),
         "threads": torch.get_num_threads(),
         "targets": {
             "loop_over_fast_imitation": ">= 30",
@@ -214,8 +220,10 @@ def main(argv=None) -> int:
 def markdown_table(results: dict) -> str:
     """The speed table of docs/dmp.md, generated from one benchmark run."""
     lines = [
+        f"Command: `{results.get('command', 'python benchmarks/dmp_speed.py')}`  ",
+        f"Commit: {results['commit']}, date: {results.get('date', 'unknown')}.  ",
         f"Device: {results['device']} ({results['device_name']}), {results['dtype']}, "
-        f"torch {results['torch']}, {results['threads']} thread(s), commit {results['commit']}. "
+        f"torch {results['torch']}, {results['threads']} thread(s). "
         "Forward + backward, best median of interleaved rounds.",
         "",
         "| shape | B | D | N | steps / stride | fast (layer) ms | fast unchecked ms | loop ms "

@@ -1,10 +1,11 @@
 """Cost of one rollout decision call (ms) per method: what the main process spends per decision
 besides stepping the envs.
 
-The call a rollout makes each decision (``ndp.rl.onpolicy.trainer.Trainer.collect``): the
-policy's distribution (NDP: the DMP head decoding goal and weights into k sub-actions through
-its fused action map), its exploration wrapper, a sample, its log-prob, the value, the
-actions, and the head's diagnostics; batch = ``--num-envs`` (4), no gradient, one thread.
+The call a rollout makes each decision (``ndp.rl.onpolicy.trainer.Trainer.decide``, which
+``Trainer.collect`` calls): the policy's distribution (NDP: the DMP head decoding goal and
+weights into k sub-actions through its fused action map), its exploration wrapper, a sample,
+its log-prob, the value, the actions inside their bounds and their finite check, and the
+head's diagnostics; batch = ``--num-envs`` (4), no gradient, one thread.
 Measured on the networks of a run opened through the run driver (``ndp.rl.run.open_run``,
 untrained weights; the cost does not depend on them). Per env step it is the call divided by k
 (5 for NDP and PPO-multi, 1 for PPO).
@@ -32,6 +33,7 @@ from ndp.experiments.provenance import git_commit
 def call_ms(method: str, task: str, num_envs: int, calls: int, repeats: int) -> dict[str, float]:
     """Median (over ``repeats``) ms per decision call of ``method``, and its k."""
     from ndp.rl.config import TrainConfig
+    from ndp.rl.onpolicy.trainer import Trainer
     from ndp.rl.run import open_run
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -49,22 +51,15 @@ def call_ms(method: str, task: str, num_envs: int, calls: int, repeats: int) -> 
         opened = open_run(cfg)
         try:
             tr = opened.learner
-            model = tr.rollout_model
-            tr._start()  # the envs reset: the robot state a decision starts from
+            if not isinstance(tr, Trainer):
+                raise ValueError(f"methods: {method!r} is not an on-policy method")
+            y0, dy0 = tr.decision_start()  # the envs reset: the state a decision starts from
             obs = torch.randn(num_envs, tr.obs_dim)
-            y0 = torch.as_tensor(tr._y0, dtype=torch.float32)
-            dy0 = torch.as_tensor(tr._dy0, dtype=torch.float32)
 
             def one() -> None:
-                with torch.no_grad():
-                    dist, aux = model.distribution(obs, y0, dy0)
-                    dist = tr._explore(dist, None)
-                    z = dist.sample()
-                    dist.log_prob(z)
-                    model.value(obs)
-                    dist.actions(z)
-                    for v in aux.values():
-                        float(v.mean())
+                d = tr.decide(obs, y0, dy0)
+                for v in d.aux.values():
+                    float(v.mean())
 
             for _ in range(calls // 10):
                 one()

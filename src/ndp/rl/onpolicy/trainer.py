@@ -21,7 +21,7 @@ import itertools
 import math
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -60,6 +60,23 @@ from ndp.runs.session import (
 )
 
 __all__ = ["Trainer", "TrainingDivergedError", "ppo_state"]
+
+
+class Decision(NamedTuple):
+    """One rollout decision of :meth:`Trainer.decide` for E envs."""
+
+    dist: Any
+    """The exploration distribution (a :mod:`ndp.policies.distributions` one)."""
+    aux: dict[str, torch.Tensor]
+    """The head's diagnostics (NDP: ``goal_norm``, ``weight_norm`` [E])."""
+    z: torch.Tensor
+    """The sample the update scores (sub-actions [E, k, A] or DMP parameters [E, P])."""
+    logp: torch.Tensor
+    """Its log-probability [E, 1] (per decision) or [E, k] (per sub-action)."""
+    values: torch.Tensor
+    """The critic's values [E, k]."""
+    act: torch.Tensor
+    """The k actions [E, k, A], inside the action bounds."""
 
 
 class Trainer(CountsUpdates):
@@ -138,6 +155,38 @@ class Trainer(CountsUpdates):
         assert carry is not None
         return correlate(dist, carry, self._rho)
 
+    def decide(self, obs_n: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor) -> Decision:
+        """One rollout decision for E envs (no gradient): the exploration distribution
+        (continuing the AR(1) carry, if any), a sample ``z``, its log-prob, the values [E, k] and
+        the k actions [E, k, A] inside the action bounds. ``obs_n`` [E, O] is the normalised
+        observation, ``y0`` / ``dy0`` [E, D] the robot state the decision starts from.
+
+        Raises:
+            TrainingDivergedError: a non-finite DMP input or action.
+        """
+        with torch.no_grad():
+            try:
+                dist, aux = self.rollout_model.distribution(obs_n, y0, dy0)
+            except FloatingPointError as exc:
+                msg = f"non-finite DMP input during the rollout ({exc})"
+                raise self._diverged(msg) from None
+            dist = self._explore(dist, self._carry)
+            z = dist.sample()
+            logp = dist.log_prob(z)
+            values = self.rollout_model.value(obs_n)
+            act = torch.maximum(torch.minimum(dist.actions(z), self.high), self.low)
+        if not bool(torch.isfinite(act).all()):
+            raise self._diverged("non-finite actions (check the observations)")
+        return Decision(dist, aux, z, logp, values, act)
+
+    def decision_start(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The robot state [E, D] (positions, velocities) the next decision starts from
+        (resetting the envs first if the run has not started)."""
+        if not self._started:
+            self._start()
+        as_t = torch.as_tensor
+        return as_t(self._y0, dtype=torch.float32), as_t(self._dy0, dtype=torch.float32)
+
     # ----------------------------------------------------------------------- state
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to continue: model, optimiser, normalisers, counters (the session
@@ -211,21 +260,9 @@ class Trainer(CountsUpdates):
             obs_n = torch.from_numpy(self.obs_norm(self._obs, update=True))
             y0 = torch.as_tensor(self._y0, dtype=torch.float32)
             dy0 = torch.as_tensor(self._dy0, dtype=torch.float32)
-            with torch.no_grad():
-                try:
-                    dist, aux = self.rollout_model.distribution(obs_n, y0, dy0)
-                except FloatingPointError as exc:
-                    msg = f"non-finite DMP input during the rollout ({exc})"
-                    raise self._diverged(msg) from None
-                carry = self._carry
-                dist = self._explore(dist, carry)
-                z = dist.sample()
-                logp = dist.log_prob(z)
-                per_decision = bool(dist.per_decision)
-                values = self.rollout_model.value(obs_n)
-                act = torch.maximum(torch.minimum(dist.actions(z), self.high), self.low)
-            if not bool(torch.isfinite(act).all()):
-                raise self._diverged("non-finite actions (check the observations)")
+            carry = self._carry
+            dist, aux, z, logp, values, act = self.decide(obs_n, y0, dy0)
+            per_decision = bool(dist.per_decision)
             if z_b is None or logp_b is None:  # (both None until the first decision)
                 z_b = torch.zeros((T, E, *z.shape[1:]))
                 logp_b = torch.zeros((T, E, logp.shape[1]))

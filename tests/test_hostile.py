@@ -317,6 +317,15 @@ def _cases() -> list[Case]:
              lambda res: "val/loss is not measured" in res[1]),
         Case("sweep at another budget over a finished run", _sweep_budget, "error",
              protect=["rl/config.json"]),
+        # options the method cannot honour: refused or named, never dropped
+        Case("rl train --algo ppo --k 5", lambda r: _cli(["rl", "train", *RL[:2], "--algo",
+             "ppo", "--k", "5", "--run-dir", str(r / "ppo-k5")]), "error"),
+        Case("rl train --algo sac --k 5", lambda r: _cli(["rl", "train", *RL[:2], "--algo",
+             "sac", "--k", "5", "--run-dir", str(r / "sac-k5")]), "error"),
+        Case("rl train --algo ppo --n-basis 3 (named)", lambda r: _cli(["rl", "train", *RL[:2],
+             "--algo", "ppo", *RL[4:], "--n-basis", "3", "--steps", "256", "--run-dir",
+             str(r / "ppo-nb")]), "ok",
+             lambda res: "n_basis=3: options of the NDP head" in res[1]),
         # relocation and resume
         Case("resume from the absolute path", lambda r: _cli(["rl", "train", "--resume",
              str((r / "rl").resolve()), "--steps", "512"]), "ok",

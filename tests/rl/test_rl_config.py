@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 
 import pytest
 
@@ -275,3 +276,56 @@ def test_every_evaluation_starts_at_one_seed():
     for command in ("eval", "render"):
         args = parser.parse_args(["rl", command, "RUN"])
         assert args.seed == EVAL_SEED, command
+
+
+@pytest.mark.parametrize(
+    ("algo", "k", "message"),
+    [
+        ("ppo", 5, "k: --algo ppo runs one action per decision (k = 1), got k=5"),
+        ("ppo-repeat", None, None),
+        ("sac", 5, "k: --algo sac decides every 1 env step(s) on point-mass, got k=5"),
+        ("ppo", 1, None),
+        ("ppo-multi", 10, None),
+    ],
+)
+def test_a_k_the_method_cannot_run_is_refused_not_dropped(algo, k, message):
+    """``--algo ppo --k 5`` used to train at k = 1 without a word (k's default was 5, so a
+    given 5 could not be told from none); k now defaults to the method's."""
+    cfg = TrainConfig(task="point-mass", algo=algo, policy=PolicyConfig(k=k))
+    if message is None:
+        resolved = resolve_config(cfg)
+        assert resolved.k == (k if k is not None else (1 if algo == "ppo" else 5))
+        assert cfg.k == resolved.k  # an unresolved config reports the method's k
+    else:
+        with pytest.raises(ValueError, match=re.escape(message)):
+            resolve_config(cfg)
+
+
+def test_networks_given_are_kept_and_left_out_are_the_methods():
+    def nets(algo, **kw):
+        p = resolve_config(TrainConfig(task="point-mass", algo=algo, policy=PolicyConfig(**kw)))
+        return p.policy.hidden, p.policy.activation
+
+    assert nets("ppo") == ((100, 100), "tanh")
+    assert nets("sac") == ((256, 256), "relu")
+    assert nets("dyne") == ((400, 300), "relu")
+    # PPO's sizes asked for explicitly are no longer taken for "not given" by SAC / Dyn-E
+    assert nets("sac", hidden=(100, 100), activation="tanh") == ((100, 100), "tanh")
+    assert nets("dyne", hidden=(100, 100)) == ((100, 100), "relu")
+    # an unresolved config (None: the method's) round-trips through its dict
+    assert PolicyConfig.from_dict(dataclasses.asdict(PolicyConfig())) == PolicyConfig()
+
+
+def test_ndp_head_options_given_to_ppo_are_named_on_the_command_line(tmp_path, capsys):
+    from ndp.cli import main
+
+    run = tmp_path / "r"
+    args = ["rl", "train", "--algo", "ppo", "--task", "point-mass", "--n-basis", "3",
+            "--steps", "64", "--steps-per-update", "64", "--num-envs", "2", "--run-dir",
+            str(run), "--no-progress", "--no-tensorboard", "--eval-every", "0"]  # fmt: skip
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    assert "ndp: note: n_basis=3: options of the NDP head, which --algo ppo does not run" in err
+    assert main([*args[:3], "ppo", *args[4:6], "--k", "5", "--run-dir", str(tmp_path / "b")]) == 2
+    assert "k: --algo ppo runs one action per decision (k = 1), got k=5" in capsys.readouterr().err
+    assert not (tmp_path / "b").exists()  # refused before any run folder

@@ -12,6 +12,7 @@ import torch
 
 from ndp.cli import main as ndp_main
 from ndp.policies.squashed import SquashedGaussian, tanh_log_det
+from ndp.rl.replay import RingReplay
 from ndp.rl.sac.config import SACConfig
 from ndp.rl.sac.losses import (
     actor_loss,
@@ -22,7 +23,6 @@ from ndp.rl.sac.losses import (
     critic_target,
     soft_update,
 )
-from ndp.rl.replay import RingReplay
 from ndp.rl.sac.replay import DecisionReplay
 from ndp.runs import load_checkpoint, read_metrics
 
@@ -102,7 +102,8 @@ def test_replay_round_trip_and_ring():
     rng_a, rng_b = np.random.default_rng(1), np.random.default_rng(1)
     a, b = buf.sample(6, rng_a), again.sample(6, rng_b)
     assert all(torch.equal(a[k], b[k]) for k in a)
-    with pytest.raises(ValueError, match=r"replay: column u has shape \(3,\) in the checkpoint, \(5,\) now"):
+    wider = r"replay: column u has shape \(3,\) in the checkpoint, \(5,\) now"
+    with pytest.raises(ValueError, match=wider):
         DecisionReplay(4, {**dims, "u": 5}).load_state_dict(buf.state_dict())
 
 

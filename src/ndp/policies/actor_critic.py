@@ -62,7 +62,10 @@ class ActorCritic(nn.Module):
 
 
 def build_actor_critic(obs_dim: int, spec: Any, cfg: PolicyConfig) -> ActorCritic:
-    """Build the actor-critic for a task spec and a resolved policy config."""
+    """Build the actor-critic for a task spec and a resolved policy config (a field left at
+    None gets the PPO family's value: :meth:`PolicyConfig.with_defaults`)."""
+    cfg = cfg.with_defaults()
+    assert cfg.hidden is not None and cfg.activation is not None
     return ActorCritic(
         obs_dim, build_head(cfg, spec), tuple(cfg.hidden), cfg.activation, cfg.hidden_gain
     )

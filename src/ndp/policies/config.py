@@ -34,6 +34,13 @@ PRESET_FIELDS = ("n_basis", "a_z", "dmp_steps", "goal_scale", "weight_scale")
 """The NDP head's fields whose ``None`` means "the task's preset" (``ndp.rl.methods.resolve_ndp``
 fills them; a head without a DMP has them cleared)."""
 
+DEFAULT_K = 5
+"""Env steps per decision of the chunked methods when ``k`` is not given (the paper's)."""
+DEFAULT_HIDDEN = (100, 100)
+"""Hidden widths of the PPO family's actor and critic when ``hidden`` is not given."""
+DEFAULT_ACTIVATION = "tanh"
+"""Hidden non-linearity of the PPO family's networks when ``activation`` is not given."""
+
 
 @dataclass(frozen=True)
 class NDPHeadConfig:
@@ -161,12 +168,16 @@ class PolicyConfig:
     head: Annotated[str, HIDDEN] = "ndp"
     """Action head: 'step' (PPO), 'multi' (PPO-multi), 'ndp' or 'dyne' (follows the method: not an
     option of ``ndp rl train``)."""
-    k: int = 5
-    """Sub-steps (env steps) per policy decision; always 1 for the 'step' head."""
-    hidden: tuple[int, ...] = (100, 100)
-    """Hidden widths of the actor and critic MLPs."""
-    activation: str = "tanh"
-    """Hidden non-linearity of both MLPs."""
+    k: int | None = None
+    """Sub-steps (env steps) per policy decision; None: the method's (5 for the chunked methods,
+    1 for the one-action ones, the controller's period for VICES). A k the method cannot run
+    (``--algo ppo --k 5``) is refused when the config is resolved, not dropped."""
+    hidden: tuple[int, ...] | None = None
+    """Hidden widths of the actor and critic MLPs; None: the method's (100-100 for the PPO
+    family, 256-256 for the SAC family, 400-300 for Dyn-E)."""
+    activation: str | None = None
+    """Hidden non-linearity of both MLPs; None: the method's (tanh for the PPO family, relu
+    for the SAC family and Dyn-E)."""
     init_log_std: float = 0.0
     """Initial value of the learned, state-independent log std (0: std 1), every method."""
     noise: str = "white"
@@ -200,17 +211,16 @@ class PolicyConfig:
 
         if self.head not in HEAD_BUILDERS:
             raise ValueError(f"head: expected one of {', '.join(HEAD_BUILDERS)}, got {self.head!r}")
-        if isinstance(self.k, bool) or not isinstance(self.k, int) or self.k < 1:
-            raise ValueError(f"k: expected an integer >= 1, got {self.k!r}")
-        if self.head in SINGLE_STEP_HEADS and self.k != 1:
-            raise ValueError(
-                f"k: the {self.head!r} head runs one action per decision, got k={self.k}"
-            )
-        if not self.hidden or any(int(h) < 1 for h in self.hidden):
+        k = self.k
+        if k is not None and (isinstance(k, bool) or not isinstance(k, int) or k < 1):
+            raise ValueError(f"k: expected an integer >= 1, got {k!r}")
+        if self.head in SINGLE_STEP_HEADS and k not in (None, 1):
+            raise ValueError(f"k: the {self.head!r} head runs one action per decision, got k={k}")
+        if self.hidden is not None and (not self.hidden or any(int(h) < 1 for h in self.hidden)):
             raise ValueError(f"hidden: expected positive widths, got {self.hidden!r}")
         if not isinstance(self.ndp, NDPHeadConfig):
             raise ValueError(f"ndp: expected an NDPHeadConfig, got {type(self.ndp).__name__}")
-        if self.ndp.dmp_steps is not None and self.ndp.dmp_steps % self.k:
+        if self.ndp.dmp_steps is not None and k is not None and self.ndp.dmp_steps % k:
             raise ValueError(
                 f"dmp_steps: expected a positive multiple of k={self.k}, got {self.ndp.dmp_steps!r}"
             )
@@ -234,6 +244,21 @@ class PolicyConfig:
                 f"without --param-noise), got head {self.head!r}"
                 + (" with param_noise" if self.ndp.param_noise else "")
             )
+
+    def with_defaults(self) -> PolicyConfig:
+        """A copy with the method-dependent fields left at None filled with the PPO family's
+        values (k: 1 for a one-action head, else :data:`DEFAULT_K`; :data:`DEFAULT_HIDDEN`;
+        :data:`DEFAULT_ACTIVATION`). ``ndp.rl.config.resolve_config`` fills them from the
+        method first; this is what building a head or an actor-critic from an unresolved
+        config uses."""
+        from ndp.policies.heads import SINGLE_STEP_HEADS
+
+        k = self.k if self.k is not None else (1 if self.head in SINGLE_STEP_HEADS else DEFAULT_K)
+        hidden = self.hidden if self.hidden is not None else DEFAULT_HIDDEN
+        activation = self.activation if self.activation is not None else DEFAULT_ACTIVATION
+        if (k, hidden, activation) == (self.k, self.hidden, self.activation):
+            return self
+        return dataclasses.replace(self, k=k, hidden=hidden, activation=activation)
 
     @property
     def resolved(self) -> bool:
@@ -282,7 +307,7 @@ class PolicyConfig:
         both = sorted(set(flat) & set(nested))
         if both:
             raise ValueError(f"policy: {', '.join(both)} given both flat and under 'ndp'")
-        if "hidden" in d:
+        if d.get("hidden") is not None:
             d["hidden"] = tuple(d["hidden"])
         try:
             return cls(ndp=NDPHeadConfig(**flat, **nested), **d)

@@ -340,7 +340,7 @@ def build_head(cfg: Any, spec: Any) -> ActionHead:
     """
     if cfg.head not in HEAD_BUILDERS:
         raise ValueError(f"head: expected one of {', '.join(HEAD_BUILDERS)}, got {cfg.head!r}")
-    return HEAD_BUILDERS[cfg.head](cfg, spec)
+    return HEAD_BUILDERS[cfg.head](cfg.with_defaults(), spec)
 
 
 @register_head("step", single_step=True)

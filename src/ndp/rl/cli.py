@@ -183,11 +183,11 @@ def train_command(argv: list[str]) -> int:
                     return 0
             else:
                 cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description())
+                unused = unused_head_options(cfg)  # before resolving, which clears them
                 # resolved once, here: the run directory every message names is the one the
                 # run writes (an alias task or VICES's task variant gives the canonical row)
                 cfg = resolve_config(cfg)
                 run_name = cfg.run_dir or "."
-                unused = unused_head_options(cfg)
                 if unused:
                     print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "
                           f"--algo {cfg.algo} does not run; not used", file=sys.stderr)  # fmt: skip

@@ -324,7 +324,9 @@ class TrainConfig:
     # ----------------------------------------------------------------- derived values
     @property
     def k(self) -> int:
-        """Sub-steps per decision (1 for PPO)."""
+        """Sub-steps per decision (1 for PPO; an unresolved config's k is the method's)."""
+        if self.policy.k is None:
+            return resolve_config(self).k
         return self.policy.k
 
     @property
@@ -393,7 +395,9 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
 
     - ``task``: the method's task-table row (``Method.task_variant``: VICES runs the
       torque-actuated variant of the requested task), by its canonical name.
-    - ``policy.head`` follows ``algo``; ``policy.k`` is 1 for PPO.
+    - ``policy.head`` follows ``algo``; ``policy.k``, ``hidden`` and ``activation`` left at
+      None get the method's (k: 1 for the one-action methods, 5 otherwise, the controller's
+      period for VICES); a k the method cannot run is refused (ValueError naming k).
     - ``policy.dmp_state`` / ``dmp_velocity`` (the DMP's frame) from the task's preset where
       None (every method: the trainer records the robot state in that frame);
     - NDP: ``n_basis``, ``a_z``, ``goal_scale`` from the task's preset where None;
@@ -421,6 +425,7 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
 
     check_observation(spec, cfg.observation)
     check_device_available(cfg.device)  # before any env is built or run folder made
+    from ndp.policies.config import DEFAULT_K
     from ndp.policies.heads import SINGLE_STEP_HEADS
     from ndp.rl.methods import METHODS
 
@@ -428,7 +433,12 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     if method.task_variant is not None:
         spec = method.task_variant(spec)
     pol = cfg.policy
-    k = 1 if method.head in SINGLE_STEP_HEADS else pol.k
+    k_asked = pol.k
+    if method.head in SINGLE_STEP_HEADS and k_asked not in (None, 1):
+        raise ValueError(
+            f"k: --algo {cfg.algo} runs one action per decision (k = 1), got k={k_asked}"
+        )
+    k = 1 if method.head in SINGLE_STEP_HEADS else (k_asked or DEFAULT_K)
     # the DMP frame is read by the trainer for every method (the robot state it records)
     from ndp.envs.presets import preset_of
 
@@ -438,7 +448,12 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
         for name in ("dmp_state", "dmp_velocity")
     }
     with_k = dataclasses.replace(pol, head=method.head, k=k, **frame)
-    policy = with_k.updated(**method.resolve(with_k, spec))
+    policy = with_k.updated(**method.resolve(with_k, spec)).with_defaults()
+    if k_asked is not None and policy.k != k_asked:
+        raise ValueError(
+            f"k: --algo {cfg.algo} decides every {policy.k} env step(s) on {spec.name}, "
+            f"got k={k_asked}"
+        )
     run_dir = cfg.run_dir or default_run_dir(spec.name, cfg.algo, cfg.seed)
     goals = cfg.goals
     if goals == "as-release":

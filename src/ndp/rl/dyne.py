@@ -277,6 +277,7 @@ class DyneLearner(CountsUpdates):
         pol = cfg.policy
         self.state_dim = 2 * int(self.spec.dmp_dofs)
         self.embedding = SequenceEmbedding(self.k, self.spec.action_dim, self.state_dim, self.L)
+        assert pol.hidden is not None and pol.activation is not None  # resolve_config fills them
         self.critic = TwinCritic(self.obs_dim, self.L, tuple(pol.hidden), pol.activation)
         self.critic_target = copy.deepcopy(self.critic)
         self.actor_target = copy.deepcopy(self.model.actor)

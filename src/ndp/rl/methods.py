@@ -168,15 +168,21 @@ DYNE_METRICS = (
 """Extra ``metrics.csv`` columns of Dyn-E runs (docs/metrics.md)."""
 
 
+def networks(policy: Any, hidden: tuple[int, ...], activation: str) -> dict[str, Any]:
+    """A method's own networks: ``hidden`` / ``activation`` where the config leaves them at
+    None (the method's); a value the user gave is kept."""
+    out: dict[str, Any] = {}
+    if policy.hidden is None:
+        out["hidden"] = hidden
+    if policy.activation is None:
+        out["activation"] = activation
+    return out
+
+
 def resolve_dyne(policy: Any, spec: Any) -> dict[str, Any]:
     """Dyn-E: no DMP; the TD3 actor is 400-300 ReLU (the original's) unless ``hidden`` /
-    ``activation`` were changed from the PPO defaults ((100, 100), tanh)."""
-    out = no_dmp(policy, spec)
-    if tuple(policy.hidden) == (100, 100):
-        out["hidden"] = (400, 300)
-    if policy.activation == "tanh":
-        out["activation"] = "relu"
-    return out
+    ``activation`` are given."""
+    return {**no_dmp(policy, spec), **networks(policy, (400, 300), "relu")}
 
 
 register_method(
@@ -204,13 +210,8 @@ SAC_METRICS = (
 
 def _sac_networks(policy: Any) -> dict[str, Any]:
     """SAC's networks: 256-256 ReLU (actor and each critic) unless ``hidden`` / ``activation``
-    were changed from the PPO defaults ((100, 100), tanh)."""
-    out: dict[str, Any] = {}
-    if tuple(policy.hidden) == (100, 100):
-        out["hidden"] = (256, 256)
-    if policy.activation == "tanh":
-        out["activation"] = "relu"
-    return out
+    are given."""
+    return networks(policy, (256, 256), "relu")
 
 
 def resolve_sac(policy: Any, spec: Any) -> dict[str, Any]:

@@ -90,6 +90,7 @@ class SACLearner(CountsUpdates):
         self.scores_params = self.is_ndp and s.critic_input == "params"
         c_dim = self.P if self.scores_params else self.k * self.spec.action_dim
         pol = cfg.policy
+        assert pol.hidden is not None and pol.activation is not None  # resolve_config fills them
         self.critic = TwinQ(self.obs_dim, c_dim, tuple(pol.hidden), pol.activation)
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
         self.log_alpha = torch.tensor(math.log(s.init_alpha), requires_grad=True)

@@ -393,6 +393,14 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
     ]
     per_task = next(c for c in rc.conditions if c.name == "release-goals per task")
     assert per_task.overrides == (("faucet-open-v3", "ppo", "ppo-v1-fixed"),)
+    # at 1M the release's rule per task too: PPO random on push, fixed with the others on Throw
+    r1m = get_study("release-goals-1m")
+    arms_1m = {a.label: a for a in r1m.arm_specs()}
+    goals_1m = next(c for c in r1m.conditions if c.name == "release-goals")
+    assert dict(goals_1m.methods)["ppo"] == "ppo" and goals_1m.unequal
+    assert goals_1m.overrides == (("throw", "ppo", "ppo-fixed"),)
+    assert arms_1m["ppo-fixed"].tasks == ("throw",)
+    assert arms_1m["ppo-fixed"].args == arms_1m["ndp-fixed"].args  # the same goal rule
     pf = get_study("paper-five")
     assert pf.task_list() == ("throw", "pick", "push-v3", "soccer-v3", "faucet-open-v3")
     keep, pending = pf.available()

@@ -367,17 +367,23 @@ def _release_1m_arms() -> tuple[ArmSpec, ...]:
         ArmSpec(m + "-fixed", m, RELEASE_FIXED, "v2 rewards, one fixed goal per run")
         for m in ("ndp", "ppo-multi")
     )
-    return fair + fixed
+    # the release fixed Throw's basket for every method (PPO too): the runs that make the
+    # Throw rows of release-goals the release's rule (issue "release explained, part 2")
+    ppo_throw = ArmSpec("ppo-fixed", "ppo", RELEASE_FIXED, "v2 rewards, one fixed goal per run "
+                        "(Throw only: the release fixed Throw for every method)",
+                        tasks=("throw",))  # fmt: skip
+    return (*fair, *fixed, ppo_throw)
 
 
 RELEASE_1M_CONDITIONS = (
     Condition("fair", "v2 rewards, random goals for every method (our default)",
               tuple((m, m) for m in RELEASE_METHODS)),
     Condition("release-goals",
-              "the release's goal condition alone: fixed goals for NDP and PPO-multi, random "
-              "goals for PPO (v2 rewards)",
+              "the release's goal rule alone, per task: fixed goals for NDP and PPO-multi and "
+              "random goals for PPO on push; fixed goals for every method on Throw (v2 rewards; "
+              "one fixed goal per run)",
               (("ndp", "ndp-fixed"), ("ppo-multi", "ppo-multi-fixed"), ("ppo", "ppo")),
-              True),
+              True, overrides=(("throw", "ppo", "ppo-fixed"),)),
 )  # fmt: skip
 """The conditions of release-goals-1m (release-goals is UNEQUAL on purpose, and labelled so)."""
 
@@ -836,10 +842,11 @@ STUDIES: dict[str, Study] = {
             title="The release's goal condition at 1M env steps: NDP vs PPO-multi vs PPO",
             doc=(
                 "push-v3 and throw x NDP, PPO-multi, PPO at 1M env steps (3.3x the screen), "
-                "under two conditions that share the PPO runs: fair (v2 rewards, random goals "
-                "for every method) and release-goals (one fixed goal per run for NDP and "
-                "PPO-multi, random goals for PPO: the release's UNEQUAL condition, reproduced "
-                "on purpose and labelled so; v2 rewards, since Throw has no v1 reward). It asks "
+                "under two conditions: fair (v2 rewards, random goals for every method) and "
+                "release-goals, the release's goal rule per task (one fixed goal per run for "
+                "NDP and PPO-multi, random goals for PPO on push-v3: UNEQUAL, reproduced on "
+                "purpose and labelled so; fixed for every method on Throw, arm ppo-fixed; v2 "
+                "rewards, since Throw has no v1 reward). It asks "
                 "whether the 300k screen's reading (only unequal goals put NDP ahead of PPO) "
                 "holds with a larger budget. Report with --conditions."
             ),

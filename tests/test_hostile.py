@@ -326,6 +326,10 @@ def _cases() -> list[Case]:
              "--algo", "ppo", *RL[4:], "--n-basis", "3", "--steps", "256", "--run-dir",
              str(r / "ppo-nb")]), "ok",
              lambda res: "n_basis=3: options of the NDP head" in res[1]),
+        Case("rl train --algo ppo --sac-lr 1e-3 (named)", lambda r: _cli(["rl", "train",
+             *RL[:2], "--algo", "ppo", *RL[4:], "--sac-lr", "1e-3", "--steps", "256",
+             "--run-dir", str(r / "ppo-saclr")]), "ok",
+             lambda res: "sac.lr=0.001: options of another learner" in res[1]),
         # relocation and resume
         Case("resume from the absolute path", lambda r: _cli(["rl", "train", "--resume",
              str((r / "rl").resolve()), "--steps", "512"]), "ok",

@@ -329,3 +329,27 @@ def test_ndp_head_options_given_to_ppo_are_named_on_the_command_line(tmp_path, c
     assert main([*args[:3], "ppo", *args[4:6], "--k", "5", "--run-dir", str(tmp_path / "b")]) == 2
     assert "k: --algo ppo runs one action per decision (k = 1), got k=5" in capsys.readouterr().err
     assert not (tmp_path / "b").exists()  # refused before any run folder
+
+
+def test_options_of_another_learner_are_named_not_dropped():
+    from ndp.rl.config import LEARNER_SECTIONS, unused_method_options
+    from ndp.rl.methods import METHODS
+    from ndp.rl.sac.config import SACConfig
+
+    def unused(algo, **sections):
+        return unused_method_options(TrainConfig(task="point-mass", algo=algo, **sections))
+
+    assert unused("ppo", sac=SACConfig(lr=1e-3)) == ["sac.lr=0.001"]
+    assert unused("ndp", ppo=PPOConfig(lr=1e-4)) == []
+    # SAC reads PPO's discount, observation clip and iteration size, and nothing else of it
+    assert unused("sac", ppo=PPOConfig(gamma=0.95, steps_per_update=1024)) == []
+    assert unused("sac", ppo=PPOConfig(clip=0.2)) == ["ppo.clip=0.2"]
+    assert unused("dyne", sac=SACConfig(tau=0.01)) == ["sac.tau=0.01"]
+    # every method's list names real sections and fields
+    for m in METHODS.values():
+        for entry in m.reads:
+            section, _, name = entry.partition(".")
+            assert section in LEARNER_SECTIONS, (m.name, entry)
+            if name:
+                fields = {f.name for f in dataclasses.fields(getattr(TrainConfig(), section))}
+                assert name in fields, (m.name, entry)

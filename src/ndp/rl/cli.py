@@ -141,7 +141,13 @@ def add_subparser(sub: Any) -> None:
 
 def train_command(argv: list[str]) -> int:
     """``ndp rl train [--resume RUN_DIR | --overwrite] [options of TrainConfig]``."""
-    from ndp.rl.config import SAFE_ON_RESUME, load_config, resolve_config, unused_head_options
+    from ndp.rl.config import (
+        SAFE_ON_RESUME,
+        load_config,
+        resolve_config,
+        unused_head_options,
+        unused_method_options,
+    )
     from ndp.runs import RunDir
     from ndp.runs.cli import changed_fields, parse_config, pop_flag, pop_option
     from ndp.runs.signals import report_stop, stop_on_sigterm
@@ -184,6 +190,7 @@ def train_command(argv: list[str]) -> int:
             else:
                 cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description())
                 unused = unused_head_options(cfg)  # before resolving, which clears them
+                other = unused_method_options(cfg)
                 # resolved once, here: the run directory every message names is the one the
                 # run writes (an alias task or VICES's task variant gives the canonical row)
                 cfg = resolve_config(cfg)
@@ -191,6 +198,10 @@ def train_command(argv: list[str]) -> int:
                 if unused:
                     print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "
                           f"--algo {cfg.algo} does not run; not used", file=sys.stderr)  # fmt: skip
+                if other:
+                    print(f"ndp: note: {', '.join(other)}: options of another learner, which "
+                          f"--algo {cfg.algo} does not read; not used",
+                          file=sys.stderr)  # fmt: skip
                 metrics = trainer().train(cfg, overwrite=overwrite, resolved=True)
     except FloatingPointError as exc:  # ndp.rl.onpolicy.trainer.TrainingDivergedError
         print(f"ndp: error: {exc}", file=sys.stderr)

@@ -497,6 +497,32 @@ def unused_head_options(cfg: TrainConfig) -> list[str]:
     ]
 
 
+LEARNER_SECTIONS = ("ppo", "sac", "dyne")
+"""The sections of :class:`TrainConfig` that belong to one learner (``Method.reads``)."""
+
+
+def unused_method_options(cfg: TrainConfig) -> list[str]:
+    """The learner settings set away from their defaults that ``cfg.algo`` does not read
+    (``--algo ppo --sac-lr 1e-3``, ``--algo sac --clip 0.1``): ``["sac.lr=0.001", ...]``; empty
+    when none. Accepted and not used, like :func:`unused_head_options` (a sweep's overrides
+    span every arm); ``ndp rl train`` names them in a note."""
+    from ndp.rl.methods import METHODS
+
+    method = METHODS.get(cfg.algo)
+    if method is None:
+        return []
+    out = []
+    for section in LEARNER_SECTIONS:
+        if section in method.reads:
+            continue
+        value, default = getattr(cfg, section), type(getattr(cfg, section))()
+        for f in dataclasses.fields(value):
+            v = getattr(value, f.name)
+            if v != getattr(default, f.name) and f"{section}.{f.name}" not in method.reads:
+                out.append(f"{section}.{f.name}={v!r}")
+    return out
+
+
 def load_config(path: Path) -> TrainConfig:
     """Read a run's ``config.json`` (written by the trainer through :class:`ndp.runs.RunDir`)."""
     path = Path(path)

@@ -29,6 +29,10 @@ from typing import Any
 
 from ndp.policies.config import PRESET_FIELDS
 
+OFF_POLICY_PPO_READS = ("ppo.gamma", "ppo.clip_obs", "ppo.steps_per_update")
+"""The ``ppo`` fields the off-policy learners share with PPO: the discount, the observation
+clip and the env steps per iteration (their metrics row)."""
+
 
 def no_dmp(policy: Any, spec: Any) -> dict[str, Any]:
     """Resolution of heads without a DMP: the NDP head's preset fields are cleared."""
@@ -82,6 +86,11 @@ class Method:
     (:class:`ndp.rl.onpolicy.trainer.Trainer`)."""
     hint: str = "Try a smaller learning rate or check the task's reward / actions."
     """What to try after the run diverges (ends the divergence error's message)."""
+    reads: tuple[str, ...] = ("ppo",)
+    """The learner settings of :class:`ndp.rl.config.TrainConfig` this method reads: a
+    section (``"ppo"``, ``"sac"``, ``"dyne"``) or one field of it (``"ppo.gamma"``). An option of
+    a section it does not read, set on the command line, is named in a note
+    (:func:`ndp.rl.config.unused_method_options`) instead of being dropped without a word."""
 
     def __post_init__(self) -> None:
         if isinstance(self.learner, str):
@@ -194,6 +203,7 @@ register_method(
         metrics=DYNE_METRICS,
         learner="ndp.rl.dyne:DyneLearner",  # torch and the simulators only once it trains
         hint="Try smaller --actor-lr / --critic-lr or check the task's reward.",
+        reads=("dyne", *OFF_POLICY_PPO_READS, "ppo.norm_obs"),
     )
 )
 
@@ -231,21 +241,23 @@ def resolve_ndp_sac(policy: Any, spec: Any) -> dict[str, Any]:
 
 _SAC = "ndp.rl.sac.learner:SACLearner"
 _SAC_HINT = "Try a smaller --sac-lr or check the task's reward."
+_SAC_READS = ("sac", *OFF_POLICY_PPO_READS)
 register_method(
     Method("sac", "squashed", "SAC: twin critics, automatic temperature, tanh-squashed "
            "Gaussian, one action per env step", resolve=resolve_sac, metrics=SAC_METRICS,
-           learner=_SAC, hint=_SAC_HINT)
+           learner=_SAC, hint=_SAC_HINT, reads=_SAC_READS)
 )  # fmt: skip
 register_method(
     Method("sac-chunk", "squashed", "Chunked SAC: k actions per decision executed open-loop, "
            "a critic of the whole chunk on the k-step return (Q-chunking)",
-           resolve=resolve_sac_chunk, metrics=SAC_METRICS, learner=_SAC, hint=_SAC_HINT)
+           resolve=resolve_sac_chunk, metrics=SAC_METRICS, learner=_SAC, hint=_SAC_HINT,
+           reads=_SAC_READS)
 )  # fmt: skip
 register_method(
     Method("ndp-sac", "ndp-squashed", "NDP-SAC: SAC over the DMP's goal and forcing weights "
            "(entropy over the parameters), the NDP head turning them into k actions",
            resolve=resolve_ndp_sac, metrics=(*SAC_METRICS, "dmp/goal_norm", "dmp/weight_norm"),
-           learner=_SAC, hint=_SAC_HINT)
+           learner=_SAC, hint=_SAC_HINT, reads=_SAC_READS)
 )  # fmt: skip
 
 

@@ -424,3 +424,27 @@ def test_report_headlines_the_periodic_deterministic_evaluation(tmp_path):
     assert "| push-v3 | ndp | 2 | 0.60 +- 0.00 | 0.90 +- 0.00 | 0.45 +- 0.00 |" in md
     assert res["rows"][0]["det_success_area_mean"] == pytest.approx(0.6)
     assert any(p.endswith("r-push-v3-det.png") for p in res["png"])
+
+
+def test_a_report_without_conditions_tests_every_pair_of_methods(tmp_path):
+    """Every pair of methods on a task gets exact permutation p-values of the success area:
+    with every run of one above every run of the other, 3 + 3 runs give p = 1 / 20 and 1."""
+    runs = tmp_path / "runs"
+    for seed in (0, 1, 2):
+        _rl_run(runs, "push-v3", "ndp", seed, 0.8 + 0.01 * seed)
+        _rl_run(runs, "push-v3", "ppo", seed, 0.5 + 0.01 * seed)
+        _rl_run(runs, "push-v3", "sac", seed, 0.5 + 0.01 * (2 - seed))
+    report([runs], tmp_path / "rep", "ndp report runs", title="Pairs")
+    md = (tmp_path / "rep.md").read_text()
+    assert re.search(
+        r"\| push-v3 \| success area \| ndp vs ppo \| 3 \+ 3 \| \+0\.\d+ \| 0\.050 "
+        r"\| 1\.000 \|",
+        md,
+    )
+    with (tmp_path / "rep-pairwise.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["method"] for r in rows] == ["ndp vs ppo", "ndp vs sac", "ppo vs sac"]
+    ppo_sac = rows[2]  # the same three areas in another seed order: no direction at all
+    assert float(ppo_sac["diff_mean"]) == pytest.approx(0.0, abs=1e-12)
+    assert float(ppo_sac["p_a_greater"]) > 0.4 and float(ppo_sac["p_b_greater"]) > 0.4
+    assert all(r["commit"] for r in rows)  # provenance in every row

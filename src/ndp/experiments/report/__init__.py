@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from ndp.experiments.report.conditions import conditions_section
+from ndp.experiments.report.conditions import conditions_section, pairwise_section
 from ndp.experiments.report.selection import selection_section
 from ndp.experiments.rows import (  # noqa: F401  # re-exported: the report's public names
     DET_EVAL_FILE,
@@ -457,6 +457,12 @@ def _study_sections(
         at = next((i for i, line in enumerate(md) if line.startswith("Success:")), len(md))
         md[at:at] = cmd
         pngs = [*cpngs, *pngs]
+    elif tables["success"]:  # no conditions: every pair of methods on a task, tested
+        pmd, prows = pairwise_section(tables["success"])
+        if prows:
+            write("-pairwise.csv", prows)
+            at = next((i for i, line in enumerate(md) if line.startswith("CSV:")), len(md))
+            md[at:at] = pmd
     if selection and tables["imitation"]:
         smd, srows = selection_section(tables["imitation"], selection, expected, floor=plots)
         write("-selection.csv", srows)

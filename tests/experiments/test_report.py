@@ -448,3 +448,13 @@ def test_a_report_without_conditions_tests_every_pair_of_methods(tmp_path):
     assert float(ppo_sac["diff_mean"]) == pytest.approx(0.0, abs=1e-12)
     assert float(ppo_sac["p_a_greater"]) > 0.4 and float(ppo_sac["p_b_greater"]) > 0.4
     assert all(r["commit"] for r in rows)  # provenance in every row
+    # a task crowded with methods gets a line saying how to narrow it, not hundreds of pairs
+    from ndp.experiments.report.conditions import PAIRWISE_MAX_METHODS
+
+    for i in range(PAIRWISE_MAX_METHODS + 1):
+        for seed in (0, 1):
+            _rl_run(runs, "soccer-v3", f"arm{i}", seed, 0.1 * (i % 3))
+    report([runs], tmp_path / "rep2", "ndp report runs", title="Crowded", allow_missing=True)
+    md = (tmp_path / "rep2.md").read_text()
+    assert f"Pairwise tests left out on soccer-v3 ({PAIRWISE_MAX_METHODS + 1} methods)" in md
+    assert "| push-v3 | success area | ndp vs ppo |" in md  # the other task is still tested

@@ -461,8 +461,8 @@ def _study_sections(
         pmd, prows = pairwise_section(tables["success"])
         if prows:
             write("-pairwise.csv", prows)
-            at = next((i for i, line in enumerate(md) if line.startswith("CSV:")), len(md))
-            md[at:at] = pmd
+        at = next((i for i, line in enumerate(md) if line.startswith("CSV:")), len(md))
+        md[at:at] = pmd
     if selection and tables["imitation"]:
         smd, srows = selection_section(tables["imitation"], selection, expected, floor=plots)
         write("-selection.csv", srows)

@@ -439,6 +439,11 @@ def _plot(
     return path
 
 
+PAIRWISE_MAX_METHODS = 8
+"""A task with more methods than this gets no pairwise table (28 pairs at 8; a study of 20 arms
+would print 190 per task and number): the report says so and how to narrow it."""
+
+
 def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, Any]]]:
     """For a report without conditions: on every task, each pair of its methods (table order)
     with two runs or more each, the difference of the headline number (the deterministic
@@ -449,8 +454,12 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
     keys = [headline] + (["area"] if headline != "area" else [])
     names = dict(metrics)
     rows: list[dict[str, Any]] = []
+    crowded: list[str] = []
     for task in dict.fromkeys(c.task for c in cells):
-        here = [c for c in cells if c.task == task]
+        here = [c for c in cells if c.task == task and c.numbers]  # methods with runs here
+        if len(here) > PAIRWISE_MAX_METHODS:
+            crowded.append(f"{task} ({len(here)} methods)")
+            continue
         for key in keys:
             vals = {c.label: _values(c, key, sorted(c.numbers)) for c in here}
             usable = [c for c in here if len(vals[c.label]) >= 2]
@@ -464,9 +473,15 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
                     "p_a_greater": stats.permutation_test(x, y, "greater"),
                     "p_b_greater": stats.permutation_test(x, y, "less"),
                 })  # fmt: skip
+    left_out = (
+        [f"Pairwise tests left out on {', '.join(crowded)}: more than {PAIRWISE_MAX_METHODS} "
+         "methods on a task; `--methods A B ...` narrows the report to the pairs to test.", ""]
+        if crowded else []
+    )  # fmt: skip
     if not rows:
-        return [], []
+        return left_out, []
     md = [
+        *left_out,
         "Pairwise: exact permutation tests over runs, per task (labels exchanged between the "
         "two methods' runs; A - B: the difference of the means; one-sided p of each direction; "
         "with 3 + 3 runs the smallest p is 0.05, with 10 + 10 about 5e-6):",

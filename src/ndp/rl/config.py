@@ -434,11 +434,8 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
         spec = method.task_variant(spec)
     pol = cfg.policy
     k_asked = pol.k
-    if method.head in SINGLE_STEP_HEADS and k_asked not in (None, 1):
-        raise ValueError(
-            f"k: --algo {cfg.algo} runs one action per decision (k = 1), got k={k_asked}"
-        )
-    k = 1 if method.head in SINGLE_STEP_HEADS else (k_asked or DEFAULT_K)
+    one_action = method.head in SINGLE_STEP_HEADS
+    k = 1 if one_action else (k_asked or DEFAULT_K)
     # the DMP frame is read by the trainer for every method (the robot state it records)
     from ndp.envs.presets import preset_of
 
@@ -449,11 +446,13 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     }
     with_k = dataclasses.replace(pol, head=method.head, k=k, **frame)
     policy = with_k.updated(**method.resolve(with_k, spec)).with_defaults()
-    if k_asked is not None and policy.k != k_asked:
-        raise ValueError(
-            f"k: --algo {cfg.algo} decides every {policy.k} env step(s) on {spec.name}, "
-            f"got k={k_asked}"
+    if k_asked is not None and policy.k != k_asked:  # one check for every method's own k
+        how = (
+            "runs one action per decision (k = 1)"
+            if one_action
+            else f"decides every {policy.k} env step(s) on {spec.name}"
         )
+        raise ValueError(f"k: --algo {cfg.algo} {how}, got k={k_asked}")
     run_dir = cfg.run_dir or default_run_dir(spec.name, cfg.algo, cfg.seed)
     goals = cfg.goals
     if goals == "as-release":

@@ -437,7 +437,8 @@ def test_a_report_without_conditions_tests_every_pair_of_methods(tmp_path):
     report([runs], tmp_path / "rep", "ndp report runs", title="Pairs")
     md = (tmp_path / "rep.md").read_text()
     assert re.search(
-        r"\| push-v3 \| success area \| ndp vs ppo \| 3 \+ 3 \| \+0\.\d+ \| 0\.050 "
+        r"\| push-v3 \| success area \| ndp vs ppo \| 3 \+ 3 \| \+0\.\d+ \| \[\+0\.\d+, \+0\.\d+\] "
+        r"\| 0\.050 "
         r"\| 1\.000 \|",
         md,
     )
@@ -448,6 +449,9 @@ def test_a_report_without_conditions_tests_every_pair_of_methods(tmp_path):
     assert float(ppo_sac["diff_mean"]) == pytest.approx(0.0, abs=1e-12)
     assert float(ppo_sac["p_a_greater"]) > 0.4 and float(ppo_sac["p_b_greater"]) > 0.4
     assert all(r["commit"] for r in rows)  # provenance in every row
+    # the difference's Welch interval: around the difference, above 0 (the spreads are small)
+    d, lo, hi = (float(rows[0][k]) for k in ("diff_mean", "diff_t_low", "diff_t_high"))
+    assert 0 < lo < d < hi and hi - d == pytest.approx(d - lo)
     # a task crowded with methods gets a line saying how to narrow it, not hundreds of pairs
     from ndp.experiments.report.conditions import PAIRWISE_MAX_METHODS
 
@@ -458,3 +462,26 @@ def test_a_report_without_conditions_tests_every_pair_of_methods(tmp_path):
     md = (tmp_path / "rep2.md").read_text()
     assert f"Pairwise tests left out on soccer-v3 ({PAIRWISE_MAX_METHODS + 1} methods)" in md
     assert "| push-v3 | success area | ndp vs ppo |" in md  # the other task is still tested
+
+
+def test_pairs_are_also_tested_over_all_tasks_stratified(tmp_path):
+    """With two tasks, each pair gets a row over both: labels exchanged within each task, so
+    every NDP run above every PPO run on both tasks gives p = 1 / C(6, 3)^2 = 1 / 400; a method
+    without runs on every task gets no such row."""
+    runs = tmp_path / "runs"
+    for seed in (0, 1, 2):
+        for task, base in (("push-v3", 0.5), ("soccer-v3", 0.1)):
+            _rl_run(runs, task, "ndp", seed, base + 0.3 + 0.01 * seed)
+            _rl_run(runs, task, "ppo", seed, base + 0.01 * seed)
+        _rl_run(runs, "push-v3", "sac", seed, 0.2)
+    report([runs], tmp_path / "rep", "ndp report runs", title="Pooled", allow_missing=True)
+    with (tmp_path / "rep-pairwise.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    pooled = [r for r in rows if r["task"].startswith("all tasks")]
+    assert [r["method"] for r in pooled] == ["ndp vs ppo"]
+    assert pooled[0]["task"] == "all tasks (push-v3, soccer-v3)"
+    assert float(pooled[0]["p_a_greater"]) == pytest.approx(1 / 400)
+    assert float(pooled[0]["p_b_greater"]) == pytest.approx(1.0)
+    assert 0.2 < float(pooled[0]["diff_mean"]) < 0.35
+    md = (tmp_path / "rep.md").read_text()
+    assert "| all tasks (push-v3, soccer-v3) | success area | ndp vs ppo | 3 + 3 |" in md

@@ -132,6 +132,48 @@ def test_t_interval_by_hand():
     assert S.t_interval([0.4]) == (0.4, 0.4)
 
 
+def test_difference_t_interval_is_welchs_on_one_task():
+    # x: mean 2, var 1; y: mean 0, var 4 (n 3 each): se^2 = 1/3 + 4/3, Welch df = 50/17
+    x, y = [1.0, 2.0, 3.0], [-2.0, 0.0, 2.0]
+    lo, hi = S.difference_t_interval(x, y)
+    from scipy import stats as sps
+
+    half = sps.t.ppf(0.975, 50 / 17) * np.sqrt(5 / 3)
+    assert (lo, hi) == pytest.approx((2.0 - half, 2.0 + half), rel=1e-9)
+    ref = sps.ttest_ind(x, y, equal_var=False).confidence_interval(0.95)
+    assert (lo, hi) == pytest.approx((ref.low, ref.high), rel=1e-9)
+
+
+def test_difference_t_interval_stratified_by_task():
+    # a second task with no spread adds its difference and halves the first task's standard
+    # error (the mean over 2 tasks), with the same degrees of freedom
+    x1, y1 = np.array([1.0, 2.0, 3.0]), np.array([-2.0, 0.0, 2.0])
+    lo1, hi1 = S.difference_t_interval(x1, y1)
+    x = np.stack([x1, np.full(3, 0.5)], axis=1)
+    y = np.stack([y1, np.full(3, 0.1)], axis=1)
+    lo, hi = S.difference_t_interval(x, y)
+    assert (lo + hi) / 2 == pytest.approx((2.0 + 0.4) / 2)
+    assert (hi - lo) == pytest.approx((hi1 - lo1) / 2, rel=1e-9)
+    assert S.difference_t_interval(np.ones((3, 2)), np.zeros((4, 2))) == (1.0, 1.0)
+    with pytest.raises(ValueError, match="x, y: expected 2 runs or more"):
+        S.difference_t_interval([1.0], [0.0, 1.0])
+    with pytest.raises(ValueError, match="conf: expected"):
+        S.difference_t_interval(x, y, conf=95)
+
+
+def test_difference_t_interval_covers_near_nominal():
+    # normal scores, unequal variances, 10 + 10 runs on 2 tasks: about 95% of intervals hold
+    # the true difference (0.1 per task); 2,000 draws give a standard error of 0.005
+    rng = np.random.default_rng(0)
+    hits = 0
+    for _ in range(2000):
+        x = rng.normal(0.3, [0.1, 0.2], size=(10, 2))
+        y = rng.normal(0.2, [0.3, 0.05], size=(10, 2))
+        lo, hi = S.difference_t_interval(x, y)
+        hits += lo <= 0.1 <= hi
+    assert 0.93 <= hits / 2000 <= 0.97
+
+
 def test_optimality_gap_and_performance_profile_from_rliable():
     # gap: mean of max(1 - score, 0) over all runs
     assert S.optimality_gap([[1.0, 0.5], [0.0, 1.2]]) == pytest.approx((0 + 0.5 + 1.0 + 0) / 4)

@@ -319,10 +319,12 @@ def _pairwise(
         ]
         for (ma, la), (mb, lb) in itertools.combinations(arms, 2):
             x, y = _matrix(by, la, head, tasks, seeds), _matrix(by, lb, head, tasks, seeds)
+            lo, hi = stats.difference_t_interval(x, y) if n >= 2 else (math.nan, math.nan)
             rows.append({
                 "condition": cond.name, "unequal": cond.unequal, "task": where,
                 "method": f"{ma} vs {mb}", "arm": f"{la} vs {lb}", "metric": head,
                 "diff_mean": float((x.mean(0) - y.mean(0)).mean()),
+                "diff_t_low": lo, "diff_t_high": hi,
                 "p_a_greater": stats.permutation_test(x, y, "greater"),
                 "p_b_greater": stats.permutation_test(x, y, "less"),
                 "n_seeds": len(seeds),
@@ -335,16 +337,17 @@ def _pairwise_md(rows: Sequence[dict[str, Any]], title: str) -> list[str]:
         return []
     md = [
         f"{title} (exact, labels exchanged within each task; A - B: the mean difference over "
-        "tasks; one-sided p of each direction; with 3 + 3 seeds on one task the smallest p is "
-        "0.05):",
+        "tasks, with its Welch 95% t-interval stratified by task; one-sided p of each "
+        "direction; with 3 + 3 seeds on one task the smallest p is 0.05):",
         "",
-        "| condition | A vs B | A - B | p(A > B) | p(B > A) |",
-        "|---|---|---|---|---|",
+        "| condition | A vs B | A - B | 95% t-interval | p(A > B) | p(B > A) |",
+        "|---|---|---|---|---|---|",
     ]
     for r in rows:
         cond = f"{r['condition']} (UNEQUAL)" if r["unequal"] else r["condition"]
-        md.append(f"| {cond} | {r['method']} | {r['diff_mean']:+.3f} | {r['p_a_greater']:.3f} "
-                  f"| {r['p_b_greater']:.3f} |")  # fmt: skip
+        md.append(f"| {cond} | {r['method']} | {r['diff_mean']:+.3f} "
+                  f"| [{r['diff_t_low']:+.3f}, {r['diff_t_high']:+.3f}] "
+                  f"| {r['p_a_greater']:.3f} | {r['p_b_greater']:.3f} |")  # fmt: skip
     return [*md, ""]
 
 
@@ -444,18 +447,33 @@ PAIRWISE_MAX_METHODS = 8
 would print 190 per task and number): the report says so and how to narrow it."""
 
 
+def _pair_row(task: str, key: str, a: str, b: str, x: np.ndarray, y: np.ndarray) -> dict[str, Any]:
+    """One pairwise row: runs ``x`` [n_a, tasks] of method ``a`` against ``y`` [n_b, tasks]."""
+    lo, hi = stats.difference_t_interval(x, y)
+    return {
+        "task": task, "metric": key, "method": f"{a} vs {b}", "n_a": len(x), "n_b": len(y),
+        "diff_mean": float((x.mean(0) - y.mean(0)).mean()), "diff_t_low": lo, "diff_t_high": hi,
+        "p_a_greater": stats.permutation_test(x, y, "greater"),
+        "p_b_greater": stats.permutation_test(x, y, "less"),
+    }  # fmt: skip
+
+
 def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, Any]]]:
     """For a report without conditions: on every task, each pair of its methods (table order)
     with two runs or more each, the difference of the headline number (the deterministic
-    success area where the runs have it, and the training-episode area always) and the exact
-    one-sided permutation p-values of each direction (:func:`stats.permutation_test`, runs as
-    the unit; the seeds of the two cells may differ). Returns (markdown, CSV rows)."""
+    success area where the runs have it, and the training-episode area always), its Welch
+    95% t-interval (:func:`stats.difference_t_interval`) and the exact one-sided permutation
+    p-values of each direction (:func:`stats.permutation_test`, runs as the unit; the seeds of
+    the two cells may differ). With two tasks or more, each pair with runs of the same seeds on
+    every task also gets a row over all of them: the mean difference over tasks, stratified by
+    task (labels exchanged within each task). Returns (markdown, CSV rows)."""
     metrics, headline = metrics_of(cells)
     keys = [headline] + (["area"] if headline != "area" else [])
     names = dict(metrics)
     rows: list[dict[str, Any]] = []
     crowded: list[str] = []
-    for task in dict.fromkeys(c.task for c in cells):
+    tasks = list(dict.fromkeys(c.task for c in cells))
+    for task in tasks:
         here = [c for c in cells if c.task == task and c.numbers]  # methods with runs here
         if len(here) > PAIRWISE_MAX_METHODS:
             crowded.append(f"{task} ({len(here)} methods)")
@@ -466,13 +484,9 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
             for a, b in itertools.combinations(usable, 2):
                 x = np.array(vals[a.label])[:, None]
                 y = np.array(vals[b.label])[:, None]
-                rows.append({
-                    "task": task, "metric": key, "method": f"{a.label} vs {b.label}",
-                    "n_a": len(x), "n_b": len(y),
-                    "diff_mean": float(x.mean() - y.mean()),
-                    "p_a_greater": stats.permutation_test(x, y, "greater"),
-                    "p_b_greater": stats.permutation_test(x, y, "less"),
-                })  # fmt: skip
+                rows.append(_pair_row(task, key, a.label, b.label, x, y))
+    if len(tasks) >= 2 and not crowded:
+        rows += _pooled_pairs(cells, tasks, keys)
     left_out = (
         [f"Pairwise tests left out on {', '.join(crowded)}: more than {PAIRWISE_MAX_METHODS} "
          "methods on a task; `--methods A B ...` narrows the report to the pairs to test.", ""]
@@ -483,16 +497,45 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
     md = [
         *left_out,
         "Pairwise: exact permutation tests over runs, per task (labels exchanged between the "
-        "two methods' runs; A - B: the difference of the means; one-sided p of each direction; "
-        "with 3 + 3 runs the smallest p is 0.05, with 10 + 10 about 5e-6):",
+        "two methods' runs; A - B: the difference of the means, with its Welch 95% t-interval; "
+        "one-sided p of each direction; with 3 + 3 runs the smallest p is 0.05, with 10 + 10 "
+        "about 5e-6). 'All tasks': the mean over tasks of the per-task difference, labels "
+        "exchanged within each task, on the seeds each method has on every task:",
         "",
-        "| task | number | A vs B | runs | A - B | p(A > B) | p(B > A) |",
-        "|---|---|---|---|---|---|---|",
+        "| task | number | A vs B | runs | A - B | 95% t-interval | p(A > B) | p(B > A) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         md.append(
             f"| {r['task']} | {names.get(r['metric'], r['metric'])} | {r['method']} "
-            f"| {r['n_a']} + {r['n_b']} | {r['diff_mean']:+.3f} | {r['p_a_greater']:.3f} "
+            f"| {r['n_a']} + {r['n_b']} | {r['diff_mean']:+.3f} "
+            f"| [{r['diff_t_low']:+.3f}, {r['diff_t_high']:+.3f}] | {r['p_a_greater']:.3f} "
             f"| {r['p_b_greater']:.3f} |"
         )
     return [*md, ""], rows
+
+
+def _pooled_pairs(
+    cells: Sequence[Any], tasks: Sequence[str], keys: Sequence[str]
+) -> list[dict[str, Any]]:
+    """Rows over every task for each pair of methods present on all of ``tasks``: each
+    method's runs are its seeds with a number on every task (2 or more)."""
+    by = {(c.task, c.label): c for c in cells if c.numbers}
+    labels = [lb for lb in dict.fromkeys(c.label for c in cells)
+              if all((t, lb) in by for t in tasks)]  # fmt: skip
+    where = "all tasks (" + ", ".join(tasks) + ")"
+    rows = []
+    for key in keys:
+        common: dict[str, list[int]] = {}
+        for lb in labels:
+            seeds = sorted(set.intersection(*(
+                {s for s in by[(t, lb)].numbers if len(_values(by[(t, lb)], key, [s])) == 1}
+                for t in tasks
+            )))  # fmt: skip
+            if len(seeds) >= 2:
+                common[lb] = seeds
+        for a, b in itertools.combinations(list(common), 2):
+            x = _matrix(by, a, key, tasks, common[a])
+            y = _matrix(by, b, key, tasks, common[b])
+            rows.append(_pair_row(where, key, a, b, x, y))
+    return rows

@@ -12,7 +12,8 @@ Precipice" (NeurIPS 2021; the ``rliable`` package), written here in numpy:
   with its stratified bootstrap interval (X's and Y's runs resampled independently per task).
 
 Beside them, what rliable lacks and few-seed comparisons need: an exact **permutation test**
-stratified by task (:func:`permutation_test`), **t-intervals** (:func:`t_interval`) with the
+stratified by task (:func:`permutation_test`), **t-intervals** (:func:`t_interval`; of a
+difference, Welch's, stratified by task: :func:`difference_t_interval`) with the
 note on coverage at few seeds (:data:`COVERAGE_NOTE`); and from rliable itself (the ``[stats]``
 extra) the **optimality gap** (:func:`optimality_gap`) and **performance profiles**
 (:func:`performance_profile`).
@@ -24,6 +25,7 @@ intervals are the same every time it is written.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
@@ -149,15 +151,17 @@ PERMUTATION_EXACT_LIMIT = 200_000
 PERMUTATION_SAMPLES = 10_000
 
 
+@functools.lru_cache(maxsize=8)
 def _splits(n_x: int, n_y: int) -> np.ndarray:
     """Every way to choose which n_x of n_x + n_y pooled runs form group X: [splits, n_x + n_y]
-    bool (True: in X)."""
+    bool (True: in X); cached (a report tests many pairs of the same sizes), read-only."""
     import itertools
 
     n = n_x + n_y
     out = np.zeros((math.comb(n, n_x), n), dtype=bool)
     for r, idx in enumerate(itertools.combinations(range(n), n_x)):
         out[r, list(idx)] = True
+    out.flags.writeable = False
     return out
 
 
@@ -229,6 +233,44 @@ def t_interval(values: object, conf: float = 0.95) -> tuple[float, float]:
         return float(v[0]), float(v[0])
     half = float(sps.t.ppf(0.5 + conf / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v)))
     return float(v.mean() - half), float(v.mean() + half)
+
+
+def difference_t_interval(x: object, y: object, conf: float = 0.95) -> tuple[float, float]:
+    """Welch's t-interval of the difference of means, X - Y, averaged over tasks.
+
+    The difference is ``d = mean_t (mean(x[:, t]) - mean(y[:, t]))`` (the statistic of
+    :func:`permutation_test`, divided by the task count). Its variance is
+    ``sum_t (s2_xt / n_x + s2_yt / n_y) / m^2`` (sample variances, ddof 1) and its degrees of
+    freedom the Welch-Satterthwaite approximation over the 2 m components, so with one task this
+    is Welch's interval (``scipy.stats.ttest_ind(x, y, equal_var=False).confidence_interval``).
+
+    Args:
+        x: scores [n_x, tasks] (or [n_x]), n_x >= 2.
+        y: scores [n_y, tasks], the same tasks, n_y >= 2.
+        conf: the coverage, in (0, 1).
+
+    Returns:
+        (low, high); both equal to ``d`` when every group has zero variance.
+    """
+    from scipy import stats as sps
+
+    a, b = _scores(x, "x"), _scores(y, "y")
+    if a.shape[1] != b.shape[1]:
+        raise ValueError(f"y: expected {a.shape[1]} tasks like x, got {b.shape[1]}")
+    if a.shape[0] < 2 or b.shape[0] < 2:
+        raise ValueError(f"x, y: expected 2 runs or more each, got {a.shape[0]} and {b.shape[0]}")
+    if not 0.0 < conf < 1.0:
+        raise ValueError(f"conf: expected a coverage in (0, 1), got {conf}")
+    m = a.shape[1]
+    d = float((a.mean(0) - b.mean(0)).mean())
+    parts = np.concatenate([a.var(0, ddof=1) / a.shape[0], b.var(0, ddof=1) / b.shape[0]])
+    dof = np.concatenate([np.full(m, a.shape[0] - 1.0), np.full(m, b.shape[0] - 1.0)])
+    var = float(parts.sum())
+    if var <= 0.0:
+        return d, d
+    df = var**2 / float((parts**2 / dof).sum())
+    half = float(sps.t.ppf(0.5 + conf / 2, df)) * math.sqrt(var) / m
+    return d - half, d + half
 
 
 COVERAGE_NOTE = (

@@ -7,6 +7,7 @@ import csv
 import json
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -485,3 +486,45 @@ def test_pairs_are_also_tested_over_all_tasks_stratified(tmp_path):
     assert 0.2 < float(pooled[0]["diff_mean"]) < 0.35
     md = (tmp_path / "rep.md").read_text()
     assert "| all tasks (push-v3, soccer-v3) | success area | ndp vs ppo | 3 + 3 |" in md
+
+
+def _with_eval(run, value):
+    """Add periodic-evaluation columns (every third update at ``value``) to a fake run."""
+    rows = list(csv.reader((run / "metrics.csv").open()))
+    rows[0] += ["eval/success_any", "eval/success_final"]
+    for i, r in enumerate(rows[1:]):
+        r += [str(value), str(value)] if i % 3 == 2 else ["", ""]
+    with (run / "metrics.csv").open("w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
+
+
+def test_an_arm_on_some_tasks_only_and_newer_runs_with_evaluation(tmp_path):
+    """release-goals-1m's `ppo-fixed` runs on Throw only: no push-v3 cell (so no missing seeds,
+    no refusal), left out of the summary over tasks by name, and PPO's Throw arm of the
+    release-goals condition. Only its runs have periodic evaluation: the training-episode area
+    stays the headline, so every comparison still covers every run (no empty over-tasks)."""
+    runs = tmp_path / "runs"
+    arms = {"ndp": 0.4, "ppo-multi": 0.5, "ppo": 0.6, "ndp-fixed": 0.45, "ppo-multi-fixed": 0.55}
+    for seed in (0, 1, 2):
+        for task in ("push-v3", "throw"):
+            for label, v in arms.items():
+                _rl_run(runs, task, label, seed, v + 0.01 * seed, algo=label.split("-fixed")[0])
+        _with_eval(_rl_run(runs, "throw", "ppo-fixed", seed, 0.7 + 0.01 * seed, algo="ppo"), 0.9)
+    res = report([runs], tmp_path / "rg", "cmd", study="release-goals-1m")
+    assert res["missing"] == []
+    md = (tmp_path / "rg.md").read_text()
+    assert "| push-v3 | ppo-fixed |" not in md and "| throw | ppo-fixed | 3 | 0.90" in md
+    assert "not ppo-fixed, which run on some tasks only" in md
+    assert "no condition has every seed of every arm on two tasks" not in md
+    with (tmp_path / "rg-conditions.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    # throw, release-goals: NDP's fixed arm against PPO's fixed arm, every PPO run above
+    throw = [r for r in rows if r["task"] == "throw" and r["condition"] == "release-goals"
+             and r["method"] == "ndp vs ppo"]  # fmt: skip
+    assert throw and throw[0]["arm"].endswith("throw: ppo-fixed")
+    assert float(throw[0]["p_b_greater"]) == pytest.approx(0.05)
+    iqm = [r for r in rows if r["task"] == "IQM over tasks" and r["condition"] == "release-goals"]
+    assert {r["method"] for r in iqm} == {"ndp", "ppo-multi", "ppo"}
+    # the deterministic figure only for the task whose runs have the curve
+    figs = sorted(Path(p).name for p in res["png"] if p.endswith("-det.png"))
+    assert figs == ["rg-throw-det.png"]

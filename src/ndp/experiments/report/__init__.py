@@ -38,14 +38,14 @@ import io
 import math
 import re
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ndp.experiments.report.conditions import conditions_section, pairwise_section
+from ndp.experiments.report.conditions import conditions_section, metrics_of, pairwise_section
 from ndp.experiments.report.selection import selection_section
 from ndp.experiments.rows import (  # noqa: F401  # re-exported: the report's public names
     DET_EVAL_FILE,
@@ -238,9 +238,12 @@ def build_cells(
     seeds: Sequence[int] | None,
     tasks: Sequence[str] | None = None,
     methods: Sequence[str] | None = None,
+    arm_tasks: Mapping[str, Sequence[str]] | None = None,
 ) -> tuple[list[Cell], list[int]]:
     """Cells (task x label, every task with every label of its kind; in the order of ``tasks``
-    and ``methods`` when given), the expected seeds."""
+    and ``methods`` when given), the expected seeds. ``arm_tasks``: labels that run on some
+    tasks only (a study's arms with ``tasks``) get no cell, so no missing seeds, elsewhere."""
+    only = arm_tasks or {}
     infos = [
         i for i in infos if (not tasks or i.task in tasks) and (not methods or i.label in methods)
     ]
@@ -280,6 +283,9 @@ def build_cells(
                     f"report: two runs of {i.task} x {i.label} seed {i.seed}: {other} and {i.path}"
                 )
             (c.runs if i.finished else c.unfinished)[i.seed] = i
+    for key, c in list(cells.items()):  # an arm's task it does not run on: no cell at all
+        if c.label in only and c.task not in only[c.label] and not (c.runs or c.unfinished):
+            del cells[key]
     for c in cells.values():
         c.missing = [s for s in expected if s not in c.runs]
     return list(cells.values()), expected
@@ -336,7 +342,10 @@ def report(
         ValueError: no runs, or two runs of one cell and seed.
     """
     conditions, selection, infos, tasks, methods = _scope(run_dirs, study, tasks, methods)
-    cells, expected = build_cells(infos, seeds, tasks, methods)
+    arm_tasks = (
+        {a.label: a.tasks for a in get_study(study).arm_specs() if a.tasks} if study else None
+    )
+    cells, expected = build_cells(infos, seeds, tasks, methods, arm_tasks)
     if any(c.missing for c in cells) and not allow_missing:
         raise MissingSeedsError(_missing_message(cells, expected))
     tables: dict[str, list[Cell]] = {"success": [], "imitation": [], "cloning": []}
@@ -549,8 +558,14 @@ def _markdown(
         heads = [f"success @ {b:,}" for b in budgets]
         det = has_det(rl_cells)
         if det:
+            headline = metrics_of(rl_cells)[1] == "det_area"
             md += [
-                "Deterministic (the headline): every run evaluates its policy's mode on fixed "
+                (
+                    "Deterministic (the headline): every run"
+                    if headline
+                    else "Deterministic (not the headline: some runs trained without it): a run"
+                )
+                + " evaluates its policy's mode on fixed "
                 "evaluation seeds (from 10,000) during training (`eval/*`, ndp.rl.periodic_eval); "
                 "det. area: the mean of `eval/success_any` over its evaluations; det. final: the "
                 "last evaluation (the final policy), at any step and at the final step. `-`: a "
@@ -635,11 +650,14 @@ def _bc_markdown(cells: Sequence[Cell]) -> list[str]:
 def _task_grid(
     cells: Sequence[Cell],
 ) -> tuple[list[str], list[str], dict[tuple[str, str], Cell], list[str]]:
-    """Tasks and labels in table order, the cell of each (task, label), and the tasks where
-    every label has a final success (the ones the summaries over tasks average)."""
+    """Tasks and labels in table order (the labels with a cell on every task: a study's arm
+    that runs on some tasks only is left out of the summaries over tasks), the cell of each
+    (task, label), and the tasks where every such label has a final success (the ones the
+    summaries over tasks average)."""
     tasks = list(dict.fromkeys(c.task for c in cells))
-    labels = list(dict.fromkeys(c.label for c in cells))
     by = {(c.task, c.label): c for c in cells}
+    labels = [lb for lb in dict.fromkeys(c.label for c in cells)
+              if all((t, lb) in by for t in tasks)]  # fmt: skip
     full = [t for t in tasks if all(by[(t, lb)].stat("final")[2] > 0 for lb in labels)]
     return tasks, labels, by, full
 
@@ -652,8 +670,11 @@ def _over_tasks(cells: Sequence[Cell]) -> list[str]:
     if len(tasks) < 2:
         return []
     det = any(not math.isnan(n.get("det", math.nan)) for c in cells for n in c.numbers.values())
+    partial = [lb for lb in dict.fromkeys(c.label for c in cells) if lb not in labels]
     md = [
-        f"Over tasks ({len(full)} of {len(tasks)} tasks where every method has runs):",
+        f"Over tasks ({len(full)} of {len(tasks)} tasks where every method has runs"
+        + (f"; not {', '.join(partial)}, which run on some tasks only" if partial else "")
+        + "):",
         "",
         "| method | mean final success | mean success area |"
         + (" mean deterministic success |" if det else ""),
@@ -715,6 +736,7 @@ def _plot_all(
             tcells = [c for c in cells if c.task == task]
             top = max((i.steps for c in tcells for i in c.runs.values()), default=1)
             grid = np.linspace(0, top, 101)
+            drawn = 0
             for c in tcells:
                 curves = []
                 for n in c.numbers.values():
@@ -723,6 +745,7 @@ def _plot_all(
                         curves.append(np.interp(grid, x, y, left=np.nan, right=np.nan))
                 if not curves:
                     continue
+                drawn += 1
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)
                     m, s = np.nanmean(curves, 0), np.nanstd(curves, 0)
@@ -735,6 +758,9 @@ def _plot_all(
                     ls="-" if not c.missing else "--",
                 )
                 ax.fill_between(grid, m - s, m + s, alpha=0.18, color=line.get_color(), lw=0)
+            if not drawn:  # no run of this task has the curve (e.g. trained without evaluation)
+                plt.close(fig)
+                continue
             ax.set_title(task + ("  [MISSING SEEDS]" if any(c.missing for c in tcells) else ""))
             ax.set_xlim(0, top)
             ax.set_xlabel(xlabel)

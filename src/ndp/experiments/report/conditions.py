@@ -50,12 +50,14 @@ DET_METRICS = (
 
 
 def metrics_of(cells: Sequence[Any]) -> tuple[tuple[tuple[str, str], ...], str]:
-    """(the numbers the tables give, the headline key): the deterministic ones first and the
-    deterministic area as headline where any run has them, else the training-episode ones."""
-    det = any(
-        not math.isnan(n.get("det_area", math.nan)) for c in cells for n in c.numbers.values()
-    )
-    return ((*DET_METRICS, *METRICS), "det_area") if det else (METRICS, "area")
+    """(the numbers the tables give, the headline key): the deterministic ones first where any
+    run has them; the deterministic area is the headline only where every run has it (a study
+    whose older runs trained without periodic evaluation keeps the training-episode area as
+    its headline, so its comparisons still cover every run), else the training-episode area."""
+    has = [not math.isnan(n.get("det_area", math.nan)) for c in cells for n in c.numbers.values()]
+    if not any(has):
+        return METRICS, "area"
+    return (*DET_METRICS, *METRICS), ("det_area" if all(has) else "area")
 
 
 ORDER = ("ndp", "ppo-multi", "ppo")
@@ -245,6 +247,11 @@ def _over_tasks(
                                    "n_seeds": len(seeds)}  # fmt: skip
             for key, _ in metrics:
                 x = _matrix(by, lb, key, full, seeds)
+                if not np.isfinite(x).all():  # a number some runs lack (trained without it)
+                    vals.append("-")
+                    row.update({f"{key}_mean": math.nan, f"{key}_ci_low": math.nan,
+                                f"{key}_ci_high": math.nan})  # fmt: skip
+                    continue
                 point = stats.iqm(x)
                 lo, hi = stats.stratified_bootstrap_ci(x, stats.iqm)
                 vals.append(f"{point:.2f} [{lo:.2f}, {hi:.2f}]")
@@ -284,6 +291,9 @@ def _over_tasks(
                 for key, _ in shown:
                     x = _matrix(by, lab["ndp"], key, full, seeds)
                     y = _matrix(by, lab[o], key, full, seeds)
+                    if not (np.isfinite(x).all() and np.isfinite(y).all()):
+                        vals.append("-")  # a number some of the runs lack
+                        continue
                     p = stats.probability_of_improvement(x, y)
                     lo, hi = stats.probability_of_improvement_ci(x, y)
                     vals.append(f"{p:.2f} [{lo:.2f}, {hi:.2f}]")

@@ -342,6 +342,12 @@ def _pairwise(
     return rows
 
 
+def _p(p: float) -> str:
+    """A p-value for a table: 3 decimals, or 2 significant digits below 0.001 (an exact test
+    over 10 + 10 runs reaches 5.4e-06; '0.000' would read as impossible)."""
+    return f"{p:.3f}" if p >= 0.001 else f"{p:.1e}"
+
+
 def _pairwise_md(rows: Sequence[dict[str, Any]], title: str) -> list[str]:
     if not rows:
         return []
@@ -357,7 +363,7 @@ def _pairwise_md(rows: Sequence[dict[str, Any]], title: str) -> list[str]:
         cond = f"{r['condition']} (UNEQUAL)" if r["unequal"] else r["condition"]
         md.append(f"| {cond} | {r['method']} | {r['diff_mean']:+.3f} "
                   f"| [{r['diff_t_low']:+.3f}, {r['diff_t_high']:+.3f}] "
-                  f"| {r['p_a_greater']:.3f} | {r['p_b_greater']:.3f} |")  # fmt: skip
+                  f"| {_p(r['p_a_greater'])} | {_p(r['p_b_greater'])} |")  # fmt: skip
     return [*md, ""]
 
 
@@ -510,7 +516,9 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
         "two methods' runs; A - B: the difference of the means, with its Welch 95% t-interval; "
         "one-sided p of each direction; with 3 + 3 runs the smallest p is 0.05, with 10 + 10 "
         "about 5e-6). 'All tasks': the mean over tasks of the per-task difference, labels "
-        "exchanged within each task, on the seeds each method has on every task:",
+        "exchanged within each task, on the seeds each method has on every task (exact up to "
+        f"{stats.PERMUTATION_EXACT_LIMIT:,} combined splits, else {stats.PERMUTATION_SAMPLES:,} "
+        "random ones: p >= 1e-4):",
         "",
         "| task | number | A vs B | runs | A - B | 95% t-interval | p(A > B) | p(B > A) |",
         "|---|---|---|---|---|---|---|---|",
@@ -519,8 +527,8 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
         md.append(
             f"| {r['task']} | {names.get(r['metric'], r['metric'])} | {r['method']} "
             f"| {r['n_a']} + {r['n_b']} | {r['diff_mean']:+.3f} "
-            f"| [{r['diff_t_low']:+.3f}, {r['diff_t_high']:+.3f}] | {r['p_a_greater']:.3f} "
-            f"| {r['p_b_greater']:.3f} |"
+            f"| [{r['diff_t_low']:+.3f}, {r['diff_t_high']:+.3f}] | {_p(r['p_a_greater'])} "
+            f"| {_p(r['p_b_greater'])} |"
         )
     return [*md, ""], rows
 

@@ -341,10 +341,8 @@ def report(
         MissingSeedsError: cells lack seeds and not ``allow_missing`` (nothing written).
         ValueError: no runs, or two runs of one cell and seed.
     """
-    conditions, selection, infos, tasks, methods = _scope(run_dirs, study, tasks, methods)
-    arm_tasks = (
-        {a.label: a.tasks for a in get_study(study).arm_specs() if a.tasks} if study else None
-    )
+    conditions, selection, infos, tasks, methods, arm_tasks = _scope(run_dirs, study, tasks,
+                                                                     methods)  # fmt: skip
     cells, expected = build_cells(infos, seeds, tasks, methods, arm_tasks)
     if any(c.missing for c in cells) and not allow_missing:
         raise MissingSeedsError(_missing_message(cells, expected))
@@ -396,16 +394,19 @@ def _scope(
     tasks: Sequence[str] | None,
     methods: Sequence[str] | None,
 ) -> tuple[tuple[Any, ...], tuple[Any, ...], list[RunInfo], Sequence[str] | None,
-           Sequence[str] | None]:  # fmt: skip
+           Sequence[str] | None, dict[str, tuple[str, ...]]]:  # fmt: skip
     """The runs a report reads and its scope: the study's conditions and selection (empty
-    without a study), the runs found under ``run_dirs``, and the tasks and methods (a study with
-    sections defaults them to its own, in its order, leaving out tasks without runs yet)."""
+    without a study), the runs found under ``run_dirs``, the tasks and methods (a study with
+    sections defaults them to its own, in its order, leaving out tasks without runs yet), and
+    the study's arms that run on some tasks only, with those tasks."""
     conditions: tuple[Any, ...] = ()
     selection: tuple[Any, ...] = ()
+    arm_tasks: dict[str, tuple[str, ...]] = {}
     if study is not None:
         st = get_study(study)
         conditions = st.conditions
         selection = st.selection
+        arm_tasks = {a.label: tuple(a.tasks) for a in st.arm_specs() if a.tasks}
         if methods is None and (conditions or selection):
             methods = [a.label for a in st.arm_specs()]
     study_tasks = tasks is None and (conditions or selection)
@@ -418,7 +419,7 @@ def _scope(
     if study_tasks and tasks is not None:  # the study's order; tasks without runs yet left out
         found = {i.task for i in infos}
         tasks = [t for t in tasks if t in found]
-    return conditions, selection, infos, tasks, methods
+    return conditions, selection, infos, tasks, methods, arm_tasks
 
 
 def _budgets(

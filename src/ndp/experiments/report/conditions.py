@@ -329,15 +329,10 @@ def _pairwise(
         ]
         for (ma, la), (mb, lb) in itertools.combinations(arms, 2):
             x, y = _matrix(by, la, head, tasks, seeds), _matrix(by, lb, head, tasks, seeds)
-            lo, hi = stats.difference_t_interval(x, y) if n >= 2 else (math.nan, math.nan)
             rows.append({
                 "condition": cond.name, "unequal": cond.unequal, "task": where,
                 "method": f"{ma} vs {mb}", "arm": f"{la} vs {lb}", "metric": head,
-                "diff_mean": float((x.mean(0) - y.mean(0)).mean()),
-                "diff_t_low": lo, "diff_t_high": hi,
-                "p_a_greater": stats.permutation_test(x, y, "greater"),
-                "p_b_greater": stats.permutation_test(x, y, "less"),
-                "n_seeds": len(seeds),
+                **_difference(x, y), "n_seeds": len(seeds),
             })  # fmt: skip
     return rows
 
@@ -463,15 +458,22 @@ PAIRWISE_MAX_METHODS = 8
 would print 190 per task and number): the report says so and how to narrow it."""
 
 
-def _pair_row(task: str, key: str, a: str, b: str, x: np.ndarray, y: np.ndarray) -> dict[str, Any]:
-    """One pairwise row: runs ``x`` [n_a, tasks] of method ``a`` against ``y`` [n_b, tasks]."""
-    lo, hi = stats.difference_t_interval(x, y)
+def _difference(x: np.ndarray, y: np.ndarray) -> dict[str, float]:
+    """Runs ``x`` [n_a, tasks] against ``y`` [n_b, tasks]: the mean difference over tasks, its
+    Welch 95% t-interval (NaN with a single run on a side) and the permutation p-values of
+    each direction (both stratified by task)."""
+    lo, hi = stats.difference_t_interval(x, y) if min(len(x), len(y)) >= 2 else (math.nan, math.nan)
     return {
-        "task": task, "metric": key, "method": f"{a} vs {b}", "n_a": len(x), "n_b": len(y),
         "diff_mean": float((x.mean(0) - y.mean(0)).mean()), "diff_t_low": lo, "diff_t_high": hi,
         "p_a_greater": stats.permutation_test(x, y, "greater"),
         "p_b_greater": stats.permutation_test(x, y, "less"),
     }  # fmt: skip
+
+
+def _pair_row(task: str, key: str, a: str, b: str, x: np.ndarray, y: np.ndarray) -> dict[str, Any]:
+    """One pairwise row: runs ``x`` [n_a, tasks] of method ``a`` against ``y`` [n_b, tasks]."""
+    return {"task": task, "metric": key, "method": f"{a} vs {b}", "n_a": len(x), "n_b": len(y),
+            **_difference(x, y)}  # fmt: skip
 
 
 def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, Any]]]:
@@ -547,7 +549,7 @@ def _pooled_pairs(
         common: dict[str, list[int]] = {}
         for lb in labels:
             seeds = sorted(set.intersection(*(
-                {s for s in by[(t, lb)].numbers if len(_values(by[(t, lb)], key, [s])) == 1}
+                {s for s, n in by[(t, lb)].numbers.items() if not math.isnan(n[key])}
                 for t in tasks
             )))  # fmt: skip
             if len(seeds) >= 2:

@@ -18,7 +18,7 @@ import pytest
 from ndp.cli import main
 from ndp.experiments import sweep as sw
 from ndp.experiments.run_kinds import il_data_args
-from ndp.experiments.studies import STUDIES, get_study
+from ndp.experiments.studies import REGIME_1M_ARMS, STUDIES, get_study
 from ndp.experiments.study import Arm
 from ndp.experiments.sweep import driver as sw_driver
 from ndp.experiments.sweep import runner as sw_runner
@@ -333,6 +333,7 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "il-robot",
         "release-explained",
         "ndp-regimes",
+        "ndp-regimes-1m",
         "ndp-settings",
         "digits-head",
         "mt50-attribution",
@@ -341,7 +342,7 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
     }
     # the new studies: every arm accepted on its tasks; every condition's arms exist and run
     # the condition's method
-    for name in ("release-explained", "ndp-regimes", "ndp-settings"):
+    for name in ("release-explained", "ndp-regimes", "ndp-regimes-1m", "ndp-settings"):
         st = get_study(name)
         arms = {a.label: a for a in st.arm_specs()}
         sw.check_arms([a.arm() for a in arms.values()], list(st.task_list()), name)
@@ -353,6 +354,12 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
     rg = {a.label: a for a in get_study("ndp-regimes").arm_specs()}
     assert rg["ndp-k20"].args == ("--k", "20", "--minibatches", "8")
     assert [a for a in rg if a.startswith("ndp-ar1-k") and rg[a].in_default] == ["ndp-ar1-k5"]
+    # the 1M chunk-size study reuses ndp-regimes' arms unchanged, on push-v3 only
+    r1m = get_study("ndp-regimes-1m")
+    assert r1m.steps == 1_000_000 and tuple(r1m.task_list()) == ("push-v3",)
+    assert {a.label: a.args for a in r1m.arm_specs()} == {
+        lb: rg[lb].args for lb in REGIME_1M_ARMS
+    }
     # the benchmarks' grids, as named studies
     for name in ("ndp-head-ablation", "ppo-vs-sb3", "sb3-ndp", "il-robot", "sac-vs-sb3",
                  "off-policy"):  # fmt: skip

@@ -575,6 +575,17 @@ NDP_SETTINGS_AXES = (
 a_z 15, init_log_std 0): the pre-registered sweep of ndp-settings (docs/rl-regimes.md)."""
 
 
+REGIME_1M_ARMS = ("ndp-k5", "ppo-multi-k5", "ndp-k10", "ppo-multi-k10", "ndp-k20", "ppo-multi-k20",
+                  "ppo")  # fmt: skip
+"""The arms of ndp-regimes-1m, in priority order: the chunk-size arms (white noise) and PPO."""
+
+
+def _regime_1m_arms() -> tuple[ArmSpec, ...]:
+    """ndp-regimes' chunk-size arms and PPO, unchanged, for the 1M-step run on push-v3."""
+    by_label = {a.label: a for a in _regime_arms()}
+    return tuple(by_label[lb] for lb in REGIME_1M_ARMS)
+
+
 def _settings_arms() -> tuple[ArmSpec, ...]:
     arms = [ArmSpec("ndp", "ndp", (), "NDP defaults (lr 3e-4, N 6, a_z 15, log std 0)")]
     for opt, values in NDP_SETTINGS_AXES:
@@ -894,6 +905,20 @@ STUDIES: dict[str, Study] = {
             tasks=lambda: REGIME_TASKS,
             arms=_regime_arms,
             steps=300_000,
+        ),
+        Study(
+            name="ndp-regimes-1m",
+            title="Chunk size at 1M env steps: NDP and PPO-multi at k = 5 / 10 / 20, PPO",
+            doc=(
+                "push-v3 x ndp-regimes' chunk-size arms (NDP and PPO-multi at k = 5 / 10 / 20, "
+                "white noise, 2,048 env steps per update) and PPO at k = 1, at 1M env steps "
+                "(3.3x ndp-regimes): does a larger k pay off with a larger budget? "
+                "Deterministic evaluation every 15,000 env steps; the reading is "
+                "pre-registered in docs/rl-regimes.md."
+            ),
+            tasks=lambda: ("push-v3",),
+            arms=_regime_1m_arms,
+            steps=1_000_000,
         ),
         Study(
             name="ndp-settings",

@@ -357,9 +357,7 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
     # the 1M chunk-size study reuses ndp-regimes' arms unchanged, on push-v3 only
     r1m = get_study("ndp-regimes-1m")
     assert r1m.steps == 1_000_000 and tuple(r1m.task_list()) == ("push-v3",)
-    assert {a.label: a.args for a in r1m.arm_specs()} == {
-        lb: rg[lb].args for lb in REGIME_1M_ARMS
-    }
+    assert {a.label: a.args for a in r1m.arm_specs()} == {lb: rg[lb].args for lb in REGIME_1M_ARMS}
     # the benchmarks' grids, as named studies
     for name in ("ndp-head-ablation", "ppo-vs-sb3", "sb3-ndp", "il-robot", "sac-vs-sb3",
                  "off-policy"):  # fmt: skip

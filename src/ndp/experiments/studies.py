@@ -20,7 +20,7 @@ Arms that need something this version may lack:
 from __future__ import annotations
 
 import difflib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,6 +46,10 @@ class ArmSpec:
         from ndp.experiments.study import Arm
 
         return Arm(self.label, self.algo, self.args, self.note, self.requires, self.tasks)
+
+
+Readings = Callable[[Sequence[Any], Sequence[int]], tuple[list[str], list[dict[str, Any]]]]
+"""A study's readings: (the report's RL cells, the seeds) -> (Markdown lines, CSV rows)."""
 
 
 @dataclass(frozen=True)
@@ -91,6 +95,10 @@ class Study:
     selection: tuple[tuple[str, tuple[str, ...]], ...] = field(default=())
     """(model, candidate arm labels): the report picks per task the candidate with the lowest
     mean validation MSE and reports its test MSE (``ndp.experiments.report.selection``)."""
+    readings: Readings | None = None
+    """The study's pre-registered readings, applied by code to the report's RL cells and seeds
+    (Markdown lines and CSV rows; e.g. :func:`ndp.experiments.report.regimes.regimes_readings`);
+    the report adds them after its condition tables (``<out>-readings.csv``)."""
 
     def task_list(self) -> tuple[str, ...]:
         return tuple(self.tasks())
@@ -586,6 +594,54 @@ def _regime_1m_arms() -> tuple[ArmSpec, ...]:
     return tuple(by_label[lb] for lb in REGIME_1M_ARMS)
 
 
+def _regime_conditions(ks: Sequence[int], extra: bool) -> tuple[Condition, ...]:
+    """ndp-regimes' arms as conditions (NDP, PPO-multi, PPO under one setting each): the white
+    noise at each k of ``ks`` and, with ``extra``, the exploration, stale-rule and tuned arms
+    (PPO-multi and PPO keep white noise where they have no arm of that setting)."""
+    conds = [
+        Condition(f"white, k = {k}", f"white Gaussian noise per sub-action, k = {k} (PPO k = 1)",
+                  (("ndp", f"ndp-k{k}"), ("ppo-multi", f"ppo-multi-k{k}"), ("ppo", "ppo")))
+        for k in ks
+    ]  # fmt: skip
+    if not extra:
+        return tuple(conds)
+    conds += [
+        Condition(f"NDP parameter noise, k = {k}",
+                  f"NDP explores in its DMP parameters (calibrated), k = {k}; PPO-multi and PPO "
+                  "white", (("ndp", f"ndp-param-k{k}"), ("ppo-multi", f"ppo-multi-k{k}"),
+                            ("ppo", "ppo")))
+        for k in ks
+    ]  # fmt: skip
+    conds += [
+        Condition("AR(1), k = 5", "AR(1) (Ornstein-Uhlenbeck) noise, rho 0.8, for every method",
+                  (("ndp", "ndp-ar1-k5"), ("ppo-multi", "ppo-multi-ar1-k5"), ("ppo", "ppo-ar1"))),
+        Condition("live reward, k = 5", "--no-stale-world for NDP and PPO-multi (PPO: k = 1, no "
+                  "sub-steps)", (("ndp", "ndp-nostale"), ("ppo-multi", "ppo-multi-nostale"),
+                                 ("ppo", "ppo"))),
+        Condition("NDP tuned (N 10), k = 5", "NDP with ndp-settings' winner; PPO-multi and PPO "
+                  "white", (("ndp", "ndp-tuned"), ("ppo-multi", "ppo-multi-k5"), ("ppo", "ppo"))),
+    ]  # fmt: skip
+    return tuple(conds)
+
+
+def _regimes_readings(
+    cells: Sequence[Any], seeds: Sequence[int]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """ndp-regimes' readings 1-7 (:func:`ndp.experiments.report.regimes.regimes_readings`)."""
+    from ndp.experiments.report.regimes import regimes_readings
+
+    return regimes_readings(cells, seeds)
+
+
+def _regimes_1m_readings(
+    cells: Sequence[Any], seeds: Sequence[int]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """ndp-regimes-1m's reading 8 (:func:`ndp.experiments.report.regimes.regimes_1m_readings`)."""
+    from ndp.experiments.report.regimes import regimes_1m_readings
+
+    return regimes_1m_readings(cells, seeds)
+
+
 def _settings_arms() -> tuple[ArmSpec, ...]:
     arms = [ArmSpec("ndp", "ndp", (), "NDP defaults (lr 3e-4, N 6, a_z 15, log std 0)")]
     for opt, values in NDP_SETTINGS_AXES:
@@ -905,6 +961,8 @@ STUDIES: dict[str, Study] = {
             tasks=lambda: REGIME_TASKS,
             arms=_regime_arms,
             steps=300_000,
+            conditions=_regime_conditions(REGIME_KS, extra=True),
+            readings=_regimes_readings,
         ),
         Study(
             name="ndp-regimes-1m",
@@ -919,6 +977,8 @@ STUDIES: dict[str, Study] = {
             tasks=lambda: ("push-v3",),
             arms=_regime_1m_arms,
             steps=1_000_000,
+            conditions=_regime_conditions(REGIME_KS, extra=False),
+            readings=_regimes_1m_readings,
         ),
         Study(
             name="ndp-settings",

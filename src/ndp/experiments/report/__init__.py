@@ -330,7 +330,9 @@ def report(
     ``study``: a named study; where it has conditions (``release-conditions``), the report adds
     the condition x method section (:mod:`ndp.experiments.report.conditions`: bootstrap
     intervals, IQM, probability of improvement; ``<out>-conditions.csv`` and
-    ``<out>-conditions.png``), and ``methods`` defaults to the study's arms.
+    ``<out>-conditions.png``), and ``methods`` defaults to the study's arms that have runs
+    (the others named); a study with ``readings`` (``ndp-regimes``) adds them after the
+    conditions (``<out>-readings.csv``).
 
     ``budgets``: env steps at which to give the success (default: a quarter, half and all of
     the largest budget). ``eval_episodes`` > 0 adds the success of each finished RL run's
@@ -341,9 +343,8 @@ def report(
         MissingSeedsError: cells lack seeds and not ``allow_missing`` (nothing written).
         ValueError: no runs, or two runs of one cell and seed.
     """
-    conditions, selection, infos, tasks, methods, arm_tasks = _scope(run_dirs, study, tasks,
-                                                                     methods)  # fmt: skip
-    cells, expected = build_cells(infos, seeds, tasks, methods, arm_tasks)
+    sc = _scope(run_dirs, study, tasks, methods)
+    cells, expected = build_cells(sc.infos, seeds, sc.tasks, sc.methods, sc.arm_tasks)
     if any(c.missing for c in cells) and not allow_missing:
         raise MissingSeedsError(_missing_message(cells, expected))
     tables: dict[str, list[Cell]] = {"success": [], "imitation": [], "cloning": []}
@@ -372,8 +373,7 @@ def report(
     if bc_cells:
         at = md.index("", md.index(next(x for x in md if x.startswith("Seeds per cell")))) + 1
         md[at:at] = _bc_markdown(bc_cells)
-    pngs, extra_csv = _study_sections(md, pngs, tables, conditions, selection, expected, out,
-                                      prov, plots)  # fmt: skip
+    pngs, extra_csv = _study_sections(md, pngs, tables, sc, expected, out, prov, plots)
     atomic_write_text(out.with_suffix(".md"), "\n".join(md) + "\n")
     return {
         **prov,
@@ -388,27 +388,44 @@ def report(
     }
 
 
+@dataclass(frozen=True)
+class _Scope:
+    """What a report reads (:func:`_scope`)."""
+
+    conditions: tuple[Any, ...]
+    selection: tuple[Any, ...]
+    infos: list[RunInfo]
+    tasks: Sequence[str] | None
+    methods: Sequence[str] | None
+    arm_tasks: dict[str, tuple[str, ...]]
+    readings: Any = None
+    """The study's :data:`ndp.experiments.studies.Readings`, or None."""
+    not_run: tuple[str, ...] = ()
+    """The study's arms (named by default) with no run in these directories yet."""
+
+
 def _scope(
     run_dirs: Sequence[str | Path],
     study: str | None,
     tasks: Sequence[str] | None,
     methods: Sequence[str] | None,
-) -> tuple[tuple[Any, ...], tuple[Any, ...], list[RunInfo], Sequence[str] | None,
-           Sequence[str] | None, dict[str, tuple[str, ...]]]:  # fmt: skip
-    """The runs a report reads and its scope: the study's conditions and selection (empty
-    without a study), the runs found under ``run_dirs``, the tasks and methods (a study with
-    sections defaults them to its own, in its order, leaving out tasks without runs yet), and
-    the study's arms that run on some tasks only, with those tasks."""
+) -> _Scope:
+    """The runs a report reads and its scope: the study's conditions, selection and readings
+    (empty without a study), the runs found under ``run_dirs``, the tasks and methods (a study
+    with sections defaults them to its own arms that have runs, in its order, leaving out tasks
+    without runs yet, and names the arms left out), and the study's arms that run on some tasks
+    only, with those tasks."""
     conditions: tuple[Any, ...] = ()
     selection: tuple[Any, ...] = ()
+    readings = None
     arm_tasks: dict[str, tuple[str, ...]] = {}
+    study_arms: list[str] | None = None
     if study is not None:
         st = get_study(study)
-        conditions = st.conditions
-        selection = st.selection
+        conditions, selection, readings = st.conditions, st.selection, st.readings
         arm_tasks = {a.label: tuple(a.tasks) for a in st.arm_specs() if a.tasks}
         if methods is None and (conditions or selection):
-            methods = [a.label for a in st.arm_specs()]
+            study_arms = [a.label for a in st.arm_specs()]
     study_tasks = tasks is None and (conditions or selection)
     if study_tasks:
         tasks = list(st.task_list())
@@ -419,7 +436,12 @@ def _scope(
     if study_tasks and tasks is not None:  # the study's order; tasks without runs yet left out
         found = {i.task for i in infos}
         tasks = [t for t in tasks if t in found]
-    return conditions, selection, infos, tasks, methods, arm_tasks
+    not_run: tuple[str, ...] = ()
+    if study_arms is not None:  # the study's arms with runs; the others named in the report
+        have = {i.label for i in infos if not tasks or i.task in tasks}
+        methods = [lb for lb in study_arms if lb in have]
+        not_run = tuple(lb for lb in study_arms if lb not in have)
+    return _Scope(conditions, selection, infos, tasks, methods, arm_tasks, readings, not_run)
 
 
 def _budgets(
@@ -440,16 +462,17 @@ def _study_sections(
     md: list[str],
     pngs: list[Path],
     tables: dict[str, list[Cell]],
-    conditions: Sequence[Any],
-    selection: Sequence[Any],
+    sc: _Scope,
     expected: Sequence[int],
     out: Path,
     prov: dict[str, Any],
     plots: bool,
 ) -> tuple[list[Path], list[Path]]:
-    """A study's own sections, inserted into ``md`` in place: its conditions (before the
-    per-arm success table) and its selection (before the imitation table), each with its CSV.
-    Returns the figures (the sections' first) and the sections' CSV paths."""
+    """A study's own sections, inserted into ``md`` in place: its conditions and readings
+    (before the per-arm success table) and its selection (before the imitation table), each
+    with its CSV; the study's arms without runs are named. Returns the figures (the sections'
+    first) and the sections' CSV paths."""
+    conditions, selection = sc.conditions, sc.selection
     extra_csv: list[Path] = []
 
     def write(suffix: str, rows: Sequence[dict[str, Any]]) -> None:
@@ -464,6 +487,13 @@ def _study_sections(
             tables["success"], conditions, expected, out, foot, plots
         )
         write("-conditions.csv", crows)
+        if sc.readings is not None and tables["success"]:
+            rmd, rrows = sc.readings(tables["success"], expected)
+            write("-readings.csv", rrows)
+            cmd = [*cmd, *rmd]
+        if sc.not_run:
+            cmd = [*cmd, f"Arms of the study with no runs here (left out): "
+                   f"{', '.join(sc.not_run)}.", ""]  # fmt: skip
         at = next((i for i, line in enumerate(md) if line.startswith("Success:")), len(md))
         md[at:at] = cmd
         pngs = [*cpngs, *pngs]

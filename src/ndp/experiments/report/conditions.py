@@ -143,8 +143,12 @@ def conditions_section(
                   + ", ".join(f"{m} = `{lb}`" for m, lb in cond.methods))  # fmt: skip
     md.append("")
     rows: list[dict[str, Any]] = []
+    waiting: dict[str, list[str]] = {}
     for task in tasks:
-        present = [cond for cond in conditions if any((task, lb) in by for _, lb in cond.methods)]
+        present = [cond for cond in conditions if all((task, lb) in by for _, lb in cond.methods)]
+        for cond in conditions:  # some of its arms have runs on the task, not all of them yet
+            if cond not in present and any((task, lb) in by for _, lb in cond.methods):
+                waiting.setdefault(_name(cond), []).append(task)
         if not present:
             continue
         md += [
@@ -194,6 +198,13 @@ def conditions_section(
         )
         if len(full) >= 2:
             groups.setdefault(full, []).append(cond)
+    if waiting:
+        md += [
+            "Conditions left out where some of their arms have no runs in this report: "
+            + "; ".join(f"{c} ({', '.join(ts)})" for c, ts in waiting.items())
+            + ".",
+            "",
+        ]
     if not groups:
         md += ["Over tasks: no condition has every seed of every arm on two tasks yet.", ""]
     for full, conds in groups.items():

@@ -1,0 +1,356 @@
+"""The pre-registered readings of ``ndp-regimes`` and ``ndp-regimes-1m`` (docs/rl-regimes.md),
+applied by code so that a table states them as they were written before the runs.
+
+Every reading uses the **deterministic success area** (``det_area``: the mean of
+``eval/success_any`` over a run's periodic evaluations) and the runs of the report's seeds. A
+reading whose arms lack seeds says what it waits for instead of a verdict. The arm pools and
+rules are the registration's:
+
+1. / 2. Per task, the best NDP arm (over k, noise and the stale rule), the best PPO-multi arm and
+   the best PPO arm (white or AR(1)), each by mean area. NDP's structure **helps** if its best
+   is above PPO-multi's best on every task, with the stratified permutation p < 0.05 over the
+   tasks' runs, and not below PPO's best by more than 0.05 on any task; it **does not help** if
+   PPO-multi's best is at least NDP's on every task; else **mixed**.
+3. The metric: NDP's det. area minus its training-episode area, against PPO-multi's, averaged
+   over tasks and k.
+4. Compression (and 8 at 1M): NDP's area at k = 10, 20 against k = 5 while PPO-multi's falls.
+5. Exploration: parameter and AR(1) noise against white at the same k, per method.
+6. The stale rule: the live-reward arms against k = 5 white, per method.
+7. The best k for the AR(1) arms: the k with the highest NDP white-noise area over the tasks.
+
+Choosing the best arm on the runs that are then compared favours the side with more arms
+(NDP's pool is larger than PPO-multi's): a "helps" would need that caveat, a "does not help"
+is conservative.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ndp.experiments.report import stats
+
+KS = (5, 10, 20)
+"""The chunk sizes of the study."""
+NDP_POOL = (
+    *(f"ndp-k{k}" for k in KS),
+    *(f"ndp-param-k{k}" for k in KS),
+    *(f"ndp-ar1-k{k}" for k in KS),
+    "ndp-nostale",
+)
+"""Reading 1's NDP arms (over k, noise, stale rule); an arm with no runs at all is left out."""
+PPO_MULTI_POOL = (
+    *(f"ppo-multi-k{k}" for k in KS),
+    *(f"ppo-multi-ar1-k{k}" for k in KS),
+    "ppo-multi-nostale",
+)
+"""Reading 1's PPO-multi arms."""
+PPO_POOL = ("ppo", "ppo-ar1")
+"""Reading 1's PPO arms (k = 1, white or AR(1))."""
+CONDITIONAL = tuple(f"{m}-ar1-k{k}" for m in ("ndp", "ppo-multi") for k in KS[1:])
+"""Pool arms that run only if reading 7 picks their k: in a pool only once they have runs; every
+other pool arm is required (a reading waits for it)."""
+HEAD = "det_area"
+MARGIN = 0.05
+"""Reading 1: how far below PPO's best NDP's best may be on a task."""
+ALPHA = 0.05
+"""Reading 1: the stratified permutation p below which NDP's best is "above"."""
+
+
+class _Runs:
+    """The report's cells as ``(task, label) -> [seeds]`` of one number, all seeds or none."""
+
+    def __init__(self, cells: Sequence[Any], seeds: Sequence[int]) -> None:
+        self.by = {(c.task, c.label): c for c in cells}
+        self.labels = {c.label for c in cells if c.numbers}
+        self.seeds = list(seeds)
+        self.waiting: set[str] = set()
+
+    def values(self, task: str, label: str, key: str = HEAD) -> np.ndarray | None:
+        """The seeds' numbers [n] of an arm on a task; None (and the arm noted as waited for)
+        when a seed is missing or lacks the number."""
+        c = self.by.get((task, label))
+        out = []
+        for s in self.seeds:
+            n = c.numbers.get(s) if c is not None else None
+            if n is None or math.isnan(n.get(key, math.nan)):
+                self.waiting.add(label)
+                return None
+            out.append(float(n[key]))
+        return np.array(out)
+
+    def mean(self, task: str, label: str, key: str = HEAD) -> float:
+        v = self.values(task, label, key)
+        return math.nan if v is None else float(v.mean())
+
+    def pool(self, labels: Sequence[str]) -> list[str]:
+        """A pool's arms: the required ones and the conditional ones that have runs."""
+        return [lb for lb in labels if lb not in CONDITIONAL or lb in self.labels]
+
+
+def _f(x: float, signed: bool = False) -> str:
+    return "-" if math.isnan(x) else (f"{x:+.2f}" if signed else f"{x:.2f}")
+
+
+def regimes_readings(
+    cells: Sequence[Any], seeds: Sequence[int]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """(Markdown lines, CSV rows) of the readings of ``ndp-regimes`` (see the module doc).
+
+    Args:
+        cells: the report's RL cells (``task``, ``label``, ``numbers`` per seed).
+        seeds: the seeds every arm should have.
+    """
+    r = _Runs(cells, seeds)
+    tasks = list(dict.fromkeys(c.task for c in cells))
+    md = [
+        "## Pre-registered readings (docs/rl-regimes.md)",
+        "",
+        f"Applied by code (`ndp.experiments.report.regimes`) to the deterministic success area "
+        f"of seeds {' '.join(map(str, seeds))} on {', '.join(tasks)}. A reading whose arms lack "
+        "seeds waits for them.",
+        "",
+    ]
+    rows: list[dict[str, Any]] = []
+    md += _best_arms(r, tasks, rows)
+    md += _metric(r, tasks, rows)
+    md += compression(r, tasks, rows, number="4")
+    md += _changes(r, tasks, rows)
+    md += _best_k(r, tasks, rows)
+    return md + _waiting(r, "these readings wait"), rows
+
+
+def regimes_1m_readings(
+    cells: Sequence[Any], seeds: Sequence[int]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """(Markdown lines, CSV rows) of ``ndp-regimes-1m``'s reading 8: reading 4's rule at 1M
+    env steps, and NDP against PPO-multi at each k (exact permutation p)."""
+    r = _Runs(cells, seeds)
+    tasks = list(dict.fromkeys(c.task for c in cells))
+    md = [
+        "## Pre-registered reading 8 (docs/rl-regimes.md)",
+        "",
+        f"Deterministic success area, seeds {' '.join(map(str, seeds))}, {', '.join(tasks)}."
+        + (" One seed: a direction, not a result." if len(seeds) == 1 else ""),
+        "",
+    ]
+    rows: list[dict[str, Any]] = []
+    md += compression(r, tasks, rows, number="8")
+    md += ["| k | NDP | PPO-multi | NDP - PPO-multi | p(NDP >) | p(PPO-multi >) |",
+           "|---|---|---|---|---|---|"]  # fmt: skip
+    for k in KS:
+        x = _matrix(r, tasks, [f"ndp-k{k}"] * len(tasks))
+        y = _matrix(r, tasks, [f"ppo-multi-k{k}"] * len(tasks))
+        if x is None or y is None:
+            md.append(f"| {k} | - | - | - | - | - |")
+            continue
+        d = float((x.mean(0) - y.mean(0)).mean())
+        pg, pl = stats.permutation_test(x, y, "greater"), stats.permutation_test(x, y, "less")
+        md.append(f"| {k} | {x.mean():.2f} | {y.mean():.2f} | {d:+.2f} | {pg:.3f} | {pl:.3f} |")
+        rows.append({"reading": "8", "item": f"ndp-k{k} vs ppo-multi-k{k}", "task": "all",
+                     "value": d, "p_greater": pg, "p_less": pl})  # fmt: skip
+    md.append("")
+    return md + _waiting(r, "this reading waits"), rows
+
+
+def _waiting(r: _Runs, who: str) -> list[str]:
+    """The line naming the arms a reading waits for (none: no line)."""
+    if not r.waiting:
+        return []
+    return [f"Arms {who} for (seeds missing in this report): {', '.join(sorted(r.waiting))}.", ""]
+
+
+def _matrix(r: _Runs, tasks: Sequence[str], labels: Sequence[str]) -> np.ndarray | None:
+    """[seeds, tasks]: on each task the arm named for it; None if any is incomplete."""
+    cols = [r.values(t, lb) for t, lb in zip(tasks, labels, strict=True)]
+    if any(c is None for c in cols):
+        return None
+    return np.stack([c for c in cols if c is not None], axis=1)
+
+
+def _best(r: _Runs, task: str, pool: Sequence[str]) -> tuple[str, float] | None:
+    """The arm of ``pool`` with the highest mean area on ``task`` (ties: the first); None
+    while any of the pool's arms lacks seeds."""
+    means = {lb: r.mean(task, lb) for lb in r.pool(pool)}
+    if not means or any(math.isnan(v) for v in means.values()):
+        return None
+    lb = max(means, key=lambda k: means[k])
+    return lb, means[lb]
+
+
+def _best_arms(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+    md = [
+        "**1-2. Does NDP's structure help?** Per task the best arm of each method by mean area "
+        "(NDP over k, noise and the stale rule; PPO-multi likewise; PPO white or AR(1)):",
+        "",
+        "| task | best NDP arm | area | best PPO-multi arm | area | best PPO arm | area |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    best: dict[str, list[tuple[str, float] | None]] = {}
+    for t in tasks:
+        b = [_best(r, t, p) for p in (NDP_POOL, PPO_MULTI_POOL, PPO_POOL)]
+        best[t] = b
+        shown = ("(waits) | -" if a is None else f"`{a[0]}` | {a[1]:.2f}" for a in b)
+        md.append(f"| {t} | " + " | ".join(shown) + " |")
+        for name, a in zip(("ndp", "ppo-multi", "ppo"), b, strict=True):
+            if a is not None:
+                rows.append({"reading": "1", "item": f"best {name} arm", "task": t,
+                             "arm": a[0], "value": a[1]})  # fmt: skip
+    md.append("")
+    if any(x is None for b in best.values() for x in b):
+        return [*md, "Verdict: waits for every arm of the pools.", ""]
+    x = _matrix(r, tasks, [best[t][0][0] for t in tasks])  # type: ignore[index]
+    y = _matrix(r, tasks, [best[t][1][0] for t in tasks])  # type: ignore[index]
+    assert x is not None and y is not None  # every pool arm is complete
+    p = stats.permutation_test(x, y, "greater")
+    above = all(best[t][0][1] > best[t][1][1] for t in tasks)  # type: ignore[index]
+    not_below_ppo = all(best[t][0][1] >= best[t][2][1] - MARGIN for t in tasks)  # type: ignore[index]
+    at_most = all(best[t][1][1] >= best[t][0][1] for t in tasks)  # type: ignore[index]
+    if above and p < ALPHA and not_below_ppo:
+        verdict = "**helps** (reading 1)"
+    elif at_most:
+        verdict = "**does not help** (reading 2: PPO-multi's best is at least NDP's on every task)"
+    else:
+        verdict = "**mixed** (neither rule holds; read task by task)"
+    d = float((x.mean(0) - y.mean(0)).mean())
+    md += [
+        f"Best NDP - best PPO-multi, mean over tasks: {d:+.2f}; stratified exact permutation "
+        f"p(NDP >) = {p:.3g}. NDP's best above PPO-multi's on every task: "
+        f"{'yes' if above else 'no'}; not more than {MARGIN} below PPO's best on any task: "
+        f"{'yes' if not_below_ppo else 'no'}. Verdict: {verdict}.",
+        "(The best arm is chosen on the runs it is then compared on, which favours the side with "
+        "more arms: NDP's.)",
+        "",
+    ]
+    rows.append({"reading": "1-2", "item": "verdict", "task": "all", "value": d,
+                 "p_greater": p, "verdict": verdict.split("**")[1]})  # fmt: skip
+    return md
+
+
+def _metric(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+    gaps: dict[str, list[float]] = {"ndp": [], "ppo-multi": []}
+    for m in gaps:
+        for k in KS:
+            for t in tasks:
+                gaps[m].append(r.mean(t, f"{m}-k{k}") - r.mean(t, f"{m}-k{k}", "area"))
+    if any(math.isnan(v) for g in gaps.values() for v in g):
+        return ["**3. The metric**: waits for the white-noise k arms.", ""]
+    g_n, g_m = float(np.mean(gaps["ndp"])), float(np.mean(gaps["ppo-multi"]))
+    more = g_n > g_m
+    rows.append({"reading": "3", "item": "det - training area, ndp minus ppo-multi",
+                 "task": "all", "value": g_n - g_m})  # fmt: skip
+    return [
+        f"**3. The metric**: deterministic minus training-episode area, mean over tasks and k: "
+        f"NDP {g_n:+.2f}, PPO-multi {g_m:+.2f}. "
+        + (f"The stochastic tables under-rated NDP relative to PPO-multi by {g_n - g_m:.2f}."
+           if more else "The stochastic tables did not under-rate NDP relative to PPO-multi."),
+        "",
+    ]  # fmt: skip
+
+
+def compression(
+    r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]], number: str
+) -> list[str]:
+    """Reading 4 (8 at 1M): per larger k, the change of NDP's and PPO-multi's area from k = 5
+    (mean over ``tasks``, and per task)."""
+    md = [
+        f"**{number}. Compression**: change of the area from k = 5 (mean over "
+        f"{', '.join(tasks)}{'; per task in brackets' if len(tasks) > 1 else ''}):",
+        "",
+        "| k | NDP | PPO-multi | reading |",
+        "|---|---|---|---|",
+    ]
+    for k in KS[1:]:
+        d: dict[str, list[float]] = {}
+        for m in ("ndp", "ppo-multi"):
+            d[m] = [r.mean(t, f"{m}-k{k}") - r.mean(t, f"{m}-k5") for t in tasks]
+        if any(math.isnan(v) for v in (*d["ndp"], *d["ppo-multi"])):
+            md.append(f"| {k} | (waits) | (waits) | - |")
+            continue
+        n, p = float(np.mean(d["ndp"])), float(np.mean(d["ppo-multi"]))
+        if n > 0 and p < 0:
+            what = "the DMP's compression pays off"
+        elif n < 0 and p < 0:
+            what = "both fall: the longer open-loop chunk costs more than compression gains"
+        else:
+            what = "neither rule (description only)"
+
+        def cell(v: list[float], mean: float) -> str:
+            per = " (" + ", ".join(f"{x:+.2f}" for x in v) + ")" if len(v) > 1 else ""
+            return f"{mean:+.2f}{per}"
+
+        md.append(f"| {k} | {cell(d['ndp'], n)} | {cell(d['ppo-multi'], p)} | {what} |")
+        rows.append({"reading": number, "item": f"k{k} - k5", "task": "all", "value": n,
+                     "value_ppo_multi": p, "verdict": what})  # fmt: skip
+    return [*md, ""]
+
+
+CHANGES = (
+    ("parameter noise, k = 5", "ndp", "ndp-param-k5", "ndp-k5"),
+    ("parameter noise, k = 10", "ndp", "ndp-param-k10", "ndp-k10"),
+    ("parameter noise, k = 20", "ndp", "ndp-param-k20", "ndp-k20"),
+    ("AR(1), k = 5", "ndp", "ndp-ar1-k5", "ndp-k5"),
+    ("AR(1), k = 5", "ppo-multi", "ppo-multi-ar1-k5", "ppo-multi-k5"),
+    ("AR(1), k = 1", "ppo", "ppo-ar1", "ppo"),
+    ("AR(1), k = 10", "ndp", "ndp-ar1-k10", "ndp-k10"),
+    ("AR(1), k = 10", "ppo-multi", "ppo-multi-ar1-k10", "ppo-multi-k10"),
+    ("AR(1), k = 20", "ndp", "ndp-ar1-k20", "ndp-k20"),
+    ("AR(1), k = 20", "ppo-multi", "ppo-multi-ar1-k20", "ppo-multi-k20"),
+    ("live reward (no stale world), k = 5", "ndp", "ndp-nostale", "ndp-k5"),
+    ("live reward (no stale world), k = 5", "ppo-multi", "ppo-multi-nostale", "ppo-multi-k5"),
+    ("N 10 (ndp-settings' winner; not in reading 1's pool), k = 5", "ndp", "ndp-tuned", "ndp-k5"),
+)
+"""Readings 5 and 6 (and the tuned arm): (change, method, arm, its reference arm)."""
+
+
+def _changes(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+    md = [
+        "**5-6. Exploration and the stale rule**: change of the area against the same method's "
+        "white-noise arm at the same k (arms not run are left out):",
+        "",
+        "| change | method | arm | " + " | ".join(tasks) + " | mean |",
+        "|---|---|---|" + "---|" * (len(tasks) + 1),
+    ]
+    delta: dict[tuple[str, str], float] = {}
+    for change, method, arm, ref in CHANGES:
+        if arm not in r.labels:
+            continue
+        d = [r.mean(t, arm) - r.mean(t, ref) for t in tasks]
+        mean = float(np.mean(d))
+        delta[(change, method)] = mean
+        md.append(f"| {change} | {method} | `{arm}` | " + " | ".join(_f(x, True) for x in d)
+                  + f" | {_f(mean, True)} |")  # fmt: skip
+        rows.append({"reading": "5-6", "item": f"{arm} - {ref}", "task": "all", "value": mean})
+    md.append("")
+    for change in dict.fromkeys(c for c, *_ in CHANGES):
+        n, m = delta.get((change, "ndp"), math.nan), delta.get((change, "ppo-multi"), math.nan)
+        if math.isnan(n) or math.isnan(m):
+            continue
+        if change.startswith("AR(1)"):
+            md.append(f"- {change}: NDP {n:+.2f}, PPO-multi {m:+.2f}: " + (
+                "structured exploration suits the DMP" if n > m
+                else "NDP does not gain more than PPO-multi"))  # fmt: skip
+        elif change.startswith("live"):
+            md.append(f"- {change}: NDP {n:+.2f}, PPO-multi {m:+.2f}: " + (
+                "the stale rule is not what held NDP back (NDP loses less to it)" if n < m
+                else "the stale rule cost NDP at least as much as PPO-multi"))  # fmt: skip
+    return [*md, ""]
+
+
+def _best_k(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+    areas = {k: float(np.mean([r.mean(t, f"ndp-k{k}") for t in tasks])) for k in KS}
+    if any(math.isnan(v) for v in areas.values()):
+        return ["**7. Best k**: waits for NDP's white-noise k arms.", ""]
+    best = max(areas, key=lambda k: (areas[k], -k))
+    rows.append({"reading": "7", "item": "best k", "task": "all", "value": best})
+    return [
+        "**7. Best k** (NDP, white noise, mean area over tasks): "
+        + ", ".join(f"k = {k}: {v:.2f}" for k, v in areas.items())
+        + f". Best: k = {best}"
+        + (" (no extra AR(1) arms)." if best == 5 else
+           f" (the AR(1) arms at k = {best} run: `ndp-ar1-k{best}`, `ppo-multi-ar1-k{best}`)."),
+        "",
+    ]  # fmt: skip

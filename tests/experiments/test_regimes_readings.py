@@ -1,0 +1,170 @@
+"""ndp-regimes' pre-registered readings applied by code (ndp.experiments.report.regimes): the
+verdict of readings 1-2 in each of its three outcomes and while arms are missing, the metric,
+compression, exploration, best-k rules, and the report's readings section end to end."""
+
+from __future__ import annotations
+
+import csv
+import json
+from types import SimpleNamespace
+
+import pytest
+
+from ndp.experiments.report import regimes as rg
+from ndp.experiments.report import report
+
+SEEDS = (0, 1, 2)
+TASKS = ("push-v3", "throw")
+REQUIRED = [lb for lb in (*rg.NDP_POOL, *rg.PPO_MULTI_POOL, *rg.PPO_POOL)
+            if lb not in rg.CONDITIONAL] + ["ndp-tuned"]  # fmt: skip
+
+
+def _cells(det, area=None, seeds=SEEDS):
+    """Fake report cells: ``det[(task, label)]`` (or ``det[label]`` for every task) is the
+    det. area of every seed; the training area is ``area`` (default: det - 0.1)."""
+    out = []
+    for task in TASKS:
+        for lb in REQUIRED:
+            v = det.get((task, lb), det.get(lb, 0.2))
+            if v is None:
+                continue
+            a = (area or {}).get(lb, v - 0.1)
+            # the seeds spread by +-0.01 so that permutation tests are not all ties
+            nums = {s: {"det_area": v + 0.01 * (s - 1), "area": a} for s in seeds}
+            out.append(SimpleNamespace(task=task, label=lb, numbers=nums))
+    return out
+
+
+def _text(md):
+    return "\n".join(md)
+
+
+def test_reading_1_helps_when_ndps_best_beats_ppo_multis_on_both_tasks():
+    md, rows = rg.regimes_readings(_cells({"ndp-k10": 0.8, "ppo": 0.82}), SEEDS)
+    text = _text(md)
+    assert "| push-v3 | `ndp-k10` | 0.80 | `ppo-multi-k5` | 0.20 | `ppo` | 0.82 |" in text
+    verdict = next(r for r in rows if r["item"] == "verdict")
+    assert verdict["verdict"] == "helps"
+    # every NDP run above every PPO-multi run on both tasks: 1 / C(6, 3)^2
+    assert verdict["p_greater"] == pytest.approx(1 / 400)
+    assert "Verdict: waits" not in text and "(waits)" not in text
+
+
+def test_reading_1_needs_ndp_within_the_margin_of_ppo():
+    md, rows = rg.regimes_readings(_cells({"ndp-k10": 0.8, "ppo": 0.9}), SEEDS)
+    assert next(r for r in rows if r["item"] == "verdict")["verdict"] == "mixed"
+    assert "not more than 0.05 below PPO's best on any task: no" in _text(md)
+
+
+def test_reading_2_does_not_help_and_mixed():
+    _, rows = rg.regimes_readings(_cells({"ppo-multi-k20": 0.5, "ndp-param-k5": 0.4}), SEEDS)
+    assert next(r for r in rows if r["item"] == "verdict")["verdict"] == "does not help"
+    mixed = {("push-v3", "ndp-k5"): 0.6, ("throw", "ppo-multi-k5"): 0.6}
+    _, rows = rg.regimes_readings(_cells(mixed), SEEDS)
+    assert next(r for r in rows if r["item"] == "verdict")["verdict"] == "mixed"
+
+
+def test_readings_wait_for_a_missing_arm_or_seed_and_name_it():
+    md, rows = rg.regimes_readings(_cells({"ndp-nostale": None}), SEEDS)
+    text = _text(md)
+    assert "Verdict: waits" in text and not any(r["item"] == "verdict" for r in rows)
+    assert "ndp-nostale" in text.split("wait for")[-1]
+    # one seed short
+    cells = _cells({})
+    next(c for c in cells if c.label == "ppo-ar1").numbers.pop(2)
+    md, rows = rg.regimes_readings(cells, SEEDS)
+    assert "Verdict: waits" in _text(md) and "ppo-ar1" in _text(md).split("wait for")[-1]
+
+
+def test_conditional_ar1_arms_join_the_pool_only_once_they_have_runs():
+    cells = _cells({"ndp-k5": 0.3})
+    md, rows = rg.regimes_readings(cells, SEEDS)
+    assert next(r for r in rows if r["item"] == "best ndp arm")["arm"] == "ndp-k5"
+    cells += [SimpleNamespace(task=t, label="ndp-ar1-k10",
+                              numbers={s: {"det_area": 0.9, "area": 0.5} for s in SEEDS})
+              for t in TASKS]  # fmt: skip
+    md, rows = rg.regimes_readings(cells, SEEDS)
+    assert next(r for r in rows if r["item"] == "best ndp arm")["arm"] == "ndp-ar1-k10"
+    assert "| AR(1), k = 10 | ndp | `ndp-ar1-k10` | +0.70 | +0.70 | +0.70 |" in _text(md)
+
+
+def test_metric_compression_exploration_stale_and_best_k():
+    det = {"ndp-k5": 0.3, "ndp-k10": 0.4, "ndp-k20": 0.2, "ppo-multi-k5": 0.4,
+           "ppo-multi-k10": 0.3, "ppo-multi-k20": 0.1, "ndp-ar1-k5": 0.5,
+           "ppo-multi-ar1-k5": 0.45, "ndp-nostale": 0.25, "ppo-multi-nostale": 0.2}  # fmt: skip
+    area = {f"ndp-k{k}": 0.1 for k in rg.KS} | {f"ppo-multi-k{k}": 0.2 for k in rg.KS}
+    md, rows = rg.regimes_readings(_cells(det, area), SEEDS)
+    text = _text(md)
+    # 3: NDP det - training (0.3+0.4+0.2)/3 - 0.1 = 0.2; PPO-multi (0.4+0.3+0.1)/3 - 0.2 = 0.067
+    assert next(r for r in rows if r["reading"] == "3")["value"] == pytest.approx(0.2 - 0.8 / 3
+                                                                                 + 0.2)  # fmt: skip
+    assert "under-rated NDP relative to PPO-multi by 0.13" in text
+    # 4: k = 10 NDP +0.10, PPO-multi -0.10 -> pays off; k = 20 both fall
+    assert "| 10 | +0.10 (+0.10, +0.10) | -0.10 (-0.10, -0.10) | the DMP's compression pays" in text
+    assert "| 20 | -0.10 (-0.10, -0.10) | -0.30 (-0.30, -0.30) | both fall" in text
+    # 5-6
+    assert "- AR(1), k = 5: NDP +0.20, PPO-multi +0.05: structured exploration suits" in text
+    assert "NDP -0.05, PPO-multi -0.20: the stale rule cost NDP at least as much" in text
+    # 7: k = 10 has the highest NDP area
+    assert "Best: k = 10 (the AR(1) arms at k = 10 run" in text
+
+
+def test_the_1m_reading_compares_k_and_ndp_against_ppo_multi():
+    cells = [SimpleNamespace(task="push-v3", label=lb,
+                             numbers={s: {"det_area": v + 0.01 * s, "area": v} for s in SEEDS})
+             for lb, v in (("ndp-k5", 0.5), ("ndp-k10", 0.6), ("ndp-k20", 0.4),
+                           ("ppo-multi-k5", 0.5), ("ppo-multi-k10", 0.4),
+                           ("ppo-multi-k20", 0.3), ("ppo", 0.7))]  # fmt: skip
+    md, rows = rg.regimes_1m_readings(cells, SEEDS)
+    text = _text(md)
+    assert "| 10 | +0.10 | -0.10 | the DMP's compression pays off |" in text
+    row = next(r for r in rows if r["item"] == "ndp-k10 vs ppo-multi-k10")
+    assert row["value"] == pytest.approx(0.2) and row["p_greater"] == pytest.approx(0.05)
+    md, _ = rg.regimes_1m_readings(cells, (0,))
+    assert "One seed: a direction, not a result." in _text(md)
+
+
+def _eval_run(root, task, label, seed, det, algo):
+    """A finished RL run with the periodic evaluation's columns (det. area = ``det``)."""
+    run = root / f"{task}-{label}-s{seed}"
+    run.mkdir(parents=True)
+    with (run / "metrics.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(
+            [
+                "update",
+                "global_step",
+                "charts/success_any",
+                "charts/success_final",
+                "charts/episode_return_live",
+                "eval/success_any",
+                "eval/success_final",
+            ]
+        )
+        for i in range(10):
+            w.writerow([i + 1, (i + 1) * 100, 0.1, 0.1, 1.0, det, det])
+    (run / "arm.json").write_text(json.dumps({
+        "label": label, "algo": algo, "args": [], "note": "", "steps": 1000, "task": task,
+        "seed": seed, "kind": "rl"}))  # fmt: skip
+    (run / "done.json").write_text("{}")
+
+
+def test_report_of_ndp_regimes_1m_adds_the_readings_and_names_arms_without_runs(tmp_path):
+    runs = tmp_path / "runs"
+    arms = {"ndp-k5": 0.5, "ndp-k10": 0.6, "ppo-multi-k5": 0.5, "ppo-multi-k10": 0.4, "ppo": 0.7}
+    for lb, v in arms.items():
+        for s in SEEDS:
+            _eval_run(runs, "push-v3", lb, s, v + 0.01 * s, lb.rsplit("-k", 1)[0])
+    out = tmp_path / "o" / "r1m"
+    res = report([runs], out, "ndp report runs --study ndp-regimes-1m", study="ndp-regimes-1m")
+    md = (tmp_path / "o" / "r1m.md").read_text()
+    assert "## Pre-registered reading 8" in md
+    assert "| 10 | +0.10 | -0.10 | the DMP's compression pays off |" in md
+    assert "| 20 | (waits) | (waits) | - |" in md
+    # the k = 20 arms never ran: named, and their condition left out, not shown empty
+    assert "Arms of the study with no runs here (left out): ndp-k20, ppo-multi-k20." in md
+    assert "Conditions left out where some of their arms have no runs in this report: " in md
+    assert "| white, k = 20 |" not in md and "| white, k = 10 | ndp | `ndp-k10` | 3 |" in md
+    assert str(out) + "-readings.csv" in res["section_csv"]
+    rows = list(csv.DictReader(open(str(out) + "-readings.csv")))
+    assert {r["item"] for r in rows} >= {"k10 - k5", "ndp-k10 vs ppo-multi-k10"}

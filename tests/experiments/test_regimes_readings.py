@@ -168,3 +168,16 @@ def test_report_of_ndp_regimes_1m_adds_the_readings_and_names_arms_without_runs(
     assert str(out) + "-readings.csv" in res["section_csv"]
     rows = list(csv.DictReader(open(str(out) + "-readings.csv")))
     assert {r["item"] for r in rows} >= {"k10 - k5", "ndp-k10 vs ppo-multi-k10"}
+
+
+def test_readings_need_the_studys_arms_so_a_methods_subset_leaves_them_out(tmp_path):
+    runs = tmp_path / "runs"
+    for lb in ("ndp-k5", "ppo-multi-k5", "ppo"):
+        for s in SEEDS:
+            _eval_run(runs, "push-v3", lb, s, 0.5, lb.rsplit("-k", 1)[0])
+    res = report([runs], tmp_path / "o" / "r", "ndp report", study="ndp-regimes-1m",
+                 methods=["ndp-k5", "ppo-multi-k5", "ppo"])  # fmt: skip
+    md = (tmp_path / "o" / "r.md").read_text()
+    assert "## Conditions" in md and "| white, k = 5 | ndp | `ndp-k5` | 3 |" in md
+    assert "Pre-registered reading" not in md
+    assert not any(p.endswith("-readings.csv") for p in res["section_csv"])

@@ -332,7 +332,7 @@ def report(
     intervals, IQM, probability of improvement; ``<out>-conditions.csv`` and
     ``<out>-conditions.png``), and ``methods`` defaults to the study's arms that have runs
     (the others named); a study with ``readings`` (``ndp-regimes``) adds them after the
-    conditions (``<out>-readings.csv``).
+    conditions (``<out>-readings.csv``) unless ``methods`` restricts its arms.
 
     ``budgets``: env steps at which to give the success (default: a quarter, half and all of
     the largest budget). ``eval_episodes`` > 0 adds the success of each finished RL run's
@@ -422,7 +422,8 @@ def _scope(
     study_arms: list[str] | None = None
     if study is not None:
         st = get_study(study)
-        conditions, selection, readings = st.conditions, st.selection, st.readings
+        conditions, selection = st.conditions, st.selection
+        readings = st.readings if methods is None else None  # they need the study's arms
         arm_tasks = {a.label: tuple(a.tasks) for a in st.arm_specs() if a.tasks}
         if methods is None and (conditions or selection):
             study_arms = [a.label for a in st.arm_specs()]

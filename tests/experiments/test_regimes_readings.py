@@ -181,3 +181,31 @@ def test_readings_need_the_studys_arms_so_a_methods_subset_leaves_them_out(tmp_p
     assert "## Conditions" in md and "| white, k = 5 | ndp | `ndp-k5` | 3 |" in md
     assert "Pre-registered reading" not in md
     assert not any(p.endswith("-readings.csv") for p in res["section_csv"])
+
+
+def test_off_policy_report_takes_its_on_policy_arms_from_the_other_run_directory(tmp_path):
+    """ndp report OFF ON --study off-policy: the SAC arms and ndp-regimes' fair arms in one
+    condition table (IQM over tasks, pairwise p); without the second directory the on-policy
+    arms are named as having no runs."""
+    off, on = tmp_path / "off", tmp_path / "on"
+    for task in ("push-v3", "throw"):
+        for s in SEEDS:
+            for lb, algo, v in (("sac", "sac", 0.6), ("sac-chunk-k5", "sac-chunk", 0.4),
+                                ("ndp-sac-k5", "ndp-sac", 0.5)):  # fmt: skip
+                _eval_run(off, task, lb, s, v + 0.01 * s, algo)
+            for lb, algo, v in (("ndp-k5", "ndp", 0.2), ("ppo-multi-k5", "ppo-multi", 0.3),
+                                ("ppo", "ppo", 0.3), ("ndp-k10", "ndp", 0.1)):  # fmt: skip
+                _eval_run(on, task, lb, s, v + 0.01 * s, algo)
+    report([off, on], tmp_path / "o" / "op", "ndp report", study="off-policy")
+    md = (tmp_path / "o" / "op.md").read_text()
+    assert "| k = 5 | sac | `sac` | 3 |" in md and "| k = 5 | ppo | `ppo` | 3 |" in md
+    assert "ndp-k10" not in md  # another ndp-regimes arm: not the off-policy study's
+    # SAC above NDP on both tasks, every run: stratified p = 1 / 20^2
+    rows = [ln for ln in md.splitlines() if ln.startswith("| k = 5 | sac vs ndp |")]
+    assert len(rows) == 3 and "| 0.050 | 1.000 |" in rows[0]  # push-v3, throw, both
+    assert "| 0.003 | 1.000 |" in rows[2]
+    assert "### Over tasks (2 tasks: push-v3, throw" in md
+    assert "NDP-SAC's critic input (push-v3, throw)" in md  # its actions arm never ran
+    report([off], tmp_path / "o" / "op1", "ndp report", study="off-policy")
+    md1 = (tmp_path / "o" / "op1.md").read_text()
+    assert "no runs here (left out): ndp-sac-act-k5, ndp-k5, ppo-multi-k5, ppo." in md1

@@ -363,6 +363,10 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
                  "off-policy"):  # fmt: skip
         st = get_study(name)
         sw.check_arms([a.arm() for a in st.arm_specs()], list(st.task_list()), name)
+    # the off-policy table takes its on-policy arms from ndp-regimes' runs: each arm exists there
+    op = {a.label: a for a in get_study("off-policy").arm_specs()}
+    for cond in get_study("off-policy").conditions:
+        assert all(lb in op or lb in rg for _, lb in cond.methods), cond.name
     for name in ("release-conditions", "release-goals-1m"):  # every condition's arms exist
         st = get_study(name)
         arms = {a.label: a for a in st.arm_specs()}

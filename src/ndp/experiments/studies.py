@@ -362,6 +362,19 @@ def _off_policy_arms() -> tuple[ArmSpec, ...]:
     )  # fmt: skip
 
 
+OFF_POLICY_CONDITIONS = (
+    Condition("k = 5", "every learner at k = 5 env steps per decision (SAC and PPO: k = 1), white "
+              "noise for the on-policy arms, 300k env steps; the on-policy arms are ndp-regimes' "
+              "runs (read with both run directories)",
+              (("sac", "sac"), ("sac-chunk", "sac-chunk-k5"), ("ndp-sac", "ndp-sac-k5"),
+               ("ndp", "ndp-k5"), ("ppo-multi", "ppo-multi-k5"), ("ppo", "ppo"))),
+    Condition("NDP-SAC's critic input", "NDP-SAC with the critic of (s, DMP parameters) against "
+              "the critic of (s, the k actions) (docs/offpolicy.md: the rule to keep one)",
+              (("ndp-sac (params)", "ndp-sac-k5"), ("ndp-sac (actions)", "ndp-sac-act-k5"))),
+)  # fmt: skip
+"""The off-policy study's table: its SAC arms beside ndp-regimes' fair on-policy arms."""
+
+
 RELEASE_1M_TASKS = ("push-v3", "throw")
 """The 1M-step stage of the release-conditions study: a Meta-World task and a Jaco task."""
 
@@ -889,6 +902,7 @@ STUDIES: dict[str, Study] = {
             tasks=lambda: OFF_POLICY_TASKS,
             arms=_off_policy_arms,
             steps=300_000,
+            conditions=OFF_POLICY_CONDITIONS,
         ),
         Study(
             name="sb3-ndp",

@@ -426,7 +426,9 @@ def _scope(
         readings = st.readings if methods is None else None  # they need the study's arms
         arm_tasks = {a.label: tuple(a.tasks) for a in st.arm_specs() if a.tasks}
         if methods is None and (conditions or selection):
+            # the study's arms, then the arms its conditions take from other studies' runs
             study_arms = [a.label for a in st.arm_specs()]
+            study_arms += [lb for c in conditions for _, lb in c.methods if lb not in study_arms]
     study_tasks = tasks is None and (conditions or selection)
     if study_tasks:
         tasks = list(st.task_list())

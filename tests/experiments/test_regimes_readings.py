@@ -209,3 +209,24 @@ def test_off_policy_report_takes_its_on_policy_arms_from_the_other_run_directory
     report([off], tmp_path / "o" / "op1", "ndp report", study="off-policy")
     md1 = (tmp_path / "o" / "op1.md").read_text()
     assert "no runs here (left out): ndp-sac-act-k5, ndp-k5, ppo-multi-k5, ppo." in md1
+
+
+def test_mt50_attribution_reading_holds_only_with_ndp_ahead_of_ppo_over_the_tasks():
+    def cells(ndp, ppo):
+        out = []
+        for t in ("a-v3", "b-v3"):
+            for lb, v in (("ndp", ndp), ("ppo-multi", 0.3), ("ppo", ppo)):
+                nums = {s: {"det_area": v + 0.01 * s, "final": v} for s in SEEDS}
+                out.append(SimpleNamespace(task=t, label=lb, numbers=nums))
+        return out
+
+    md, rows = rg.mt50_attribution_readings(cells(0.6, 0.2), SEEDS)
+    assert "the MT50 direction (NDP ahead of PPO) **holds** over these 2 tasks" in _text(md)
+    det = next(r for r in rows if r["item"] == "ndp vs ppo" and r["metric"] == "det_area")
+    assert det["value"] == pytest.approx(0.4) and det["p_greater"] == pytest.approx(1 / 400)
+    md, _ = rg.mt50_attribution_readings(cells(0.2, 0.2), SEEDS)
+    assert "**does not hold**" in _text(md)
+    short = cells(0.6, 0.2)
+    short[-1].numbers.pop(0)  # PPO on b-v3 lacks seed 0
+    md, _ = rg.mt50_attribution_readings(short, SEEDS)
+    assert "Verdict: waits" in _text(md) and "ppo" in _text(md).split("wait")[-1]

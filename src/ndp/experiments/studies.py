@@ -646,6 +646,15 @@ def _regimes_readings(
     return regimes_readings(cells, seeds)
 
 
+def _mt50_attribution_readings(
+    cells: Sequence[Any], seeds: Sequence[int]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """mt50-attribution's reading (``regimes.mt50_attribution_readings``)."""
+    from ndp.experiments.report.regimes import mt50_attribution_readings
+
+    return mt50_attribution_readings(cells, seeds)
+
+
 def _regimes_1m_readings(
     cells: Sequence[Any], seeds: Sequence[int]
 ) -> tuple[list[str], list[dict[str, Any]]]:
@@ -1064,6 +1073,7 @@ STUDIES: dict[str, Study] = {
                     (("ndp", "ndp"), ("ppo-multi", "ppo-multi"), ("ppo", "ppo")),
                 ),
             ),
+            readings=_mt50_attribution_readings,
         ),
         Study(
             name="digits-head",

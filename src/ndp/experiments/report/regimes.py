@@ -18,6 +18,10 @@ rules are the registration's:
 6. The stale rule: the live-reward arms against k = 5 white, per method.
 7. The best k for the AR(1) arms: the k with the highest NDP white-noise area over the tasks.
 
+``mt50-attribution``: "the MT50 direction holds" if NDP is ahead of PPO over the study's tasks
+(stratified exact permutation p < 0.05 of the det. area); the same test of the final success
+(the metric of the MT50 claim) and against PPO-multi is given beside it.
+
 Choosing the best arm on the runs that are then compared favours the side with more arms
 (NDP's pool is larger than PPO-multi's): a "helps" would need that caveat, a "does not help"
 is conservative.
@@ -354,3 +358,47 @@ def _best_k(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[
            f" (the AR(1) arms at k = {best} run: `ndp-ar1-k{best}`, `ppo-multi-ar1-k{best}`)."),
         "",
     ]  # fmt: skip
+
+
+def mt50_attribution_readings(
+    cells: Sequence[Any], seeds: Sequence[int]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """(Markdown lines, CSV rows) of ``mt50-attribution``'s reading (see the module doc)."""
+    r = _Runs(cells, seeds)
+    tasks = list(dict.fromkeys(c.task for c in cells))
+    md = [
+        "## Pre-registered reading (docs/rl-regimes.md, `mt50-attribution`)",
+        "",
+        "| number | NDP vs | NDP - other, mean over tasks | 95% t-interval | p(NDP >) | "
+        "p(other >) |",
+        "|---|---|---|---|---|---|",
+    ]
+    rows: list[dict[str, Any]] = []
+    verdict = None
+    for key, name in ((HEAD, "det. success area"), ("final", "final success (any step)")):
+        for other in ("ppo", "ppo-multi"):
+            cols = [(r.values(t, "ndp", key), r.values(t, other, key)) for t in tasks]
+            if any(a is None or b is None for a, b in cols):
+                md.append(f"| {name} | {other} | (waits) | - | - | - |")
+                continue
+            x = np.stack([a for a, _ in cols], axis=1)  # type: ignore[misc]
+            y = np.stack([b for _, b in cols], axis=1)  # type: ignore[misc]
+            d = float((x.mean(0) - y.mean(0)).mean())
+            lo, hi = stats.difference_t_interval(x, y) if len(seeds) > 1 else (math.nan, math.nan)
+            pg, pl = stats.permutation_test(x, y, "greater"), stats.permutation_test(x, y, "less")
+            md.append(f"| {name} | {other} | {d:+.3f} | [{lo:+.3f}, {hi:+.3f}] | {pg:.3g} | "
+                      f"{pl:.3g} |")  # fmt: skip
+            rows.append({"reading": "mt50", "item": f"ndp vs {other}", "metric": key,
+                         "task": "all", "value": d, "p_greater": pg, "p_less": pl})  # fmt: skip
+            if key == HEAD and other == "ppo":
+                verdict = pg < ALPHA
+    md.append("")
+    if verdict is None:
+        md.append("Verdict: waits for every seed of NDP and PPO on every task.")
+    else:
+        md.append(
+            "Verdict: the MT50 direction (NDP ahead of PPO) "
+            + ("**holds**" if verdict else "**does not hold**")
+            + f" over these {len(tasks)} tasks (det. success area, p < {ALPHA} required)."
+        )
+    return [*md, "", *_waiting(r, "this reading waits")], rows

@@ -176,7 +176,8 @@ def report_parser() -> argparse.ArgumentParser:
         metavar="NAME",
         help="the named study the runs belong to: with conditions (release-conditions), add the "
         "condition x method tables (bootstrap intervals, IQM, P(NDP > baseline), permutation "
-        "p); with readings (ndp-regimes, ndp-regimes-1m), apply its pre-registered readings; "
+        "p); with readings (ndp-regimes, ndp-regimes-1m, mt50-attribution), apply its "
+        "pre-registered readings; "
         "without --methods, the study's arms (and those its conditions take from other "
         "studies' runs: off-policy) that have runs",
     )

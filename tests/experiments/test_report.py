@@ -528,3 +528,43 @@ def test_an_arm_on_some_tasks_only_and_newer_runs_with_evaluation(tmp_path):
     # the deterministic figure only for the task whose runs have the curve
     figs = sorted(Path(p).name for p in res["png"] if p.endswith("-det.png"))
     assert figs == ["rg-throw-det.png"]
+
+
+def _short_run(root, seed, cut=False):
+    """A chunked run that trained all 10 planned updates of 100 slots but executed 94 env steps
+    per update (its episodes end inside a decision): run.json says finished, budget 1000, done
+    940; ``cut``: its metrics.csv stops at update 8 (a record cut short)."""
+    from ndp.runs.session import Manifest, write_manifest
+
+    run = _rl_run(root, "throw", "ndp-k20", seed, 0.4, algo="ndp")
+    (run / "done.json").unlink()  # an RL run's own record is run.json
+    rows = list(csv.reader((run / "metrics.csv").open()))
+    with (run / "metrics.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(rows[0])
+        for i, r in enumerate(rows[1 : 9 if cut else None]):
+            w.writerow([r[0], (i + 1) * 94, *r[2:]])
+    m = Manifest(kind="rl", task="throw", label="ndp", seed=seed, budget=1000, unit="env_steps",
+                 done=940, finished=True, reason="budget")  # fmt: skip
+    write_manifest(run, m)
+    return run
+
+
+def test_report_counts_a_run_that_executed_fewer_env_steps_and_says_so(tmp_path):
+    """A finished run whose decisions were cut by episode ends executed fewer env steps than its
+    budget: the report counts it (its record reaches what it executed) and names the shortfall;
+    a record cut below what the run executed is still refused."""
+    runs = tmp_path / "runs"
+    for seed in (0, 1):
+        _short_run(runs, seed)
+        _rl_run(runs, "throw", "ppo", seed, 0.5)
+    res = report([runs], tmp_path / "rep", "ndp report runs")
+    md = (tmp_path / "rep.md").read_text()
+    assert {r["method"] for r in res["rows"]} == {"ndp-k20", "ppo"}
+    assert "**Executed env steps below the budget**" in md
+    assert "throw x `ndp-k20`: 940 of 1,000 (94%) in 2 of 2 runs" in md
+    assert "`ppo`:" not in md.split("**Executed env steps below the budget**")[1].split("\n")[0]
+    cut = tmp_path / "cut"
+    _short_run(cut, 0, cut=True)
+    with pytest.raises(MissingSeedsError, match=r"metrics\.csv ends at env step 752 of 1,000"):
+        report([cut], tmp_path / "rep2", "ndp report cut", seeds=[0])

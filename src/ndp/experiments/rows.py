@@ -46,6 +46,11 @@ class RunInfo:
     commits: list[str] = field(default_factory=list)
     problem: str = ""
     """Why a run that says it is finished does not count (e.g. its metrics.csv was cut)."""
+    executed: int | None = None
+    """Env steps the simulator executed, where a finished RL run executed fewer than its budget
+    (None otherwise): a chunked run whose episodes end mid-decision (e.g. 150-step episodes
+    at k = 20) plans its updates in sub-step slots, and the cut decision's unexecuted sub-steps
+    fill slots that no simulator step took."""
 
 
 def _json(path: Path) -> Any:

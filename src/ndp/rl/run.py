@@ -92,7 +92,13 @@ def say_budget(cfg: TrainConfig) -> None:
             f"ndp: budget: --steps {cfg.steps:,} trains {trained:,} env steps: "
             f"{cfg.num_updates:,} update(s) of {cfg.env_steps_per_update:,} env steps "
             f"(--steps-per-update {cfg.ppo.steps_per_update:,} rounded up to whole decisions of "
-            f"k={cfg.k} x num_envs={cfg.num_envs})",
+            f"k={cfg.k} x num_envs={cfg.num_envs})"
+            + (
+                "; counted in sub-step slots: an episode that ends inside a decision executes "
+                "fewer env steps (the report names such runs)"
+                if cfg.k > 1
+                else ""
+            ),
             file=sys.stderr,
         )
 

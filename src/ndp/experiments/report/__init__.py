@@ -174,6 +174,17 @@ def _record_reaches_budget(info: RunInfo) -> bool:
     col = kind.progress_column
     last = rows[-1].get(col, 0) if rows else 0
     target = info.steps
+    manifest = _manifest(info.path)
+    if (
+        manifest is not None
+        and manifest.finished
+        and manifest.unit == "env_steps"
+        and 0 < manifest.done < target
+        and manifest.budget >= target
+    ):
+        # the run trained every planned update but executed fewer env steps than its slots
+        # (decisions cut by an episode's end): its record must reach what it executed
+        target = info.executed = int(manifest.done)
     done = _json(info.path / "done.json") or {}
     if done.get("reason") == "early stop" and isinstance(done.get("epoch"), int):
         target = done["epoch"]  # stopped on its validation split before the maximum
@@ -561,6 +572,33 @@ def _write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
     atomic_write_text(path, buf.getvalue())  # a report redone over an old one never half-writes
 
 
+def _short_of_budget(cells: Sequence[Cell]) -> list[str]:
+    """A note naming the cells whose runs executed fewer env steps than the budget (every
+    planned update trained; decisions cut by an episode's end filled slots with sub-steps that
+    never ran), with the executed steps over seeds; nothing when every run reached it."""
+    short = []
+    for c in cells:
+        got = sorted(r.executed for r in c.runs.values() if r.executed is not None)
+        if got:
+            budget = next(iter(c.runs.values())).steps
+            lo, hi = got[0], got[-1]
+            span = f"{lo:,}" if lo == hi else f"{lo:,}-{hi:,}"
+            short.append(
+                f"{c.task} x `{c.label}`: {span} of {budget:,} ({lo / budget:.0%}"
+                f"{'' if lo == hi else f'-{hi / budget:.0%}'}) in {len(got)} of {len(c.runs)} runs"
+            )
+    if not short:
+        return []
+    return [
+        "**Executed env steps below the budget** (the run trained every planned update, but an "
+        "episode that ends inside a decision leaves that decision's remaining sub-steps "
+        "unexecuted while they count toward the update's slots, e.g. a 150-step episode is 7.5 "
+        "decisions of k = 20): " + "; ".join(short) + ". These cells trained on fewer samples "
+        "than the others; methods at the same k lose the same share.",
+        "",
+    ]
+
+
 def _markdown(
     title: str,
     rl_cells: Sequence[Cell],
@@ -588,6 +626,7 @@ def _markdown(
             "their numbers are over fewer seeds.**",
             "",
         ]
+    md += _short_of_budget(rl_cells)
     if rl_cells:
         heads = [f"success @ {b:,}" for b in budgets]
         det = has_det(rl_cells)

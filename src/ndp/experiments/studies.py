@@ -664,6 +664,15 @@ def _regimes_1m_readings(
     return regimes_1m_readings(cells, seeds)
 
 
+def _off_policy_readings(
+    cells: Sequence[Any], seeds: Sequence[int]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """off-policy's readings A-D (:func:`ndp.experiments.report.offpolicy.off_policy_readings`)."""
+    from ndp.experiments.report.offpolicy import off_policy_readings
+
+    return off_policy_readings(cells, seeds)
+
+
 def _settings_arms() -> tuple[ArmSpec, ...]:
     arms = [ArmSpec("ndp", "ndp", (), "NDP defaults (lr 3e-4, N 6, a_z 15, log std 0)")]
     for opt, values in NDP_SETTINGS_AXES:
@@ -912,6 +921,7 @@ STUDIES: dict[str, Study] = {
             arms=_off_policy_arms,
             steps=300_000,
             conditions=OFF_POLICY_CONDITIONS,
+            readings=_off_policy_readings,
         ),
         Study(
             name="sb3-ndp",

@@ -1,0 +1,170 @@
+"""The pre-registered readings of the ``off-policy`` study (docs/offpolicy.md), applied by code
+so that its table states them as they were written before the runs (2026-12-04 for reading A,
+2026-12-05 for B-D; no run of the study had started on either date).
+
+Every reading uses the **deterministic success area** (``det_area``) of the report's seeds; a
+reading whose arms lack seeds says which it waits for.
+
+A. NDP-SAC's critic input (push-v3 only): keep the input whose arm has the higher mean area; if
+   the two are within :data:`CRITIC_MARGIN`, keep ``params`` (``ndp-sac-k5``). The kept arm is
+   "NDP-SAC" in B-D (``ndp-sac-act-k5`` then needs runs on every task).
+B. The DMP head under an off-policy learner: NDP-SAC against chunked SAC at the same k (same
+   learner, same critic family, only the action parameterisation differs). It **helps** if
+   NDP-SAC's mean is above chunked SAC's on every task with the stratified exact permutation
+   p < :data:`ALPHA`; it **does not help** if chunked SAC's mean is at least NDP-SAC's on every
+   task; else **mixed**.
+C. Where NDP stands against every learner of the table: NDP-SAC against SAC, chunked SAC, NDP
+   (PPO), PPO-multi and PPO; per pair the mean difference over tasks and the stratified exact
+   permutation p in both directions; **ahead** / **behind** at p < :data:`ALPHA`, else **level**.
+D. Does the off-policy learner lift the DMP head more than the plain chunk (description only)?
+   (NDP-SAC - NDP) - (chunked SAC - PPO-multi), mean over tasks.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ndp.experiments.report import stats
+from ndp.experiments.report.regimes import _matrix, _Runs, _waiting
+
+CRITIC_TASK = "push-v3"
+"""Reading A's task."""
+CRITIC_ARMS = {"params": "ndp-sac-k5", "actions": "ndp-sac-act-k5"}
+"""NDP-SAC's two critic inputs and their arms."""
+CRITIC_MARGIN = 0.05
+"""Reading A: within this, ``params`` is kept."""
+ALPHA = 0.05
+"""Readings B and C: the stratified permutation p below which a difference is called."""
+CHUNK = "sac-chunk-k5"
+OTHERS = (("sac", "SAC (k = 1)"), (CHUNK, "chunked SAC (k = 5)"), ("ndp-k5", "NDP (PPO, k = 5)"),
+          ("ppo-multi-k5", "PPO-multi (k = 5)"), ("ppo", "PPO (k = 1)"))  # fmt: skip
+"""Reading C's opponents of NDP-SAC: (arm, name)."""
+
+
+def _critic(r: _Runs, rows: list[dict[str, Any]]) -> tuple[list[str], str | None]:
+    """Reading A: (Markdown lines, the kept arm or None while it waits)."""
+    means = {inp: r.mean(CRITIC_TASK, arm) for inp, arm in CRITIC_ARMS.items()}
+    if any(math.isnan(v) for v in means.values()):
+        return ["**A. NDP-SAC's critic input** (push-v3): waits for both critic arms.", ""], None
+    diff = means["actions"] - means["params"]
+    kept = "actions" if diff > CRITIC_MARGIN else "params"
+    why = (f"`actions` is more than {CRITIC_MARGIN} above" if kept == "actions"
+           else f"`actions` is not more than {CRITIC_MARGIN} above `params`")  # fmt: skip
+    rows.append({"reading": "A", "item": "critic input kept", "task": CRITIC_TASK,
+                 "value": diff, "verdict": kept})  # fmt: skip
+    return [
+        f"**A. NDP-SAC's critic input** (push-v3, mean det. area): `params` "
+        f"(`{CRITIC_ARMS['params']}`) {means['params']:.2f}, `actions` "
+        f"(`{CRITIC_ARMS['actions']}`) {means['actions']:.2f}; {why}: keep **{kept}** "
+        f"(`{CRITIC_ARMS[kept]}` is NDP-SAC below).",
+        "",
+    ], CRITIC_ARMS[kept]
+
+
+def _pair(r: _Runs, tasks: Sequence[str], a: str, b: str) -> tuple[float, float, float] | None:
+    """(mean over tasks of a - b, p(a >), p(b >)); None while either lacks seeds."""
+    x, y = _matrix(r, tasks, [a] * len(tasks)), _matrix(r, tasks, [b] * len(tasks))
+    if x is None or y is None:
+        return None
+    d = float((x.mean(0) - y.mean(0)).mean())
+    return d, stats.permutation_test(x, y, "greater"), stats.permutation_test(x, y, "less")
+
+
+def _head(r: _Runs, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
+    """Reading B: NDP-SAC against chunked SAC."""
+    got = _pair(r, tasks, ndp, CHUNK)
+    if got is None:
+        return [f"**B. The DMP head, off-policy**: waits for `{ndp}` and `{CHUNK}`.", ""]
+    d, pg, _ = got
+    per = {t: r.mean(t, ndp) - r.mean(t, CHUNK) for t in tasks}
+    if all(v > 0 for v in per.values()) and pg < ALPHA:
+        verdict = "helps"
+    elif all(v <= 0 for v in per.values()):
+        verdict = "does not help"
+    else:
+        verdict = "mixed"
+    rows.append({"reading": "B", "item": "verdict", "task": "all", "value": d,
+                 "p_greater": pg, "verdict": verdict})  # fmt: skip
+    shown = ", ".join(f"{t} {v:+.2f}" for t, v in per.items())
+    return [
+        f"**B. The DMP head, off-policy** (`{ndp}` - `{CHUNK}`, same learner and k): {shown}; "
+        f"mean {d:+.2f}, stratified exact permutation p(NDP-SAC >) = {pg:.3g}. Verdict: "
+        f"**{verdict}**.",
+        "",
+    ]
+
+
+def _stands(r: _Runs, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
+    """Reading C: NDP-SAC against every other learner of the table."""
+    md = [
+        f"**C. Where NDP-SAC (`{ndp}`) stands** (mean det. area over {', '.join(tasks)}):",
+        "",
+        "| against | arm | NDP-SAC - it | p(NDP-SAC >) | p(it >) | reading |",
+        "|---|---|---|---|---|---|",
+    ]
+    for arm, name in OTHERS:
+        got = _pair(r, tasks, ndp, arm)
+        if got is None:
+            md.append(f"| {name} | `{arm}` | (waits) | - | - | - |")
+            continue
+        d, pg, pl = got
+        what = "ahead" if pg < ALPHA else "behind" if pl < ALPHA else "level"
+        md.append(f"| {name} | `{arm}` | {d:+.2f} | {pg:.3g} | {pl:.3g} | {what} |")
+        rows.append({"reading": "C", "item": f"{ndp} vs {arm}", "task": "all", "value": d,
+                     "p_greater": pg, "p_less": pl, "verdict": what})  # fmt: skip
+    return [*md, ""]
+
+
+def _lift(r: _Runs, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
+    """Reading D: the learner x action-space interaction (description only)."""
+    parts = [r.mean(t, a) - r.mean(t, b) for t in tasks
+             for a, b in ((ndp, "ndp-k5"), (CHUNK, "ppo-multi-k5"))]  # fmt: skip
+    if any(math.isnan(v) for v in parts):
+        return ["**D. What the off-policy learner adds**: waits for its four arms.", ""]
+    ndp_lift = float(np.mean(parts[0::2]))
+    chunk_lift = float(np.mean(parts[1::2]))
+    rows.append({"reading": "D", "item": "(ndp-sac - ndp) - (sac-chunk - ppo-multi)",
+                 "task": "all", "value": ndp_lift - chunk_lift})  # fmt: skip
+    return [
+        f"**D. What the off-policy learner adds** (SAC-family arm minus its on-policy "
+        f"counterpart, mean over tasks): DMP head {ndp_lift:+.2f} (`{ndp}` - `ndp-k5`), plain "
+        f"chunk {chunk_lift:+.2f} (`{CHUNK}` - `ppo-multi-k5`); "
+        + ("the learner lifts the DMP head more." if ndp_lift > chunk_lift
+           else "the learner does not lift the DMP head more than the plain chunk."),
+        "",
+    ]  # fmt: skip
+
+
+def off_policy_readings(
+    cells: Sequence[Any], seeds: Sequence[int]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """(Markdown lines, CSV rows) of the ``off-policy`` study's readings (the module doc).
+
+    Args:
+        cells: the report's RL cells (``task``, ``label``, ``numbers`` per seed), the SAC arms
+            and ndp-regimes' fair on-policy arms together.
+        seeds: the seeds every arm should have.
+    """
+    r = _Runs(cells, seeds)
+    tasks = list(dict.fromkeys(c.task for c in cells))
+    md = [
+        "## Pre-registered readings (docs/offpolicy.md)",
+        "",
+        f"Applied by code (`ndp.experiments.report.offpolicy`) to the deterministic success area "
+        f"of seeds {' '.join(map(str, seeds))} on {', '.join(tasks)}.",
+        "",
+    ]
+    rows: list[dict[str, Any]] = []
+    lines, kept = _critic(r, rows)
+    md += lines
+    ndp = kept or CRITIC_ARMS["params"]
+    if kept is None:
+        md += [f"B-D read `{ndp}` (the default) until reading A decides.", ""]
+    md += _head(r, tasks, ndp, rows)
+    md += _stands(r, tasks, ndp, rows)
+    md += _lift(r, tasks, ndp, rows)
+    return md + _waiting(r, "these readings wait"), rows

@@ -1,0 +1,106 @@
+"""The off-policy study's pre-registered readings applied by code
+(ndp.experiments.report.offpolicy): the critic-input rule on both sides of its margin, reading
+B's three verdicts, reading C's ahead / behind / level, reading D, and waiting for arms."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from ndp.experiments import studies
+from ndp.experiments.report import offpolicy as op
+
+SEEDS = (0, 1, 2)
+TASKS = ("push-v3", "throw")
+ARMS = ("sac", "sac-chunk-k5", "ndp-sac-k5", "ndp-sac-act-k5", "ndp-k5", "ppo-multi-k5", "ppo")
+
+
+def _cells(det, skip=()):
+    """Fake cells: ``det[(task, arm)]`` or ``det[arm]`` is the det. area of every seed (default
+    0.2), spread by +-0.01 over seeds so that permutation tests are not all ties; ``skip``
+    holds (task, arm) pairs with no runs (``ndp-sac-act-k5`` runs on push-v3 only)."""
+    out = []
+    for task in TASKS:
+        for arm in ARMS:
+            if (task, arm) in skip or (arm == "ndp-sac-act-k5" and task != "push-v3"):
+                continue
+            v = det.get((task, arm), det.get(arm, 0.2))
+            nums = {s: {"det_area": v + 0.01 * (s - 1)} for s in SEEDS}
+            out.append(SimpleNamespace(task=task, label=arm, numbers=nums))
+    return out
+
+
+def _row(rows, reading, item=None):
+    return next(r for r in rows if r["reading"] == reading and (item is None or r["item"] == item))
+
+
+def test_the_study_registers_its_readings():
+    assert studies.get_study("off-policy").readings is not None
+
+
+@pytest.mark.parametrize(
+    ("params", "actions", "kept"),
+    [(0.30, 0.34, "params"), (0.30, 0.36, "actions"), (0.40, 0.20, "params")],
+)
+def test_reading_a_keeps_params_unless_actions_is_more_than_the_margin_above(params, actions, kept):
+    md, rows = op.off_policy_readings(
+        _cells({"ndp-sac-k5": params, "ndp-sac-act-k5": actions}), SEEDS
+    )
+    assert _row(rows, "A")["verdict"] == kept
+    assert f"keep **{kept}**" in "\n".join(md)
+
+
+def test_keeping_actions_makes_b_to_d_wait_for_its_throw_runs():
+    md, rows = op.off_policy_readings(_cells({"ndp-sac-act-k5": 0.6}), SEEDS)
+    text = "\n".join(md)
+    assert _row(rows, "A")["verdict"] == "actions"
+    assert "waits for `ndp-sac-act-k5` and `sac-chunk-k5`" in text
+    assert not any(r["reading"] in ("B", "C", "D") for r in rows)
+    assert "ndp-sac-act-k5" in text.split("these readings wait for")[1]
+
+
+def test_reading_b_helps_when_ndp_sac_beats_chunked_sac_on_both_tasks():
+    _, rows = op.off_policy_readings(_cells({"ndp-sac-k5": 0.5}), SEEDS)
+    b = _row(rows, "B")
+    assert b["verdict"] == "helps"
+    assert b["value"] == pytest.approx(0.3)
+    assert b["p_greater"] == pytest.approx(1 / 400)  # every run above on both tasks
+
+
+def test_reading_b_does_not_help_and_mixed():
+    _, rows = op.off_policy_readings(_cells({"sac-chunk-k5": 0.5}), SEEDS)
+    assert _row(rows, "B")["verdict"] == "does not help"
+    # ahead on push-v3, behind on Throw
+    det = {("push-v3", "ndp-sac-k5"): 0.5, ("throw", "sac-chunk-k5"): 0.5}
+    _, rows = op.off_policy_readings(_cells(det), SEEDS)
+    assert _row(rows, "B")["verdict"] == "mixed"
+
+
+def test_reading_c_names_ahead_behind_and_level():
+    det = {"ndp-sac-k5": 0.4, "sac": 0.6, "ndp-k5": 0.4}
+    md, rows = op.off_policy_readings(_cells(det), SEEDS)
+    assert _row(rows, "C", "ndp-sac-k5 vs sac")["verdict"] == "behind"
+    assert _row(rows, "C", "ndp-sac-k5 vs ppo")["verdict"] == "ahead"
+    # identical runs: neither p is small
+    assert _row(rows, "C", "ndp-sac-k5 vs ndp-k5")["verdict"] == "level"
+    assert "| SAC (k = 1) | `sac` | -0.20 |" in "\n".join(md)
+
+
+def test_reading_d_compares_what_the_learner_adds_to_each_action_space():
+    det = {"ndp-sac-k5": 0.5, "ndp-k5": 0.2, "sac-chunk-k5": 0.3, "ppo-multi-k5": 0.2}
+    md, rows = op.off_policy_readings(_cells(det), SEEDS)
+    assert _row(rows, "D")["value"] == pytest.approx(0.3 - 0.1)
+    assert "the learner lifts the DMP head more" in "\n".join(md)
+
+
+def test_readings_wait_while_seeds_are_missing():
+    cells = _cells({})
+    for c in cells:
+        if c.label == "sac":
+            del c.numbers[2]
+    md, rows = op.off_policy_readings(cells, SEEDS)
+    text = "\n".join(md)
+    assert "| SAC (k = 1) | `sac` | (waits) |" in text
+    assert "these readings wait for (seeds missing in this report): sac." in text
+    assert _row(rows, "B")["verdict"] == "does not help"  # level everywhere: not above

@@ -120,6 +120,9 @@ def test_the_1m_reading_compares_k_and_ndp_against_ppo_multi():
     assert "| 10 | +0.10 | -0.10 | the DMP's compression pays off |" in text
     row = next(r for r in rows if r["item"] == "ndp-k10 vs ppo-multi-k10")
     assert row["value"] == pytest.approx(0.2) and row["p_greater"] == pytest.approx(0.05)
+    assert ("NDP k = 10 (0.61) > k = 5 (0.51) > k = 20 (0.41); PPO-multi k = 5 (0.51) > "
+            "k = 10 (0.41) > k = 20 (0.31)." in text)  # fmt: skip
+    assert next(r for r in rows if r["item"] == "ndp ranking of k")["value"] == "10 > 5 > 20"
     md, _ = rg.regimes_1m_readings(cells, (0,))
     assert "One seed: a direction, not a result." in _text(md)
 

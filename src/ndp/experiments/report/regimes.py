@@ -157,7 +157,27 @@ def regimes_1m_readings(
         rows.append({"reading": "8", "item": f"ndp-k{k} vs ppo-multi-k{k}", "task": "all",
                      "value": d, "p_greater": pg, "p_less": pl})  # fmt: skip
     md.append("")
+    md += _k_ranking(r, tasks, rows)
     return md + _waiting(r, "this reading waits"), rows
+
+
+def _k_ranking(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+    """Reading 8's ranking of k per method by mean area over ``tasks`` (to set beside the
+    300k study's ranking, which lives in another runs directory)."""
+    out = []
+    for m, name in (("ndp", "NDP"), ("ppo-multi", "PPO-multi")):
+        areas = {k: float(np.mean([r.mean(t, f"{m}-k{k}") for t in tasks])) for k in KS}
+        if any(math.isnan(v) for v in areas.values()):
+            continue
+        order = sorted(KS, key=lambda k: (-areas[k], k))
+        rank = " > ".join(f"k = {k} ({areas[k]:.2f})" for k in order)
+        out.append(f"{name} {rank}")
+        rows.append({"reading": "8", "item": f"{m} ranking of k", "task": "all",
+                     "value": " > ".join(map(str, order))})  # fmt: skip
+    if not out:
+        return []
+    return ["Ranking of k by mean area (compare with the 300k study's, `ndp-regimes`): "
+            + "; ".join(out) + ".", ""]  # fmt: skip
 
 
 def _waiting(r: _Runs, who: str) -> list[str]:

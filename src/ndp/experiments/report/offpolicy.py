@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.report import stats
-from ndp.experiments.report.regimes import _matrix, _Runs, _waiting
+from ndp.experiments.report.readings import ArmRuns
 
 CRITIC_TASK = "push-v3"
 """Reading A's task."""
@@ -45,7 +45,7 @@ OTHERS = (("sac", "SAC (k = 1)"), (CHUNK, "chunked SAC (k = 5)"), ("ndp-k5", "ND
 """Reading C's opponents of NDP-SAC: (arm, name)."""
 
 
-def _critic(r: _Runs, rows: list[dict[str, Any]]) -> tuple[list[str], str | None]:
+def _critic(r: ArmRuns, rows: list[dict[str, Any]]) -> tuple[list[str], str | None]:
     """Reading A: (Markdown lines, the kept arm or None while it waits)."""
     means = {inp: r.mean(CRITIC_TASK, arm) for inp, arm in CRITIC_ARMS.items()}
     if any(math.isnan(v) for v in means.values()):
@@ -65,16 +65,16 @@ def _critic(r: _Runs, rows: list[dict[str, Any]]) -> tuple[list[str], str | None
     ], CRITIC_ARMS[kept]
 
 
-def _pair(r: _Runs, tasks: Sequence[str], a: str, b: str) -> tuple[float, float, float] | None:
+def _pair(r: ArmRuns, tasks: Sequence[str], a: str, b: str) -> tuple[float, float, float] | None:
     """(mean over tasks of a - b, p(a >), p(b >)); None while either lacks seeds."""
-    x, y = _matrix(r, tasks, [a] * len(tasks)), _matrix(r, tasks, [b] * len(tasks))
+    x, y = r.matrix(tasks, [a] * len(tasks)), r.matrix(tasks, [b] * len(tasks))
     if x is None or y is None:
         return None
     d = float((x.mean(0) - y.mean(0)).mean())
     return d, stats.permutation_test(x, y, "greater"), stats.permutation_test(x, y, "less")
 
 
-def _head(r: _Runs, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
+def _head(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
     """Reading B: NDP-SAC against chunked SAC."""
     got = _pair(r, tasks, ndp, CHUNK)
     if got is None:
@@ -98,7 +98,7 @@ def _head(r: _Runs, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) 
     ]
 
 
-def _stands(r: _Runs, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
+def _stands(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
     """Reading C: NDP-SAC against every other learner of the table."""
     md = [
         f"**C. Where NDP-SAC (`{ndp}`) stands** (mean det. area over {', '.join(tasks)}):",
@@ -119,7 +119,7 @@ def _stands(r: _Runs, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]
     return [*md, ""]
 
 
-def _lift(r: _Runs, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
+def _lift(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
     """Reading D: the learner x action-space interaction (description only)."""
     parts = [r.mean(t, a) - r.mean(t, b) for t in tasks
              for a, b in ((ndp, "ndp-k5"), (CHUNK, "ppo-multi-k5"))]  # fmt: skip
@@ -149,7 +149,7 @@ def off_policy_readings(
             and ndp-regimes' fair on-policy arms together.
         seeds: the seeds every arm should have.
     """
-    r = _Runs(cells, seeds)
+    r = ArmRuns(cells, seeds)
     tasks = list(dict.fromkeys(c.task for c in cells))
     md = [
         "## Pre-registered readings (docs/offpolicy.md)",
@@ -167,4 +167,4 @@ def off_policy_readings(
     md += _head(r, tasks, ndp, rows)
     md += _stands(r, tasks, ndp, rows)
     md += _lift(r, tasks, ndp, rows)
-    return md + _waiting(r, "these readings wait"), rows
+    return md + r.waiting_line("these readings wait"), rows

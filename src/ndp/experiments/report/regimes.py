@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.report import stats
+from ndp.experiments.report.readings import HEAD, ArmRuns, fmt
 
 KS = (5, 10, 20)
 """The chunk sizes of the study."""
@@ -57,46 +58,10 @@ PPO_POOL = ("ppo", "ppo-ar1")
 CONDITIONAL = tuple(f"{m}-ar1-k{k}" for m in ("ndp", "ppo-multi") for k in KS[1:])
 """Pool arms that run only if reading 7 picks their k: in a pool only once they have runs; every
 other pool arm is required (a reading waits for it)."""
-HEAD = "det_area"
 MARGIN = 0.05
 """Reading 1: how far below PPO's best NDP's best may be on a task."""
 ALPHA = 0.05
 """Reading 1: the stratified permutation p below which NDP's best is "above"."""
-
-
-class _Runs:
-    """The report's cells as ``(task, label) -> [seeds]`` of one number, all seeds or none."""
-
-    def __init__(self, cells: Sequence[Any], seeds: Sequence[int]) -> None:
-        self.by = {(c.task, c.label): c for c in cells}
-        self.labels = {c.label for c in cells if c.numbers}
-        self.seeds = list(seeds)
-        self.waiting: set[str] = set()
-
-    def values(self, task: str, label: str, key: str = HEAD) -> np.ndarray | None:
-        """The seeds' numbers [n] of an arm on a task; None (and the arm noted as waited for)
-        when a seed is missing or lacks the number."""
-        c = self.by.get((task, label))
-        out = []
-        for s in self.seeds:
-            n = c.numbers.get(s) if c is not None else None
-            if n is None or math.isnan(n.get(key, math.nan)):
-                self.waiting.add(label)
-                return None
-            out.append(float(n[key]))
-        return np.array(out)
-
-    def mean(self, task: str, label: str, key: str = HEAD) -> float:
-        v = self.values(task, label, key)
-        return math.nan if v is None else float(v.mean())
-
-    def pool(self, labels: Sequence[str]) -> list[str]:
-        """A pool's arms: the required ones and the conditional ones that have runs."""
-        return [lb for lb in labels if lb not in CONDITIONAL or lb in self.labels]
-
-
-def _f(x: float, signed: bool = False) -> str:
-    return "-" if math.isnan(x) else (f"{x:+.2f}" if signed else f"{x:.2f}")
 
 
 def regimes_readings(
@@ -108,7 +73,7 @@ def regimes_readings(
         cells: the report's RL cells (``task``, ``label``, ``numbers`` per seed).
         seeds: the seeds every arm should have.
     """
-    r = _Runs(cells, seeds)
+    r = ArmRuns(cells, seeds, CONDITIONAL)
     tasks = list(dict.fromkeys(c.task for c in cells))
     md = [
         "## Pre-registered readings (docs/rl-regimes.md)",
@@ -124,7 +89,7 @@ def regimes_readings(
     md += compression(r, tasks, rows, number="4")
     md += _changes(r, tasks, rows)
     md += _best_k(r, tasks, rows)
-    return md + _waiting(r, "these readings wait"), rows
+    return md + r.waiting_line("these readings wait"), rows
 
 
 def regimes_1m_readings(
@@ -132,7 +97,7 @@ def regimes_1m_readings(
 ) -> tuple[list[str], list[dict[str, Any]]]:
     """(Markdown lines, CSV rows) of ``ndp-regimes-1m``'s reading 8: reading 4's rule at 1M
     env steps, and NDP against PPO-multi at each k (exact permutation p)."""
-    r = _Runs(cells, seeds)
+    r = ArmRuns(cells, seeds, CONDITIONAL)
     tasks = list(dict.fromkeys(c.task for c in cells))
     md = [
         "## Pre-registered reading 8 (docs/rl-regimes.md)",
@@ -146,8 +111,8 @@ def regimes_1m_readings(
     md += ["| k | NDP | PPO-multi | NDP - PPO-multi | p(NDP >) | p(PPO-multi >) |",
            "|---|---|---|---|---|---|"]  # fmt: skip
     for k in KS:
-        x = _matrix(r, tasks, [f"ndp-k{k}"] * len(tasks))
-        y = _matrix(r, tasks, [f"ppo-multi-k{k}"] * len(tasks))
+        x = r.matrix(tasks, [f"ndp-k{k}"] * len(tasks))
+        y = r.matrix(tasks, [f"ppo-multi-k{k}"] * len(tasks))
         if x is None or y is None:
             md.append(f"| {k} | - | - | - | - | - |")
             continue
@@ -158,10 +123,10 @@ def regimes_1m_readings(
                      "value": d, "p_greater": pg, "p_less": pl})  # fmt: skip
     md.append("")
     md += _k_ranking(r, tasks, rows)
-    return md + _waiting(r, "this reading waits"), rows
+    return md + r.waiting_line("this reading waits"), rows
 
 
-def _k_ranking(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+def _k_ranking(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
     """Reading 8's ranking of k per method by mean area over ``tasks`` (to set beside the
     300k study's ranking, which lives in another runs directory)."""
     out = []
@@ -180,22 +145,7 @@ def _k_ranking(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> li
             + "; ".join(out) + ".", ""]  # fmt: skip
 
 
-def _waiting(r: _Runs, who: str) -> list[str]:
-    """The line naming the arms a reading waits for (none: no line)."""
-    if not r.waiting:
-        return []
-    return [f"Arms {who} for (seeds missing in this report): {', '.join(sorted(r.waiting))}.", ""]
-
-
-def _matrix(r: _Runs, tasks: Sequence[str], labels: Sequence[str]) -> np.ndarray | None:
-    """[seeds, tasks]: on each task the arm named for it; None if any is incomplete."""
-    cols = [r.values(t, lb) for t, lb in zip(tasks, labels, strict=True)]
-    if any(c is None for c in cols):
-        return None
-    return np.stack([c for c in cols if c is not None], axis=1)
-
-
-def _best(r: _Runs, task: str, pool: Sequence[str]) -> tuple[str, float] | None:
+def _best(r: ArmRuns, task: str, pool: Sequence[str]) -> tuple[str, float] | None:
     """The arm of ``pool`` with the highest mean area on ``task`` (ties: the first); None
     while any of the pool's arms lacks seeds."""
     means = {lb: r.mean(task, lb) for lb in r.pool(pool)}
@@ -205,7 +155,7 @@ def _best(r: _Runs, task: str, pool: Sequence[str]) -> tuple[str, float] | None:
     return lb, means[lb]
 
 
-def _best_arms(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+def _best_arms(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
     md = [
         "**1-2. Does NDP's structure help?** Per task the best arm of each method by mean area "
         "(NDP over k, noise and the stale rule; PPO-multi likewise; PPO white or AR(1)):",
@@ -226,8 +176,8 @@ def _best_arms(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> li
     md.append("")
     if any(x is None for b in best.values() for x in b):
         return [*md, "Verdict: waits for every arm of the pools.", ""]
-    x = _matrix(r, tasks, [best[t][0][0] for t in tasks])  # type: ignore[index]
-    y = _matrix(r, tasks, [best[t][1][0] for t in tasks])  # type: ignore[index]
+    x = r.matrix(tasks, [best[t][0][0] for t in tasks])  # type: ignore[index]
+    y = r.matrix(tasks, [best[t][1][0] for t in tasks])  # type: ignore[index]
     assert x is not None and y is not None  # every pool arm is complete
     p = stats.permutation_test(x, y, "greater")
     above = all(best[t][0][1] > best[t][1][1] for t in tasks)  # type: ignore[index]
@@ -254,7 +204,7 @@ def _best_arms(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> li
     return md
 
 
-def _metric(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+def _metric(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
     gaps: dict[str, list[float]] = {"ndp": [], "ppo-multi": []}
     for m in gaps:
         for k in KS:
@@ -276,7 +226,7 @@ def _metric(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[
 
 
 def compression(
-    r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]], number: str
+    r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]], number: str
 ) -> list[str]:
     """Reading 4 (8 at 1M): per larger k, the change of NDP's and PPO-multi's area from k = 5
     (mean over ``tasks``, and per task)."""
@@ -330,7 +280,7 @@ CHANGES = (
 """Readings 5 and 6 (and the tuned arm): (change, method, arm, its reference arm)."""
 
 
-def _changes(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+def _changes(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
     md = [
         "**5-6. Exploration and the stale rule**: change of the area against the same method's "
         "white-noise arm at the same k (arms not run are left out):",
@@ -345,8 +295,8 @@ def _changes(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list
         d = [r.mean(t, arm) - r.mean(t, ref) for t in tasks]
         mean = float(np.mean(d))
         delta[(change, method)] = mean
-        md.append(f"| {change} | {method} | `{arm}` | " + " | ".join(_f(x, True) for x in d)
-                  + f" | {_f(mean, True)} |")  # fmt: skip
+        md.append(f"| {change} | {method} | `{arm}` | " + " | ".join(fmt(x, True) for x in d)
+                  + f" | {fmt(mean, True)} |")  # fmt: skip
         rows.append({"reading": "5-6", "item": f"{arm} - {ref}", "task": "all", "value": mean})
     md.append("")
     for change in dict.fromkeys(c for c, *_ in CHANGES):
@@ -364,7 +314,7 @@ def _changes(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list
     return [*md, ""]
 
 
-def _best_k(r: _Runs, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+def _best_k(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
     areas = {k: float(np.mean([r.mean(t, f"ndp-k{k}") for t in tasks])) for k in KS}
     if any(math.isnan(v) for v in areas.values()):
         return ["**7. Best k**: waits for NDP's white-noise k arms.", ""]
@@ -384,7 +334,7 @@ def mt50_attribution_readings(
     cells: Sequence[Any], seeds: Sequence[int]
 ) -> tuple[list[str], list[dict[str, Any]]]:
     """(Markdown lines, CSV rows) of ``mt50-attribution``'s reading (see the module doc)."""
-    r = _Runs(cells, seeds)
+    r = ArmRuns(cells, seeds, CONDITIONAL)
     tasks = list(dict.fromkeys(c.task for c in cells))
     md = [
         "## Pre-registered reading (docs/rl-regimes.md, `mt50-attribution`)",
@@ -421,4 +371,4 @@ def mt50_attribution_readings(
             + ("**holds**" if verdict else "**does not hold**")
             + f" over these {len(tasks)} tasks (det. success area, p < {ALPHA} required)."
         )
-    return [*md, "", *_waiting(r, "this reading waits")], rows
+    return [*md, "", *r.waiting_line("this reading waits")], rows

@@ -1,0 +1,76 @@
+"""Shared parts of the pre-registered readings a study's report applies by code
+(``regimes``, ``offpolicy``): the runs of the report's seeds per arm, the seeds x tasks matrix a
+stratified test takes, the line naming the arms a reading still waits for.
+
+A reading reads one number per run (by default the **deterministic success area**,
+``det_area``) and needs every seed of the report: an arm missing a seed gives no numbers, and is
+noted as waited for, so that a reading says what it waits for instead of a verdict.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection, Sequence
+from typing import Any
+
+import numpy as np
+
+HEAD = "det_area"
+"""The number the readings read, unless a reading names another."""
+
+
+class ArmRuns:
+    """The report's cells as ``(task, label) -> [seeds]`` of one number, all seeds or none.
+
+    ``conditional``: arms that belong to a pool only once they have runs (see :meth:`pool`).
+    """
+
+    def __init__(
+        self, cells: Sequence[Any], seeds: Sequence[int], conditional: Collection[str] = ()
+    ) -> None:
+        self.by = {(c.task, c.label): c for c in cells}
+        self.labels = {c.label for c in cells if c.numbers}
+        self.seeds = list(seeds)
+        self.conditional = frozenset(conditional)
+        self.waiting: set[str] = set()
+
+    def values(self, task: str, label: str, key: str = HEAD) -> np.ndarray | None:
+        """The seeds' numbers [n] of an arm on a task; None (and the arm noted as waited for)
+        when a seed is missing or lacks the number."""
+        c = self.by.get((task, label))
+        out = []
+        for s in self.seeds:
+            n = c.numbers.get(s) if c is not None else None
+            if n is None or math.isnan(n.get(key, math.nan)):
+                self.waiting.add(label)
+                return None
+            out.append(float(n[key]))
+        return np.array(out)
+
+    def mean(self, task: str, label: str, key: str = HEAD) -> float:
+        """The mean over seeds of an arm on a task; NaN while a seed is missing."""
+        v = self.values(task, label, key)
+        return math.nan if v is None else float(v.mean())
+
+    def pool(self, labels: Sequence[str]) -> list[str]:
+        """A pool's arms: the required ones and the conditional ones that have runs."""
+        return [lb for lb in labels if lb not in self.conditional or lb in self.labels]
+
+    def matrix(self, tasks: Sequence[str], labels: Sequence[str]) -> np.ndarray | None:
+        """[seeds, tasks]: on each task the arm named for it; None if any is incomplete."""
+        cols = [self.values(t, lb) for t, lb in zip(tasks, labels, strict=True)]
+        if any(c is None for c in cols):
+            return None
+        return np.stack([c for c in cols if c is not None], axis=1)
+
+    def waiting_line(self, who: str) -> list[str]:
+        """The markdown line naming the arms a reading waits for (none waited for: no line)."""
+        if not self.waiting:
+            return []
+        arms = ", ".join(sorted(self.waiting))
+        return [f"Arms {who} for (seeds missing in this report): {arms}.", ""]
+
+
+def fmt(x: float, signed: bool = False) -> str:
+    """A reading's number to two decimals; NaN as ``-``."""
+    return "-" if math.isnan(x) else (f"{x:+.2f}" if signed else f"{x:.2f}")

@@ -28,8 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ndp.experiments.report import stats
-from ndp.experiments.report.readings import ArmRuns
+from ndp.experiments.report.readings import ArmRuns, compare
 
 CRITIC_TASK = "push-v3"
 """Reading A's task."""
@@ -70,8 +69,7 @@ def _pair(r: ArmRuns, tasks: Sequence[str], a: str, b: str) -> tuple[float, floa
     x, y = r.matrix(tasks, [a] * len(tasks)), r.matrix(tasks, [b] * len(tasks))
     if x is None or y is None:
         return None
-    d = float((x.mean(0) - y.mean(0)).mean())
-    return d, stats.permutation_test(x, y, "greater"), stats.permutation_test(x, y, "less")
+    return compare(x, y)
 
 
 def _head(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:

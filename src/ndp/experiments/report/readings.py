@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from ndp.experiments.report import stats
+
 HEAD = "det_area"
 """The number the readings read, unless a reading names another."""
 
@@ -56,9 +58,11 @@ class ArmRuns:
         """A pool's arms: the required ones and the conditional ones that have runs."""
         return [lb for lb in labels if lb not in self.conditional or lb in self.labels]
 
-    def matrix(self, tasks: Sequence[str], labels: Sequence[str]) -> np.ndarray | None:
+    def matrix(
+        self, tasks: Sequence[str], labels: Sequence[str], key: str = HEAD
+    ) -> np.ndarray | None:
         """[seeds, tasks]: on each task the arm named for it; None if any is incomplete."""
-        cols = [self.values(t, lb) for t, lb in zip(tasks, labels, strict=True)]
+        cols = [self.values(t, lb, key) for t, lb in zip(tasks, labels, strict=True)]
         if any(c is None for c in cols):
             return None
         return np.stack([c for c in cols if c is not None], axis=1)
@@ -69,6 +73,13 @@ class ArmRuns:
             return []
         arms = ", ".join(sorted(self.waiting))
         return [f"Arms {who} for (seeds missing in this report): {arms}.", ""]
+
+
+def compare(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
+    """Two arms' [seeds, tasks] matrices: (the mean over tasks of x - y, the stratified exact
+    permutation p of x > y, and of y > x)."""
+    d = float((x.mean(0) - y.mean(0)).mean())
+    return d, stats.permutation_test(x, y, "greater"), stats.permutation_test(x, y, "less")
 
 
 def fmt(x: float, signed: bool = False) -> str:

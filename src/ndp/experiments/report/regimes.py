@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.report import stats
-from ndp.experiments.report.readings import HEAD, ArmRuns, fmt
+from ndp.experiments.report.readings import HEAD, ArmRuns, compare, fmt
 
 KS = (5, 10, 20)
 """The chunk sizes of the study."""
@@ -116,8 +116,7 @@ def regimes_1m_readings(
         if x is None or y is None:
             md.append(f"| {k} | - | - | - | - | - |")
             continue
-        d = float((x.mean(0) - y.mean(0)).mean())
-        pg, pl = stats.permutation_test(x, y, "greater"), stats.permutation_test(x, y, "less")
+        d, pg, pl = compare(x, y)
         md.append(f"| {k} | {x.mean():.2f} | {y.mean():.2f} | {d:+.2f} | {pg:.3f} | {pl:.3f} |")
         rows.append({"reading": "8", "item": f"ndp-k{k} vs ppo-multi-k{k}", "task": "all",
                      "value": d, "p_greater": pg, "p_less": pl})  # fmt: skip
@@ -347,15 +346,13 @@ def mt50_attribution_readings(
     verdict = None
     for key, name in ((HEAD, "det. success area"), ("final", "final success (any step)")):
         for other in ("ppo", "ppo-multi"):
-            cols = [(r.values(t, "ndp", key), r.values(t, other, key)) for t in tasks]
-            if any(a is None or b is None for a, b in cols):
+            x = r.matrix(tasks, ["ndp"] * len(tasks), key)
+            y = r.matrix(tasks, [other] * len(tasks), key)
+            if x is None or y is None:
                 md.append(f"| {name} | {other} | (waits) | - | - | - |")
                 continue
-            x = np.stack([a for a, _ in cols], axis=1)  # type: ignore[misc]
-            y = np.stack([b for _, b in cols], axis=1)  # type: ignore[misc]
-            d = float((x.mean(0) - y.mean(0)).mean())
+            d, pg, pl = compare(x, y)
             lo, hi = stats.difference_t_interval(x, y) if len(seeds) > 1 else (math.nan, math.nan)
-            pg, pl = stats.permutation_test(x, y, "greater"), stats.permutation_test(x, y, "less")
             md.append(f"| {name} | {other} | {d:+.3f} | [{lo:+.3f}, {hi:+.3f}] | {pg:.3g} | "
                       f"{pl:.3g} |")  # fmt: skip
             rows.append({"reading": "mt50", "item": f"ndp vs {other}", "metric": key,

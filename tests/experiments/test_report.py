@@ -568,3 +568,13 @@ def test_report_counts_a_run_that_executed_fewer_env_steps_and_says_so(tmp_path)
     _short_run(cut, 0, cut=True)
     with pytest.raises(MissingSeedsError, match=r"metrics\.csv ends at env step 752 of 1,000"):
         report([cut], tmp_path / "rep2", "ndp report cut", seeds=[0])
+
+
+def test_an_interval_with_one_run_on_a_side_says_so_instead_of_nan():
+    """A Welch interval needs two runs a side: with one, the tables print ``n/a (one run)``,
+    not ``[+nan, +nan]``."""
+    from ndp.experiments.report.readings import interval
+
+    assert interval(-0.0304, 0.125) == "[-0.030, +0.125]"
+    assert interval(math.nan, math.nan) == "n/a (one run)"
+    assert interval(0.1, math.nan) == "n/a (one run)"

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.report import stats
+from ndp.experiments.report.readings import interval
 
 METRICS = (
     ("area", "success area"),
@@ -368,7 +369,7 @@ def _pairwise_md(rows: Sequence[dict[str, Any]], title: str) -> list[str]:
     for r in rows:
         cond = f"{r['condition']} (UNEQUAL)" if r["unequal"] else r["condition"]
         md.append(f"| {cond} | {r['method']} | {r['diff_mean']:+.3f} "
-                  f"| [{r['diff_t_low']:+.3f}, {r['diff_t_high']:+.3f}] "
+                  f"| {interval(r['diff_t_low'], r['diff_t_high'])} "
                   f"| {_p(r['p_a_greater'])} | {_p(r['p_b_greater'])} |")  # fmt: skip
     return [*md, ""]
 
@@ -540,7 +541,7 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
         md.append(
             f"| {r['task']} | {names.get(r['metric'], r['metric'])} | {r['method']} "
             f"| {r['n_a']} + {r['n_b']} | {r['diff_mean']:+.3f} "
-            f"| [{r['diff_t_low']:+.3f}, {r['diff_t_high']:+.3f}] | {_p(r['p_a_greater'])} "
+            f"| {interval(r['diff_t_low'], r['diff_t_high'])} | {_p(r['p_a_greater'])} "
             f"| {_p(r['p_b_greater'])} |"
         )
     return [*md, ""], rows

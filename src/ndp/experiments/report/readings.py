@@ -82,6 +82,14 @@ def compare(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
     return d, stats.permutation_test(x, y, "greater"), stats.permutation_test(x, y, "less")
 
 
+def interval(lo: float, hi: float) -> str:
+    """A 95% interval as ``[lo, hi]`` (signed, three decimals); ``n/a (one run)`` where a side
+    has a single run and the interval is undefined (NaN)."""
+    if math.isnan(lo) or math.isnan(hi):
+        return "n/a (one run)"
+    return f"[{lo:+.3f}, {hi:+.3f}]"
+
+
 def fmt(x: float, signed: bool = False) -> str:
     """A reading's number to two decimals; NaN as ``-``."""
     return "-" if math.isnan(x) else (f"{x:+.2f}" if signed else f"{x:.2f}")

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.report import stats
-from ndp.experiments.report.readings import HEAD, ArmRuns, compare, fmt
+from ndp.experiments.report.readings import HEAD, ArmRuns, compare, fmt, interval
 
 KS = (5, 10, 20)
 """The chunk sizes of the study."""
@@ -353,7 +353,7 @@ def mt50_attribution_readings(
                 continue
             d, pg, pl = compare(x, y)
             lo, hi = stats.difference_t_interval(x, y) if len(seeds) > 1 else (math.nan, math.nan)
-            md.append(f"| {name} | {other} | {d:+.3f} | [{lo:+.3f}, {hi:+.3f}] | {pg:.3g} | "
+            md.append(f"| {name} | {other} | {d:+.3f} | {interval(lo, hi)} | {pg:.3g} | "
                       f"{pl:.3g} |")  # fmt: skip
             rows.append({"reading": "mt50", "item": f"ndp vs {other}", "metric": key,
                          "task": "all", "value": d, "p_greater": pg, "p_less": pl})  # fmt: skip

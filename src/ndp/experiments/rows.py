@@ -21,11 +21,14 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ndp.io import atomic_write_text
+
+if TYPE_CHECKING:
+    from ndp.runs.session import Manifest
 
 
 @dataclass
@@ -51,6 +54,9 @@ class RunInfo:
     (None otherwise): a chunked run whose episodes end mid-decision (e.g. 150-step episodes
     at k = 20) plans its updates in sub-step slots, and the cut decision's unexecuted sub-steps
     fill slots that no simulator step took."""
+    manifest: Manifest | None = None
+    """The run's run.json as read once when the run was identified (None: older runs, or
+    unreadable)."""
 
 
 def _json(path: Path) -> Any:

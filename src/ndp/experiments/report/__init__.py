@@ -158,6 +158,7 @@ def run_info(path: Path) -> RunInfo | None:
     if not steps:
         return None
     info = RunInfo(path, str(task), str(label), str(algo), int(seed), int(steps), kind)
+    info.manifest = manifest
     info.finished = _finished(info)
     info.commits = run_commits(path)
     return info
@@ -174,7 +175,7 @@ def _record_reaches_budget(info: RunInfo) -> bool:
     col = kind.progress_column
     last = rows[-1].get(col, 0) if rows else 0
     target = info.steps
-    manifest = _manifest(info.path)
+    manifest = info.manifest
     if (
         manifest is not None
         and manifest.finished

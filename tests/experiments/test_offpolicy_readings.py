@@ -104,3 +104,50 @@ def test_readings_wait_while_seeds_are_missing():
     assert "| SAC (k = 1) | `sac` | (waits) |" in text
     assert "these readings wait for (seeds missing in this report): sac." in text
     assert _row(rows, "B")["verdict"] == "does not help"  # level everywhere: not above
+
+
+def _log(path, q, ret, alpha=None):
+    """A run directory whose metrics.csv has one row per update (``sac/q`` left out when
+    ``q`` is None: an on-policy run)."""
+    import csv
+
+    path.mkdir(parents=True)
+    cols = ["update", "global_step", "charts/episode_return"]
+    cols += [] if q is None else ["sac/q", "sac/alpha"]
+    with (path / "metrics.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(cols)
+        for i, r in enumerate(ret):
+            row = [i + 1, 1000 * (i + 1), r]
+            row += [] if q is None else [q[i], (alpha or [0.1] * len(ret))[i]]
+            w.writerow(row)
+    return SimpleNamespace(path=path)
+
+
+def test_critic_health_flags_a_value_estimate_far_above_the_returns(tmp_path):
+    """A critic whose estimate runs away (peak 5,000 against returns of at most 40) is called
+    diverged; one that stays near its returns is not; an on-policy run has no critic row. The
+    section says it is a diagnostic and changes no reading."""
+    cells = [
+        SimpleNamespace(task="push-v3", label="ndp-sac-k5", numbers={}, runs={
+            0: _log(tmp_path / "a", [10, 800, 5000, 300], [5, 20, 40, 12], [1.0, 9.0, 170.0, 5.0]),
+            1: _log(tmp_path / "b", [10, 30, 35, 39], [5, 20, 40, 12]),
+        }),
+        SimpleNamespace(task="push-v3", label="ppo", numbers={},
+                        runs={0: _log(tmp_path / "c", None, [5, 20, 40, 12])}),
+    ]  # fmt: skip
+    md, rows = op.critic_health(cells)
+    assert [(r["item"], r["verdict"]) for r in rows] == [
+        ("ndp-sac-k5 s0", "diverged"),
+        ("ndp-sac-k5 s1", "ok"),
+    ]
+    bad = rows[0]
+    assert bad["q_peak"] == 5000 and bad["q_peak_step"] == 3000 and bad["return_peak"] == 40
+    assert bad["alpha_peak"] == 170.0 and bad["alpha_final"] == 5.0
+    text = "\n".join(md)
+    assert "| push-v3 | ndp-sac-k5 | 0 | 5,000 | 3,000 | 40 | 170 | 5 | **diverged** |" in text
+    assert "Diverged: 1 of 2 runs (push-v3 ndp-sac-k5 s0)." in text
+    assert "not a pre-registered reading" in text
+    # a reading's rows come first; the diagnostic's rows follow them in the same CSV
+    _, all_rows = op.off_policy_readings(cells, SEEDS)
+    assert [r["reading"] for r in all_rows if r["reading"] == "critic"] == ["critic", "critic"]

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.report.readings import ArmRuns, compare
+from ndp.runs import read_metrics
 
 CRITIC_TASK = "push-v3"
 """Reading A's task."""
@@ -42,6 +43,11 @@ CHUNK = "sac-chunk-k5"
 OTHERS = (("sac", "SAC (k = 1)"), (CHUNK, "chunked SAC (k = 5)"), ("ndp-k5", "NDP (PPO, k = 5)"),
           ("ppo-multi-k5", "PPO-multi (k = 5)"), ("ppo", "PPO (k = 1)"))  # fmt: skip
 """Reading C's opponents of NDP-SAC: (arm, name)."""
+Q_FACTOR = 10.0
+"""Critic health: a run whose critic's value estimate (``sac/q``, the mean min-Q of the update's
+batches) ever exceeds this many times the largest mean training-episode return of any of its
+updates is called diverged (a decision's soft value is a discounted partial return plus an
+entropy bonus, and stays near or below an episode's return while the critic tracks it)."""
 
 
 def _critic(r: ArmRuns, rows: list[dict[str, Any]]) -> tuple[list[str], str | None]:
@@ -137,6 +143,68 @@ def _lift(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]
     ]  # fmt: skip
 
 
+def critic_health(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, Any]]]:
+    """(Markdown lines, CSV rows) of the critic diagnostic: per run that logs ``sac/q``, its
+    peak value estimate against the largest mean episode return of the run (:data:`Q_FACTOR`),
+    and the temperature's peak and final value. A description, not a pre-registered reading:
+    added 2026-12-05 after seed 0 of ``ndp-sac-k5`` on push-v3 was seen to diverge.
+
+    Args:
+        cells: the report's RL cells; a cell's ``runs`` (seed -> run info with ``path``) are
+            read, runs without a ``sac/q`` column (the on-policy arms) are left out.
+    """
+    md_rows, rows = [], []
+    for c in cells:
+        for seed, info in sorted(getattr(c, "runs", {}).items()):
+            try:
+                log = read_metrics(info.path)
+            except (FileNotFoundError, ValueError):
+                continue
+            q = np.array([r.get("sac/q", math.nan) for r in log], dtype=float)
+            if not np.isfinite(q).any():
+                continue
+            ret = np.array([r.get("charts/episode_return", math.nan) for r in log], dtype=float)
+            alpha = np.array([r.get("sac/alpha", math.nan) for r in log], dtype=float)
+            steps = np.array([r.get("global_step", math.nan) for r in log], dtype=float)
+            i = int(np.nanargmax(q))
+            scale = max(float(np.nanmax(np.abs(ret))) if np.isfinite(ret).any() else 0.0, 1.0)
+            diverged = bool(q[i] > Q_FACTOR * scale)
+            a_fin = alpha[np.isfinite(alpha)]
+            rows.append({"reading": "critic", "item": f"{c.label} s{seed}", "task": c.task,
+                         "value": float(q[i]) / scale, "q_peak": float(q[i]),
+                         "q_peak_step": float(steps[i]), "return_peak": scale,
+                         "alpha_peak": float(np.nanmax(alpha)) if a_fin.size else math.nan,
+                         "alpha_final": float(a_fin[-1]) if a_fin.size else math.nan,
+                         "verdict": "diverged" if diverged else "ok"})  # fmt: skip
+            r = rows[-1]
+            md_rows.append(
+                f"| {c.task} | {c.label} | {seed} | {r['q_peak']:,.0f} | {r['q_peak_step']:,.0f} "
+                f"| {scale:,.0f} | {r['alpha_peak']:.3g} | {r['alpha_final']:.3g} "
+                f"| {'**diverged**' if diverged else 'ok'} |"
+            )
+    if not rows:
+        return [], []
+    bad = [f"{r['task']} {r['item']}" for r in rows if r["verdict"] == "diverged"]
+    return [
+        "## Critic health (a diagnostic, not a pre-registered reading)",
+        "",
+        f"Per SAC-family run: the peak of the critics' value estimate (`sac/q`, mean min-Q of an "
+        f"update's batches), the env step it was reached at, the largest mean training-episode "
+        f"return of any update, and the temperature. **Diverged**: the peak is above "
+        f"{Q_FACTOR:g} times that return (a critic that tracks the return stays near or below "
+        f"it). Added on 2026-12-05 after seed 0 of `ndp-sac-k5` on push-v3 was seen to "
+        f"diverge; it changes no reading.",
+        "",
+        "| task | arm | seed | peak Q | at env step | largest episode return | peak alpha "
+        "| final alpha | critic |",
+        "|---|---|---|---|---|---|---|---|---|",
+        *md_rows,
+        "",
+        f"Diverged: {len(bad)} of {len(rows)} runs" + (f" ({', '.join(bad)})." if bad else "."),
+        "",
+    ], rows
+
+
 def off_policy_readings(
     cells: Sequence[Any], seeds: Sequence[int]
 ) -> tuple[list[str], list[dict[str, Any]]]:
@@ -165,4 +233,6 @@ def off_policy_readings(
     md += _head(r, tasks, ndp, rows)
     md += _stands(r, tasks, ndp, rows)
     md += _lift(r, tasks, ndp, rows)
-    return md + r.waiting_line("these readings wait"), rows
+    md += r.waiting_line("these readings wait")
+    health_md, health_rows = critic_health(cells)
+    return md + health_md, rows + health_rows

@@ -237,3 +237,30 @@ def test_sac_learns_the_point_mass(tmp_path):
     finally:
         opened.close()
     assert evaluate(tmp_path / "sac", episodes=5)["success_any"] >= 0.8
+
+
+def test_a_runaway_critic_is_said_once_and_its_peak_return_is_kept(tmp_path):
+    """The rule (ndp.rl.sac.health): an estimate above 10x the largest mean episode return
+    (at least 1) is a runaway. A real learner says it once on stderr as a RuntimeWarning, and
+    the return it compares with is saved in the checkpoint, so a resumed run keeps it."""
+    from ndp.rl.sac.health import q_runaway
+
+    assert q_runaway(1001.0, 100.0) and not q_runaway(999.0, 100.0)
+    assert q_runaway(11.0, 0.2) and not q_runaway(9.0, 0.2)  # returns near 0 count as 1
+    assert q_runaway(11.0, -1.0) and not q_runaway(math.nan, 5.0)
+    opened = _open(tmp_path, "sac", checkpoint_every=1)
+    try:
+        lr = opened.learner
+        assert lr.return_peak is None
+        with pytest.warns(RuntimeWarning, match="critic is running away") as said:
+            lr._watch_critic({"charts/episode_return": -30.0, "sac/q": 100.0})  # 30: fine
+            lr._watch_critic({"charts/episode_return": math.nan, "sac/q": 301.0})  # > 300
+            lr._watch_critic({"charts/episode_return": 5.0, "sac/q": 1e6})  # said already
+        assert len(said) == 1 and "301" in str(said[0].message)
+        assert lr.return_peak == 30.0
+        assert lr.state_dict()["sac"]["return_peak"] == 30.0
+        opened.train(1)
+        saved = load_checkpoint(tmp_path / "sac", kind="rl")
+    finally:
+        opened.close()
+    assert saved["sac"]["return_peak"] >= 30.0

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.report.readings import ArmRuns, compare
+from ndp.rl.sac.health import Q_RUNAWAY, q_runaway
 from ndp.runs import read_metrics
 
 CRITIC_TASK = "push-v3"
@@ -43,11 +44,6 @@ CHUNK = "sac-chunk-k5"
 OTHERS = (("sac", "SAC (k = 1)"), (CHUNK, "chunked SAC (k = 5)"), ("ndp-k5", "NDP (PPO, k = 5)"),
           ("ppo-multi-k5", "PPO-multi (k = 5)"), ("ppo", "PPO (k = 1)"))  # fmt: skip
 """Reading C's opponents of NDP-SAC: (arm, name)."""
-Q_FACTOR = 10.0
-"""Critic health: a run whose critic's value estimate (``sac/q``, the mean min-Q of the update's
-batches) ever exceeds this many times the largest mean training-episode return of any of its
-updates is called diverged (a decision's soft value is a discounted partial return plus an
-entropy bonus, and stays near or below an episode's return while the critic tracks it)."""
 
 
 def _critic(r: ArmRuns, rows: list[dict[str, Any]]) -> tuple[list[str], str | None]:
@@ -145,7 +141,8 @@ def _lift(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]
 
 def critic_health(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, Any]]]:
     """(Markdown lines, CSV rows) of the critic diagnostic: per run that logs ``sac/q``, its
-    peak value estimate against the largest mean episode return of the run (:data:`Q_FACTOR`),
+    peak value estimate against the largest mean episode return of the run
+    (:func:`ndp.rl.sac.health.q_runaway`),
     and the temperature's peak and final value. A description, not a pre-registered reading:
     added 2026-12-05 after seed 0 of ``ndp-sac-k5`` on push-v3 was seen to diverge.
 
@@ -168,7 +165,7 @@ def critic_health(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, Any]]
             steps = np.array([r.get("global_step", math.nan) for r in log], dtype=float)
             i = int(np.nanargmax(q))
             scale = max(float(np.nanmax(np.abs(ret))) if np.isfinite(ret).any() else 0.0, 1.0)
-            diverged = bool(q[i] > Q_FACTOR * scale)
+            diverged = q_runaway(float(q[i]), scale)
             a_fin = alpha[np.isfinite(alpha)]
             rows.append({"reading": "critic", "item": f"{c.label} s{seed}", "task": c.task,
                          "value": float(q[i]) / scale, "q_peak": float(q[i]),
@@ -191,7 +188,7 @@ def critic_health(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, Any]]
         f"Per SAC-family run: the peak of the critics' value estimate (`sac/q`, mean min-Q of an "
         f"update's batches), the env step it was reached at, the largest mean training-episode "
         f"return of any update, and the temperature. **Diverged**: the peak is above "
-        f"{Q_FACTOR:g} times that return (a critic that tracks the return stays near or below "
+        f"{Q_RUNAWAY:g} times that return (a critic that tracks the return stays near or below "
         f"it). Added on 2026-12-05 after seed 0 of `ndp-sac-k5` on push-v3 was seen to "
         f"diverge; it changes no reading.",
         "",

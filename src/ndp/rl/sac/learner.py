@@ -22,6 +22,7 @@ from __future__ import annotations
 import copy
 import math
 import time
+import warnings
 from typing import Any
 
 import numpy as np
@@ -39,6 +40,7 @@ from ndp.rl.methods import SAC_METRICS
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
+from ndp.rl.sac.health import Q_RUNAWAY, q_runaway
 from ndp.rl.sac.losses import (
     actor_loss,
     alpha_loss,
@@ -119,6 +121,10 @@ class SACLearner(CountsUpdates):
         self.update_debt = 0.0
         self._tracker = rl_envs.EpisodeTracker(self.E)
         self._started = False  # the envs are reset at the first iteration, after any restore
+        self.return_peak: float | None = None
+        """The largest |mean training-episode return| of any update so far (None: no episode
+        has ended yet); saved with the checkpoint (critic health, :mod:`ndp.rl.sac.health`)."""
+        self._q_warned = False  # the runaway is said once per session
 
     # ----------------------------------------------------------------------- protocol
     @property
@@ -152,6 +158,7 @@ class SACLearner(CountsUpdates):
                 "rng": self.rng.bit_generator.state,
                 "grad_steps": self.grad_steps,
                 "update_debt": self.update_debt,
+                "return_peak": self.return_peak,
             },
         }
 
@@ -171,6 +178,7 @@ class SACLearner(CountsUpdates):
         self.replay.load_state_dict(s["replay"])
         self.rng.bit_generator.state = s["rng"]
         self.grad_steps, self.update_debt = int(s["grad_steps"]), float(s["update_debt"])
+        self.return_peak = s.get("return_peak")  # checkpoints before 2026-12-05 lack it
 
     def close(self) -> None:
         """Close the environments (training and evaluation)."""
@@ -274,7 +282,27 @@ class SACLearner(CountsUpdates):
         row = self._metrics(episodes, losses, executed, wall - t_update, t_update)
         last = self.update >= self.cfg.num_updates
         row.update(self.evaluator.maybe(before, self.global_step, last, self.model, self.obs_norm))
+        self._watch_critic(row)
         return row
+
+    def _watch_critic(self, row: dict[str, float]) -> None:
+        """Track the largest mean episode return and say once (stderr, RuntimeWarning) when the
+        critics' estimate runs away from it (:func:`ndp.rl.sac.health.q_runaway`)."""
+        ret = row.get("charts/episode_return", math.nan)
+        if math.isfinite(ret):
+            self.return_peak = max(self.return_peak or 0.0, abs(ret))
+        q = row.get("sac/q", math.nan)
+        if self._q_warned or self.return_peak is None or not q_runaway(q, self.return_peak):
+            return
+        self._q_warned = True
+        warnings.warn(
+            f"sac: at update {self.update} (env step {self.global_step:,}) the critics' mean "
+            f"value estimate is {q:,.0f}, above {Q_RUNAWAY:g}x the largest mean episode return "
+            f"so far ({self.return_peak:,.0f}): the critic is running away; numbers of this "
+            "run are those of a diverged critic (docs/offpolicy.md, 'Critic health'; said once)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
 
     def _gradient_step(self, losses: dict[str, list[float]]) -> None:
         """One step of the critics, the actor and the temperature on a replay batch."""

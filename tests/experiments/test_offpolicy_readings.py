@@ -151,3 +151,10 @@ def test_critic_health_flags_a_value_estimate_far_above_the_returns(tmp_path):
     # a reading's rows come first; the diagnostic's rows follow them in the same CSV
     _, all_rows = op.off_policy_readings(cells, SEEDS)
     assert [r["reading"] for r in all_rows if r["reading"] == "critic"] == ["critic", "critic"]
+
+
+def test_a_report_over_fewer_seeds_marks_its_verdicts_interim():
+    md, _ = op.off_policy_readings(_cells({}), (0,))
+    assert any(line.startswith("**Interim: seeds 0 of the registered 0 1 2.**") for line in md)
+    md, _ = op.off_policy_readings(_cells({}), SEEDS)
+    assert not any("Interim" in line for line in md)

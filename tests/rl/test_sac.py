@@ -264,3 +264,35 @@ def test_a_runaway_critic_is_said_once_and_its_peak_return_is_kept(tmp_path):
     finally:
         opened.close()
     assert saved["sac"]["return_peak"] >= 30.0
+
+
+def test_the_replay_probe_reads_a_real_checkpoint(tmp_path):
+    """benchmarks/sac_replay_probe.py on a tiny real run: its windows cover the replay's rows
+    in order, its fractions are fractions, and it counts every stored bootstrap weight."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "benchmarks" / "sac_replay_probe.py"
+    spec = importlib.util.spec_from_file_location("sac_replay_probe", path)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    opened = _open(tmp_path, "sac", checkpoint_every=1)
+    try:
+        opened.train(2)
+    finally:
+        opened.close()
+    out = mod.probe(tmp_path / "sac", windows=(0, 100, None))
+    assert out["global_step"] == 200 and out["parameters"] == 2
+    assert [w["decisions"] for w in out["windows"]] == [100, 100]
+    assert all(
+        0.0 <= w["edge_0.99"] <= w["edge_0.99_worst_parameter"] <= 1.0 for w in out["windows"]
+    )
+    assert sum(out["bootstrap_weights"].values()) == 200
+    ppo = _open(tmp_path / "p", "ppo", checkpoint_every=1)
+    try:
+        ppo.train(1)
+    finally:
+        ppo.close()
+    with pytest.raises(SystemExit, match=r"run_dir: .* is not a SAC-family run"):
+        mod.probe(tmp_path / "p" / "ppo")  # a PPO run's checkpoint has no replay

@@ -157,8 +157,8 @@ def run_info(path: Path) -> RunInfo | None:
     steps = arm.get("steps") or cfg.get(run_kind(kind).budget_key)
     if not steps:
         return None
-    info = RunInfo(path, str(task), str(label), str(algo), int(seed), int(steps), kind)
-    info.manifest = manifest
+    info = RunInfo(path, str(task), str(label), str(algo), int(seed), int(steps), kind,
+                   manifest=manifest)  # fmt: skip
     info.finished = _finished(info)
     info.commits = run_commits(path)
     return info

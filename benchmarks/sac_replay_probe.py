@@ -30,7 +30,10 @@ def probe(run_dir: str | Path, windows: tuple[int | None, ...] = WINDOWS) -> dic
     """The statistics of the module doc for one run directory with a SAC-family checkpoint."""
     from ndp.runs import load_checkpoint
 
-    ck = load_checkpoint(run_dir, kind="rl")
+    try:
+        ck = load_checkpoint(run_dir, kind="rl")
+    except (FileNotFoundError, ValueError) as exc:  # no checkpoint, or another trainer's
+        raise SystemExit(f"run_dir: {exc}") from None
     if "sac" not in ck:
         raise SystemExit(
             f"run_dir: {run_dir} is not a SAC-family run (its checkpoint has no 'sac')"

@@ -296,3 +296,5 @@ def test_the_replay_probe_reads_a_real_checkpoint(tmp_path):
         ppo.close()
     with pytest.raises(SystemExit, match=r"run_dir: .* is not a SAC-family run"):
         mod.probe(tmp_path / "p" / "ppo")  # a PPO run's checkpoint has no replay
+    with pytest.raises(SystemExit, match=r"run_dir: checkpoint: no such file"):
+        mod.probe(tmp_path / "nothing-here")

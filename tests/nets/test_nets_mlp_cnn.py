@@ -17,6 +17,20 @@ def test_mlp_shapes_and_layers() -> None:
     assert all(isinstance(x, torch.nn.Tanh) for x in m.net if not isinstance(x, torch.nn.Linear))
 
 
+def test_mlp_layer_norm_normalises_each_hidden_layer_and_is_off_by_default() -> None:
+    plain = MLP(5, [16, 16], 1, "relu")
+    assert not any(isinstance(x, torch.nn.LayerNorm) for x in plain.modules())
+    names = [f"net.{i}.{w}" for i in (0, 2, 4) for w in ("weight", "bias")]
+    assert list(plain.state_dict()) == names  # checkpoints of the plain MLP still load
+    m = MLP(5, [16, 16], 1, "relu", layer_norm=True)
+    kinds = [type(x).__name__ for x in m.net]
+    assert kinds == ["Linear", "LayerNorm", "ReLU", "Linear", "LayerNorm", "ReLU", "Linear"]
+    x = 1000.0 * torch.randn(64, 5)  # a far-out input: the hidden features keep unit scale
+    h = m.net[1](m.net[0](x))
+    assert torch.allclose(h.mean(-1), torch.zeros(64), atol=1e-4)
+    assert torch.allclose(h.std(-1, unbiased=False), torch.ones(64), atol=1e-3)
+
+
 def test_mlp_orthogonal_init_and_out_gain() -> None:
     torch.manual_seed(0)
     m = MLP(50, [64], 10, activation="relu", out_gain=0.01)

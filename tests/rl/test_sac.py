@@ -131,6 +131,8 @@ def test_config_refuses_bad_values_naming_the_field():
         SACConfig(tau=0.0)
     with pytest.raises(ValueError, match="batch_size: expected an integer >= 1"):
         SACConfig(batch_size=0)
+    with pytest.raises(ValueError, match="critic_layer_norm: expected true or false, got 'yes'"):
+        SACConfig(critic_layer_norm="yes")  # type: ignore[arg-type]
 
 
 def _open(tmp_path, algo, task="point-mass", **kw):
@@ -163,6 +165,24 @@ def test_ndp_sac_actor_gradient_reaches_the_dmp_parameters(tmp_path, critic_inpu
         assert last is not None and float(last[: lr.P].abs().sum()) > 0
     finally:
         opened.close()
+
+
+def test_a_layer_norm_critic_is_built_saved_and_resumed(tmp_path):
+    opened = _open(tmp_path, "ndp-sac", sac={"critic_layer_norm": True}, checkpoint_every=1)
+    try:
+        lr = opened.learner
+        for net in (lr.critic, lr.critic_target):
+            norms = [m for m in net.modules() if isinstance(m, torch.nn.LayerNorm)]
+            assert len(norms) == 4  # two hidden layers in each of the two critics
+        opened.train(1)
+    finally:
+        opened.close()
+    saved = load_checkpoint(tmp_path / "ndp-sac", kind="rl")["sac"]["critic"]
+    assert "q1.net.1.weight" in saved and saved["q1.net.1.weight"].shape == (256,)
+    from ndp.rl.run import resume
+
+    resume(tmp_path / "ndp-sac")  # the config brings the option back: the weights fit
+    assert load_checkpoint(tmp_path / "ndp-sac", kind="rl")["global_step"] == 400
 
 
 def test_chunked_sac_scores_the_whole_chunk(tmp_path):

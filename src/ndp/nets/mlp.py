@@ -62,6 +62,9 @@ class MLP(nn.Module):
         activation: hidden-layer non-linearity name (see :func:`activation_layer`).
         out_gain: orthogonal-init gain of the output layer (e.g. 0.01 for a policy mean head).
         hidden_gain: orthogonal-init gain of the hidden layers; None: the activation's.
+        layer_norm: put a LayerNorm (learned scale and shift) between each hidden layer's linear
+            map and its activation (the critics of RLPD / BRO); False keeps the plain MLP and
+            its parameter names.
 
     Shapes:
         forward: ``x`` [B, in_dim] -> [B, out_dim] (any leading batch dims are allowed).
@@ -75,6 +78,7 @@ class MLP(nn.Module):
         activation: str = "tanh",
         out_gain: float = 1.0,
         hidden_gain: float | None = None,
+        layer_norm: bool = False,
     ) -> None:
         super().__init__()
         if in_dim <= 0 or out_dim <= 0 or any(h <= 0 for h in hidden):
@@ -86,6 +90,7 @@ class MLP(nn.Module):
         self.out_dim = int(out_dim)
         self.hidden = tuple(int(h) for h in hidden)
         self.activation = activation
+        self.layer_norm = bool(layer_norm)
         gain = _gain(activation) if hidden_gain is None else float(hidden_gain)
         layers: list[nn.Module] = []
         prev = self.in_dim
@@ -93,7 +98,8 @@ class MLP(nn.Module):
             lin = nn.Linear(prev, width)
             nn.init.orthogonal_(lin.weight, gain=gain)
             nn.init.zeros_(lin.bias)
-            layers += [lin, activation_layer(activation)]
+            norm = [nn.LayerNorm(width)] if self.layer_norm else []
+            layers += [lin, *norm, activation_layer(activation)]
             prev = width
         out = nn.Linear(prev, self.out_dim)
         nn.init.orthogonal_(out.weight, gain=out_gain)

@@ -40,6 +40,10 @@ class SACConfig:
     target_entropy: Annotated[float | None, cli(name="sac-target-entropy")] = None
     """SAC: the temperature's target entropy per decision; None: minus the number of the
     actor's bounded parameters (k A for SAC / chunked SAC, D (1 + N) for NDP-SAC)."""
+    critic_layer_norm: Annotated[bool, cli(name="sac-critic-layer-norm")] = False
+    """SAC: a LayerNorm after each hidden layer's linear map in both critics (and their
+    targets), the normalisation RLPD and BRO use against a critic's extrapolation; off is
+    SAC's plain critic (the study's arms)."""
     critic_input: Annotated[str, cli(name="sac-critic-input")] = "params"
     """NDP-SAC: what the critic scores beside the state, 'params' (the bounded DMP parameters)
     or 'actions' (the k actions the DMP gives); SAC and chunked SAC always score actions."""
@@ -58,6 +62,10 @@ class SACConfig:
         te = self.target_entropy
         if te is not None and not (isinstance(te, (int, float)) and math.isfinite(te)):
             raise ValueError(f"target_entropy: expected a finite number or None, got {te!r}")
+        if not isinstance(self.critic_layer_norm, bool):
+            raise ValueError(
+                f"critic_layer_norm: expected true or false, got {self.critic_layer_norm!r}"
+            )
         if self.critic_input not in CRITIC_INPUTS:
             raise ValueError(
                 f"critic_input: expected one of {', '.join(CRITIC_INPUTS)}, got "

@@ -58,12 +58,20 @@ COLUMNS = (*METRICS, *SAC_METRICS)
 
 
 class TwinQ(nn.Module):
-    """Two critics ``Q_i(s, c)`` [B] of a state [B, O] and its action input [B, C]."""
+    """Two critics ``Q_i(s, c)`` [B] of a state [B, O] and its action input [B, C]
+    (``layer_norm``: LayerNorm after each hidden linear map, :class:`ndp.nets.mlp.MLP`)."""
 
-    def __init__(self, obs_dim: int, in_dim: int, hidden: tuple[int, ...], activation: str):
+    def __init__(
+        self,
+        obs_dim: int,
+        in_dim: int,
+        hidden: tuple[int, ...],
+        activation: str,
+        layer_norm: bool = False,
+    ) -> None:
         super().__init__()
-        self.q1 = MLP(obs_dim + in_dim, hidden, 1, activation)
-        self.q2 = MLP(obs_dim + in_dim, hidden, 1, activation)
+        self.q1 = MLP(obs_dim + in_dim, hidden, 1, activation, layer_norm=layer_norm)
+        self.q2 = MLP(obs_dim + in_dim, hidden, 1, activation, layer_norm=layer_norm)
 
     def forward(self, obs: torch.Tensor, c: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         x = torch.cat([obs, c], dim=-1)
@@ -93,7 +101,9 @@ class SACLearner(CountsUpdates):
         c_dim = self.P if self.scores_params else self.k * self.spec.action_dim
         pol = cfg.policy
         assert pol.hidden is not None and pol.activation is not None  # resolve_config fills them
-        self.critic = TwinQ(self.obs_dim, c_dim, tuple(pol.hidden), pol.activation)
+        self.critic = TwinQ(
+            self.obs_dim, c_dim, tuple(pol.hidden), pol.activation, s.critic_layer_norm
+        )
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
         self.log_alpha = torch.tensor(math.log(s.init_alpha), requires_grad=True)
         # fused Adam: one kernel for all tensors (the per-tensor loop of the default CPU Adam

@@ -158,3 +158,41 @@ def test_a_report_over_fewer_seeds_marks_its_verdicts_interim():
     assert any(line.startswith("**Interim: seeds 0 of the registered 0 1 2.**") for line in md)
     md, _ = op.off_policy_readings(_cells({}), SEEDS)
     assert not any("Interim" in line for line in md)
+
+
+def _health_cells(tmp_path, plain, ln, unfinished=()):
+    """sac-critic cells: per arm, one run per seed whose critic runs away (peak 5,000 against
+    returns of at most 40) where the flag is True; ``unfinished`` holds (arm, seed) pairs whose
+    run has not finished."""
+    cells = []
+    for arm, flags in (("ndp-sac-k5", plain), ("ndp-sac-ln-k5", ln)):
+        runs = {}
+        for s, bad in enumerate(flags):
+            q = [10, 800, 5000, 300] if bad else [10, 30, 35, 39]
+            log = _log(tmp_path / f"{arm}-{s}", q, [5, 20, 40, 12])
+            runs[s] = SimpleNamespace(path=log.path, finished=(arm, s) not in unfinished)
+        cells.append(SimpleNamespace(task="push-v3", label=arm, numbers={}, runs=runs))
+    return cells
+
+
+@pytest.mark.parametrize(
+    ("plain", "ln", "verdict"),
+    [
+        ((True, True, False), (False, False, False), "stops the runaway"),
+        ((True, True, True), (True, True, False), "does not stop the runaway"),
+        ((True, True, True), (True, False, False), "partly stops the runaway"),
+        ((True, False, False), (False, False, False), "partly stops the runaway"),
+    ],
+)
+def test_the_layer_norm_reading_counts_diverged_critics(tmp_path, plain, ln, verdict):
+    md, rows = op.critic_study_readings(_health_cells(tmp_path, plain, ln), SEEDS)
+    assert _row(rows, "layer-norm")["verdict"] == verdict
+    assert f"LayerNorm **{verdict}**" in "\n".join(md)
+    assert studies.get_study("sac-critic").readings is not None
+
+
+def test_the_layer_norm_reading_waits_for_unfinished_runs(tmp_path):
+    cells = _health_cells(tmp_path, (True,) * 3, (False,) * 3, unfinished={("ndp-sac-ln-k5", 2)})
+    md, rows = op.critic_study_readings(cells, SEEDS)
+    assert not any(r["reading"] == "layer-norm" for r in rows)
+    assert "finished runs: ndp-sac-k5 3 of 3, ndp-sac-ln-k5 2 of 3" in "\n".join(md)

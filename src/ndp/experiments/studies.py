@@ -375,6 +375,25 @@ OFF_POLICY_CONDITIONS = (
 """The off-policy study's table: its SAC arms beside ndp-regimes' fair on-policy arms."""
 
 
+def _sac_critic_arms() -> tuple[ArmSpec, ...]:
+    """NDP-SAC on push-v3 with LayerNorm critics and with the plain ones (study ``sac-critic``)."""
+    return (
+        ArmSpec("ndp-sac-ln-k5", "ndp-sac", ("--sac-critic-layer-norm",),
+                "NDP-SAC, k = 5, critic of (s, DMP parameters), LayerNorm critics"),
+        ArmSpec("ndp-sac-k5", "ndp-sac", (), "NDP-SAC, k = 5, critic of (s, DMP parameters), "
+                "SAC's plain critics (off-policy's arm, short budget)"),
+    )  # fmt: skip
+
+
+def _sac_critic_readings(
+    cells: Sequence[Any], seeds: Sequence[int]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """sac-critic's reading (:func:`ndp.experiments.report.offpolicy.critic_study_readings`)."""
+    from ndp.experiments.report.offpolicy import critic_study_readings
+
+    return critic_study_readings(cells, seeds)
+
+
 RELEASE_1M_TASKS = ("push-v3", "throw")
 """The 1M-step stage of the release-conditions study: a Meta-World task and a Jaco task."""
 
@@ -922,6 +941,22 @@ STUDIES: dict[str, Study] = {
             steps=300_000,
             conditions=OFF_POLICY_CONDITIONS,
             readings=_off_policy_readings,
+        ),
+        Study(
+            name="sac-critic",
+            title="NDP-SAC's critic runaway on push-v3: plain against LayerNorm critics",
+            doc=(
+                "push-v3 x NDP-SAC (k = 5, critic of the DMP parameters) with SAC's plain "
+                "critics and with LayerNorm after each hidden layer of both critics "
+                "(--sac-critic-layer-norm), 40k env steps (both plain seeds of off-policy ran "
+                "away by 20k), 3 seeds. A post-hoc diagnostic of off-policy's critic runaway "
+                "(added 2026-12-05; its reading written before its runs): the critic-health "
+                "table and whether LayerNorm stops the runaway. docs/offpolicy.md."
+            ),
+            tasks=lambda: ("push-v3",),
+            arms=_sac_critic_arms,
+            steps=40_000,
+            readings=_sac_critic_readings,
         ),
         Study(
             name="sb3-ndp",

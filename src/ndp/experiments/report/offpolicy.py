@@ -244,3 +244,61 @@ def off_policy_readings(
     md += r.waiting_line("these readings wait")
     health_md, health_rows = critic_health(cells)
     return md + health_md, rows + health_rows
+
+
+STABILISED = {"plain": "ndp-sac-k5", "layer-norm": "ndp-sac-ln-k5"}
+"""The ``sac-critic`` study's arms: NDP-SAC with SAC's plain critics and with LayerNorm ones."""
+
+
+def critic_study_readings(
+    cells: Sequence[Any], seeds: Sequence[int]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """(Markdown lines, CSV rows) of the ``sac-critic`` study's reading (written 2026-12-05,
+    before its runs; docs/offpolicy.md, "Critic health"): does a LayerNorm critic stop NDP-SAC's
+    runaway on push-v3?
+
+    A run's critic is diverged by :func:`ndp.rl.sac.health.q_runaway` (its peak mean min-Q
+    above 10 times its largest mean training-episode return, the :func:`critic_health` table).
+    LayerNorm **stops the runaway** if no LayerNorm run diverges while most plain runs do; it
+    **does not stop it** if most LayerNorm runs diverge; else **partly**. Until every seed of
+    both arms has run, the verdict waits (a run that has not finished is not counted).
+
+    Args:
+        cells: the report's RL cells (``runs``: seed -> run info).
+        seeds: the seeds every arm should have.
+    """
+    health_md, health_rows = critic_health(cells)
+    finished = {f"{c.label} s{seed}" for c in cells
+                for seed, info in getattr(c, "runs", {}).items() if info.finished}  # fmt: skip
+    diverged: dict[str, list[bool]] = {k: [] for k in STABILISED}
+    for key, arm in STABILISED.items():
+        for s in seeds:
+            item = f"{arm} s{s}"
+            hit = [r for r in health_rows if r["item"] == item and item in finished]
+            if hit:
+                diverged[key].append(hit[0]["verdict"] == "diverged")
+    md = ['## Pre-registered reading (docs/offpolicy.md, "Critic health")', ""]
+    rows: list[dict[str, Any]] = []
+    n = len(seeds)
+    if any(len(v) < n for v in diverged.values()):
+        have = ", ".join(f"{STABILISED[k]} {len(v)} of {n}" for k, v in diverged.items())
+        md += [f"**Does a LayerNorm critic stop NDP-SAC's runaway?** Waits for every seed of "
+               f"both arms (finished runs: {have}).", ""]  # fmt: skip
+        return md + health_md, health_rows
+    plain, ln = sum(diverged["plain"]), sum(diverged["layer-norm"])
+    if ln == 0 and plain > n / 2:
+        verdict = "stops the runaway"
+    elif ln > n / 2:
+        verdict = "does not stop the runaway"
+    else:
+        verdict = "partly stops the runaway"
+    rows.append({"reading": "layer-norm", "item": "diverged runs (layer-norm, plain)",
+                 "task": "push-v3", "value": float(ln - plain), "verdict": verdict})  # fmt: skip
+    md += [
+        f"**Does a LayerNorm critic stop NDP-SAC's runaway?** Diverged critics: plain "
+        f"(`{STABILISED['plain']}`) {plain} of {n}, LayerNorm (`{STABILISED['layer-norm']}`) "
+        f"{ln} of {n}: LayerNorm **{verdict}** (the rule: stops if no LayerNorm run and most "
+        f"plain runs diverge; does not if most LayerNorm runs diverge; else partly).",
+        "",
+    ]
+    return md + health_md, rows + health_rows

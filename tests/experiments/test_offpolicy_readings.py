@@ -16,14 +16,15 @@ TASKS = ("push-v3", "throw")
 ARMS = ("sac", "sac-chunk-k5", "ndp-sac-k5", "ndp-sac-act-k5", "ndp-k5", "ppo-multi-k5", "ppo")
 
 
-def _cells(det, skip=()):
+def _cells(det, skip=(), arms=ARMS):
     """Fake cells: ``det[(task, arm)]`` or ``det[arm]`` is the det. area of every seed (default
     0.2), spread by +-0.01 over seeds so that permutation tests are not all ties; ``skip``
     holds (task, arm) pairs with no runs (``ndp-sac-act-k5`` runs on push-v3 only)."""
     out = []
     for task in TASKS:
-        for arm in ARMS:
-            if (task, arm) in skip or (arm == "ndp-sac-act-k5" and task != "push-v3"):
+        for arm in arms:
+            push_only = arm == "ndp-sac-act-k5" or "-ln-" in arm
+            if (task, arm) in skip or (push_only and task != "push-v3"):
                 continue
             v = det.get((task, arm), det.get(arm, 0.2))
             nums = {s: {"det_area": v + 0.01 * (s - 1)} for s in SEEDS}
@@ -196,3 +197,35 @@ def test_the_layer_norm_reading_waits_for_unfinished_runs(tmp_path):
     md, rows = op.critic_study_readings(cells, SEEDS)
     assert not any(r["reading"] == "layer-norm" for r in rows)
     assert "finished runs: ndp-sac-k5 3 of 3, ndp-sac-ln-k5 2 of 3" in "\n".join(md)
+
+
+LN = (*ARMS, "ndp-sac-ln-k5", "sac-chunk-ln-k5")
+
+
+@pytest.mark.parametrize(
+    ("ndp_ln", "chunk_ln", "verdict"),
+    [(0.50, 0.20, "helps"), (0.20, 0.20, "does not help"), (0.205, 0.20, "mixed")],
+)
+def test_reading_e_compares_the_heads_under_layer_norm_critics(ndp_ln, chunk_ln, verdict):
+    det = {("push-v3", "ndp-sac-ln-k5"): ndp_ln, ("push-v3", "sac-chunk-ln-k5"): chunk_ln,
+           ("push-v3", "ndp-sac-k5"): 0.01, ("push-v3", "sac-chunk-k5"): 0.10}  # fmt: skip
+    md, rows = op.off_policy_readings(_cells(det, arms=LN), SEEDS)
+    e = _row(rows, "E")
+    assert e["verdict"] == verdict and e["task"] == "push-v3"
+    if verdict == "helps":  # every NDP-SAC run above every chunked run: p = 1/20, allowed
+        assert e["p_greater"] == pytest.approx(0.05)
+    text = "\n".join(md)
+    assert f"Verdict: **{verdict}**. What LayerNorm changes" in text
+    assert f"`ndp-sac-ln-k5` - `ndp-sac-k5` {ndp_ln - 0.01:+.2f}" in text
+
+
+def test_reading_e_without_its_optional_arms_says_so_and_waits_for_nothing():
+    md, rows = op.off_policy_readings(_cells({}), SEEDS)
+    text = "\n".join(md)
+    assert "**E. The DMP head with LayerNorm critics** (post-hoc, push-v3): no runs" in text
+    assert not any(r["reading"] == "E" for r in rows) and "wait for" not in text
+    # one LayerNorm arm with runs: E waits for the other and names it
+    md, _ = op.off_policy_readings(_cells({}, arms=(*ARMS, "ndp-sac-ln-k5")), SEEDS)
+    assert "these readings wait for (seeds missing in this report): sac-chunk-ln-k5." in "\n".join(
+        md
+    )

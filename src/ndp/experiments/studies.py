@@ -359,6 +359,15 @@ def _off_policy_arms() -> tuple[ArmSpec, ...]:
         ArmSpec("ndp-sac-k5", "ndp-sac", (), "NDP-SAC, k = 5, critic of (s, DMP parameters)"),
         ArmSpec("ndp-sac-act-k5", "ndp-sac", ("--sac-critic-input", "actions"),
                 "NDP-SAC, k = 5, critic of (s, the k actions)", in_default=False),
+        # post-hoc (2026-12-05, after NDP-SAC's critic ran away on push-v3 and the sac-critic
+        # study's first seed kept a LayerNorm critic bounded): both chunk learners with LayerNorm
+        # critics, on push-v3 only, run only when named (reading E)
+        ArmSpec("ndp-sac-ln-k5", "ndp-sac", ("--sac-critic-layer-norm",),
+                "NDP-SAC, k = 5, critic of (s, DMP parameters), LayerNorm critics (post-hoc)",
+                in_default=False, tasks=("push-v3",)),
+        ArmSpec("sac-chunk-ln-k5", "sac-chunk", ("--sac-critic-layer-norm",),
+                "chunked SAC, k = 5, LayerNorm critics (post-hoc)", in_default=False,
+                tasks=("push-v3",)),
     )  # fmt: skip
 
 
@@ -371,6 +380,12 @@ OFF_POLICY_CONDITIONS = (
     Condition("NDP-SAC's critic input", "NDP-SAC with the critic of (s, DMP parameters) against "
               "the critic of (s, the k actions) (docs/offpolicy.md: the rule to keep one)",
               (("ndp-sac (params)", "ndp-sac-k5"), ("ndp-sac (actions)", "ndp-sac-act-k5"))),
+    Condition("LayerNorm critics (post-hoc)", "chunked SAC and NDP-SAC at k = 5 with LayerNorm "
+              "after each hidden layer of their critics, beside the plain critics; push-v3 only; "
+              "added 2026-12-05 after NDP-SAC's critic ran away (docs/offpolicy.md, reading E)",
+              (("sac-chunk (LayerNorm)", "sac-chunk-ln-k5"),
+               ("ndp-sac (LayerNorm)", "ndp-sac-ln-k5"), ("sac-chunk (plain)", "sac-chunk-k5"),
+               ("ndp-sac (plain)", "ndp-sac-k5"))),
 )  # fmt: skip
 """The off-policy study's table: its SAC arms beside ndp-regimes' fair on-policy arms."""
 

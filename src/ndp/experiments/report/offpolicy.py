@@ -18,6 +18,14 @@ C. Where NDP stands against every learner of the table: NDP-SAC against SAC, chu
    permutation p in both directions; **ahead** / **behind** at p < :data:`ALPHA`, else **level**.
 D. Does the off-policy learner lift the DMP head more than the plain chunk (description only)?
    (NDP-SAC - NDP) - (chunked SAC - PPO-multi), mean over tasks.
+
+E (post-hoc, written 2026-12-05 before its arms ran, after NDP-SAC's critic ran away on push-v3).
+   The DMP head with LayerNorm critics, push-v3 only: ``ndp-sac-ln-k5`` against
+   ``sac-chunk-ln-k5``. It **helps** if NDP-SAC's mean is above chunked SAC's with the exact
+   permutation p <= :data:`ALPHA` (with 3 + 3 runs on one task the smallest p is 1/20 = 0.05:
+   every NDP-SAC run above every chunked SAC run); it **does not help** if chunked SAC's mean
+   is at least NDP-SAC's; else **mixed**. Beside it (description): what LayerNorm changes for
+   each learner (LayerNorm arm minus plain arm).
 """
 
 from __future__ import annotations
@@ -142,6 +150,37 @@ def _lift(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]
     ]  # fmt: skip
 
 
+LN_ARMS = {"ndp-sac-ln-k5": "ndp-sac-k5", "sac-chunk-ln-k5": CHUNK}
+"""Reading E's arms (LayerNorm critics) and their plain-critic counterparts."""
+
+
+def _layer_norm(r: ArmRuns, rows: list[dict[str, Any]]) -> list[str]:
+    """Reading E (post-hoc): the DMP head with LayerNorm critics on push-v3."""
+    ndp, chunk = LN_ARMS
+    if not set(LN_ARMS) & r.labels:  # optional arms: no runs is no wait
+        return [f"**E. The DMP head with LayerNorm critics** (post-hoc, {CRITIC_TASK}): no runs "
+                f"(`ndp sweep off-policy --arms {ndp} {chunk}` runs them).", ""]  # fmt: skip
+    got = _pair(r, [CRITIC_TASK], ndp, chunk)
+    if got is None:
+        return [f"**E. The DMP head with LayerNorm critics** (post-hoc, {CRITIC_TASK}): waits "
+                f"for `{ndp}` and `{chunk}`.", ""]  # fmt: skip
+    d, pg, _ = got
+    verdict = "helps" if d > 0 and pg <= ALPHA else "does not help" if d <= 0 else "mixed"
+    rows.append({"reading": "E", "item": f"{ndp} vs {chunk}", "task": CRITIC_TASK, "value": d,
+                 "p_greater": pg, "verdict": verdict})  # fmt: skip
+    lifts = []
+    for ln, plain in LN_ARMS.items():
+        lift = r.mean(CRITIC_TASK, ln) - r.mean(CRITIC_TASK, plain)
+        lifts.append(f"`{ln}` - `{plain}` {lift:+.2f}" if not math.isnan(lift)
+                     else f"`{ln}` - `{plain}` (waits)")  # fmt: skip
+    return [
+        f"**E. The DMP head with LayerNorm critics** (post-hoc, {CRITIC_TASK}; `{ndp}` - "
+        f"`{chunk}`): {d:+.2f}, exact permutation p(NDP-SAC >) = {pg:.3g}. Verdict: "
+        f"**{verdict}**. What LayerNorm changes (description): {'; '.join(lifts)}.",
+        "",
+    ]
+
+
 def critic_health(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, Any]]]:
     """(Markdown lines, CSV rows) of the critic diagnostic: per run that logs ``sac/q``, its
     peak value estimate against the largest mean episode return of the run
@@ -241,6 +280,7 @@ def off_policy_readings(
     md += _head(r, tasks, ndp, rows)
     md += _stands(r, tasks, ndp, rows)
     md += _lift(r, tasks, ndp, rows)
+    md += _layer_norm(r, rows)
     md += r.waiting_line("these readings wait")
     health_md, health_rows = critic_health(cells)
     return md + health_md, rows + health_rows

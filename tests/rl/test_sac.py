@@ -289,14 +289,7 @@ def test_a_runaway_critic_is_said_once_and_its_peak_return_is_kept(tmp_path):
 def test_the_replay_probe_reads_a_real_checkpoint(tmp_path):
     """benchmarks/sac_replay_probe.py on a tiny real run: its windows cover the replay's rows
     in order, its fractions are fractions, and it counts every stored bootstrap weight."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).parents[2] / "benchmarks" / "sac_replay_probe.py"
-    spec = importlib.util.spec_from_file_location("sac_replay_probe", path)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _bench("sac_replay_probe")
     opened = _open(tmp_path, "sac", checkpoint_every=1)
     try:
         opened.train(2)
@@ -316,5 +309,44 @@ def test_the_replay_probe_reads_a_real_checkpoint(tmp_path):
         ppo.close()
     with pytest.raises(SystemExit, match=r"run_dir: .* is not a SAC-family run"):
         mod.probe(tmp_path / "p" / "ppo")  # a PPO run's checkpoint has no replay
+    with pytest.raises(SystemExit, match=r"run_dir: checkpoint: no such file"):
+        mod.probe(tmp_path / "nothing-here")
+
+
+def _bench(name):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.parametrize(("algo", "sac"), [("ndp-sac", {"critic_layer_norm": True}),
+                                           ("sac-chunk", {})])  # fmt: skip
+def test_the_critic_probe_reads_the_run_critic_as_trained(tmp_path, algo, sac):
+    """benchmarks/sac_critic_probe.py on a tiny real run: its Q of the stored decisions is the
+    trained critic's on the same rows, its TD error is its target minus that Q, its cosines
+    are cosines; a non-SAC run is refused in one line."""
+    mod = _bench("sac_critic_probe")
+    opened = _open(tmp_path, algo, sac=sac, checkpoint_every=1)
+    try:
+        opened.train(2)
+        critic = opened.learner.critic
+    finally:
+        opened.close()
+    out = mod.probe(tmp_path / algo, rows=32, seed=3)
+    data = load_checkpoint(tmp_path / algo, kind="rl")["sac"]["replay"]["data"]
+    pick = np.random.default_rng(3).choice(len(data["u"]), 32, replace=False)
+    with torch.no_grad():
+        q = torch.minimum(*critic(torch.as_tensor(data["obs"][pick]),
+                                  torch.as_tensor(data["critic_in"][pick])))  # fmt: skip
+    assert out["rows"] == 32 and out["critic_layer_norm"] == bool(sac)
+    assert out["q_replay"] == pytest.approx(float(q.mean()), rel=1e-5)
+    assert out["td_mean"] == pytest.approx(out["target"] - out["q_replay"], abs=1e-4)
+    assert -1.0 <= out["feature_cos"] <= 1.0 and out["feature_norm"] > 0
     with pytest.raises(SystemExit, match=r"run_dir: checkpoint: no such file"):
         mod.probe(tmp_path / "nothing-here")

@@ -19,6 +19,8 @@ alpha:
   dot product phi(s, c) . phi(s', c') (large, aligned features of consecutive decisions are the
   "co-adaptation" that Kumar et al. 2021, DR3, tie to TD divergence).
 
+Printed with the command, the commit and the date (``{"command", "commit", "date", "runs"}``).
+
 Used for docs/offpolicy.md ("Critic health"): did NDP-SAC's critic run away at the actor's
 choices, or everywhere? ::
 
@@ -138,7 +140,19 @@ def main(argv: list[str] | None = None) -> None:
     args = p.parse_args(argv)
     if args.rows < 1:
         raise SystemExit(f"--rows: expected an integer >= 1, got {args.rows}")
-    print(json.dumps([probe(r, args.rows, args.seed) for r in args.run_dirs], indent=1))
+    import datetime as dt
+    import shlex
+    import sys
+
+    from ndp.provenance import git_commit
+
+    out = {
+        "command": shlex.join(["python", "benchmarks/sac_critic_probe.py", *sys.argv[1:]]),
+        "commit": git_commit(),
+        "date": dt.datetime.now().isoformat(timespec="minutes"),
+        "runs": [probe(r, args.rows, args.seed) for r in args.run_dirs],
+    }
+    print(json.dumps(out, indent=1))
 
 
 if __name__ == "__main__":

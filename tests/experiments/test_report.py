@@ -578,3 +578,28 @@ def test_an_interval_with_one_run_on_a_side_says_so_instead_of_nan():
     assert interval(-0.0304, 0.125) == "[-0.030, +0.125]"
     assert interval(math.nan, math.nan) == "n/a (one run)"
     assert interval(0.1, math.nan) == "n/a (one run)"
+
+
+def test_a_study_without_conditions_gets_its_readings_after_the_pairwise_tests(tmp_path):
+    """sac-critic has readings but no conditions: the report applies them (here: three plain
+    critics that run away, three LayerNorm ones that do not) and writes their CSV."""
+    runs = tmp_path / "runs"
+    for seed in (0, 1, 2):
+        for label, peak in (("ndp-sac-k5", 5000.0), ("ndp-sac-ln-k5", 30.0)):  # returns 5
+            run = _rl_run(runs, "push-v3", label, seed, 0.1, ret=10.0, algo="ndp-sac")
+            with (run / "metrics.csv").open() as fh:
+                rows = list(csv.reader(fh))
+            rows[0] += ["sac/q", "sac/alpha"]
+            for i, row in enumerate(rows[1:]):
+                row += [peak * (i + 1) / 10, 0.1]
+            with (run / "metrics.csv").open("w", newline="") as fh:
+                csv.writer(fh).writerows(rows)
+    report([runs], tmp_path / "rep", "ndp report runs --study sac-critic", study="sac-critic")
+    md = (tmp_path / "rep.md").read_text()
+    assert md.index("| push-v3 | success area | ndp-sac-k5 vs ndp-sac-ln-k5 |") < md.index(
+        "LayerNorm **stops the runaway**"
+    )
+    with (tmp_path / "rep-readings.csv").open() as fh:
+        verdicts = {r["item"]: r["verdict"] for r in csv.DictReader(fh)}
+    assert verdicts["diverged runs (layer-norm, plain)"] == "stops the runaway"
+    assert verdicts["ndp-sac-k5 s0"] == "diverged" and verdicts["ndp-sac-ln-k5 s2"] == "ok"

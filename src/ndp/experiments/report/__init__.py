@@ -344,7 +344,8 @@ def report(
     intervals, IQM, probability of improvement; ``<out>-conditions.csv`` and
     ``<out>-conditions.png``), and ``methods`` defaults to the study's arms that have runs
     (the others named); a study with ``readings`` (``ndp-regimes``) adds them after the
-    conditions (``<out>-readings.csv``) unless ``methods`` restricts its arms.
+    conditions, or after the pairwise tests in a study without conditions (``sac-critic``),
+    with ``<out>-readings.csv``, unless ``methods`` restricts its arms.
 
     ``budgets``: env steps at which to give the success (default: a quarter, half and all of
     the largest budget). ``eval_episodes`` > 0 adds the success of each finished RL run's
@@ -516,6 +517,10 @@ def _study_sections(
         pmd, prows = pairwise_section(tables["success"])
         if prows:
             write("-pairwise.csv", prows)
+        if sc.readings is not None:  # a study's readings follow its pairwise tests
+            rmd, rrows = sc.readings(tables["success"], expected)
+            write("-readings.csv", rrows)
+            pmd = [*pmd, "", *rmd]
         at = next((i for i, line in enumerate(md) if line.startswith("CSV:")), len(md))
         md[at:at] = pmd
     if selection and tables["imitation"]:

@@ -211,7 +211,10 @@ def test_off_policy_report_takes_its_on_policy_arms_from_the_other_run_directory
     assert "NDP-SAC's critic input (push-v3, throw)" in md  # its actions arm never ran
     report([off], tmp_path / "o" / "op1", "ndp report", study="off-policy")
     md1 = (tmp_path / "o" / "op1.md").read_text()
-    assert "no runs here (left out): ndp-sac-act-k5, ndp-k5, ppo-multi-k5, ppo." in md1
+    assert (
+        "no runs here (left out): ndp-sac-act-k5, ndp-sac-ln-k5, sac-chunk-ln-k5, ndp-k5, "
+        "ppo-multi-k5, ppo." in md1
+    )  # the optional arms (the actions critic, reading E's LayerNorm arms) never ran
 
 
 def test_mt50_attribution_reading_holds_only_with_ndp_ahead_of_ppo_over_the_tasks():

@@ -51,7 +51,8 @@ def probe(run_dir: str | Path, rows: int = 4096, seed: int = 0) -> dict[str, Any
     """The statistics of the module doc for one run directory with a SAC-family checkpoint."""
     from ndp.rl.config import load_config
     from ndp.rl.policy import load_policy
-    from ndp.rl.sac.learner import TwinQ
+    from ndp.rl.sac.learner import TwinQ, critic_input, scores_params
+    from ndp.rl.sac.losses import critic_target
     from ndp.runs import load_checkpoint
 
     run_dir = Path(run_dir)
@@ -86,12 +87,10 @@ def probe(run_dir: str | Path, rows: int = 4096, seed: int = 0) -> dict[str, Any
     alpha = float(s["log_alpha"].exp())
     low = torch.as_tensor(pol.spec.action_low, dtype=torch.float32)
     high = torch.as_tensor(pol.spec.action_high, dtype=torch.float32)
-    scores_params = cfg.algo == "ndp-sac" and cfg.sac.critic_input == "params"
+    params = scores_params(model.head, cfg.sac.critic_input)
 
-    def c_of(u: torch.Tensor, dist: Any) -> torch.Tensor:  # the learner's critic_input
-        if scores_params:
-            return torch.tanh(u)
-        return torch.maximum(torch.minimum(dist.decode(u), high), low).flatten(1)
+    def c_of(u: torch.Tensor, dist: Any) -> torch.Tensor:  # the learner's critic input
+        return critic_input(u, dist, params, low, high)
 
     def col(key: str) -> torch.Tensor:
         return torch.as_tensor(data[key][pick], dtype=torch.float32)
@@ -107,8 +106,10 @@ def probe(run_dir: str | Path, rows: int = 4096, seed: int = 0) -> dict[str, Any
         q_uni = torch.minimum(*q_net(obs, c_of(uni, dist)))
         u_n = dist_n.sample()
         c_n = c_of(u_n, dist_n)
-        soft = -alpha * dist_n.log_prob(u_n)[:, 0]
-        y = col("ret")[:, 0] + col("discount")[:, 0] * (torch.minimum(*q_targ(nobs, c_n)) + soft)
+        logp_n = dist_n.log_prob(u_n)[:, 0]
+        soft = -alpha * logp_n
+        y = critic_target(col("ret")[:, 0], col("discount")[:, 0], *q_targ(nobs, c_n), logp_n,
+                          alpha)  # fmt: skip
         f = _hidden(q_net.q1, torch.cat([obs, c], -1))
         f_n = _hidden(q_net.q1, torch.cat([nobs, c_n], -1))
     td = y - q

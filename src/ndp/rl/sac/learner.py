@@ -57,6 +57,27 @@ COLUMNS = (*METRICS, *SAC_METRICS)
 """Columns of a SAC-family run's ``metrics.csv``."""
 
 
+def scores_params(head: nn.Module, critic_input: str) -> bool:
+    """Whether the critics score the bounded parameters ``tanh(u)`` (NDP-SAC with
+    ``critic_input='params'``) rather than the k actions."""
+    return isinstance(head, SquashedNDPHead) and critic_input == "params"
+
+
+def critic_input(
+    u: torch.Tensor,
+    dist: SquashedGaussian,
+    params: bool,
+    low: torch.Tensor,
+    high: torch.Tensor,
+) -> torch.Tensor:
+    """What the critics score with the state [B, C] for raw parameters ``u`` [B, P]: ``tanh(u)``
+    (``params``, see :func:`scores_params`) or the k actions ``u`` gives, inside the bounds
+    ``low``, ``high`` [A] (differentiable)."""
+    if params:
+        return torch.tanh(u)
+    return torch.maximum(torch.minimum(dist.decode(u), high), low).flatten(1)
+
+
 class TwinQ(nn.Module):
     """Two critics ``Q_i(s, c)`` [B] of a state [B, O] and its action input [B, C]
     (``layer_norm``: LayerNorm after each hidden linear map, :class:`ndp.nets.mlp.MLP`)."""
@@ -97,7 +118,7 @@ class SACLearner(CountsUpdates):
         self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         self.P = self.model.head.n_params // 2
         self.is_ndp = isinstance(self.model.head, SquashedNDPHead)
-        self.scores_params = self.is_ndp and s.critic_input == "params"
+        self.scores_params = scores_params(self.model.head, s.critic_input)
         c_dim = self.P if self.scores_params else self.k * self.spec.action_dim
         pol = cfg.policy
         assert pol.hidden is not None and pol.activation is not None  # resolve_config fills them
@@ -209,12 +230,8 @@ class SACLearner(CountsUpdates):
         return dist
 
     def critic_input(self, u: torch.Tensor, dist: SquashedGaussian) -> torch.Tensor:
-        """What the critics score with the state [B, C]: the bounded parameters ``tanh(u)``
-        (NDP-SAC, 'params') or the k actions ``u`` gives, inside the bounds (differentiable)."""
-        if self.scores_params:
-            return torch.tanh(u)
-        act = torch.maximum(torch.minimum(dist.decode(u), self.high), self.low)
-        return act.flatten(1)
+        """What the critics score with the state [B, C] (:func:`critic_input`)."""
+        return critic_input(u, dist, self.scores_params, self.low, self.high)
 
     def _random_u(self) -> torch.Tensor:
         """Raw parameters [E, P] uniform in the bounded space (tanh(u) ~ U(-1, 1)^P)."""

@@ -332,3 +332,23 @@ def test_exploration_preset_is_at_most_a_sixth_of_the_budget():
     assert short.dyne.explore_steps == 3333  # the 50k preset would leave no TD3 iteration
     full = resolve_dyne_config(TrainConfig(task="push-v3", algo="dyne", steps=300_000))
     assert full.dyne.explore_steps == 50_000
+
+
+def test_a_td3_phase_shorter_than_one_batch_is_refused():
+    import dataclasses
+
+    from ndp.rl.config import DyneConfig, PPOConfig, TrainConfig
+    from ndp.rl.dyne import check_budget
+
+    cfg = TrainConfig(
+        task="point-mass",
+        algo="dyne",
+        steps=4000,
+        num_envs=2,
+        ppo=PPOConfig(steps_per_update=200),
+        dyne=DyneConfig(explore_steps=200),
+    )
+    check_budget(cfg)  # 19 TD3 iterations of 40 decisions: 760 >= 100
+    small = dataclasses.replace(cfg, steps=600)  # 2 TD3 iterations: 80 decisions
+    with pytest.raises(ValueError, match=r"steps: Dyn-E's TD3 phase collects 80 decision\(s\)"):
+        check_budget(small)

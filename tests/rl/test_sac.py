@@ -135,6 +135,54 @@ def test_config_refuses_bad_values_naming_the_field():
         SACConfig(critic_layer_norm="yes")  # type: ignore[arg-type]
 
 
+def test_first_learning_decision_by_hand():
+    from ndp.rl.sac.learner import first_learning_decision
+
+    # 4 envs, k = 1: 5,000 random steps take 1,250 rounds (the last is round 1,249); a batch of
+    # 256 is in after 64 rounds, so the random steps decide
+    assert first_learning_decision(5000, 256, 10**6, 1, 4) == 1249
+    # k = 5: 250 rounds of random steps; the batch still needs 64 rounds
+    assert first_learning_decision(5000, 256, 10**6, 5, 4) == 249
+    assert first_learning_decision(0, 256, 10**6, 5, 4) == 63  # the batch decides
+    assert first_learning_decision(0, 1, 10, 1, 4) == 0  # the first round already learns
+    assert first_learning_decision(0, 256, 255, 1, 4) is None  # the replay never holds a batch
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (
+            ["--steps", "400"],
+            "steps: --algo sac takes its first gradient step after 5,000 env steps",
+        ),
+        (
+            ["--steps", "20000", "--sac-batch-size", "100000", "--sac-random-steps", "0"],
+            "steps: --algo sac takes its first gradient step after 100,000 env steps",
+        ),
+        (
+            ["--steps", "20000", "--sac-buffer-size", "100"],
+            "sac.buffer_size: expected at least batch_size x k = 256 env steps",
+        ),
+        (
+            ["--steps", "20000", "--sac-random-steps", "0", "--sac-updates-per-step", "1e-6"],
+            "sac.updates_per_step: expected at least one gradient step",
+        ),
+    ],
+)
+def test_a_sac_run_that_could_never_learn_is_refused_before_its_folder(
+    tmp_path, capsys, argv, message
+):
+    """A budget that ends in the random steps, a batch larger than the run's decisions, a
+    replay smaller than a batch or a negligible update rate: a one-line error naming the
+    argument, and no run folder."""
+    run = tmp_path / "never"
+    rc = ndp_main(["rl", "train", "--task", "point-mass", "--algo", "sac", "--run-dir", str(run),
+                   "--no-progress", "--no-tensorboard", "--vector", "sync", *argv])  # fmt: skip
+    assert rc != 0
+    err = capsys.readouterr().err
+    assert message in err and not run.exists()
+
+
 def _open(tmp_path, algo, task="point-mass", **kw):
     from ndp.rl.config import PPOConfig, TrainConfig
     from ndp.rl.run import open_run

@@ -366,7 +366,7 @@ def get_task_spec(name: str) -> TaskSpec:
         ValueError: unknown name; the message lists the closest known names.
     """
     if not isinstance(name, str):
-        raise ValueError(f"name: expected a task name string, got {type(name).__name__}")
+        raise ValueError(f"task: expected a task name string, got {type(name).__name__}")
     if name in TASKS:
         return TASKS[name]
     if name in TORQUE_TASKS:
@@ -376,4 +376,4 @@ def get_task_spec(name: str) -> TaskSpec:
         return TASKS[key] if key in TASKS else TORQUE_TASKS[key]
     close = difflib.get_close_matches(name, list(TASKS) + list(_ALIASES), n=5, cutoff=0.5)
     hint = ", ".join(close) if close else "see ndp.envs.TASKS"
-    raise ValueError(f"name: unknown task {name!r}; close names: {hint}")
+    raise ValueError(f"task: unknown task {name!r}; close names: {hint}")

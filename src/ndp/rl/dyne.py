@@ -96,7 +96,9 @@ def explore_iterations(cfg: TrainConfig) -> int:
 
 
 def check_budget(cfg: TrainConfig) -> None:
-    """The budget must leave at least one TD3 iteration after the exploration data."""
+    """The budget must leave at least one TD3 iteration after the exploration data, and that
+    phase must collect one TD3 batch (DyneConfig checks that the replay holds one); otherwise
+    ValueError naming the argument."""
     n = explore_iterations(cfg)
     if cfg.num_updates <= n:
         raise ValueError(
@@ -104,6 +106,14 @@ def check_budget(cfg: TrainConfig) -> None:
             f"(explore_steps={cfg.dyne.explore_steps}, in iterations of "
             f"{cfg.env_steps_per_update}) on exploration data for the embedding; --steps "
             f"{cfg.steps} leaves no TD3 iteration (use more --steps or fewer --explore-steps)"
+        )
+    d = cfg.dyne
+    decisions = (cfg.num_updates - n) * cfg.decisions_per_env * cfg.num_envs
+    if decisions < d.batch_size:
+        raise ValueError(
+            f"steps: Dyn-E's TD3 phase collects {decisions} decision(s) after the exploration "
+            f"data, fewer than one batch (dyne.batch_size={d.batch_size}), so TD3 never takes a "
+            f"step (use more --steps or a smaller --batch-size)"
         )
 
 

@@ -78,6 +78,54 @@ def critic_input(
     return torch.maximum(torch.minimum(dist.decode(u), high), low).flatten(1)
 
 
+def first_learning_decision(
+    random_steps: int, batch_size: int, capacity: int, k: int, num_envs: int
+) -> int | None:
+    """The decision round (0-based: round j is the (j+1)-th step of every env together) of the
+    first gradient step, counting every decision as k executed env steps; None when the replay
+    (``capacity`` decisions) can never hold a batch. Gradient steps start once the run has
+    executed ``random_steps`` env steps and the replay holds ``batch_size`` decisions; a round
+    adds ``num_envs`` decisions of up to ``k`` env steps each. Episodes that end inside a
+    decision execute fewer env steps, so the true first round can come later, never earlier."""
+    if capacity < batch_size:
+        return None
+    by_steps = -(-random_steps // (num_envs * k))  # rounds until random_steps have run
+    by_batch = -(-batch_size // num_envs)  # rounds until the replay holds one batch
+    return max(by_steps, by_batch, 1) - 1
+
+
+def check_budget(cfg: TrainConfig) -> None:
+    """Refuse (ValueError naming the argument) a SAC-family run that can take no gradient step:
+    a replay smaller than one batch, or a budget that ends before the random steps and the
+    first batch are in (or before ``updates_per_step`` adds up to one gradient step)."""
+    s, k, E = cfg.sac, cfg.k, cfg.num_envs
+    capacity = -(-s.buffer_size // k)
+    first = first_learning_decision(s.random_steps, s.batch_size, capacity, k, E)
+    if first is None:
+        raise ValueError(
+            f"sac.buffer_size: expected at least batch_size x k = {s.batch_size * k} env steps "
+            f"(the replay keeps {capacity} decision(s) of k={k}; a gradient step samples "
+            f"{s.batch_size}), got {s.buffer_size} (use a larger --sac-buffer-size or a smaller "
+            f"--sac-batch-size)"
+        )
+    rounds = cfg.num_updates * cfg.decisions_per_env
+    budget = rounds * E * k
+    if first >= rounds:
+        need = (first + 1) * E * k
+        raise ValueError(
+            f"steps: --algo {cfg.algo} takes its first gradient step after {need:,} env steps "
+            f"(sac.random_steps={s.random_steps:,} random env steps, then a batch of "
+            f"sac.batch_size={s.batch_size} decisions from num_envs={E} envs), but the run "
+            f"trains {budget:,} (use more --steps, or fewer --sac-random-steps / a smaller "
+            f"--sac-batch-size)"
+        )
+    if s.updates_per_step * (rounds - first) * E * k < 1.0:
+        raise ValueError(
+            f"sac.updates_per_step: expected at least one gradient step in the run's "
+            f"{(rounds - first) * E * k:,} learning env steps, got {s.updates_per_step!r}"
+        )
+
+
 class TwinQ(nn.Module):
     """Two critics ``Q_i(s, c)`` [B] of a state [B, O] and its action input [B, C]
     (``layer_norm``: LayerNorm after each hidden linear map, :class:`ndp.nets.mlp.MLP`)."""
@@ -108,6 +156,7 @@ class SACLearner(CountsUpdates):
     """
 
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
+        check_budget(cfg)  # before any env is built
         task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
         self.cfg, self.spec, self.session = cfg, task.spec, session
         self.run = session.run

@@ -199,3 +199,28 @@ def test_an_export_without_results_writes_no_eval_results_and_a_measured_one_doe
     write_card(out, meta, None)  # re-written without results: the stale file goes
     assert not (out / EVAL_RESULTS_DIR).exists()
     assert (out / "README.md").is_file()
+
+
+@pytest.mark.parametrize("fmt", ["safetensors", "onnx"])
+def test_an_export_never_overwrites_a_file_nor_lands_in_a_run_folder(tmp_path, fmt):
+    """A folder holding a README.md (a user's project), an earlier card's .eval_results/, or a
+    training run (checkpoint, metrics, config): refused before anything is written, naming
+    out_dir; the files there are unchanged."""
+    src = ndp.load_policy("zoo:push-v3-ndp")
+    for name, text in (("README.md", "mine\n"), ("checkpoint.pt", "ckpt"),
+                       ("metrics.csv", "update\n"), ("config.json", "{}\n")):  # fmt: skip
+        out = tmp_path / f"{fmt}-{name}"
+        out.mkdir()
+        (out / name).write_text(text)
+        with pytest.raises(FileExistsError, match=r"^out_dir: .* (already holds|is a training)"):
+            src.export(out, format=fmt)
+        assert sorted(p.name for p in out.iterdir()) == [name]
+        assert (out / name).read_text() == text
+    results = tmp_path / f"{fmt}-results"
+    (results / ".eval_results").mkdir(parents=True)
+    with pytest.raises(FileExistsError, match=r"already holds \.eval_results"):
+        src.export(results, format=fmt)
+    first = src.export(tmp_path / f"{fmt}-new", format=fmt)  # a new folder: written
+    other = "safetensors" if fmt == "onnx" else "onnx"
+    with pytest.raises(FileExistsError, match="already holds"):  # not a second format beside it
+        src.export(first, format=other)

@@ -211,6 +211,28 @@ def eval_results(
     return {f"{task}.yaml": to_yaml([entry]) + "\n"}
 
 
+def check_export_dir(out: Path, files: tuple[str, ...]) -> None:
+    """Refuse an export's folder before any work: a training run's folder (an export beside a
+    checkpoint would make ``ndp.load_policy`` read the folder as the export), or one that
+    already holds a file the export writes (``files``, the model card ``README.md`` or its
+    ``.eval_results/``): nothing already there is overwritten. FileExistsError naming
+    ``out_dir``."""
+    from ndp.runs.layout import CHECKPOINT_NAME, CONFIG_NAME, METRICS_NAME
+
+    run_files = [n for n in (CHECKPOINT_NAME, METRICS_NAME, CONFIG_NAME) if (out / n).exists()]
+    if run_files:
+        raise FileExistsError(
+            f"out_dir: {out} is a training run's folder (it holds {run_files[0]}); export to a "
+            f"new folder"
+        )
+    there = [n for n in (*files, "README.md", EVAL_RESULTS_DIR) if (out / n).exists()]
+    if there:
+        raise FileExistsError(
+            f"out_dir: {out} already holds {there[0]} (an export writes "
+            f"{', '.join((*files, 'README.md'))}); choose another folder"
+        )
+
+
 def write_card(
     out: Any,
     meta: dict[str, Any],

@@ -256,12 +256,13 @@ def onnx_metadata_of(policy: Policy) -> dict[str, str]:
 
 
 def write_onnx_export(policy: Policy, out_dir: str | Path) -> Path:
-    """Write ``out_dir/policy.onnx`` (a new directory, or one without that file); returns
-    ``out_dir``."""
+    """Write ``out_dir/policy.onnx`` (a new directory, or one holding none of the files an
+    export writes, :func:`ndp.rl.card.check_export_dir`); returns ``out_dir``."""
     out = Path(out_dir)
     check_output_path(out, "out_dir", folder=True, create=False)  # before the export's work
-    if (out / ONNX_FILE).exists():
-        raise FileExistsError(f"out_dir: {out} already holds {ONNX_FILE}; choose another")
+    from ndp.rl.card import check_export_dir
+
+    check_export_dir(out, (ONNX_FILE,))
     data = onnx_model_bytes(policy)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(out / ONNX_FILE, data)

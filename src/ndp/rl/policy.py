@@ -58,7 +58,7 @@ from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
 from ndp.provenance import git_commit, installed_versions, portable_command, portable_path
-from ndp.rl.card import write_card
+from ndp.rl.card import check_export_dir, write_card
 from ndp.rl.config import EVAL_SEED, TrainConfig, load_config
 from ndp.rl.exec_k import at_exec_k
 from ndp.rl.normalize import ObsNormalizer
@@ -599,8 +599,7 @@ def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | No
             "policy: an exec-k evaluation copy cannot be exported; export the trained policy"
         )
     check_output_path(out_dir, "out_dir", folder=True, create=False)  # the one path check
-    if (out_dir / "policy.json").exists():
-        raise FileExistsError(f"out_dir: {out_dir} already holds an export; choose another")
+    check_export_dir(out_dir, ("policy.safetensors", "policy.json"))
     out_dir.mkdir(parents=True, exist_ok=True)
     state = {k: v.detach().contiguous().clone() for k, v in policy.model.state_dict().items()}
     atomic_write_bytes(out_dir / "policy.safetensors", save(state))

@@ -603,3 +603,21 @@ def test_a_study_without_conditions_gets_its_readings_after_the_pairwise_tests(t
         verdicts = {r["item"]: r["verdict"] for r in csv.DictReader(fh)}
     assert verdicts["diverged runs (layer-norm, plain)"] == "stops the runaway"
     assert verdicts["ndp-sac-k5 s0"] == "diverged" and verdicts["ndp-sac-ln-k5 s2"] == "ok"
+
+
+def test_a_report_replaces_its_own_tables_and_nothing_else(tmp_path):
+    """Regenerating a report over its stem works (twice); an existing markdown or CSV that the
+    package did not generate is refused before any run is read, and left as it was."""
+    runs = tmp_path / "runs"
+    for s in (0, 1):
+        _rl_run(runs, "reach-v3", "ppo", s, 1.0, arm=False)
+    for _ in range(2):
+        report([runs], tmp_path / "r", "ndp report runs", plots=False)
+    assert "Command: `ndp report runs`" in (tmp_path / "r.md").read_text()
+    for name, text in (("notes.md", "# my notes\n"), ("data.csv", "a,b\n1,2\n")):
+        (tmp_path / name).write_text(text)
+        stem = tmp_path / name.split(".")[0]
+        with pytest.raises(FileExistsError, match=rf"^out: .*{name} exists and is not an ndp"):
+            report([tmp_path / "nope"], stem, "ndp report runs", plots=False)
+        assert (tmp_path / name).read_text() == text
+        assert not stem.with_suffix(".csv" if name.endswith(".md") else ".md").exists()

@@ -351,3 +351,11 @@ def test_render_at_exec_k_records_the_finer_steps(tmp_path, capsys):
     assert not (tmp_path / "d.mp4").exists()
     assert main(["rl", "render", str(run), "--out", str(tmp_path / "c.mp4"), "--exec-k", "7"]) == 2
     assert "exec_k" in capsys.readouterr().err and not (tmp_path / "c.mp4").exists()
+    # an existing video is kept unless --overwrite
+    before = (tmp_path / "a.mp4").read_bytes()
+    assert main(["rl", "render", str(run), "--out", str(tmp_path / "a.mp4"), "--exec-k", "50",
+                 *small]) == 2  # fmt: skip
+    assert "out: " in capsys.readouterr().err and (tmp_path / "a.mp4").read_bytes() == before
+    assert main(["rl", "render", str(run), "--out", str(tmp_path / "a.mp4"), "--exec-k", "50",
+                 *small, "--overwrite"]) == 0  # fmt: skip
+    assert (tmp_path / "a.mp4").read_bytes() != before

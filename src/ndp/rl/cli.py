@@ -136,6 +136,11 @@ def add_subparser(sub: Any) -> None:
         metavar="PX",
         help="frame height in px (default: the env's, 480 for the robots)",
     )
+    rd.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing --out (default: refused, nothing rendered)",
+    )
     rd.set_defaults(func=_cmd_render)
 
 
@@ -262,6 +267,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
         args.exec_k,
         width=args.width,
         height=args.height,
+        overwrite=args.overwrite,
     )
     print(json.dumps(out))
     return 0

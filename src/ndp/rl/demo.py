@@ -91,7 +91,7 @@ def run_rl_demo(out_dir: Path, quick: bool = True) -> dict[str, Any]:
     metrics = train(cfg)
     curve = plot_curve(run_dir, out_dir / "rl_curve.png", f"NDP on {cfg.task} (seed {cfg.seed})")
     ev = evaluate(run_dir, episodes=10, deterministic=True)
-    vid = render(run_dir, out_dir / "rl_video.mp4", episodes=2)
+    vid = render(run_dir, out_dir / "rl_video.mp4", episodes=2, overwrite=True)
     return {
         "run_dir": str(run_dir),
         "curve": str(curve),

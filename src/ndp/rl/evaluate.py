@@ -156,6 +156,7 @@ def render(
     exec_k: int | None = None,
     width: int | None = None,
     height: int | None = None,
+    overwrite: bool = False,
 ) -> dict[str, Any]:
     """Render ``episodes`` episodes of a trained policy to one mp4 (every env step is a frame;
     in real time, at most 60 frames per second: finer steps are subsampled).
@@ -173,6 +174,8 @@ def render(
         width: frame width in px (each run's, with ``compare``); None: the env's own (480
             for the robots, 96 for the point mass).
         height: frame height in px; None: the env's own.
+        overwrite: replace an existing ``out`` (default: refused, FileExistsError naming
+            ``out``, before anything is loaded or rendered).
 
     Returns:
         ``{"path", "frames", "width", "height", "success_any", ...}``
@@ -184,6 +187,10 @@ def render(
 
     target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
     check_output_path(target)  # before rendering anything
+    if target.exists() and not overwrite:
+        raise FileExistsError(
+            f"out: {target} exists; choose another path or pass --overwrite to replace it"
+        )
     for name, side in (("width", width), ("height", height)):
         if side is not None:
             check_render_size(name, side)  # before loading or rendering anything

@@ -323,6 +323,44 @@ def _missing_message(cells: Sequence[Cell], expected: Sequence[int]) -> str:
     )
 
 
+def _is_generated_md(head: str) -> bool:
+    """The package's generated markdown: a ``Command: `...``` line, then ``Commit: ...``, in
+    its first 10 lines (``ndp report``, ``ndp sweep --report``, the benchmarks' tables)."""
+    from itertools import pairwise
+
+    return any(
+        a.startswith("Command: `") and b.startswith("Commit: ")
+        for a, b in pairwise(head.splitlines()[:10])
+    )
+
+
+def _is_generated_csv(head: str) -> bool:
+    """The package's generated CSV: a ``command`` column in its header."""
+    return bool(head) and "command" in head.splitlines()[0].split(",")
+
+
+def check_report_stem(out: Path) -> None:
+    """A report replaces an earlier generated table of the same stem (the regeneration every
+    committed table relies on) and nothing else: an existing ``<out>.md`` without the
+    ``Command:`` / ``Commit:`` lines, or ``<out>.csv`` without a ``command`` column, is
+    refused (FileExistsError naming ``out``) before any run is read."""
+    checks = ((out.with_suffix(".md"), _is_generated_md),
+              (out.with_suffix(".csv"), _is_generated_csv))  # fmt: skip
+    for path, is_report in checks:
+        if not path.is_file():
+            continue
+        try:
+            with open(path, encoding="utf-8", errors="replace") as f:
+                head = f.read(4096)
+        except OSError:
+            head = ""
+        if not is_report(head):
+            raise FileExistsError(
+                f"out: {path} exists and is not an ndp report; choose another --out (a report "
+                f"replaces only an earlier report of the same stem)"
+            )
+
+
 def report(
     run_dirs: Sequence[str | Path],
     out: str | Path,
@@ -356,6 +394,7 @@ def report(
         MissingSeedsError: cells lack seeds and not ``allow_missing`` (nothing written).
         ValueError: no runs, or two runs of one cell and seed.
     """
+    check_report_stem(Path(out))  # before reading any run
     sc = _scope(run_dirs, study, tasks, methods)
     cells, expected = build_cells(sc.infos, seeds, sc.tasks, sc.methods, sc.arm_tasks)
     if any(c.missing for c in cells) and not allow_missing:

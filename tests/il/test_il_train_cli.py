@@ -126,6 +126,14 @@ def test_eval_command_and_bad_runs(tmp_path: Path, capsys) -> None:
     out = json.loads(capsys.readouterr().out)
     assert out["n_test"] == 20 and out["n_train"] == 40 and "test_dtw_px" not in out
     assert (tmp_path / "grid.png").exists()
+    before = (tmp_path / "grid.png").read_bytes()  # a path the user named: kept ...
+    again = ["il", "eval", str(tmp_path / "run"), "--no-dtw", "--png", str(tmp_path / "grid.png"),
+             "--n-grid", "3"]  # fmt: skip
+    assert main(again) == 2
+    assert "png: " in capsys.readouterr().err and (tmp_path / "grid.png").read_bytes() == before
+    assert main([*again, "--overwrite"]) == 0  # ... unless --overwrite
+    capsys.readouterr()
+    assert (tmp_path / "grid.png").read_bytes() != before
     assert main(["il", "eval", str(tmp_path / "missing")]) == 2
     assert "checkpoint: no such file" in capsys.readouterr().err
     bad = tmp_path / "bad"

@@ -50,7 +50,11 @@ class EvalCommand:
     data: DataConfig = field(default_factory=DataConfig)
     """Data set and split to evaluate on (default: the run's own)."""
     png: str | None = None
-    """Output picture (None: RUN/predictions.png; with other data RUN/predictions-<tag>.png)."""
+    """Output picture (None: RUN/predictions.png; with other data RUN/predictions-<tag>.png,
+    replaced on every evaluation). A path given here is refused if it exists, unless
+    --overwrite."""
+    overwrite: bool = False
+    """Replace an existing --png."""
     n_grid: int = 24
     """Samples drawn in the picture."""
     grid: str = "first"
@@ -134,6 +138,7 @@ def eval_command(argv: list[str]) -> int:
         cmd.run,
         data_cfg=cmd.data if cmd.data != saved else None,
         out_png=cmd.png,
+        overwrite=cmd.overwrite,
         n_grid=cmd.n_grid,
         dtw=cmd.dtw,
         threads=cmd.threads,

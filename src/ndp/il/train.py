@@ -58,7 +58,7 @@ from ndp.il.metrics import (
 )
 from ndp.il.models import CNNDMPModel, TrajectoryModel, build_model
 from ndp.il.synthetic import SyntheticConfig
-from ndp.io import atomic_save_npz, atomic_write_text
+from ndp.io import atomic_save_npz, atomic_write_text, check_output_path
 from ndp.runs import MetricsLogger, save_checkpoint
 from ndp.runs import load_checkpoint as _load_run_checkpoint
 from ndp.runs.driver import RunPlan, run
@@ -629,6 +629,7 @@ def evaluate(
     include_train: bool = False,
     grid: str = "first",
     save_predictions: bool = False,
+    overwrite: bool = False,
 ) -> dict[str, Any]:
     """Evaluate a run's checkpoint on its test split, or on any data set.
 
@@ -648,6 +649,8 @@ def evaluate(
         grid: which samples the picture shows: 'first', 'random', 'median' or 'worst'.
         save_predictions: also write ``predictions[-<tag>].npz``: predicted and demonstrated
             trajectories, sample indices, labels, writers and per-sample MSE.
+        overwrite: replace an existing ``out_png`` (default: refused, FileExistsError naming
+            ``out_png``, before anything is loaded); the run's own pictures are replaced.
 
     Returns:
         Summary dict (also written as JSON): ``test_mse_px2`` and ``test_dtw_px`` as mean / std /
@@ -656,6 +659,12 @@ def evaluate(
     """
     if grid not in GRID_PICKS:
         raise ValueError(f"grid: expected one of {', '.join(GRID_PICKS)}, got {grid!r}")
+    if out_png is not None:  # a path the user named: checked before any work
+        check_output_path(out_png, "png")
+        if Path(out_png).exists() and not overwrite:
+            raise FileExistsError(
+                f"png: {out_png} exists; choose another path or pass --overwrite to replace it"
+            )
     _set_threads(threads)
     path = Path(run_dir)
     ckpt = load_checkpoint(path)

@@ -139,7 +139,8 @@ def add_subparser(sub: Any) -> None:
     rd.add_argument(
         "--overwrite",
         action="store_true",
-        help="replace an existing --out (default: refused, nothing rendered)",
+        help="replace an existing --out (default: refused, nothing rendered; the run's own "
+        "RUN_DIR/video.mp4 is always replaced)",
     )
     rd.set_defaults(func=_cmd_render)
 

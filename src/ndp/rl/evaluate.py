@@ -175,7 +175,8 @@ def render(
             for the robots, 96 for the point mass).
         height: frame height in px; None: the env's own.
         overwrite: replace an existing ``out`` (default: refused, FileExistsError naming
-            ``out``, before anything is loaded or rendered).
+            ``out``, before anything is loaded or rendered); the run's own ``video.mp4`` (no
+            ``out``) is a regenerable output of the run and is replaced.
 
     Returns:
         ``{"path", "frames", "width", "height", "success_any", ...}``
@@ -187,7 +188,7 @@ def render(
 
     target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
     check_output_path(target)  # before rendering anything
-    if target.exists() and not overwrite:
+    if out is not None and target.exists() and not overwrite:  # a path the user named
         raise FileExistsError(
             f"out: {target} exists; choose another path or pass --overwrite to replace it"
         )

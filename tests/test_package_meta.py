@@ -84,6 +84,7 @@ def test_version_falls_back_to_the_pyproject_version(monkeypatch):
 def test_all_names_the_public_api_and_dir_shows_it():
     assert set(ndp.__all__) >= PUBLIC
     assert set(ndp.__all__) <= set(dir(ndp))
+    assert not {"Any", "annotations"} & set(dir(ndp))  # the file's own typing imports
     for name in ndp.__all__:
         assert getattr(ndp, name) is not None, name
     assert ndp.zoo.list()  # the lazily imported sub-package

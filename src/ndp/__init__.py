@@ -158,8 +158,14 @@ def _missing_extra(
 
 
 def __dir__() -> list[str]:
-    """The module's names and the lazily imported public API (``__all__``)."""
-    return sorted(set(globals()) | set(__all__))
+    """The public API (``__all__``, imported lazily) and the package's submodules imported so
+    far; not the typing helpers this file itself imports (``Any``, ``annotations``)."""
+    import types
+
+    loaded = {
+        n for n, v in globals().items() if isinstance(v, types.ModuleType) and not n.startswith("_")
+    }
+    return sorted(set(__all__) | loaded)
 
 
 def __getattr__(name: str) -> Any:

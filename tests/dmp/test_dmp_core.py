@@ -362,3 +362,11 @@ def test_the_finite_check_is_one_small_reduction_over_the_inputs(positions):
         bad[i].view(-1)[3] = float("nan") if i % 2 else float("-inf")
         with pytest.raises(FloatingPointError, match=name):
             getattr(checked, call)(*bad)
+
+
+def test_a_misspelt_layer_override_names_the_close_field():
+    with pytest.raises(ValueError, match=r"^n_basiss: not a DMPConfig field; close names: n_basis"):
+        DMPLayer(n_basiss=3)
+    with pytest.raises(ValueError, match=r"^colour: not a DMPConfig field; known: n_basis, a_z"):
+        DMPLayer(colour="red")
+    assert DMPLayer(DMPConfig(n_basis=4), steps=20).config.steps == 20  # real fields still work

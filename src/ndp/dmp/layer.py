@@ -33,6 +33,15 @@ class DMPLayer(nn.Module):
     ) -> None:
         super().__init__()
         config = config or DMPConfig()
+        fields = [f.name for f in dataclasses.fields(DMPConfig)]
+        for name in overrides:
+            if name not in fields:
+                import difflib
+
+                close = difflib.get_close_matches(name, fields, n=3, cutoff=0.6)
+                names = close or fields
+                hint = ("close names: " if close else "known: ") + ", ".join(names)
+                raise ValueError(f"{name}: not a DMPConfig field; {hint}")
         self.config = dataclasses.replace(config, **overrides) if overrides else config
         self.check_finite = check_finite
         # the fixed-a_z linear map, built now (eagerly) so that torch.export only reads it

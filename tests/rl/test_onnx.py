@@ -237,6 +237,8 @@ def test_load_policy_loads_an_onnx_export_with_the_same_calling_convention(tmp_p
         np.testing.assert_allclose(pol.act(obs, state), torch_pol.act(obs, state), atol=1e-5)
         with pytest.raises(ValueError, match="deterministic: an ONNX export holds"):
             pol.act(obs, info, deterministic=False)
+        with pytest.raises(ValueError, match="deterministic: expected True or False, got 'no'"):
+            pol.act(obs, info, deterministic="no")  # truthy: it would have acted as True
     with pytest.raises(ValueError, match="is an ONNX export"):
         evaluate(out, episodes=1)
 

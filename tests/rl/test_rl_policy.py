@@ -92,6 +92,18 @@ def test_export_loads_in_a_fresh_process_without_unpickling(push_run, tmp_path):
     assert res.stdout.split()[0] == "30"  # 150 env steps / k = 5 decisions
 
 
+def test_act_refuses_a_deterministic_flag_that_is_not_a_bool():
+    """A string such as "no" is truthy: it would silently act with the mode."""
+    policy = ndp.load_policy("zoo:reach-v3-ndp")
+    env = policy.make_env()
+    obs, info = env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"^deterministic: expected True or False, got 'no'"):
+        policy.act(obs, info, deterministic="no")  # type: ignore[arg-type]
+    sampled = policy.act(obs, info, deterministic=np.bool_(False))  # numpy's bool is a bool
+    assert sampled.shape == env.action_space.shape
+    env.close()
+
+
 def test_make_env_and_bad_paths(tmp_path):
     env = ndp.make_env("point-mass", k=3, seed=0)
     _, info = env.reset(seed=0)
@@ -102,6 +114,8 @@ def test_make_env_and_bad_paths(tmp_path):
     (tmp_path / "policy.json").write_text(json.dumps({"format": "other", "version": 9}))
     with pytest.raises(ValueError, match="format"):
         ndp.load_policy(tmp_path)
+    with pytest.raises(TypeError, match=r"^path: expected a folder path or 'zoo:NAME', got int 5"):
+        ndp.load_policy(5)  # type: ignore[arg-type]
     assert ndp.DMPLayer.__name__ == "DMPLayer"
     with pytest.raises(AttributeError):
         _ = ndp.nope

@@ -42,6 +42,7 @@ Without a simulator (``obs`` from your own pipeline, the robot's state in physic
 from __future__ import annotations
 
 import json
+import os
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -53,7 +54,7 @@ import torch
 
 import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
 from ndp import zoo
-from ndp.act_inputs import RobotState, check_act_inputs
+from ndp.act_inputs import RobotState, check_act_inputs, check_deterministic
 from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
@@ -177,6 +178,7 @@ class Policy:
             each of its sub-actions held for K / k env steps of the finer env, whose per-step
             action scale is 1 / m of the trained one: the same displacement per decision.
         """
+        deterministic = check_deterministic(deterministic)  # "no" would act as True
         o, y0, dy0, single = check_act_inputs(
             obs,
             info,
@@ -357,7 +359,12 @@ def load_policy(path: str | Path) -> Policy:
     Raises:
         FileNotFoundError: neither kind of directory.
         ValueError: an export of another format or version; an unknown zoo name.
+        TypeError: ``path`` neither a string nor a path object (``os.PathLike``).
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(
+            f"path: expected a folder path or 'zoo:NAME', got {type(path).__name__} {path!r}"
+        )
     if isinstance(path, str) and path.startswith("zoo:"):
         path = zoo.path(path)
     path = Path(path)

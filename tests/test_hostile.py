@@ -397,6 +397,12 @@ def _cases() -> list[Case]:
         Case("DMPConfig(n_basis=np.int64(5))", lambda r: __import__("ndp.dmp").dmp.DMPConfig(
              n_basis=np.int64(5)), "ok", lambda c: c.n_basis == 5 and type(c.n_basis) is int,
              api=True),
+        Case("DMPConfig(learn_az='no')", lambda r: __import__("ndp.dmp").dmp.DMPConfig(
+             learn_az="no"), "error", api=True),
+        Case("DMPConfig(only_g=np.True_)", lambda r: __import__("ndp.dmp").dmp.DMPConfig(
+             only_g=np.True_), "ok", lambda c: c.only_g is True, api=True),
+        Case("PPOConfig(norm_adv='false')", lambda r: __import__("ndp.rl.config").rl.config
+             .PPOConfig(norm_adv="false"), "error", api=True),
         Case("policy.act(NaN observation)", lambda r: _policy_act(r, np.full(6, np.nan), False),
              "error", api=True),
         Case("policy.act([2, O] with one env's info)", lambda r: _policy_act(r, None, True),

@@ -25,6 +25,8 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
+from ndp.checks import plain_numbers
+
 H_UNITS = 4.0
 """Digit height in abstract units."""
 W_UNITS = 2.0
@@ -67,6 +69,7 @@ class SyntheticConfig:
     """Generator version; bump when the construction changes so caches regenerate."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)  # numpy scalars -> Python numbers; NaN and non-bool flags refused
         if self.n_samples <= 0:
             raise ValueError(f"n_samples must be positive, got {self.n_samples}")
         if not 0.0 < self.thickness < 3.0:

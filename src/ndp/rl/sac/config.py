@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 from typing import Annotated
 
+from ndp.checks import plain_numbers
 from ndp.runs.cli import cli
 
 CRITIC_INPUTS = ("params", "actions")
@@ -49,6 +50,7 @@ class SACConfig:
     or 'actions' (the k actions the DMP gives); SAC and chunked SAC always score actions."""
 
     def __post_init__(self) -> None:
+        plain_numbers(self)  # numpy scalars -> Python numbers; NaN, a non-bool flag refused
         for name, low in (("buffer_size", 1), ("batch_size", 1), ("random_steps", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
@@ -62,10 +64,6 @@ class SACConfig:
         te = self.target_entropy
         if te is not None and not (isinstance(te, (int, float)) and math.isfinite(te)):
             raise ValueError(f"target_entropy: expected a finite number or None, got {te!r}")
-        if not isinstance(self.critic_layer_norm, bool):
-            raise ValueError(
-                f"critic_layer_norm: expected true or false, got {self.critic_layer_norm!r}"
-            )
         if self.critic_input not in CRITIC_INPUTS:
             raise ValueError(
                 f"critic_input: expected one of {', '.join(CRITIC_INPUTS)}, got "

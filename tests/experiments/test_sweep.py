@@ -526,6 +526,18 @@ def test_pack_and_unpack_carry_finished_runs_to_a_fresh_runs_directory(tmp_path,
     with pytest.raises(ValueError, match="not a run file"):
         unpack(bad, tmp_path / "x")
     assert not (tmp_path / "escape").exists() and not (tmp_path / "x").exists()
+    # --pack onto a file that is not a run archive, or a folder: refused, the file untouched
+    from ndp.experiments.sweep.archive import pack
+
+    notes = tmp_path / "notes.tar.gz"
+    notes.write_text("my notes\n")
+    with pytest.raises(ValueError, match=r"^pack: .*notes.tar.gz exists and is not a readable"):
+        pack([runs / "point-mass-ppo-s0"], notes)
+    assert notes.read_text() == "my notes\n"
+    with pytest.raises(ValueError, match=r"holds '\.\./escape/metrics\.csv', not a run file"):
+        pack([runs / "point-mass-ppo-s0"], bad)  # a tar of other files is not merged into
+    with pytest.raises(ValueError, match="is a folder, not an archive file"):
+        pack([runs / "point-mass-ppo-s0"], tmp_path / "a")
 
 
 def test_a_failed_run_shows_the_trainers_reason_not_the_parser_box(tmp_path):

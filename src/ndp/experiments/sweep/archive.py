@@ -85,19 +85,30 @@ def pack(runs: Sequence[Path], out: Path, unfinished: Sequence[Path] = ()) -> li
 
     Raises:
         FileNotFoundError: an unfinished run without ``checkpoint.pt`` (nothing to resume).
+        ValueError: ``out`` exists and is not a run archive (a folder, another file, a tar
+            holding other files): nothing is written and ``out`` is left as it is.
     """
     out = Path(out)
     for run in map(Path, unfinished):
         if not (run / CHECKPOINT).is_file():
             raise FileNotFoundError(f"pack: {run} has no {CHECKPOINT} to resume from")
     keep: dict[str, list[tuple[tarfile.TarInfo, bytes]]] = {}
-    if out.is_file():
-        with tarfile.open(out, "r:gz") as tf:
-            for m in tf.getmembers():
-                name = _check_member(m, out)
-                f = tf.extractfile(m)
-                assert f is not None
-                keep.setdefault(name, []).append((m, f.read()))
+    if out.exists() and not out.is_file():
+        raise ValueError(f"pack: {out} is a folder, not an archive file (.tar.gz)")
+    if out.is_file():  # merged with: it must be a run archive (anything else is left alone)
+        try:
+            with tarfile.open(out, "r:gz") as tf:
+                for m in tf.getmembers():
+                    name = _check_member(m, out)
+                    f = tf.extractfile(m)
+                    assert f is not None
+                    keep.setdefault(name, []).append((m, f.read()))
+        except (tarfile.TarError, EOFError, OSError, zlib.error) as exc:
+            raise ValueError(
+                f"pack: {out} exists and is not a readable .tar.gz run archive "
+                f"({type(exc).__name__}: {str(exc)[:120]}); choose another file (it is left "
+                f"as it is)"
+            ) from None
     for run in map(Path, runs):
         entries = [
             _entry(f"{run.name}/{p.name}", p.read_bytes(), p.stat().st_mtime) for p in _members(run)

@@ -105,15 +105,15 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
     """Read every array of an ``.npz`` with clear errors for missing or corrupt files."""
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(f"data file not found: {path}")
+        raise FileNotFoundError(f"data: no such file {path}")
     if path.is_dir():
-        raise ValueError(f"expected an .npz file, got a directory: {path}")
+        raise ValueError(f"data: expected an .npz file, got a directory: {path}")
     try:
         with np.load(path, allow_pickle=False) as z:
             return {k: np.asarray(z[k]) for k in z.files}
     except (zipfile.BadZipFile, OSError, EOFError, ValueError, KeyError) as exc:
         raise ValueError(
-            f"cannot read {path} as an .npz file ({type(exc).__name__}: {exc})"
+            f"data: cannot read {path} as an .npz file ({type(exc).__name__}: {exc})"
         ) from exc
 
 
@@ -381,36 +381,38 @@ def load_npz(
     tkey = next((k for k in _TRAJ_KEYS if k in z), None)
     if "images" not in z or tkey is None:
         raise ValueError(
-            f"{path} must contain arrays 'images' [n, H, W] and 'trajectories' [n, T, 2]; "
+            f"data: {path} must contain arrays 'images' [n, H, W] and 'trajectories' [n, T, 2]; "
             f"found {sorted(z)}"
         )
     images, trajs = z["images"], z[tkey]
     if images.ndim == 4 and images.shape[1] == 1:
         images = images[:, 0]
     if images.ndim != 3:
-        raise ValueError(f"{path}: 'images' must be [n, H, W], got shape {images.shape}")
+        raise ValueError(f"data: {path}: 'images' must be [n, H, W], got shape {images.shape}")
     if trajs.ndim != 3 or trajs.shape[2] != 2:
-        raise ValueError(f"{path}: '{tkey}' must be [n, T, 2], got shape {trajs.shape}")
+        raise ValueError(f"data: {path}: '{tkey}' must be [n, T, 2], got shape {trajs.shape}")
     if images.shape[0] != trajs.shape[0]:
-        raise ValueError(f"{path}: {images.shape[0]} images but {trajs.shape[0]} trajectories")
+        raise ValueError(
+            f"data: {path}: {images.shape[0]} images but {trajs.shape[0]} trajectories"
+        )
     if images.shape[0] == 0 or trajs.shape[1] < 2:
-        raise ValueError(f"{path}: no samples, or trajectories with fewer than 2 points")
+        raise ValueError(f"data: {path}: no samples, or trajectories with fewer than 2 points")
     if not (np.issubdtype(images.dtype, np.number) and np.issubdtype(trajs.dtype, np.number)):
-        raise ValueError(f"{path}: 'images' and '{tkey}' must be numeric arrays")
+        raise ValueError(f"data: {path}: 'images' and '{tkey}' must be numeric arrays")
     if np.issubdtype(images.dtype, np.integer):
         images = images.astype(np.float32) / 255.0
     images = images.astype(np.float32)
     trajs = trajs.astype(np.float64)
     if not (np.isfinite(images).all() and np.isfinite(trajs).all()):
-        raise ValueError(f"{path}: images or trajectories contain NaN or Inf")
+        raise ValueError(f"data: {path}: images or trajectories contain NaN or Inf")
     if images.min() < 0.0 or images.max() > 1.0:
         raise ValueError(
-            f"{path}: float images must lie in [0, 1], got [{images.min()}, {images.max()}]"
+            f"data: {path}: float images must lie in [0, 1], got [{images.min()}, {images.max()}]"
         )
     if n_points is not None and trajs.shape[1] != n_points:
         if not resample:
             raise ValueError(
-                f"{path}: trajectories have {trajs.shape[1]} points, expected {n_points}; "
+                f"data: {path}: trajectories have {trajs.shape[1]} points, expected {n_points}; "
                 "pass resample=True (CLI: --resample) to resample them in time"
             )
         trajs = resample_trajectories(trajs, n_points)
@@ -418,7 +420,7 @@ def load_npz(
     labels = z.get("labels", np.full(n, -1)).astype(np.int64).reshape(-1)
     writers = z.get("writers", np.full(n, -1)).astype(np.int64).reshape(-1)
     if labels.shape != (n,) or writers.shape != (n,):
-        raise ValueError(f"{path}: 'labels' / 'writers' must have shape ({n},)")
+        raise ValueError(f"data: {path}: 'labels' / 'writers' must have shape ({n},)")
     return DigitData(
         images=images,
         trajs=trajs.astype(np.float32),

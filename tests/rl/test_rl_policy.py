@@ -109,6 +109,10 @@ def test_make_env_and_bad_paths(tmp_path):
     _, info = env.reset(seed=0)
     assert env.action_space.shape == (3, 2) and "cmd_y0" in info
     env.close()
+    with pytest.raises(ValueError, match=r"^seed: expected None or an integer >= 0, got 'a'"):
+        ndp.make_env("point-mass", k=3, seed="a")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"^stale_world: expected True or False, got 'no'"):
+        ndp.make_env("point-mass", k=3, stale_world="no")  # type: ignore[arg-type]
     with pytest.raises(FileNotFoundError, match="neither"):
         ndp.load_policy(tmp_path)
     (tmp_path / "policy.json").write_text(json.dumps({"format": "other", "version": 9}))

@@ -123,6 +123,8 @@ def defer_seed(env: gym.Env, seed: int | None) -> None:
     """Seed the first ``reset()`` that is not given a seed, and the action space's sampler
     (the ``seed`` argument of the factories); None leaves both unseeded."""
     if seed is not None:
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or int(seed) < 0:
+            raise ValueError(f"seed: expected None or an integer >= 0, got {seed!r}")
         env.seed_next_reset(int(seed))  # type: ignore[attr-defined]
         env.action_space.seed(int(seed))
 

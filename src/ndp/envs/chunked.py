@@ -97,6 +97,8 @@ class ChunkedEnv(gym.Wrapper):
             raise ValueError(
                 f"execution: expected one of {', '.join(EXECUTIONS)}, got {execution!r}"
             )
+        if not isinstance(stale_world, (bool, np.bool_)):  # "no" would apply the rule
+            raise ValueError(f"stale_world: expected True or False, got {stale_world!r}")
         self.execution = str(execution)
         box = env.action_space
         if not isinstance(box, spaces.Box) or len(box.shape) != 1:

@@ -153,6 +153,14 @@ def test_report_reads_plain_runs_and_filters(tmp_path):
     assert md.index("| reach-v3 | ppo |") < md.index("| reach-v3 | ndp |")
     with pytest.raises(ValueError, match="no runs of the methods"):
         report([runs], tmp_path / "r", "cmd", methods=["dyne"])
+    # a wrong method beside a right task is named as the method (it was "no runs of the tasks")
+    with pytest.raises(ValueError, match=r"no runs of the methods \['dyne'\] .*found: ndp, ppo"):
+        report([runs], tmp_path / "r", "cmd", tasks=["reach-v3"], methods=["dyne"])
+    # the report's own arguments are checked before any run is read
+    for kw, msg in (({"seeds": [-1]}, "seeds: expected integers >= 0"),
+                    ({"budgets": [0]}, "budgets: expected env steps > 0")):  # fmt: skip
+        with pytest.raises(ValueError, match=msg):
+            report([tmp_path / "nope"], tmp_path / "r2", "cmd", **kw)
     with pytest.raises(FileNotFoundError):
         report([tmp_path / "nope"], tmp_path / "r", "cmd")
 

@@ -256,17 +256,20 @@ def build_cells(
     and ``methods`` when given), the expected seeds. ``arm_tasks``: labels that run on some
     tasks only (a study's arms with ``tasks``) get no cell, so no missing seeds, elsewhere."""
     only = arm_tasks or {}
+    # each filter against every run found (a wrong --methods is named as such, not as tasks)
+    for what, asked, found in (
+        ("tasks", tasks, {i.task for i in infos}),
+        ("methods", methods, {i.label for i in infos}),
+    ):
+        unknown = sorted(set(asked or ()) - found)
+        if unknown:
+            raise ValueError(
+                f"report: no runs of the {what} {unknown} in these directories (found: "
+                f"{', '.join(sorted(found)) or 'none'})"
+            )
     infos = [
         i for i in infos if (not tasks or i.task in tasks) and (not methods or i.label in methods)
     ]
-    if tasks:
-        unknown = sorted(set(tasks) - {i.task for i in infos})
-        if unknown:
-            raise ValueError(f"report: no runs of the tasks {unknown} in these directories")
-    if methods:
-        unknown = sorted(set(methods) - {i.label for i in infos})
-        if unknown:
-            raise ValueError(f"report: no runs of the methods {unknown} in these directories")
     expected = sorted(set(seeds) if seeds else {i.seed for i in infos})
     cells: dict[tuple[str, str], Cell] = {}
     by_kind: dict[str, list[RunInfo]] = {}
@@ -395,6 +398,7 @@ def report(
         ValueError: no runs, or two runs of one cell and seed.
     """
     check_report_stem(Path(out))  # before reading any run
+    _check_args(budgets, eval_episodes, seeds)
     sc = _scope(run_dirs, study, tasks, methods)
     cells, expected = build_cells(sc.infos, seeds, sc.tasks, sc.methods, sc.arm_tasks)
     if any(c.missing for c in cells) and not allow_missing:
@@ -503,14 +507,23 @@ def _budgets(
     budgets: Sequence[float] | None, rl_cells: Sequence[Cell], eval_episodes: int
 ) -> list[int]:
     """The env steps the success table reports at (``budgets``, else a quarter, half and all
-    of the largest run's budget); checks ``budgets`` and ``eval_episodes``."""
+    of the largest run's budget); ``budgets`` checked by :func:`_check_args`."""
     top = max((i.steps for c in rl_cells for i in c.runs.values()), default=0)
+    return sorted({int(b) for b in (budgets or [top / 4, top / 2, top]) if b > 0})
+
+
+def _check_args(
+    budgets: Sequence[float] | None, eval_episodes: int, seeds: Sequence[int] | None
+) -> None:
+    """The report's own arguments, before any run is read (ValueError naming the argument)."""
     for b in budgets or ():
         if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b <= 0:
             raise ValueError(f"budgets: expected env steps > 0, got {b!r}")
     if isinstance(eval_episodes, bool) or not isinstance(eval_episodes, int) or eval_episodes < 0:
         raise ValueError(f"eval_episodes: expected an integer >= 0, got {eval_episodes!r}")
-    return sorted({int(b) for b in (budgets or [top / 4, top / 2, top]) if b > 0})
+    bad = [x for x in seeds or () if isinstance(x, bool) or not isinstance(x, int) or x < 0]
+    if bad:
+        raise ValueError(f"seeds: expected integers >= 0, got {bad}")
 
 
 def _study_sections(

@@ -23,6 +23,9 @@ def test_demo_dmp_part_writes_figure_and_summary(tmp_path):
     assert png.is_file() and png.stat().st_size > 10_000
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert summary["dmp"]["fit_mse_px2"] < 1e-2
+    (tmp_path / "a-file").write_text("mine\n")  # --out naming a file: one line, file kept
+    assert main(["demo", "--out", str(tmp_path / "a-file"), "--skip", "il", "rl"]) == 2
+    assert (tmp_path / "a-file").read_text() == "mine\n"
 
 
 def test_console_script_runs_and_rejects_unknown_command():

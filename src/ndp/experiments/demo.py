@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ndp.io import atomic_write_text
+from ndp.io import atomic_write_text, check_output_path
 
 
 def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
@@ -106,8 +106,7 @@ _PARTS = (
 
 
 def run(args: argparse.Namespace) -> int:
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_output_path(args.out, "out", folder=True)  # a file there: one line naming --out
     summary: dict[str, Any] = {}
     t0 = time.perf_counter()
     print("[1] DMP rollouts ...", flush=True)

@@ -170,7 +170,9 @@ def test_ppo_and_dyne_runs_write_run_json_and_finish_it(tmp_path, algo):
     if algo == "dyne":
         from ndp.rl.config import DyneConfig
 
-        extra = {"dyne": DyneConfig(explore_steps=260, embed_updates=5, decoder_updates=5)}
+        extra = {
+            "dyne": DyneConfig(explore_steps=260, embed_updates=5, decoder_updates=5, batch_size=16)
+        }
     cfg = TrainConfig(
         task="point-mass",
         algo=algo,

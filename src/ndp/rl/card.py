@@ -26,6 +26,7 @@ import numpy as np
 from ndp.io import atomic_write_text
 from ndp.policies.config import DMP_HEADS
 from ndp.rl.methods import METHODS
+from ndp.runs.layout import CHECKPOINT_NAME, CONFIG_NAME, METRICS_NAME
 
 NOT_RECORDED = "not recorded"
 """The value of a card field the export does not record."""
@@ -217,8 +218,6 @@ def check_export_dir(out: Path, files: tuple[str, ...]) -> None:
     already holds a file the export writes (``files``, the model card ``README.md`` or its
     ``.eval_results/``): nothing already there is overwritten. FileExistsError naming
     ``out_dir``."""
-    from ndp.runs.layout import CHECKPOINT_NAME, CONFIG_NAME, METRICS_NAME
-
     run_files = [n for n in (CHECKPOINT_NAME, METRICS_NAME, CONFIG_NAME) if (out / n).exists()]
     if run_files:
         raise FileExistsError(

@@ -553,3 +553,21 @@ def test_a_failed_run_shows_the_trainers_reason_not_the_parser_box(tmp_path):
     tail = sw_runner._log_tail(log, 0)
     assert "Error parsing --lr: could not convert string to float: 'abc'" in tail
     assert "╭" not in tail and "│" not in tail
+
+
+def test_a_sweep_that_fails_to_start_leaves_no_empty_runs_directory(tmp_path, monkeypatch, capsys):
+    """A backend that cannot start (a Ray cluster out of reach) must not leave the runs folder
+    it just made behind, empty; a folder that existed before is kept."""
+
+    def unreachable(*args, **kwargs):
+        raise ConnectionError("Failed to connect to Ray cluster at 10.0.0.1:6379")
+
+    monkeypatch.setattr(sw, "run_sweep", unreachable)
+    new = tmp_path / "new"
+    assert main(["sweep", *TINY, "--methods", "ppo", "--runs-dir", str(new)]) != 0
+    assert not new.exists()
+    old = tmp_path / "old"
+    old.mkdir()
+    assert main(["sweep", *TINY, "--methods", "ppo", "--runs-dir", str(old)]) != 0
+    assert old.is_dir()
+    capsys.readouterr()

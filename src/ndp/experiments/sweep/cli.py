@@ -337,6 +337,7 @@ def sweep_command(argv: list[str]) -> int:
     from ndp.io import check_output_path
 
     # the same check in a dry run as in a real one (nothing is made in a dry run)
+    made_here = not Path(runs_dir).exists()
     check_output_path(runs_dir, "runs_dir", folder=True, create=not args.dry_run)
     jobs_at_once = args.jobs or default_workers()
     vector = args.vector or default_vector(jobs_at_once)
@@ -366,15 +367,20 @@ def sweep_command(argv: list[str]) -> int:
         if args.pack is not None:
             _pack(jobs, args.pack, args.pack_unfinished)
         return 0
-    result = run_sweep(
-        jobs,
-        backend=args.backend,
-        workers=args.jobs,
-        address=args.address,
-        retries=args.retries,
-        wait_busy=args.wait_busy,
-        progress_every=args.progress_every,
-    )
+    try:
+        result = run_sweep(
+            jobs,
+            backend=args.backend,
+            workers=args.jobs,
+            address=args.address,
+            retries=args.retries,
+            wait_busy=args.wait_busy,
+            progress_every=args.progress_every,
+        )
+    except BaseException:  # e.g. a Ray cluster that cannot be reached: no empty folder left
+        if made_here and Path(runs_dir).is_dir() and not any(Path(runs_dir).iterdir()):
+            Path(runs_dir).rmdir()
+        raise
     if args.pack is not None:
         _pack(jobs, args.pack, args.pack_unfinished)
     if args.report is not None and not result.interrupted:

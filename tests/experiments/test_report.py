@@ -629,3 +629,17 @@ def test_a_report_replaces_its_own_tables_and_nothing_else(tmp_path):
             report([tmp_path / "nope"], stem, "ndp report runs", plots=False)
         assert (tmp_path / name).read_text() == text
         assert not stem.with_suffix(".csv" if name.endswith(".md") else ".md").exists()
+
+
+def test_a_dotted_report_stem_keeps_every_file_together(tmp_path):
+    """``--out v1.2`` wrote v1.md / v1.csv beside v1.2-<task>.png (Path.with_suffix); every file
+    now carries the whole stem, and ``--out r.md`` still writes r.md."""
+    runs = tmp_path / "runs"
+    for s in (0, 1):
+        _rl_run(runs, "reach-v3", "ppo", s, 1.0, arm=False)
+    res = report([runs], tmp_path / "v1.2", "ndp report runs")
+    assert res["markdown"] == str(tmp_path / "v1.2.md") and res["csv"] == str(tmp_path / "v1.2.csv")
+    assert all(Path(p).name.startswith("v1.2-") for p in res["png"]) and res["png"]
+    assert not (tmp_path / "v1.md").exists()
+    plain = report([runs], tmp_path / "r.md", "cmd", plots=False)
+    assert plain["markdown"] == str(tmp_path / "r.md")

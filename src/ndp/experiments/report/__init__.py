@@ -326,6 +326,20 @@ def _missing_message(cells: Sequence[Cell], expected: Sequence[int]) -> str:
     )
 
 
+def report_stem(out: str | Path) -> Path:
+    """The report's stem: ``--out`` as given, without a trailing ``.md`` / ``.csv`` (so
+    ``--out r.md`` writes ``r.md``, as before); a dot inside a name is kept (``--out v1.2``
+    writes ``v1.2.md`` and ``v1.2-<task>.png``, not ``v1.md`` beside ``v1.2-*.png``)."""
+    out = Path(out)
+    return out.with_suffix("") if out.suffix in (".md", ".csv") else out
+
+
+def _ext(stem: Path, ext: str) -> Path:
+    """``<stem><ext>``: the extension appended to the stem's name, never replacing a part of
+    it."""
+    return stem.with_name(stem.name + ext)
+
+
 def _is_generated_md(head: str) -> bool:
     """The package's generated markdown: a ``Command: `...``` line, then ``Commit: ...``, in
     its first 10 lines (``ndp report``, ``ndp sweep --report``, the benchmarks' tables)."""
@@ -347,8 +361,8 @@ def check_report_stem(out: Path) -> None:
     committed table relies on) and nothing else: an existing ``<out>.md`` without the
     ``Command:`` / ``Commit:`` lines, or ``<out>.csv`` without a ``command`` column, is
     refused (FileExistsError naming ``out``) before any run is read."""
-    checks = ((out.with_suffix(".md"), _is_generated_md),
-              (out.with_suffix(".csv"), _is_generated_csv))  # fmt: skip
+    checks = ((_ext(out, ".md"), _is_generated_md),
+              (_ext(out, ".csv"), _is_generated_csv))  # fmt: skip
     for path, is_report in checks:
         if not path.is_file():
             continue
@@ -397,7 +411,8 @@ def report(
         MissingSeedsError: cells lack seeds and not ``allow_missing`` (nothing written).
         ValueError: no runs, or two runs of one cell and seed.
     """
-    check_report_stem(Path(out))  # before reading any run
+    out = report_stem(out)
+    check_report_stem(out)  # before reading any run
     _check_args(budgets, eval_episodes, seeds)
     sc = _scope(run_dirs, study, tasks, methods)
     cells, expected = build_cells(sc.infos, seeds, sc.tasks, sc.methods, sc.arm_tasks)
@@ -424,20 +439,20 @@ def report(
     check_output_path(out, "out")
     pngs = _plot_all(rl_cells, il_cells, out, prov) if plots else []
     rows = _csv_rows(rl_cells, [*il_cells, *bc_cells], at_steps, expected, prov)
-    _write_csv(out.with_suffix(".csv"), rows)
+    _write_csv(_ext(out, ".csv"), rows)
     md = _markdown(title, rl_cells, il_cells, at_steps, expected, prov, pngs, out, eval_episodes)
     if bc_cells:
         at = md.index("", md.index(next(x for x in md if x.startswith("Seeds per cell")))) + 1
         md[at:at] = _bc_markdown(bc_cells)
     pngs, extra_csv = _study_sections(md, pngs, tables, sc, expected, out, prov, plots)
-    atomic_write_text(out.with_suffix(".md"), "\n".join(md) + "\n")
+    atomic_write_text(_ext(out, ".md"), "\n".join(md) + "\n")
     return {
         **prov,
         "seeds": expected,
         "budgets": at_steps,
         "rows": rows,
-        "markdown": str(out.with_suffix(".md")),
-        "csv": str(out.with_suffix(".csv")),
+        "markdown": str(_ext(out, ".md")),
+        "csv": str(_ext(out, ".csv")),
         "section_csv": [str(p) for p in extra_csv],
         "png": [str(p) for p in pngs],
         "missing": [(c.task, c.label, c.missing) for c in cells if c.missing],
@@ -750,7 +765,7 @@ def _markdown(
             )
         md.append("")
     md += [f"![{p.stem}]({p.name})" for p in pngs]
-    md += ["", f"CSV: `{out.with_suffix('.csv').name}`."]
+    md += ["", f"CSV: `{_ext(out, '.csv').name}`."]
     return md
 
 

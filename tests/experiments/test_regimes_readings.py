@@ -209,6 +209,10 @@ def test_off_policy_report_takes_its_on_policy_arms_from_the_other_run_directory
     assert "| 0.003 | 1.000 |" in rows[2]
     assert "### Over tasks (2 tasks: push-v3, throw" in md
     assert "NDP-SAC's critic input (push-v3, throw)" in md  # its actions arm never ran
+    # P(NDP > X): only the methods a condition puts beside NDP, not the other conditions' arms
+    head = next(ln for ln in md.splitlines() if ln.startswith("| condition | P(NDP > "))
+    against = {c.split(",")[0].strip() for c in head.split("|") if "P(NDP > " in c}
+    assert against == {f"P(NDP > {m})" for m in ("sac", "sac-chunk", "ndp-sac", "ppo-multi", "ppo")}
     report([off], tmp_path / "o" / "op1", "ndp report", study="off-policy")
     md1 = (tmp_path / "o" / "op1.md").read_text()
     assert (

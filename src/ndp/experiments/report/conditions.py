@@ -278,7 +278,10 @@ def _over_tasks(
             rows.append(row)
             md.append(f"| {_name(cond)} | {m} | " + " | ".join(vals) + " |")
     md.append("")
-    others = [m for m in methods if m != "ndp"]
+    # the methods some condition puts beside NDP (a method only in conditions without NDP, e.g.
+    # the off-policy study's critic-input arms, would be a column of '-' in every row)
+    with_ndp = [dict(c.methods) for c in conditions if "ndp" in dict(c.methods)]
+    others = [m for m in methods if m != "ndp" and any(m in lab for lab in with_ndp)]
     if "ndp" in methods and others:
         shown = [(k, h) for k, h in metrics if k in (head, "area", "final", "det_final")]
         heads = [f"P(NDP > {o}), {h}" for o in others for _, h in shown]

@@ -91,16 +91,22 @@ def atomic_save_npz(path: str | os.PathLike[str], **arrays: Any) -> None:
 
 
 def check_output_path(
-    path: str | os.PathLike[str], name: str = "path", folder: bool = False, create: bool = True
+    path: str | os.PathLike[str],
+    name: str = "path",
+    folder: bool = False,
+    create: bool = True,
+    overwrite: bool | None = None,
 ) -> Path:
     """The one check of a path a command is about to write, before any expensive work: a file
     (``folder`` False: the file's folder is made if ``create``) or a folder (``folder`` True: made
     if ``create``). Without ``create`` nothing is made (a dry run) and the same problems are
-    found.
+    found. ``overwrite`` False: an existing file at ``path`` (one the user named) is refused;
+    None: not checked (the command's own outputs, regenerated in place).
 
     Raises:
         OSError: one line naming ``name`` and the path: a part of the path is a file; a folder
             where a file is to be written, or a file where a folder is; not writable.
+        FileExistsError: ``overwrite`` False and the file exists (``--overwrite`` replaces it).
     """
     path = Path(path)
     target_dir = path if folder else path.parent
@@ -108,6 +114,10 @@ def check_output_path(
         raise OSError(f"{name}: {path} is a file, not a folder")
     if not folder and path.is_dir():
         raise OSError(f"{name}: {path} is a folder; give a file name")
+    if overwrite is False and not folder and path.exists():
+        raise FileExistsError(
+            f"{name}: {path} exists; choose another path or pass --overwrite to replace it"
+        )
     # the deepest part of the path that exists must be a writable folder
     probe = target_dir
     while not probe.exists() and probe != probe.parent:

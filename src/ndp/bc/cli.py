@@ -42,9 +42,8 @@ def collect_command(argv: list[str]) -> int:
     out = Path(cfg.out)
     from ndp.io import check_output_path
 
-    check_output_path(out, "out")  # a part of the path a file, a folder, not writable
-    if out.exists() and not cfg.overwrite:
-        raise ValueError(f"out: {out} exists; use --overwrite to replace it")
+    # a part of the path a file, a folder, not writable; an existing file without --overwrite
+    check_output_path(out, "out", overwrite=cfg.overwrite)
     from ndp.bc.demos import collect, save_demos
 
     demos = collect(cfg.task, cfg.episodes, cfg.seed, cfg.keep_failures, cfg.horizon)

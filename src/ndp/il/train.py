@@ -660,11 +660,7 @@ def evaluate(
     if grid not in GRID_PICKS:
         raise ValueError(f"grid: expected one of {', '.join(GRID_PICKS)}, got {grid!r}")
     if out_png is not None:  # a path the user named: checked before any work
-        check_output_path(out_png, "png")
-        if Path(out_png).exists() and not overwrite:
-            raise FileExistsError(
-                f"png: {out_png} exists; choose another path or pass --overwrite to replace it"
-            )
+        check_output_path(out_png, "png", overwrite=overwrite)
     _set_threads(threads)
     path = Path(run_dir)
     ckpt = load_checkpoint(path)

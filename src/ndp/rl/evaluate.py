@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 
 from ndp.envs.base import check_render_size
-from ndp.envs.render import check_output_path, check_video_size, write_mp4
+from ndp.envs.render import check_video_size, write_mp4
+from ndp.io import check_output_path as check_path
 from ndp.rl.config import EVAL_SEED
 from ndp.rl.envs import FrameRecorder
 from ndp.rl.exec_k import exec_k_values
@@ -187,11 +188,8 @@ def render(
     os.environ.setdefault("MUJOCO_GL", "egl")
 
     target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
-    check_output_path(target)  # before rendering anything
-    if out is not None and target.exists() and not overwrite:  # a path the user named
-        raise FileExistsError(
-            f"out: {target} exists; choose another path or pass --overwrite to replace it"
-        )
+    # before rendering anything; an existing file at a path the user named needs overwrite
+    check_path(target, "out", overwrite=None if out is None else overwrite)
     for name, side in (("width", width), ("height", height)):
         if side is not None:
             check_render_size(name, side)  # before loading or rendering anything

@@ -34,14 +34,6 @@ class RobotState:
     DMP starts at rest (``dmp_velocity == "zero"``)."""
 
 
-def check_deterministic(value: Any) -> bool:
-    """``act``'s ``deterministic`` flag as a bool: True / False (numpy's too); anything else,
-    such as the truthy string ``"no"``, is refused (ValueError naming it)."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"deterministic: expected True or False, got {value!r}")
-    return bool(value)
-
-
 def check_act_inputs(
     obs: Any,
     info: Any,

@@ -10,8 +10,10 @@ truthy string. Nothing here imports numpy or torch.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
+import typing
 from typing import Any
 
 
@@ -20,6 +22,15 @@ def _numpy_bool(value: Any) -> bool:
     importing numpy."""
     t = type(value)
     return t.__module__ == "numpy" and t.__name__ in ("bool_", "bool")
+
+
+def check_flag(name: str, value: Any) -> bool:
+    """``value`` as a bool when it is True / False (numpy's bool too); anything else, such as
+    the truthy string ``"no"``, is refused (ValueError naming ``name``): a flag of the Python
+    API (``act(deterministic=)``, ``ChunkedEnv(stale_world=)``)."""
+    if not (isinstance(value, bool) or _numpy_bool(value)):
+        raise ValueError(f"{name}: expected True or False, got {value!r}")
+    return bool(value)
 
 
 def plain_number(value: Any) -> Any:
@@ -36,28 +47,17 @@ def plain_number(value: Any) -> Any:
     return value
 
 
-def bool_field(field: dataclasses.Field[Any]) -> tuple[bool, bool]:
-    """``(is a bool field, None allowed)`` from a dataclass field's annotation: ``bool``,
-    ``bool | None`` or ``Optional[bool]``, bare or inside ``Annotated[...]`` (a string
-    annotation under ``from __future__ import annotations`` or the type itself)."""
-    t = field.type
-    if t is bool:
-        return True, False
-    if not isinstance(t, str):
-        return False, False
-    t = t.replace(" ", "")
-    if t.startswith("Annotated["):
-        depth, end = 0, len(t)
-        for i, ch in enumerate(t[len("Annotated[") :], start=len("Annotated[")):
-            depth += ch == "["
-            depth -= ch == "]"
-            if ch == "," and depth == 0:
-                end = i
-                break
-        t = t[len("Annotated[") : end]
-    if t == "bool":
-        return True, False
-    return t in ("bool|None", "None|bool", "Optional[bool]"), True
+@functools.cache
+def _flag_fields(cls: type) -> dict[str, bool]:
+    """A dataclass's fields annotated ``bool`` (False) or ``bool | None`` (True: None allowed),
+    from its resolved annotations (``Annotated[...]`` extras stripped); once per class."""
+    out: dict[str, bool] = {}
+    for name, t in typing.get_type_hints(cls).items():
+        if t is bool:
+            out[name] = False
+        elif typing.get_origin(t) is not None and set(typing.get_args(t)) == {bool, type(None)}:
+            out[name] = True
+    return out
 
 
 def plain_numbers(config: Any) -> None:
@@ -71,10 +71,12 @@ def plain_numbers(config: Any) -> None:
         ValueError: ``<field>: expected a finite number, got nan``; ``<field>: expected true
             or false, got 'no'``.
     """
+    flags = _flag_fields(config.__class__)
     for f in dataclasses.fields(config):
         v = getattr(config, f.name)
-        is_bool, optional = bool_field(f)
-        if is_bool and not (isinstance(v, bool) or _numpy_bool(v) or (optional and v is None)):
+        if f.name in flags and not (
+            isinstance(v, bool) or _numpy_bool(v) or (flags[f.name] and v is None)
+        ):
             raise ValueError(f"{f.name}: expected true or false, got {v!r}")
         for x in v if isinstance(v, tuple) else (v,):
             if isinstance(x, numbers.Real) and not isinstance(x, bool) and not math.isfinite(x):

@@ -24,6 +24,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from ndp.checks import check_flag
 from ndp.chunk_info import ChunkInfo
 from ndp.envs.base import CTRL_INFO
 
@@ -97,8 +98,7 @@ class ChunkedEnv(gym.Wrapper):
             raise ValueError(
                 f"execution: expected one of {', '.join(EXECUTIONS)}, got {execution!r}"
             )
-        if not isinstance(stale_world, (bool, np.bool_)):  # "no" would apply the rule
-            raise ValueError(f"stale_world: expected True or False, got {stale_world!r}")
+        check_flag("stale_world", stale_world)  # "no" would apply the rule
         self.execution = str(execution)
         box = env.action_space
         if not isinstance(box, spaces.Box) or len(box.shape) != 1:

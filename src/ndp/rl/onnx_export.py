@@ -38,7 +38,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from ndp.act_inputs import check_act_inputs, check_deterministic
+from ndp.act_inputs import check_act_inputs
+from ndp.checks import check_flag
 from ndp.chunk_info import frame_of_keys
 from ndp.io import atomic_write_bytes, check_output_path
 from ndp.provenance import git_commit, installed_versions
@@ -356,7 +357,7 @@ class OnnxPolicy:
         refuses what it refuses, with the same one-line messages (:mod:`ndp.act_inputs`).
         ``deterministic=False`` is refused: the graph holds the mode only (sample with the
         torch policy, ``ndp.load_policy`` of the run or its safetensors export)."""
-        if not check_deterministic(deterministic):
+        if not check_flag("deterministic", deterministic):
             raise ValueError(
                 "deterministic: an ONNX export holds the deterministic decision only; sample "
                 "with the torch policy (ndp.load_policy of the run or its safetensors export)"

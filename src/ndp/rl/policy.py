@@ -54,7 +54,8 @@ import torch
 
 import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
 from ndp import zoo
-from ndp.act_inputs import RobotState, check_act_inputs, check_deterministic
+from ndp.act_inputs import RobotState, check_act_inputs
+from ndp.checks import check_flag
 from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
@@ -178,7 +179,7 @@ class Policy:
             each of its sub-actions held for K / k env steps of the finer env, whose per-step
             action scale is 1 / m of the trained one: the same displacement per decision.
         """
-        deterministic = check_deterministic(deterministic)  # "no" would act as True
+        deterministic = check_flag("deterministic", deterministic)  # "no" would act as True
         o, y0, dy0, single = check_act_inputs(
             obs,
             info,

@@ -357,8 +357,11 @@ def _off_policy_arms() -> tuple[ArmSpec, ...]:
         ArmSpec("sac", "sac", (), "SAC, one action per env step"),
         ArmSpec("sac-chunk-k5", "sac-chunk", (), "chunked SAC, k = 5 (critic of the chunk)"),
         ArmSpec("ndp-sac-k5", "ndp-sac", (), "NDP-SAC, k = 5, critic of (s, DMP parameters)"),
+        # reading A's arm, registered on push-v3 only (docs/offpolicy.md); were A to keep the
+        # actions input, B-D would need this arm on Throw too, by widening ``tasks``
         ArmSpec("ndp-sac-act-k5", "ndp-sac", ("--sac-critic-input", "actions"),
-                "NDP-SAC, k = 5, critic of (s, the k actions)", in_default=False),
+                "NDP-SAC, k = 5, critic of (s, the k actions)", in_default=False,
+                tasks=("push-v3",)),
         # post-hoc (2026-12-05, after NDP-SAC's critic ran away on push-v3 and the sac-critic
         # study's first seed kept a LayerNorm critic bounded): both chunk learners with LayerNorm
         # critics, on push-v3 only, run only when named (reading E)

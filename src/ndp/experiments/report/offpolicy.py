@@ -7,7 +7,8 @@ reading whose arms lack seeds says which it waits for.
 
 A. NDP-SAC's critic input (push-v3 only): keep the input whose arm has the higher mean area; if
    the two are within :data:`CRITIC_MARGIN`, keep ``params`` (``ndp-sac-k5``). The kept arm is
-   "NDP-SAC" in B-D (``ndp-sac-act-k5`` then needs runs on every task).
+   "NDP-SAC" in B-D (``ndp-sac-act-k5`` then needs runs on every task: its arm, registered on
+   push-v3 only, would be widened).
 B. The DMP head under an off-policy learner: NDP-SAC against chunked SAC at the same k (same
    learner, same critic family, only the action parameterisation differs). It **helps** if
    NDP-SAC's mean is above chunked SAC's on every task with the stratified exact permutation

@@ -168,7 +168,8 @@ def test_chunked_env_ids_and_unknown_family(monkeypatch):
 
 
 def test_video_output_checked_before_work_and_written_atomically(tmp_path):
-    from ndp.envs.render import check_output_path, write_mp4
+    from ndp.envs.render import write_mp4
+    from ndp.io import check_output_path
 
     blocker = tmp_path / "file"
     blocker.write_text("x")

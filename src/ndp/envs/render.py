@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ndp.io import check_output_path as check_path
+from ndp.io import check_output_path
 
 
 def check_video_size(name: str, value: int) -> int:
@@ -60,7 +60,7 @@ def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> 
             )
     check_video_size("height", shape[0])
     check_video_size("width", shape[1])
-    path = check_output_path(path)
+    path = check_output_path(path, "path")
     # written beside the target, then moved into place: a failed write leaves no partial file
     # and an existing video intact
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
@@ -80,10 +80,3 @@ def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> 
         if tmp.exists():
             tmp.unlink()
     return path
-
-
-def check_output_path(path: str | Path) -> Path:
-    """Make ``path``'s folder (if needed) and check that a file can be written there, before
-    any expensive work (:func:`ndp.io.check_output_path`); raises ``OSError`` in one line
-    naming the path and the cause."""
-    return check_path(path, "path")

@@ -12,7 +12,7 @@ import numpy as np
 
 from ndp.envs.base import check_render_size
 from ndp.envs.render import check_video_size, write_mp4
-from ndp.io import check_output_path as check_path
+from ndp.io import check_output_path
 from ndp.rl.config import EVAL_SEED
 from ndp.rl.envs import FrameRecorder
 from ndp.rl.exec_k import exec_k_values
@@ -189,7 +189,7 @@ def render(
 
     target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
     # before rendering anything; an existing file at a path the user named needs overwrite
-    check_path(target, "out", overwrite=None if out is None else overwrite)
+    check_output_path(target, "out", overwrite=None if out is None else overwrite)
     for name, side in (("width", width), ("height", height)):
         if side is not None:
             check_render_size(name, side)  # before loading or rendering anything

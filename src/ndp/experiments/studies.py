@@ -371,7 +371,31 @@ def _off_policy_arms() -> tuple[ArmSpec, ...]:
         ArmSpec("sac-chunk-ln-k5", "sac-chunk", ("--sac-critic-layer-norm",),
                 "chunked SAC, k = 5, LayerNorm critics (post-hoc)", in_default=False,
                 tasks=("push-v3",)),
+        # the confound arms of docs/rl-release.md part 3 (pre-registered 2026-12-06): the live
+        # reward SAC at k = 1 always had, and one gradient step per stored decision (SAC's
+        # replay ratio; the k-step arms take k per decision); run only when named
+        *_live_arms(),
     )  # fmt: skip
+
+
+OFF_POLICY_UTD1 = ("--sac-updates-per-step", "0.2")
+"""One gradient step per stored decision at k = 5 (0.2 per env step; the default is k)."""
+
+
+def _live_arms() -> tuple[ArmSpec, ...]:
+    """Chunked SAC and NDP-SAC on the live reward, at k gradient steps and at one per decision."""
+    live = ("--no-stale-world",)
+    out = []
+    for label, method, what in (("sac-chunk", "sac-chunk", "chunked SAC"),
+                                ("ndp-sac", "ndp-sac", "NDP-SAC")):  # fmt: skip
+        out += [
+            ArmSpec(f"{label}-live-k5", method, live, f"{what}, k = 5, live reward",
+                    in_default=False),
+            ArmSpec(f"{label}-live-utd1-k5", method, (*live, *OFF_POLICY_UTD1),
+                    f"{what}, k = 5, live reward, one gradient step per decision",
+                    in_default=False),
+        ]  # fmt: skip
+    return tuple(out)
 
 
 OFF_POLICY_CONDITIONS = (
@@ -389,6 +413,16 @@ OFF_POLICY_CONDITIONS = (
               (("sac-chunk (LayerNorm)", "sac-chunk-ln-k5"),
                ("ndp-sac (LayerNorm)", "ndp-sac-ln-k5"), ("sac-chunk (plain)", "sac-chunk-k5"),
                ("ndp-sac (plain)", "ndp-sac-k5"))),
+    Condition("live reward, k = 5", "every learner on the env's own reward at every sub-step "
+              "(chunked SAC, NDP-SAC, NDP and PPO-multi with --no-stale-world; SAC and PPO: "
+              "k = 1); docs/rl-release.md part 3, reading 4",
+              (("sac", "sac"), ("sac-chunk", "sac-chunk-live-k5"), ("ndp-sac", "ndp-sac-live-k5"),
+               ("ndp", "ndp-nostale"), ("ppo-multi", "ppo-multi-nostale"), ("ppo", "ppo"))),
+    Condition("live reward, one update per decision", "chunked SAC and NDP-SAC on the live "
+              "reward with one gradient step per stored decision (SAC's replay ratio), beside "
+              "SAC; docs/rl-release.md part 3, reading 5",
+              (("sac", "sac"), ("sac-chunk", "sac-chunk-live-utd1-k5"),
+               ("ndp-sac", "ndp-sac-live-utd1-k5"))),
 )  # fmt: skip
 """The off-policy study's table: its SAC arms beside ndp-regimes' fair on-policy arms."""
 
@@ -458,11 +492,15 @@ RELEASE_ALL_MW = (
 """Every release condition our code has, for one method on a Meta-World task: v1 rewards, the
 release's goals for this method on this task (ndp.envs.release.release_goals), the 9-D
 observation, entropy 0.01 and the clipped value loss, 500 env steps per update. Chunked methods
-add the first-held execution (and PPO-multi the live reward at every sub-step: the release's
-stale rule was NDP's only). Not reproducible here: the linear lr decay over 25,000 updates (at
-300k env steps it would have lowered the lr by 2.4%), the vendored pre-v1 Meta-World and push's
-4x timestep."""
+add the first-held execution and keep the stale-world reward: the release built NDP and
+PPO-multi alike with ``reward_delay=T`` (its main_rl.py). The first release-all arm of PPO-multi
+(``ppo-multi-rall``) took the live reward instead, on the mistaken reading that the stale rule
+was NDP's only: it is kept, labelled as that deviation. Not reproducible here: the linear lr
+decay over 25,000 updates (at 300k env steps it would have lowered the lr by 2.4%), the vendored
+pre-v1 Meta-World and push's 4x timestep."""
 FIRST_HELD = ("--execution", "first-held")
+RELEASE_RATIO = ("--first-held-ratio", "release")
+"""The release's PPO ratio under first-held execution, pi_j,new(a_0) / pi_0,old(a_0)."""
 
 
 def _explained_arms() -> tuple[ArmSpec, ...]:
@@ -479,8 +517,17 @@ def _explained_arms() -> tuple[ArmSpec, ...]:
         ArmSpec("ndp-rall", "ndp", (*RELEASE_ALL_MW, *FIRST_HELD),
                 "release-all: every release condition at once", tasks=mw),
         ArmSpec("ppo-multi-rall", "ppo-multi", (*RELEASE_ALL_MW, *FIRST_HELD, "--no-stale-world"),
-                "release-all (live reward at every sub-step, as the release's PPO-multi)",
-                tasks=mw),
+                "release-all, deviation: PPO-multi on the live reward (the release gave it the "
+                "stale rule)", tasks=mw),
+        # release-all as released (issue "release explained, part 3"): PPO-multi on the stale
+        # rule as the release ran it, and both chunked methods with the release's ratio
+        ArmSpec("ppo-multi-rall-stale", "ppo-multi", (*RELEASE_ALL_MW, *FIRST_HELD),
+                "release-all as released: PPO-multi on the stale-world reward", tasks=mw),
+        ArmSpec("ndp-rall-rr", "ndp", (*RELEASE_ALL_MW, *FIRST_HELD, *RELEASE_RATIO),
+                "release-all as released, with the release's first-held PPO ratio", tasks=mw),
+        ArmSpec("ppo-multi-rall-rr", "ppo-multi", (*RELEASE_ALL_MW, *FIRST_HELD, *RELEASE_RATIO),
+                "release-all as released (stale world), with the release's first-held PPO "
+                "ratio", tasks=mw),
         ArmSpec("ppo-rall", "ppo", RELEASE_ALL_MW, "release-all (random goals on push / soccer)",
                 tasks=mw),
         # the release's execution on push (v1, the release's one goal) ...
@@ -522,8 +569,19 @@ EXPLAINED_CONDITIONS = (
     Condition("release-all",
               "every release condition at once: v1 rewards, the release's goals per task (PPO "
               "random on push / soccer), first-held execution, 9-D observation, entropy 0.01, "
-              "clipped value loss, 500 env steps per update",
+              "clipped value loss, 500 env steps per update; deviation: PPO-multi on the live "
+              "reward (the release gave it the stale rule; see 'release-all as released')",
               (("ndp", "ndp-rall"), ("ppo-multi", "ppo-multi-rall"), ("ppo", "ppo-rall")),
+              True),
+    Condition("release-all as released",
+              "release-all with the stale-world reward for NDP and PPO-multi, as the release ran "
+              "both; our first-held ratio (each sub-step's own sample)",
+              (("ndp", "ndp-rall"), ("ppo-multi", "ppo-multi-rall-stale"), ("ppo", "ppo-rall")),
+              True),
+    Condition("release-all as released, release ratio",
+              "release-all as released with the release's first-held PPO ratio "
+              "pi_j,new(a_0) / pi_0,old(a_0) for NDP and PPO-multi",
+              (("ndp", "ndp-rall-rr"), ("ppo-multi", "ppo-multi-rall-rr"), ("ppo", "ppo-rall")),
               True),
     Condition("push: release goal, all executed",
               "push only: v1 rewards, the release's one goal for every method",

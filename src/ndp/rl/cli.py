@@ -17,7 +17,7 @@ import json
 import sys
 from typing import Any
 
-from ndp.rl.config import EVAL_SEED, TrainConfig
+from ndp.rl.config import EVAL_SEED, FRESH_EVAL_SEED, TrainConfig
 
 TRAIN_NOTES = (
     "Unset NDP fields come "
@@ -64,7 +64,19 @@ def add_subparser(sub: Any) -> None:
     ev = rl_sub.add_parser("eval", help="success of a trained run over N episodes")
     ev.add_argument("run_dir", metavar="RUN_DIR")
     ev.add_argument("--episodes", type=int, default=10, help="episodes per mode (default 10)")
-    ev.add_argument("--seed", type=int, default=EVAL_SEED, help="first episode seed")
+    ev.add_argument(
+        "--seed",
+        type=int,
+        default=EVAL_SEED,
+        help=f"first episode seed (default {EVAL_SEED:,}, the periodic evaluation's; re-score "
+        f"final policies on fresh seeds with --seed {FRESH_EVAL_SEED})",
+    )
+    ev.add_argument(
+        "--save",
+        action="store_true",
+        help="also write each evaluation into the run (eval-<det|sto>-e<N>-s<seed>.json: the "
+        "protocol, success with its Wilson 95%% interval, return), read by reports and cards",
+    )
     ev.add_argument(
         "--mode",
         choices=("both", "deterministic", "stochastic"),
@@ -230,7 +242,7 @@ def _cmd_methods(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from ndp.rl.evaluate import evaluate
+    from ndp.rl.evaluate import evaluate, save_evaluation
 
     modes = {"both": (True, False), "deterministic": (True,), "stochastic": (False,)}[args.mode]
     values = args.exec_k if args.exec_k is not None else [None]
@@ -243,7 +255,10 @@ def _cmd_eval(args: argparse.Namespace) -> int:
             substeps_for(trained, k2)
     for det in modes:
         for k2 in values:
-            print(json.dumps(evaluate(args.run_dir, args.episodes, det, args.seed, k2)), flush=True)
+            result = evaluate(args.run_dir, args.episodes, det, args.seed, k2)
+            if args.save:
+                result["saved"] = str(save_evaluation(args.run_dir, result, args.seed))
+            print(json.dumps(result), flush=True)
     return 0
 
 

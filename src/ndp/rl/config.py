@@ -34,11 +34,18 @@ EVAL_SEED = 10_000
 ``ndp rl eval``, ``ndp rl render``, the report's cached evaluation, the smoothness study and the
 SB3 runs. Training resets draw 32-bit seeds from ``SeedSequence([seed, epoch])``
 (:func:`ndp.rl.envs.env_seeds`), so evaluation episodes are fresh ones."""
+FRESH_EVAL_SEED = 20_000
+"""Reset seed of the first episode of a re-scoring of final policies (``ndp rl eval --episodes
+100 --seed 20000 --save``): disjoint from the periodic evaluation's fixed seeds (from
+:data:`EVAL_SEED`, at most a few hundred) and from training's 32-bit seeds drawn from
+``SeedSequence`` (a collision with 100 small seeds is improbable, not impossible)."""
 
 GOALS = ("random", "per-seed", "release", "as-release")
 """Values of ``TrainConfig.goals``."""
 EXECUTIONS = ("all", "first-held")
 """Values of ``TrainConfig.execution`` (``ndp.envs.chunked.EXECUTIONS``)."""
+FIRST_HELD_RATIOS = ("own", "release")
+"""Values of ``TrainConfig.first_held_ratio``."""
 
 SAFE_ON_RESUME = (
     "progress",
@@ -244,9 +251,15 @@ class TrainConfig:
     the same."""
     execution: str = "all"
     """How a decision's k sub-actions run: 'all' (each in turn) or 'first-held' (only the first,
-    held for the k env steps, while the update pairs each sub-step's advantage with its own
-    sub-action's log-prob: the 2021 release's defect, reproduced as a labelled condition for
-    chunked methods; no effect at k = 1)."""
+    held for the k env steps: the 2021 release's defect, reproduced as a labelled condition for
+    chunked methods; no effect at k = 1). The update's ratio per sub-step under 'first-held' is
+    ``first_held_ratio``'s."""
+    first_held_ratio: str = "own"
+    """The PPO ratio of sub-step j under ``execution='first-held'``: 'own' (sub-step j's own,
+    un-executed sample a_j: pi_j,new(a_j) / pi_j,old(a_j)) or 'release' (the 2021 release's:
+    the executed a_0 scored under sub-step j's new distribution against sub-step 0's old one,
+    pi_j,new(a_0) / pi_0,old(a_0); ``ndp.rl.onpolicy.losses.release_first_held``). 'release'
+    needs ``execution='first-held'`` and a per-sub-action distribution (not parameter noise)."""
     observation: str = "full"
     """'full' (the task's observation) or 'release9' (Meta-World only: the 2021 release's 9
     values, hand, object and goal xyz)."""
@@ -307,6 +320,16 @@ class TrainConfig:
         if self.execution not in EXECUTIONS:
             raise ValueError(
                 f"execution: expected one of {', '.join(EXECUTIONS)}, got {self.execution!r}"
+            )
+        if self.first_held_ratio not in FIRST_HELD_RATIOS:
+            raise ValueError(
+                f"first_held_ratio: expected one of {', '.join(FIRST_HELD_RATIOS)}, "
+                f"got {self.first_held_ratio!r}"
+            )
+        if self.first_held_ratio == "release" and self.execution != "first-held":
+            raise ValueError(
+                "first_held_ratio: 'release' scores the executed first sub-action and needs "
+                f"execution='first-held', got execution={self.execution!r}"
             )
         _check_device(self.device)
         if self.vector not in ("auto", "sync", "workers", "async"):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from collections.abc import Sequence
@@ -12,13 +13,25 @@ import numpy as np
 
 from ndp.envs.base import check_render_size
 from ndp.envs.render import check_video_size, write_mp4
-from ndp.io import check_output_path
+from ndp.io import atomic_write_text, check_output_path
+from ndp.provenance import git_commit
 from ndp.rl.config import EVAL_SEED
 from ndp.rl.envs import FrameRecorder
 from ndp.rl.exec_k import exec_k_values
 from ndp.rl.policy import Policy, load_policy
 
-__all__ = ["Policy", "evaluate", "evaluate_policy", "load_policy", "render"]
+__all__ = [
+    "Policy",
+    "evaluate",
+    "evaluate_policy",
+    "load_policy",
+    "render",
+    "save_evaluation",
+    "wilson_interval",
+]
+
+EVAL_FILE = "eval-{mode}-e{episodes}-s{seed}{exec_k}.json"
+"""A saved evaluation in the run directory (:func:`save_evaluation`): mode 'det' or 'sto'."""
 
 
 def _check_episodes(episodes: Any, seed: Any) -> None:
@@ -27,6 +40,66 @@ def _check_episodes(episodes: Any, seed: Any) -> None:
         raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed: expected an integer >= 0 (the first episode seed), got {seed!r}")
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion (95% at the default ``z``).
+
+    Args:
+        successes: successes, 0 <= successes <= n.
+        n: trials, >= 1.
+
+    Returns:
+        ``(low, high)`` in [0, 1]; unlike the normal approximation it stays inside [0, 1] and is
+        not empty at 0 or n successes.
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n: expected an integer >= 1, got {n!r}")
+    if not (0 <= successes <= n):
+        raise ValueError(f"successes: expected an integer in [0, {n}], got {successes!r}")
+    p = successes / n
+    den = 1.0 + z * z / n
+    mid = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return max(0.0, mid - half), min(1.0, mid + half)
+
+
+def save_evaluation(run_dir: str | Path, result: dict[str, Any], seed: int) -> Path:
+    """Write an :func:`evaluate` result into the run (atomic; one file per protocol, replaced
+    when the same protocol is evaluated again) with the protocol and the Wilson 95% interval
+    of the success at any step.
+
+    Args:
+        run_dir: the evaluated run directory.
+        result: :func:`evaluate`'s dict.
+        seed: the first episode seed the evaluation used.
+
+    Returns:
+        The file written: ``<run_dir>/eval-<det|sto>-e<episodes>-s<seed>[-k<K2>].json``.
+    """
+    n = int(result["episodes"])
+    successes = round(float(result["success_any"]) * n)
+    low, high = wilson_interval(successes, n)
+    mode = "det" if result["deterministic"] else "sto"
+    k2 = result.get("exec_k")
+    trained_k = result.get("m", 1) == 1
+    name = EVAL_FILE.format(mode=mode, episodes=n, seed=seed, exec_k="" if trained_k else f"-k{k2}")
+    data = {
+        **result,
+        "protocol": {
+            "episodes": n,
+            "seeds": [seed, seed + n - 1],
+            "policy": "mode of the distribution" if result["deterministic"] else "sampled",
+            "success": "success at any step of the episode",
+        },
+        "success_any_count": successes,
+        "success_any_wilson95": [low, high],
+        "evaluated_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "evaluated_by_commit": git_commit(),
+    }
+    path = Path(run_dir) / name
+    atomic_write_text(path, json.dumps(data, indent=1) + "\n")
+    return path
 
 
 def run_episode(pol: Policy, env: Any, seed: int, deterministic: bool) -> dict[str, float]:

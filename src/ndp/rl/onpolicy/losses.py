@@ -50,6 +50,31 @@ def policy_loss(
     return loss, approx_kl, clipfrac
 
 
+def release_first_held(z: torch.Tensor, logp: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The 2021 release's pairing under first-held execution, applied to a rollout decision.
+
+    The release ran only sub-action 0 of a decision (held k steps) and stored, at every sub-step
+    j, that executed sample a_0 with its log-prob under sub-step 0's distribution; its update
+    scored the stored a_0 under sub-step j's distribution. Storing ``z`` and ``logp`` as returned
+    here makes :func:`policy_loss` (and the fused Gaussian loss) compute the release's ratio
+    ``pi_j,new(a_0) / pi_0,old(a_0)`` at sub-step j.
+
+    Args:
+        z: [B, k, A] the decision's samples (sub-step j's own a_j in row j).
+        logp: [B, k] their log-probs at collection time, log pi_j,old(a_j).
+
+    Returns:
+        ``(z', logp')``: z' [B, k, A] with every row the executed a_0; logp' [B, k] with every
+        entry log pi_0,old(a_0). Fresh tensors (the inputs are not changed).
+    """
+    if z.dim() != 3 or logp.dim() != 2 or logp.shape != z.shape[:2]:
+        raise ValueError(
+            f"z, logp: expected shapes [B, k, A] and [B, k], got {tuple(z.shape)} and "
+            f"{tuple(logp.shape)}"
+        )
+    return z[:, :1].expand_as(z).clone(), logp[:, :1].expand_as(logp).clone()
+
+
 def value_loss(
     values: torch.Tensor,
     old_values: torch.Tensor,

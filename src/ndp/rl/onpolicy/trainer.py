@@ -47,6 +47,7 @@ from ndp.rl.onpolicy.losses import (
     gaussian_policy_loss,
     normalize_advantages,
     policy_loss,
+    release_first_held,
     value_loss,
 )
 from ndp.rl.optim import FlatAdam
@@ -132,6 +133,9 @@ class Trainer(CountsUpdates):
         self._rho = float(cfg.policy.noise_corr) if cfg.policy.noise == "ar1" else None
         self._carry: torch.Tensor | None = None
         self._started = False  # the envs are reset at the first update, after any restore
+        self._release_ratio = cfg.first_held_ratio == "release"
+        if self._release_ratio:
+            self._check_release_ratio(obs_dim)
 
     def _start(self) -> None:
         """Reset the envs (one seed per env, from the update the run continues at) and draw
@@ -146,6 +150,21 @@ class Trainer(CountsUpdates):
         if self._rho is not None:
             self._carry = torch.randn(cfg.num_envs, self.spec.action_dim)
         self._started = True
+
+    def _check_release_ratio(self, obs_dim: int) -> None:
+        """Refuse ``first_held_ratio='release'`` for a distribution with one log-prob per
+        decision (parameter noise, the hold head): it has no sub-step distributions to pair."""
+        D = self.spec.dmp_dofs
+        with torch.no_grad():
+            dist, _ = self.rollout_model.distribution(
+                torch.zeros(1, obs_dim), torch.zeros(1, D), torch.zeros(1, D)
+            )
+        if dist.per_decision:
+            raise ValueError(
+                "first_held_ratio: 'release' pairs sub-step distributions and needs one "
+                "log-prob per sub-action; this policy draws one per decision (parameter noise "
+                "or the hold head): use first_held_ratio='own'"
+            )
 
     def _explore(self, dist: Any, carry: torch.Tensor | None) -> Any:
         """The exploration distribution the run samples from: ``dist`` itself (white noise) or
@@ -177,6 +196,8 @@ class Trainer(CountsUpdates):
             act = torch.maximum(torch.minimum(dist.actions(z), self.high), self.low)
         if not bool(torch.isfinite(act).all()):
             raise self._diverged("non-finite actions (check the observations)")
+        if self._release_ratio:  # store the executed a_0 at every sub-step (the release's)
+            z, logp = release_first_held(z, logp)
         return Decision(dist, aux, z, logp, values, act)
 
     def decision_start(self) -> tuple[torch.Tensor, torch.Tensor]:

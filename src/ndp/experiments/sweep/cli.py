@@ -172,6 +172,13 @@ def report_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.add_argument(
+        "--overview",
+        action="store_true",
+        help="RUN_DIRS is the results root (docs/results): read the committed study CSVs, not "
+        "runs, and write the forest plot of every study's NDP minus baseline difference "
+        "(ndp.experiments.report.forest) to OUT.png / .md / .csv",
+    )
+    p.add_argument(
         "--study",
         metavar="NAME",
         help="the named study the runs belong to: with conditions (release-conditions), add the "
@@ -428,10 +435,13 @@ def report_command(argv: list[str]) -> int:
     from ndp.experiments.studies import get_study
 
     out = args.out or Path(args.run_dirs[0]) / "report"
+    command = "ndp report " + shlex.join(portable_command(argv))
+    if args.overview:
+        return _overview(args, out, command)
     res = report(
         args.run_dirs,
         out,
-        "ndp report " + shlex.join(portable_command(argv)),
+        command,
         seeds=args.seeds,
         budgets=args.budgets,
         tasks=args.tasks,
@@ -450,6 +460,24 @@ def report_command(argv: list[str]) -> int:
             f"ndp report: WARNING: seeds missing from {len(res['missing'])} cells (marked)",
             file=sys.stderr,
         )
+    return 0
+
+
+def _overview(args: argparse.Namespace, out: Path, command: str) -> int:
+    """``ndp report RESULTS_ROOT --overview --out OUT``: the forest plot from committed CSVs."""
+    import datetime as dt
+
+    from ndp.experiments.report.forest import write_overview
+    from ndp.provenance import git_commit
+
+    if len(args.run_dirs) != 1:
+        raise ValueError(
+            f"run_dirs: --overview reads one results root (docs/results), got {args.run_dirs}"
+        )
+    date = dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d %H:%M")
+    written = write_overview(args.run_dirs[0], out, command, git_commit(), date)
+    print(Path(written[1]).read_text())
+    print(f"wrote {', '.join(map(str, written))}")
     return 0
 
 

@@ -88,6 +88,31 @@ def test_reading_c_names_ahead_behind_and_level():
     assert "| SAC (k = 1) | `sac` | -0.20 |" in "\n".join(md)
 
 
+def test_reading_c_names_each_p_by_its_direction_and_adds_the_convention():
+    """'behind' rests on p(it > NDP-SAC), the other learner above NDP-SAC: the table says so
+    in its headings; beside the registered verdict, the two-sided p Holm-adjusted over the
+    five pairs (every SAC run above every NDP-SAC run on both tasks: one-sided 1/400,
+    two-sided 2/400, Holm x5 = 0.025) and the test's label."""
+    md, rows = op.off_policy_readings(_cells({"ndp-sac-k5": 0.4, "sac": 0.6}), SEEDS)
+    text = "\n".join(md)
+    assert ("| against | arm | NDP-SAC - it | one-sided p(NDP-SAC > it) | one-sided p(it > "
+            "NDP-SAC) | reading (registered rule) | p (two-sided) | Holm p |") in text  # fmt: skip
+    sac = _row(rows, "C", "ndp-sac-k5 vs sac")
+    assert sac["p_less"] == pytest.approx(1 / 400) and sac["p_greater"] == pytest.approx(1.0)
+    assert sac["p_two_sided"] == pytest.approx(2 / 400)
+    assert sac["p_holm"] == pytest.approx(5 * 2 / 400)
+    assert sac["p_method"] == "exact permutation (all 400 splits)"
+    line = next(ln for ln in md if ln.startswith("| SAC (k = 1) |"))
+    assert (
+        "| behind | 0.005 | 0.025 | **NDP-SAC behind** | exact permutation (all 400 splits) |"
+        in line
+    )
+    b = next(ln for ln in md if ln.startswith("**B."))
+    assert (
+        "one-sided p(NDP-SAC > chunked SAC) = " in b and "one-sided p(chunked SAC > NDP-SAC)" in b
+    )
+
+
 def test_reading_d_compares_what_the_learner_adds_to_each_action_space():
     det = {"ndp-sac-k5": 0.5, "ndp-k5": 0.2, "sac-chunk-k5": 0.3, "ppo-multi-k5": 0.2}
     md, rows = op.off_policy_readings(_cells(det), SEEDS)

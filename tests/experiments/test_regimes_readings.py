@@ -47,6 +47,8 @@ def test_reading_1_helps_when_ndps_best_beats_ppo_multis_on_both_tasks():
     assert verdict["verdict"] == "helps"
     # every NDP run above every PPO-multi run on both tasks: 1 / C(6, 3)^2
     assert verdict["p_greater"] == pytest.approx(1 / 400)
+    assert "one-sided p(best NDP > best PPO-multi) = 0.0025" in text
+    assert "two-sided p = 0.005; exact permutation (all 400 splits)" in text
     assert "Verdict: waits" not in text and "(waits)" not in text
 
 
@@ -120,6 +122,11 @@ def test_the_1m_reading_compares_k_and_ndp_against_ppo_multi():
     assert "| 10 | +0.10 | -0.10 | the DMP's compression pays off |" in text
     row = next(r for r in rows if r["item"] == "ndp-k10 vs ppo-multi-k10")
     assert row["value"] == pytest.approx(0.2) and row["p_greater"] == pytest.approx(0.05)
+    # the convention beside the registered one-sided p: two-sided 0.1 at each k (every run
+    # of one arm above every run of the other), Holm over the three k: 0.3
+    assert row["p_two_sided"] == pytest.approx(0.1) and row["p_holm"] == pytest.approx(0.3)
+    assert "| one-sided p(NDP > PPO-multi) | one-sided p(PPO-multi > NDP) |" in text
+    assert "| 0.050 | 1.000 | 0.100 | 0.300 | exact permutation (all 20 splits) |" in text
     assert ("NDP k = 10 (0.61) > k = 5 (0.51) > k = 20 (0.41); PPO-multi k = 5 (0.51) > "
             "k = 10 (0.41) > k = 20 (0.31)." in text)  # fmt: skip
     assert next(r for r in rows if r["item"] == "ndp ranking of k")["value"] == "10 > 5 > 20"
@@ -216,9 +223,11 @@ def test_off_policy_report_takes_its_on_policy_arms_from_the_other_run_directory
     report([off], tmp_path / "o" / "op1", "ndp report", study="off-policy")
     md1 = (tmp_path / "o" / "op1.md").read_text()
     assert (
-        "no runs here (left out): ndp-sac-act-k5, ndp-sac-ln-k5, sac-chunk-ln-k5, ndp-k5, "
-        "ppo-multi-k5, ppo." in md1
-    )  # the optional arms (the actions critic, reading E's LayerNorm arms) never ran
+        "no runs here (left out): ndp-sac-act-k5, ndp-sac-ln-k5, sac-chunk-ln-k5, "
+        "sac-chunk-live-k5, sac-chunk-live-utd1-k5, ndp-sac-live-k5, ndp-sac-live-utd1-k5, "
+        "ndp-k5, ppo-multi-k5, ppo, ndp-nostale, ppo-multi-nostale." in md1
+    )  # the optional arms (the actions critic, reading E's LayerNorm arms, part 3's live
+    # arms) never ran; each named once (ppo is in several conditions)
 
 
 def test_mt50_attribution_reading_holds_only_with_ndp_ahead_of_ppo_over_the_tasks():
@@ -234,6 +243,9 @@ def test_mt50_attribution_reading_holds_only_with_ndp_ahead_of_ppo_over_the_task
     assert "the MT50 direction (NDP ahead of PPO) **holds** over these 2 tasks" in _text(md)
     det = next(r for r in rows if r["item"] == "ndp vs ppo" and r["metric"] == "det_area")
     assert det["value"] == pytest.approx(0.4) and det["p_greater"] == pytest.approx(1 / 400)
+    assert det["p_two_sided"] == pytest.approx(2 / 400) and "p_holm" in det
+    assert [r["p_method"] for r in rows] == ["exact permutation (all 400 splits)"] * 4
+    assert "one-sided p(NDP > other) | one-sided p(other > NDP) |" in _text(md)
     md, _ = rg.mt50_attribution_readings(cells(0.2, 0.2), SEEDS)
     assert "**does not hold**" in _text(md)
     short = cells(0.6, 0.2)

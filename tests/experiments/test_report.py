@@ -407,6 +407,18 @@ def test_conditions_report_per_task_arms_permutation_tests_and_gap(tmp_path):
                   and r["task"].startswith("over ") and r["method"] == "ndp vs ppo")  # fmt: skip
     assert float(pooled["p_a_greater"]) == pytest.approx(1 / 8000)
     assert float(pooled["p_b_greater"]) == pytest.approx(1.0)
+    # two-sided p, Holm within the condition's three pairs of the table, and the test's label
+    assert float(push["p_two_sided"]) == pytest.approx(0.1) and push["holm_m"] == "3"
+    assert push["p_method"] == "exact permutation (all 20 splits)"
+    assert float(pooled["p_two_sided"]) == pytest.approx(2 / 8000)
+    assert pooled["p_method"] == "exact permutation (all 8,000 splits)"
+    family = [r for r in rows if r["condition"] == "release-goals per task"
+              and r["task"] == pooled["task"] and r.get("p_holm")]  # fmt: skip
+    assert len(family) == 3 and pooled["significant"] == "True"
+    raw = sorted(float(r["p_two_sided"]) for r in family)
+    assert min(float(r["p_holm"]) for r in family) == pytest.approx(3 * raw[0])
+    assert "| Holm p (m) | Holm p <= 0.05 | one-sided p(A > B) | one-sided p(B > A) | test |" in md
+    assert "| **ndp > ppo** |" in md
     # optimality gap of NDP's identical runs (area ~0.81): 1 - area
     iq = cell("fixed-all", "IQM over tasks", "ndp")
     assert 0.8 < float(iq["area_mean"]) < 0.82
@@ -437,7 +449,9 @@ def test_report_headlines_the_periodic_deterministic_evaluation(tmp_path):
 
 def test_a_report_without_conditions_tests_every_pair_of_methods(tmp_path):
     """Every pair of methods on a task gets exact permutation p-values of the success area:
-    with every run of one above every run of the other, 3 + 3 runs give p = 1 / 20 and 1."""
+    with every run of one above every run of the other, 3 + 3 runs give one-sided p = 1 / 20
+    and 1, two-sided 2 / 20; Holm over the task's three pairs (0.1, 0.1, ~1) gives 0.3: not
+    significant. Each p is labelled with its test."""
     runs = tmp_path / "runs"
     for seed in (0, 1, 2):
         _rl_run(runs, "push-v3", "ndp", seed, 0.8 + 0.01 * seed)
@@ -447,16 +461,21 @@ def test_a_report_without_conditions_tests_every_pair_of_methods(tmp_path):
     md = (tmp_path / "rep.md").read_text()
     assert re.search(
         r"\| push-v3 \| success area \| ndp vs ppo \| 3 \+ 3 \| \+0\.\d+ \| \[\+0\.\d+, \+0\.\d+\] "
-        r"\| 0\.050 "
-        r"\| 1\.000 \|",
+        r"\| 0\.100 \| 0\.300 \(3\) \| not significant \| 0\.050 \| 1\.000 "
+        r"\| exact permutation \(all 20 splits\) \|",
         md,
     )
+    assert "| p (two-sided) | Holm p (m) | Holm p <= 0.05 | one-sided p(A > B) |" in md
     with (tmp_path / "rep-pairwise.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     assert [r["method"] for r in rows] == ["ndp vs ppo", "ndp vs sac", "ppo vs sac"]
     ppo_sac = rows[2]  # the same three areas in another seed order: no direction at all
     assert float(ppo_sac["diff_mean"]) == pytest.approx(0.0, abs=1e-12)
     assert float(ppo_sac["p_a_greater"]) > 0.4 and float(ppo_sac["p_b_greater"]) > 0.4
+    assert [float(r["p_two_sided"]) for r in rows[:2]] == pytest.approx([0.1, 0.1])
+    assert [float(r["p_holm"]) for r in rows] == pytest.approx([0.3, 0.3, 1.0])
+    assert {r["holm_m"] for r in rows} == {"3"} and {r["significant"] for r in rows} == {"False"}
+    assert {r["p_method"] for r in rows} == {"exact permutation (all 20 splits)"}
     assert all(r["commit"] for r in rows)  # provenance in every row
     # the difference's Welch interval: around the difference, above 0 (the spreads are small)
     d, lo, hi = (float(rows[0][k]) for k in ("diff_mean", "diff_t_low", "diff_t_high"))

@@ -124,6 +124,50 @@ def test_permutation_test_monte_carlo_above_the_exact_limit(monkeypatch):
         S.permutation_test(x, y, "bigger")
 
 
+def test_permutation_tests_label_exact_and_monte_carlo(monkeypatch):
+    """One reference distribution gives both one-sided p and the two-sided p, and says how it
+    was computed: all 20 splits of 3 + 3 runs on one task, all 400 over two tasks; above the
+    exact limit a Monte-Carlo test of PERMUTATION_SAMPLES resamples."""
+    x, y = [[4.0], [5.0], [6.0]], [[1.0], [2.0], [3.0]]
+    r = S.permutation_tests(x, y)
+    assert (r.greater, r.less, r.two_sided) == pytest.approx((1 / 20, 1.0, 2 / 20))
+    assert r.exact and r.count == 20 and r.method == "exact permutation (all 20 splits)"
+    assert r.p("two-sided") == S.permutation_test(x, y, "two-sided")
+    x2 = np.array([[4.0, 14.0], [5.0, 15.0], [6.0, 16.0]])
+    y2 = np.array([[1.0, 11.0], [2.0, 12.0], [3.0, 13.0]])
+    r2 = S.permutation_tests(x2, y2)
+    assert r2.method == "exact permutation (all 400 splits)" and r2.two_sided == pytest.approx(
+        2 / 400
+    )
+    # 10 + 10 runs on one task: C(20, 10) = 184,756 splits, enumerated; on two tasks sampled
+    a, b = np.arange(10.0)[:, None] + 0.5, np.arange(10.0)[:, None]
+    assert S.permutation_tests(a, b).method == "exact permutation (all 184,756 splits)"
+    monkeypatch.setattr(S, "PERMUTATION_SAMPLES", 2000)
+    mc = S.permutation_tests(np.hstack([a, a]), np.hstack([b, b]))
+    assert not mc.exact and mc.method == "Monte-Carlo permutation (2,000 resamples)"
+    assert mc == S.permutation_tests(np.hstack([a, a]), np.hstack([b, b]))  # seeded
+
+
+def test_holm_by_hand_and_against_statsmodels():
+    """Holm's step-down: sorted p 0.005, 0.01, 0.03, 0.04 times 4, 3, 2, 1 = 0.02, 0.03, 0.06,
+    0.04, then the running maximum: 0.02, 0.03, 0.06, 0.06, each back in its place."""
+    p = [0.01, 0.04, 0.03, 0.005]
+    np.testing.assert_allclose(S.holm(p), [0.03, 0.06, 0.06, 0.02])
+    np.testing.assert_allclose(S.holm([0.5, 0.6]), [1.0, 1.0])  # capped at 1
+    np.testing.assert_allclose(S.holm([0.04]), [0.04])  # a family of one: unchanged
+    assert S.holm([]).shape == (0,)
+    out = S.holm([0.01, np.nan, 0.04])  # NaN: a test not made, not counted in m
+    assert np.isnan(out[1]) and out[[0, 2]] == pytest.approx([0.02, 0.04])
+    with pytest.raises(ValueError, match="pvalues: expected values in"):
+        S.holm([0.1, 1.5])
+    multitest = pytest.importorskip("statsmodels.stats.multitest")
+    rng = np.random.default_rng(0)
+    for m in (2, 3, 7, 15):
+        q = rng.random(m) ** 3  # some small, some ties after rounding
+        q[rng.integers(0, m)] = q[0]
+        np.testing.assert_allclose(S.holm(q), multitest.multipletests(q, method="holm")[1])
+
+
 def test_t_interval_by_hand():
     # mean 2, sample std 1, n 3: half width t(0.975, 2) / sqrt(3) = 4.302653 / 1.732051
     lo, hi = S.t_interval([1.0, 2.0, 3.0])

@@ -499,7 +499,11 @@ def _scope(
         if methods is None and (conditions or selection):
             # the study's arms, then the arms its conditions take from other studies' runs
             study_arms = [a.label for a in st.arm_specs()]
-            study_arms += [lb for c in conditions for _, lb in c.methods if lb not in study_arms]
+            study_arms = list(
+                dict.fromkeys(  # each once (ppo is in several conditions)
+                    [*study_arms, *(lb for c in conditions for _, lb in c.methods)]
+                )
+            )
     study_tasks = tasks is None and (conditions or selection)
     if study_tasks:
         tasks = list(st.task_list())

@@ -16,8 +16,10 @@ Where the runs have a periodic deterministic evaluation (``eval/*``, ndp.rl.peri
 numbers come first and the **headline** is the deterministic success area; else the training
 episodes' success area. For the headline the section adds the t-interval beside the bootstrap
 (with :data:`ndp.experiments.report.stats.COVERAGE_NOTE`), the optimality gap over tasks (rliable),
-exact permutation p-values for every pair of methods in a condition (per task and stratified
-over the tasks), and a performance-profile figure per study (``<out>-profiles.png``).
+permutation p-values for every pair of methods in a condition (per task and stratified over the
+tasks; two-sided with Holm's correction within the condition's rows of each table, the one-sided
+p of each direction beside them, each labelled exact or Monte Carlo: the convention of
+docs/metrics.md), and a performance-profile figure per study (``<out>-profiles.png``).
 
 Conditions with ``unequal=True`` (the release's unequal goals) carry "UNEQUAL" in every table
 and figure.
@@ -331,8 +333,10 @@ def _pairwise(
     seeds: Sequence[int], head: str,
 ) -> list[dict[str, Any]]:  # fmt: skip
     """For every condition and pair of its methods (table order) with every seed on ``tasks``:
-    the mean difference of ``head`` over the tasks and the exact stratified permutation
-    p-values of "A > B" and "B > A" (:func:`ndp.experiments.report.stats.permutation_test`)."""
+    the mean difference of ``head`` over the tasks, its stratified permutation p-values
+    (two-sided, and one-sided of "A > B" and "B > A"; :func:`stats.permutation_tests`) and the
+    two-sided p Holm-adjusted within the condition's pairs (one family per condition and
+    table: :func:`with_holm`)."""
     rows = []
     where = tasks[0] if len(tasks) == 1 else "over " + ", ".join(tasks)
     for cond in conditions:
@@ -342,14 +346,27 @@ def _pairwise(
             for m, lb in cond.methods
             if all(len(_values(by.get((t, lb)), head, seeds)) == n for t in tasks)
         ]
+        family = []
         for (ma, la), (mb, lb) in itertools.combinations(arms, 2):
             x, y = _matrix(by, la, head, tasks, seeds), _matrix(by, lb, head, tasks, seeds)
-            rows.append({
+            family.append({
                 "condition": cond.name, "unequal": cond.unequal, "task": where,
                 "method": f"{ma} vs {mb}", "arm": f"{la} vs {lb}", "metric": head,
                 **_difference(x, y), "n_seeds": len(seeds),
             })  # fmt: skip
+        rows += with_holm(family)
     return rows
+
+
+def with_holm(family: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The rows of one family of pairwise tests (:func:`_difference` rows), each given its
+    Holm-adjusted two-sided p (``p_holm``), the family's size (``holm_m``) and the
+    convention's word (``significant``: Holm p <= :data:`stats.ALPHA`); returns ``family``."""
+    adjusted = stats.holm([r["p_two_sided"] for r in family])
+    for r, q in zip(family, adjusted, strict=True):
+        r.update({"p_holm": float(q), "holm_m": len(family),
+                  "significant": bool(q <= stats.ALPHA)})  # fmt: skip
+    return family
 
 
 def _p(p: float) -> str:
@@ -358,22 +375,55 @@ def _p(p: float) -> str:
     return f"{p:.3f}" if p >= 0.001 else f"{p:.1e}"
 
 
+SIGNIFICANCE_NOTE = (
+    "p: two-sided; Holm p: adjusted by Holm's method within the family of {family} (m: its "
+    "size); **significant** where Holm p <= 0.05, else not significant (the convention of "
+    "docs/metrics.md). The one-sided p of each direction is kept beside them for the "
+    "pre-registered readings stated on one-sided p (docs/rl-release.md, docs/rl-regimes.md): "
+    "p(A > B) is the p of 'A above B', p(B > A) of 'B above A'. {floor}"
+)
+"""The legend of every pairwise table (``family``: what one family is there; ``floor``: the
+smallest p the seeds allow)."""
+
+
+def significance(r: dict[str, Any]) -> str:
+    """The convention's word for one pairwise row: ``**A > B**`` / ``**B > A**`` (names from
+    its ``method``, "A vs B") where Holm p <= alpha, else ``not significant``."""
+    if not r.get("significant"):
+        return "not significant"
+    a, b = r["method"].split(" vs ", 1)
+    return f"**{a} > {b}**" if r["diff_mean"] > 0 else f"**{b} > {a}**"
+
+
+def pvalue_cells(r: dict[str, Any]) -> str:
+    """The p columns of a pairwise row: two-sided p, Holm p (m), the convention's word, both
+    one-sided p, the test."""
+    return (f"{_p(r['p_two_sided'])} | {_p(r['p_holm'])} ({r['holm_m']}) | {significance(r)} "
+            f"| {_p(r['p_a_greater'])} | {_p(r['p_b_greater'])} | {r['p_method']}")  # fmt: skip
+
+
+P_HEADS = ("p (two-sided) | Holm p (m) | Holm p <= 0.05 | one-sided p(A > B) | "
+           "one-sided p(B > A) | test")  # fmt: skip
+"""The headings of :func:`pvalue_cells`."""
+
+
 def _pairwise_md(rows: Sequence[dict[str, Any]], title: str) -> list[str]:
     if not rows:
         return []
+    floor = "With 3 + 3 seeds on one task the smallest one-sided p is 0.05, two-sided 0.1."
     md = [
-        f"{title} (exact, labels exchanged within each task; A - B: the mean difference over "
-        "tasks, with its Welch 95% t-interval stratified by task; one-sided p of each "
-        "direction; with 3 + 3 seeds on one task the smallest p is 0.05):",
+        f"{title} (labels exchanged within each task; test: exact over every split, or "
+        "Monte Carlo where the splits are too many; A - B: the mean difference over tasks, with "
+        "its Welch 95% t-interval stratified by task). "
+        + SIGNIFICANCE_NOTE.format(family="one condition's rows of this table", floor=floor),
         "",
-        "| condition | A vs B | A - B | 95% t-interval | p(A > B) | p(B > A) |",
-        "|---|---|---|---|---|---|",
+        f"| condition | A vs B | A - B | 95% t-interval | {P_HEADS} |",
+        "|---" * (4 + P_HEADS.count("|") + 1) + "|",
     ]
     for r in rows:
         cond = f"{r['condition']} (UNEQUAL)" if r["unequal"] else r["condition"]
-        md.append(f"| {cond} | {r['method']} | {r['diff_mean']:+.3f} "
-                  f"| {interval(r['diff_t_low'], r['diff_t_high'])} "
-                  f"| {_p(r['p_a_greater'])} | {_p(r['p_b_greater'])} |")  # fmt: skip
+        ci = interval(r["diff_t_low"], r["diff_t_high"])
+        md.append(f"| {cond} | {r['method']} | {r['diff_mean']:+.3f} | {ci} | {pvalue_cells(r)} |")
     return [*md, ""]
 
 
@@ -473,15 +523,17 @@ PAIRWISE_MAX_METHODS = 8
 would print 190 per task and number): the report says so and how to narrow it."""
 
 
-def _difference(x: np.ndarray, y: np.ndarray) -> dict[str, float]:
+def _difference(x: np.ndarray, y: np.ndarray) -> dict[str, Any]:
     """Runs ``x`` [n_a, tasks] against ``y`` [n_b, tasks]: the mean difference over tasks, its
-    Welch 95% t-interval (NaN with a single run on a side) and the permutation p-values of
-    each direction (both stratified by task)."""
+    Welch 95% t-interval (NaN with a single run on a side), the permutation p-values
+    (two-sided, and one-sided of each direction; all stratified by task) and how they were
+    computed (``p_method``: exact or Monte Carlo, with the count)."""
     lo, hi = stats.difference_t_interval(x, y) if min(len(x), len(y)) >= 2 else (math.nan, math.nan)
+    test = stats.permutation_tests(x, y)
     return {
         "diff_mean": float((x.mean(0) - y.mean(0)).mean()), "diff_t_low": lo, "diff_t_high": hi,
-        "p_a_greater": stats.permutation_test(x, y, "greater"),
-        "p_b_greater": stats.permutation_test(x, y, "less"),
+        "p_two_sided": test.two_sided, "p_a_greater": test.greater, "p_b_greater": test.less,
+        "p_method": test.method,
     }  # fmt: skip
 
 
@@ -495,11 +547,13 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
     """For a report without conditions: on every task, each pair of its methods (table order)
     with two runs or more each, the difference of the headline number (the deterministic
     success area where the runs have it, and the training-episode area always), its Welch
-    95% t-interval (:func:`stats.difference_t_interval`) and the exact one-sided permutation
-    p-values of each direction (:func:`stats.permutation_test`, runs as the unit; the seeds of
-    the two cells may differ). With two tasks or more, each pair with runs of the same seeds on
-    every task also gets a row over all of them: the mean difference over tasks, stratified by
-    task (labels exchanged within each task). Returns (markdown, CSV rows)."""
+    95% t-interval (:func:`stats.difference_t_interval`) and the permutation p-values
+    (:func:`stats.permutation_tests`, runs as the unit; the seeds of the two cells may differ):
+    two-sided, Holm-adjusted within the pairs of one task and number (a family), and
+    one-sided of each direction. With two tasks or more, each pair with runs of the same seeds
+    on every task also gets a row over all of them: the mean difference over tasks, stratified
+    by task (labels exchanged within each task; one family per number). Returns (markdown, CSV
+    rows)."""
     metrics, headline = metrics_of(cells)
     keys = [headline] + (["area"] if headline != "area" else [])
     names = dict(metrics)
@@ -514,10 +568,12 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
         for key in keys:
             vals = {c.label: _values(c, key, sorted(c.numbers)) for c in here}
             usable = [c for c in here if len(vals[c.label]) >= 2]
+            family = []
             for a, b in itertools.combinations(usable, 2):
                 x = np.array(vals[a.label])[:, None]
                 y = np.array(vals[b.label])[:, None]
-                rows.append(_pair_row(task, key, a.label, b.label, x, y))
+                family.append(_pair_row(task, key, a.label, b.label, x, y))
+            rows += with_holm(family)
     if len(tasks) >= 2 and not crowded:
         rows += _pooled_pairs(cells, tasks, keys)
     left_out = (
@@ -527,25 +583,28 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
     )  # fmt: skip
     if not rows:
         return left_out, []
+    floor = ("With 3 + 3 runs the smallest one-sided p is 0.05 (two-sided 0.1), with 10 + 10 "
+             "about 5e-6.")  # fmt: skip
     md = [
         *left_out,
-        "Pairwise: exact permutation tests over runs, per task (labels exchanged between the "
-        "two methods' runs; A - B: the difference of the means, with its Welch 95% t-interval; "
-        "one-sided p of each direction; with 3 + 3 runs the smallest p is 0.05, with 10 + 10 "
-        "about 5e-6). 'All tasks': the mean over tasks of the per-task difference, labels "
-        "exchanged within each task, on the seeds each method has on every task (exact up to "
-        f"{stats.PERMUTATION_EXACT_LIMIT:,} combined splits, else {stats.PERMUTATION_SAMPLES:,} "
-        "random ones: p >= 1e-4):",
+        "Pairwise: permutation tests over runs, per task (labels exchanged between the two "
+        "methods' runs; A - B: the difference of the means, with its Welch 95% t-interval). "
+        "'All tasks': the mean over tasks of the per-task difference, labels exchanged within "
+        "each task, on the seeds each method has on every task. Test: exact over every split up "
+        f"to {stats.PERMUTATION_EXACT_LIMIT:,} combined splits, else Monte Carlo over "
+        f"{stats.PERMUTATION_SAMPLES:,} random ones (p >= 1 / {stats.PERMUTATION_SAMPLES + 1:,}). "
+        + SIGNIFICANCE_NOTE.format(
+            family="the pairs of one task (or of all tasks) and one number", floor=floor
+        ),
         "",
-        "| task | number | A vs B | runs | A - B | 95% t-interval | p(A > B) | p(B > A) |",
-        "|---|---|---|---|---|---|---|---|",
+        f"| task | number | A vs B | runs | A - B | 95% t-interval | {P_HEADS} |",
+        "|---" * (6 + P_HEADS.count("|") + 1) + "|",
     ]
     for r in rows:
         md.append(
             f"| {r['task']} | {names.get(r['metric'], r['metric'])} | {r['method']} "
             f"| {r['n_a']} + {r['n_b']} | {r['diff_mean']:+.3f} "
-            f"| {interval(r['diff_t_low'], r['diff_t_high'])} | {_p(r['p_a_greater'])} "
-            f"| {_p(r['p_b_greater'])} |"
+            f"| {interval(r['diff_t_low'], r['diff_t_high'])} | {pvalue_cells(r)} |"
         )
     return [*md, ""], rows
 
@@ -569,8 +628,10 @@ def _pooled_pairs(
             )))  # fmt: skip
             if len(seeds) >= 2:
                 common[lb] = seeds
+        family = []
         for a, b in itertools.combinations(list(common), 2):
             x = _matrix(by, a, key, tasks, common[a])
             y = _matrix(by, b, key, tasks, common[b])
-            rows.append(_pair_row(where, key, a, b, x, y))
+            family.append(_pair_row(where, key, a, b, x, y))
+        rows += with_holm(family)
     return rows

@@ -11,22 +11,25 @@ A. NDP-SAC's critic input (push-v3 only): keep the input whose arm has the highe
    push-v3 only, would be widened).
 B. The DMP head under an off-policy learner: NDP-SAC against chunked SAC at the same k (same
    learner, same critic family, only the action parameterisation differs). It **helps** if
-   NDP-SAC's mean is above chunked SAC's on every task with the stratified exact permutation
-   p < :data:`ALPHA`; it **does not help** if chunked SAC's mean is at least NDP-SAC's on every
-   task; else **mixed**.
+   NDP-SAC's mean is above chunked SAC's on every task with the one-sided stratified permutation
+   p(NDP-SAC > chunked SAC) < :data:`ALPHA`; it **does not help** if chunked SAC's mean is at
+   least NDP-SAC's on every task; else **mixed**.
 C. Where NDP stands against every learner of the table: NDP-SAC against SAC, chunked SAC, NDP
-   (PPO), PPO-multi and PPO; per pair the mean difference over tasks and the stratified exact
-   permutation p in both directions; **ahead** / **behind** at p < :data:`ALPHA`, else **level**.
+   (PPO), PPO-multi and PPO; per pair the mean difference over tasks and the one-sided
+   stratified permutation p of each direction; **ahead** where p(NDP-SAC > it) < :data:`ALPHA`,
+   **behind** where p(it > NDP-SAC) < :data:`ALPHA` (the p of the other learner above NDP-SAC,
+   not of NDP-SAC above it), else **level**. Beside the registered verdict, the convention of
+   docs/metrics.md: the two-sided p, Holm-adjusted over the reading's five pairs.
 D. Does the off-policy learner lift the DMP head more than the plain chunk (description only)?
    (NDP-SAC - NDP) - (chunked SAC - PPO-multi), mean over tasks.
 
 E (post-hoc, written 2026-12-05 before its arms ran, after NDP-SAC's critic ran away on push-v3).
    The DMP head with LayerNorm critics, push-v3 only: ``ndp-sac-ln-k5`` against
    ``sac-chunk-ln-k5``. It **helps** if NDP-SAC's mean is above chunked SAC's with the exact
-   permutation p <= :data:`ALPHA` (with 3 + 3 runs on one task the smallest p is 1/20 = 0.05:
-   every NDP-SAC run above every chunked SAC run); it **does not help** if chunked SAC's mean
-   is at least NDP-SAC's; else **mixed**. Beside it (description): what LayerNorm changes for
-   each learner (LayerNorm arm minus plain arm).
+   one-sided permutation p(NDP-SAC > chunked SAC) <= :data:`ALPHA` (with 3 + 3 runs on one
+   task the smallest p is 1/20 = 0.05: every NDP-SAC run above every chunked SAC run); it
+   **does not help** if chunked SAC's mean is at least NDP-SAC's; else **mixed**. Beside it
+   (description): what LayerNorm changes for each learner (LayerNorm arm minus plain arm).
 """
 
 from __future__ import annotations
@@ -37,7 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from ndp.experiments.report.readings import ArmRuns, compare
+from ndp.experiments.report import stats
+from ndp.experiments.report.readings import ArmRuns, compare_test
 from ndp.rl.sac.health import Q_RUNAWAY, q_runaway
 from ndp.runs import read_metrics
 
@@ -78,12 +82,15 @@ def _critic(r: ArmRuns, rows: list[dict[str, Any]]) -> tuple[list[str], str | No
     ], CRITIC_ARMS[kept]
 
 
-def _pair(r: ArmRuns, tasks: Sequence[str], a: str, b: str) -> tuple[float, float, float] | None:
-    """(mean over tasks of a - b, p(a >), p(b >)); None while either lacks seeds."""
+def _pair(
+    r: ArmRuns, tasks: Sequence[str], a: str, b: str
+) -> tuple[float, stats.PermutationResult] | None:
+    """(mean over tasks of a - b, the stratified permutation test of a against b: ``greater``
+    is p(a > b), ``less`` p(b > a)); None while either lacks seeds."""
     x, y = r.matrix(tasks, [a] * len(tasks)), r.matrix(tasks, [b] * len(tasks))
     if x is None or y is None:
         return None
-    return compare(x, y)
+    return compare_test(x, y)
 
 
 def _head(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
@@ -91,7 +98,8 @@ def _head(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]
     got = _pair(r, tasks, ndp, CHUNK)
     if got is None:
         return [f"**B. The DMP head, off-policy**: waits for `{ndp}` and `{CHUNK}`.", ""]
-    d, pg, _ = got
+    d, test = got
+    pg = test.greater
     per = {t: r.mean(t, ndp) - r.mean(t, CHUNK) for t in tasks}
     if all(v > 0 for v in per.values()) and pg < ALPHA:
         verdict = "helps"
@@ -100,12 +108,15 @@ def _head(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]
     else:
         verdict = "mixed"
     rows.append({"reading": "B", "item": "verdict", "task": "all", "value": d,
-                 "p_greater": pg, "verdict": verdict})  # fmt: skip
+                 "p_greater": pg, "p_less": test.less, "p_two_sided": test.two_sided,
+                 "p_method": test.method, "verdict": verdict})  # fmt: skip
     shown = ", ".join(f"{t} {v:+.2f}" for t, v in per.items())
     return [
         f"**B. The DMP head, off-policy** (`{ndp}` - `{CHUNK}`, same learner and k): {shown}; "
-        f"mean {d:+.2f}, stratified exact permutation p(NDP-SAC >) = {pg:.3g}. Verdict: "
-        f"**{verdict}**.",
+        f"mean {d:+.2f}; one-sided p(NDP-SAC > chunked SAC) = {pg:.3g} (the rule's test: "
+        f"'helps' needs it below {ALPHA}), one-sided p(chunked SAC > NDP-SAC) = "
+        f"{test.less:.3g}, two-sided p = {test.two_sided:.3g} ({test.method}, stratified by "
+        f"task). Verdict: **{verdict}**.",
         "",
     ]
 
@@ -113,21 +124,32 @@ def _head(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]
 def _stands(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
     """Reading C: NDP-SAC against every other learner of the table."""
     md = [
-        f"**C. Where NDP-SAC (`{ndp}`) stands** (mean det. area over {', '.join(tasks)}):",
+        f"**C. Where NDP-SAC (`{ndp}`) stands** (mean det. area over {', '.join(tasks)}). "
+        "Reading: the registered rule on the one-sided p of each direction: **ahead** where "
+        f"p(NDP-SAC > it) < {ALPHA}, **behind** where p(it > NDP-SAC) < {ALPHA}, else "
+        "**level**. Beside it the convention of docs/metrics.md: the two-sided p, Holm-adjusted "
+        "over the reading's five pairs; significant where Holm p <= 0.05.",
         "",
-        "| against | arm | NDP-SAC - it | p(NDP-SAC >) | p(it >) | reading |",
-        "|---|---|---|---|---|---|",
+        "| against | arm | NDP-SAC - it | one-sided p(NDP-SAC > it) | one-sided p(it > NDP-SAC) "
+        "| reading (registered rule) | p (two-sided) | Holm p | Holm p <= 0.05 | test |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for arm, name in OTHERS:
-        got = _pair(r, tasks, ndp, arm)
+    found = [(arm, name, _pair(r, tasks, ndp, arm)) for arm, name in OTHERS]
+    adjusted = iter(stats.holm([got[1].two_sided for *_, got in found if got is not None]))
+    for arm, name, got in found:
         if got is None:
-            md.append(f"| {name} | `{arm}` | (waits) | - | - | - |")
+            md.append(f"| {name} | `{arm}` | (waits) | - | - | - | - | - | - | - |")
             continue
-        d, pg, pl = got
+        d, test = got
+        pg, pl, q = test.greater, test.less, float(next(adjusted))
         what = "ahead" if pg < ALPHA else "behind" if pl < ALPHA else "level"
-        md.append(f"| {name} | `{arm}` | {d:+.2f} | {pg:.3g} | {pl:.3g} | {what} |")
+        word = ("not significant" if q > stats.ALPHA
+                else "**NDP-SAC ahead**" if d > 0 else "**NDP-SAC behind**")  # fmt: skip
+        md.append(f"| {name} | `{arm}` | {d:+.2f} | {pg:.3g} | {pl:.3g} | {what} "
+                  f"| {test.two_sided:.3g} | {q:.3g} | {word} | {test.method} |")  # fmt: skip
         rows.append({"reading": "C", "item": f"{ndp} vs {arm}", "task": "all", "value": d,
-                     "p_greater": pg, "p_less": pl, "verdict": what})  # fmt: skip
+                     "p_greater": pg, "p_less": pl, "p_two_sided": test.two_sided,
+                     "p_holm": q, "p_method": test.method, "verdict": what})  # fmt: skip
     return [*md, ""]
 
 
@@ -165,10 +187,12 @@ def _layer_norm(r: ArmRuns, rows: list[dict[str, Any]]) -> list[str]:
     if got is None:
         return [f"**E. The DMP head with LayerNorm critics** (post-hoc, {CRITIC_TASK}): waits "
                 f"for `{ndp}` and `{chunk}`.", ""]  # fmt: skip
-    d, pg, _ = got
+    d, test = got
+    pg = test.greater
     verdict = "helps" if d > 0 and pg <= ALPHA else "does not help" if d <= 0 else "mixed"
     rows.append({"reading": "E", "item": f"{ndp} vs {chunk}", "task": CRITIC_TASK, "value": d,
-                 "p_greater": pg, "verdict": verdict})  # fmt: skip
+                 "p_greater": pg, "p_two_sided": test.two_sided, "p_method": test.method,
+                 "verdict": verdict})  # fmt: skip
     lifts = []
     for ln, plain in LN_ARMS.items():
         lift = r.mean(CRITIC_TASK, ln) - r.mean(CRITIC_TASK, plain)
@@ -176,7 +200,8 @@ def _layer_norm(r: ArmRuns, rows: list[dict[str, Any]]) -> list[str]:
                      else f"`{ln}` - `{plain}` (waits)")  # fmt: skip
     return [
         f"**E. The DMP head with LayerNorm critics** (post-hoc, {CRITIC_TASK}; `{ndp}` - "
-        f"`{chunk}`): {d:+.2f}, exact permutation p(NDP-SAC >) = {pg:.3g}. Verdict: "
+        f"`{chunk}`): {d:+.2f}, one-sided p(NDP-SAC > chunked SAC) = {pg:.3g} "
+        f"({test.method}). Verdict: "
         f"**{verdict}**. What LayerNorm changes (description): {'; '.join(lifts)}.",
         "",
     ]

@@ -76,10 +76,22 @@ class ArmRuns:
 
 
 def compare(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
-    """Two arms' [seeds, tasks] matrices: (the mean over tasks of x - y, the stratified exact
-    permutation p of x > y, and of y > x)."""
+    """Two arms' [seeds, tasks] matrices: (the mean over tasks of x - y, the stratified
+    permutation p of x > y, and of y > x; both one-sided, as the readings were registered)."""
+    d, test = compare_test(x, y)
+    return d, test.greater, test.less
+
+
+def compare_test(x: np.ndarray, y: np.ndarray) -> tuple[float, stats.PermutationResult]:
+    """Two arms' [seeds, tasks] matrices: (the mean over tasks of x - y, the stratified
+    permutation test: both one-sided p, the two-sided p and how they were computed)."""
     d = float((x.mean(0) - y.mean(0)).mean())
-    return d, stats.permutation_test(x, y, "greater"), stats.permutation_test(x, y, "less")
+    return d, stats.permutation_tests(x, y)
+
+
+def one_sided(a: str, b: str) -> str:
+    """The heading of a one-sided p that names its direction: ``one-sided p(a > b)``."""
+    return f"one-sided p({a} > {b})"
 
 
 def interval(lo: float, hi: float) -> str:

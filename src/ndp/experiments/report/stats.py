@@ -11,12 +11,15 @@ Precipice" (NeurIPS 2021; the ``rliable`` package), written here in numpy:
   the Mann-Whitney statistic of X's runs against Y's (ties count half), averaged over tasks,
   with its stratified bootstrap interval (X's and Y's runs resampled independently per task).
 
-Beside them, what rliable lacks and few-seed comparisons need: an exact **permutation test**
-stratified by task (:func:`permutation_test`), **t-intervals** (:func:`t_interval`; of a
-difference, Welch's, stratified by task: :func:`difference_t_interval`) with the
-note on coverage at few seeds (:data:`COVERAGE_NOTE`); and from rliable itself (the ``[stats]``
-extra) the **optimality gap** (:func:`optimality_gap`) and **performance profiles**
-(:func:`performance_profile`).
+Beside them, what rliable lacks and few-seed comparisons need: a **permutation test**
+stratified by task, exact over every split where their number allows, else Monte Carlo
+(:func:`permutation_tests`, which says which: :attr:`PermutationResult.method`), **Holm's
+correction** of a family of p-values (:func:`holm`; the significance convention of
+docs/metrics.md), **t-intervals** (:func:`t_interval`; of a difference, Welch's, stratified by
+task: :func:`difference_t_interval`) with the note on coverage at few seeds
+(:data:`COVERAGE_NOTE`, measured by ``benchmarks/bootstrap_coverage.py``); and from rliable
+itself (the ``[stats]`` extra) the **optimality gap** (:func:`optimality_gap`) and
+**performance profiles** (:func:`performance_profile`).
 
 Scores are arrays ``[runs, tasks]`` (a seed per row, a task per column; every task with the same
 number of runs). Each function takes a ``numpy.random.Generator`` or a seed, so a report's
@@ -28,6 +31,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -148,7 +152,13 @@ def probability_of_improvement_ci(
 PERMUTATION_EXACT_LIMIT = 200_000
 """Largest number of stratified splits enumerated exactly; above it the test samples
 :data:`PERMUTATION_SAMPLES` random splits."""
-PERMUTATION_SAMPLES = 10_000
+PERMUTATION_SAMPLES = 100_000
+"""Random stratified splits of the Monte-Carlo test (the convention of docs/metrics.md; the
+smallest p it can give is 1 / 100,001, and at p = 0.05 its standard error is about 0.0007)."""
+
+ALPHA = 0.05
+"""The significance level of the convention (docs/metrics.md): a two-sided p at or below it,
+after Holm's correction within the table's family, is "significant"."""
 
 
 @functools.lru_cache(maxsize=8)
@@ -165,21 +175,111 @@ def _splits(n_x: int, n_y: int) -> np.ndarray:
     return out
 
 
+@dataclass(frozen=True)
+class PermutationResult:
+    """The p-values of one stratified permutation test (:func:`permutation_tests`) and how they
+    were computed."""
+
+    greater: float
+    """One-sided p of X > Y: the fraction of splits whose statistic is >= the observed one."""
+    less: float
+    """One-sided p of Y > X (the statistic <= the observed one)."""
+    two_sided: float
+    """Two-sided p: |statistic| >= |observed|."""
+    exact: bool
+    """True: every stratified split was enumerated; False: :attr:`count` random splits were
+    drawn (the observed split counted in, so p >= 1 / (count + 1))."""
+    count: int
+    """The splits enumerated (exact) or drawn (Monte Carlo)."""
+
+    @property
+    def method(self) -> str:
+        """How the p-values were computed, as every table labels them: ``exact permutation
+        (all N splits)`` or ``Monte-Carlo permutation (N resamples)``."""
+        if self.exact:
+            return f"exact permutation (all {self.count:,} splits)"
+        return f"Monte-Carlo permutation ({self.count:,} resamples)"
+
+    def p(self, alternative: str) -> float:
+        """The p-value of ``alternative``: 'greater', 'less' or 'two-sided'."""
+        if alternative == "greater":
+            return self.greater
+        if alternative == "less":
+            return self.less
+        if alternative == "two-sided":
+            return self.two_sided
+        raise ValueError(
+            f"alternative: expected 'greater', 'less' or 'two-sided', got {alternative!r}"
+        )
+
+
+def permutation_tests(
+    x: object, y: object, rng: np.random.Generator | int | None = 0
+) -> PermutationResult:
+    """The permutation test of X's runs against Y's, stratified by task, in both directions and
+    two-sided, from one reference distribution.
+
+    Statistic: the sum over tasks of (mean of X's runs - mean of Y's runs) on the task (the mean
+    difference over tasks, times the task count). Under the null hypothesis the labels X / Y are
+    exchangeable within each task, so the reference distribution is the statistic over every
+    re-split of each task's pooled runs into groups of X's and Y's sizes (the product over tasks
+    of C(n_x + n_y, n_x) splits). That product is enumerated exactly up to
+    :data:`PERMUTATION_EXACT_LIMIT` splits (one task of 10 + 10 runs: 184,756; two tasks of
+    3 + 3: 400); above it :data:`PERMUTATION_SAMPLES` random stratified splits are drawn (Monte
+    Carlo; two tasks of 10 + 10 runs: 184,756^2 splits), the observed split counted in, so
+    p >= 1 / (samples + 1). The result says which (:attr:`PermutationResult.method`).
+
+    Args:
+        x: scores [n_x, tasks] (or [n_x]).
+        y: scores [n_y, tasks], the same tasks.
+        rng: the generator (or seed) of the Monte-Carlo draws; the same seed gives the same
+            p-values.
+
+    Returns:
+        The one-sided p of each direction and the two-sided p: each the fraction of splits
+        whose statistic is at least as extreme as the observed one (the observed split
+        included). With 3 + 3 runs on one task the smallest one-sided p is 1 / 20 = 0.05, the
+        smallest two-sided 0.1.
+    """
+    a, b = _scores(x, "x"), _scores(y, "y")
+    if a.shape[1] != b.shape[1]:
+        raise ValueError(f"y: expected {a.shape[1]} tasks like x, got {b.shape[1]}")
+    n_x, n_y, m = a.shape[0], b.shape[0], a.shape[1]
+    pooled = np.concatenate([a, b], axis=0)  # [n, tasks]
+    splits = _splits(n_x, n_y).astype(np.float64)  # [S, n]
+    # per task and split: mean of the X group - mean of the Y group
+    per_task = splits @ pooled / n_x - (1.0 - splits) @ pooled / n_y  # [S, tasks]
+    observed = float((a.mean(0) - b.mean(0)).sum())
+    total = splits.shape[0] ** m
+    exact = total <= PERMUTATION_EXACT_LIMIT
+    if exact:
+        stat = np.zeros(1)
+        for t in range(m):  # the sum over tasks for every combination of per-task splits
+            stat = (stat[:, None] + per_task[None, :, t]).ravel()
+        count = total
+    else:
+        gen = _rng(rng)
+        pick = gen.integers(0, splits.shape[0], size=(PERMUTATION_SAMPLES, m))
+        stat = np.concatenate([per_task[pick, np.arange(m)].sum(1), [observed]])
+        count = PERMUTATION_SAMPLES
+    eps = 1e-12 * max(1.0, abs(observed))
+    return PermutationResult(
+        greater=float((stat >= observed - eps).mean()),
+        less=float((stat <= observed + eps).mean()),
+        two_sided=float((np.abs(stat) >= abs(observed) - eps).mean()),
+        exact=exact,
+        count=count,
+    )
+
+
 def permutation_test(
     x: object,
     y: object,
     alternative: str = "greater",
     rng: np.random.Generator | int | None = 0,
 ) -> float:
-    """p-value of a permutation test of X's runs against Y's, stratified by task.
-
-    Statistic: the sum over tasks of (mean of X's runs - mean of Y's runs) on the task (the mean
-    difference over tasks, times the task count). Under the null hypothesis the labels X / Y are
-    exchangeable within each task, so the reference distribution is the statistic over every
-    re-split of each task's pooled runs into groups of X's and Y's sizes (the product over tasks
-    of C(n_x + n_y, n_x) splits), enumerated exactly up to :data:`PERMUTATION_EXACT_LIMIT`
-    splits, else :data:`PERMUTATION_SAMPLES` random ones (Monte Carlo; the observed split
-    counted in, so p >= 1 / (samples + 1)).
+    """p-value of a permutation test of X's runs against Y's, stratified by task (one of the
+    p-values of :func:`permutation_tests`, which also says whether it was exact).
 
     Args:
         x: scores [n_x, tasks] (or [n_x]).
@@ -191,36 +291,44 @@ def permutation_test(
         observed one (the observed split included). With 3 + 3 runs on one task the smallest
         one-sided p is 1 / 20 = 0.05.
     """
-    a, b = _scores(x, "x"), _scores(y, "y")
-    if a.shape[1] != b.shape[1]:
-        raise ValueError(f"y: expected {a.shape[1]} tasks like x, got {b.shape[1]}")
     if alternative not in ("greater", "less", "two-sided"):
         raise ValueError(
             f"alternative: expected 'greater', 'less' or 'two-sided', got {alternative!r}"
         )
-    n_x, n_y, m = a.shape[0], b.shape[0], a.shape[1]
-    pooled = np.concatenate([a, b], axis=0)  # [n, tasks]
-    splits = _splits(n_x, n_y).astype(np.float64)  # [S, n]
-    # per task and split: mean of the X group - mean of the Y group
-    per_task = splits @ pooled / n_x - (1.0 - splits) @ pooled / n_y  # [S, tasks]
-    observed = float((a.mean(0) - b.mean(0)).sum())
-    total = splits.shape[0] ** m
-    if total <= PERMUTATION_EXACT_LIMIT:
-        stat = np.zeros(1)
-        for t in range(m):  # the sum over tasks for every combination of per-task splits
-            stat = (stat[:, None] + per_task[None, :, t]).ravel()
-    else:
-        gen = _rng(rng)
-        pick = gen.integers(0, splits.shape[0], size=(PERMUTATION_SAMPLES, m))
-        stat = np.concatenate([per_task[pick, np.arange(m)].sum(1), [observed]])
-    eps = 1e-12 * max(1.0, abs(observed))
-    if alternative == "greater":
-        hit = stat >= observed - eps
-    elif alternative == "less":
-        hit = stat <= observed + eps
-    else:
-        hit = np.abs(stat) >= abs(observed) - eps
-    return float(hit.mean())
+    return permutation_tests(x, y, rng).p(alternative)
+
+
+def holm(pvalues: object) -> np.ndarray:
+    """Holm's step-down adjustment of a family of p-values (Holm 1979), the correction of the
+    convention in docs/metrics.md.
+
+    With the m p-values sorted ascending, p_(1) <= ... <= p_(m), the adjusted value of the i-th
+    is ``max over j <= i of min(1, (m - j + 1) p_(j))``; each is returned in its input's place.
+    A hypothesis is rejected at level alpha where its adjusted p <= alpha, which controls the
+    family-wise error rate at alpha (``statsmodels.stats.multitest.multipletests(p,
+    method='holm')[1]``). NaN entries (tests not made) stay NaN and do not count in m.
+
+    Args:
+        pvalues: the family's p-values, in [0, 1] (any shape; flattened).
+
+    Returns:
+        The adjusted p-values, same order, as float64 [m].
+    """
+    p = np.asarray(pvalues, dtype=np.float64).ravel()
+    out = np.full(p.shape, np.nan)
+    ok = ~np.isnan(p)
+    if ((p[ok] < 0) | (p[ok] > 1)).any():
+        raise ValueError(f"pvalues: expected values in [0, 1], got {p[ok].tolist()}")
+    q = p[ok]
+    m = len(q)
+    if m == 0:
+        return out
+    order = np.argsort(q, kind="stable")
+    scaled = np.minimum(1.0, (m - np.arange(m)) * q[order])
+    adjusted = np.empty(m)
+    adjusted[order] = np.maximum.accumulate(scaled)
+    out[ok] = adjusted
+    return out
 
 
 def t_interval(values: object, conf: float = 0.95) -> tuple[float, float]:

@@ -427,6 +427,43 @@ def test_conditions_report_per_task_arms_permutation_tests_and_gap(tmp_path):
     assert any(p.endswith("rc-profiles.png") for p in res["png"])
 
 
+def test_report_header_names_environments_lost_commits_and_mixed_runs(tmp_path):
+    """The header lists the runs' environment fingerprints (package versions, CPU model); a
+    commit that no ref of the repository reaches is marked lost; runs of several commits or
+    fingerprints get a MIXED warning, one commit and one fingerprint none."""
+    from ndp.provenance import commit_in_history, git_commit
+
+    head = git_commit(short=False)
+    runs = tmp_path / "runs"
+    env = {"python": "3.11.7", "torch": "2.13.0", "numpy": "2.4.6", "mujoco": "3.3.0",
+           "metaworld": "3.1.1"}  # fmt: skip
+    for seed in (0, 1):
+        for label in ("ndp", "ppo"):
+            run = _rl_run(runs, "push-v3", label, seed, 0.5)
+            entry = {"event": "start", "commit": head, "versions": env, "cpu": "CPU A"}
+            (run / "provenance.json").write_text(json.dumps([entry]))
+    report([runs], tmp_path / "one", "cmd", title="One")
+    md = (tmp_path / "one.md").read_text()
+    fp = "python 3.11.7, torch 2.13.0, numpy 2.4.6, mujoco 3.3.0, metaworld 3.1.1, CPU CPU A"
+    assert f"Runs' environment: {fp} (every run)." in md
+    assert "MIXED" not in md and "lost" not in md
+    # one run resumed on another CPU, one trained at a commit outside the history
+    other = runs / "push-v3-ppo-s1" / "provenance.json"
+    sessions = json.loads(other.read_text())
+    other.write_text(json.dumps([*sessions, {**sessions[0], "event": "resume", "cpu": "CPU B"}]))
+    lost = runs / "push-v3-ndp-s1" / "provenance.json"
+    lost.write_text(json.dumps([{"event": "start", "commit": "abcdef0123", "versions": env}]))
+    report([runs], tmp_path / "two", "cmd", title="Two")
+    md = (tmp_path / "two.md").read_text()
+    assert f"{fp} (3 runs)" in md and "CPU B (1 run)" in md and "CPU not recorded (1 run)" in md
+    assert "**MIXED: the 4 runs of this table were trained at 2 commits (" in md
+    assert "and 3 environment fingerprints (above)" in md
+    if commit_in_history(head[:7]):  # a git checkout with its history (not an sdist)
+        assert f"{head[:7]}, abcdef0 (lost: not in this repository's history)" in md or (
+            f"abcdef0 (lost: not in this repository's history), {head[:7]}" in md
+        )
+
+
 def test_report_headlines_the_periodic_deterministic_evaluation(tmp_path):
     """Runs with eval/* columns: the table's first numbers are the deterministic area (mean over
     evaluations) and final; the figure of deterministic success is written."""

@@ -142,6 +142,40 @@ def test_pop_option():
         pop_option(["--resume", "a", "--resume", "b"], "--resume")
 
 
+def test_sessions_record_the_environment_fingerprint(tmp_path):
+    """Every session records the versions of Python, torch, numpy, MuJoCo and Meta-World (from
+    the package metadata: Meta-World has no __version__, which older runs recorded as
+    'unknown') and the CPU model; run_fingerprints gives each distinct one once, with 'not
+    recorded' for what an older session lacks."""
+    from importlib import metadata
+
+    from ndp.provenance import FINGERPRINT_KEYS, fingerprint_text
+    from ndp.runs import RunDir, run_fingerprints
+
+    run = RunDir(tmp_path / "r")
+    run.create()
+    entry = run.record_session("start")
+    assert {"python", "torch", "numpy", "mujoco", "metaworld"} <= set(entry["versions"])
+    assert entry["versions"]["torch"] == metadata.version("torch")
+    try:
+        assert entry["versions"]["metaworld"] == metadata.version("metaworld")
+    except metadata.PackageNotFoundError:
+        assert entry["versions"]["metaworld"] == "not installed"
+    assert isinstance(entry["cpu"], str) and entry["cpu"]
+    run.record_session("resume")
+    fps = run_fingerprints(run.path)
+    assert len(fps) == 1 and set(fps[0]) == set(FINGERPRINT_KEYS)
+    (run.path / "provenance.json").write_text(json.dumps([
+        {"event": "start", "versions": {"python": "3.11.7", "metaworld": "unknown"}},
+        {"event": "resume", "versions": {"python": "3.11.7", "metaworld": "unknown"}},
+    ]))  # fmt: skip
+    (old,) = run_fingerprints(run.path)
+    assert old["metaworld"] == "unknown" and old["cpu"] == old["torch"] == "not recorded"
+    assert fingerprint_text(old).startswith("python 3.11.7, torch not recorded, ")
+    (run.path / "provenance.json").write_text("not json")
+    assert run_fingerprints(run.path) == []
+
+
 def test_run_commits_reads_the_provenance_record(tmp_path):
     """run_commits: the commits of a run's recorded sessions; nothing for a run without a
     readable provenance.json."""

@@ -47,6 +47,8 @@ class RunInfo:
     ``"sb3"``, ``"il"``, ``"bc"``)."""
     finished: bool = False
     commits: list[str] = field(default_factory=list)
+    fingerprints: list[dict[str, str]] = field(default_factory=list)
+    """The environment fingerprints of its sessions (:func:`ndp.runs.run_fingerprints`)."""
     problem: str = ""
     """Why a run that says it is finished does not count (e.g. its metrics.csv was cut)."""
     executed: int | None = None

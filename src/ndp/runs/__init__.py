@@ -4,7 +4,7 @@ A run directory holds::
 
     config.json       the resolved, typed config of the run (written at start)
     provenance.json   one entry per session (start / resume): time, command line, commit,
-                      dirty flag, host, versions
+                      dirty flag, host, versions, CPU model (the environment fingerprint)
     checkpoint.pt     the latest good checkpoint (atomic; ``kind`` names the trainer)
     metrics.csv       one row per update / epoch, stable column names (docs/metrics.md)
     tb/               the same scalars as TensorBoard events
@@ -24,6 +24,7 @@ from ndp.runs.layout import (
     TB_DIR,
     RunDir,
     run_commits,
+    run_fingerprints,
 )
 from ndp.runs.metrics import MetricsLogger, metrics_path, read_metrics
 
@@ -40,5 +41,6 @@ __all__ = [
     "metrics_path",
     "read_metrics",
     "run_commits",
+    "run_fingerprints",
     "save_checkpoint",
 ]

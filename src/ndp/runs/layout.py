@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ndp.io import atomic_write_text, remove_stale_tmp
-from ndp.provenance import provenance
+from ndp.provenance import fingerprint, provenance
 
 CONFIG_NAME = "config.json"
 """The resolved config of the run."""
@@ -294,6 +294,23 @@ def parse_run_name(name: str, tasks: Iterable[str] = ()) -> tuple[str, str, int]
         return None
     task, label = head.rsplit("-", 1)
     return task, label, seed
+
+
+def run_fingerprints(run_dir: str | Path) -> list[dict[str, str]]:
+    """The environment fingerprints (:func:`ndp.provenance.fingerprint`: Python, torch, numpy,
+    MuJoCo and Meta-World versions, the CPU model) of a run's sessions, each distinct one once,
+    in session order; empty when provenance.json is missing or unreadable."""
+    try:
+        sessions = json.loads((Path(run_dir) / PROVENANCE_NAME).read_text())
+    except (OSError, json.JSONDecodeError):
+        return []
+    if not isinstance(sessions, list):
+        return []
+    out: list[dict[str, str]] = []
+    for e in sessions:
+        if isinstance(e, dict) and (fp := fingerprint(e)) not in out:
+            out.append(fp)
+    return out
 
 
 def run_commits(run_dir: str | Path) -> list[str]:

@@ -65,9 +65,9 @@ from ndp.experiments.studies import get_study
 from ndp.experiments.study import is_finished
 from ndp.il.config import data_task_name
 from ndp.io import atomic_write_text, check_output_path
-from ndp.provenance import git_commit
+from ndp.provenance import commit_in_history, fingerprint_text, git_commit
 from ndp.rl.config import EVAL_SEED
-from ndp.runs import metrics_path, read_metrics, run_commits
+from ndp.runs import metrics_path, read_metrics, run_commits, run_fingerprints
 from ndp.runs.session import Manifest, read_manifest
 
 
@@ -161,6 +161,7 @@ def run_info(path: Path) -> RunInfo | None:
                    manifest=manifest)  # fmt: skip
     info.finished = _finished(info)
     info.commits = run_commits(path)
+    info.fingerprints = run_fingerprints(path)
     return info
 
 
@@ -434,6 +435,8 @@ def report(
         "commit": git_commit(),
         "date": dt.datetime.now().strftime("%Y-%m-%d %H:%M"),
         "run_commits": sorted({x for c in cells for i in c.runs.values() for x in i.commits}),
+        "run_environments": _environments([i for c in cells for i in c.runs.values()]),
+        "n_runs": sum(len(c.runs) for c in cells),
     }
     out = Path(out)
     check_output_path(out, "out")
@@ -687,12 +690,13 @@ def _markdown(
     out: Path,
     eval_episodes: int = 0,
 ) -> list[str]:
-    runs_at = ", ".join(prov["run_commits"]) or "not recorded"
     md = [
         f"# {title}",
         "",
         f"Command: `{prov['command']}`  ",
-        f"Commit: {prov['commit']}, date: {prov['date']}; runs trained at commits: {runs_at}.  ",
+        f"Commit: {prov['commit']}, date: {prov['date']}; runs trained at commits: "
+        f"{_commits_text(prov['run_commits'])}.  ",
+        *_provenance_lines(prov),
         f"Seeds per cell: {list(expected)}; mean +- std over seeds (population std).",
         "",
     ]
@@ -771,6 +775,55 @@ def _markdown(
     md += [f"![{p.stem}]({p.name})" for p in pngs]
     md += ["", f"CSV: `{_ext(out, '.csv').name}`."]
     return md
+
+
+LOST = "lost: not in this repository's history"
+"""How a table marks a run's commit that no ref of the repository reaches
+(:func:`ndp.provenance.commit_in_history`)."""
+
+
+def _commits_text(commits: Sequence[str]) -> str:
+    """The runs' commits for a table's header, each one the repository's history lacks marked
+    ``(lost: ...)``; ``not recorded`` for none."""
+    if not commits:
+        return "not recorded"
+    return ", ".join(c + (f" ({LOST})" if commit_in_history(c) is False else "") for c in commits)
+
+
+def _environments(infos: Sequence[RunInfo]) -> list[tuple[str, int]]:
+    """The distinct environment fingerprints of the runs' sessions, each with how many runs
+    have it (a run resumed under another fingerprint counts under both), most runs first."""
+    count: dict[str, int] = {}
+    for i in infos:
+        for fp in {fingerprint_text(f) for f in i.fingerprints} or {"not recorded"}:
+            count[fp] = count.get(fp, 0) + 1
+    return sorted(count.items(), key=lambda kv: (-kv[1], kv[0]))
+
+
+def _provenance_lines(prov: dict[str, Any]) -> list[str]:
+    """The header's lines on the runs' environments, and a MIXED warning when the runs were
+    trained at several commits or under several environment fingerprints."""
+    envs: list[tuple[str, int]] = prov.get("run_environments", [])
+    total = prov.get("n_runs", sum(n for _, n in envs))
+    if len(envs) == 1:
+        lines = [f"Runs' environment: {envs[0][0]} (every run).  "]
+    else:
+        each = (f"{fp} ({n} run{'' if n == 1 else 's'})" for fp, n in envs)
+        lines = ["Runs' environments: " + "; ".join(each) + ".  "]
+    mixed = []
+    commits = prov.get("run_commits", [])
+    if len(commits) > 1:
+        mixed.append(f"{len(commits)} commits ({', '.join(commits)})")
+    if len(envs) > 1:
+        mixed.append(f"{len(envs)} environment fingerprints (above)")
+    if mixed:
+        lines.append(
+            f"**MIXED: the {total} runs of this table were trained at "
+            + " and ".join(mixed)
+            + ". Their differences can come from the code or the environment as well as the "
+            "method; the per-run record is each run's provenance.json.**  "
+        )
+    return lines
 
 
 def _bc_markdown(cells: Sequence[Cell]) -> list[str]:

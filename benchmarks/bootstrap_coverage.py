@@ -11,7 +11,9 @@ covers its true value when the per-run scores are drawn from distributions like 
   deviation (means 0.19-0.48, standard deviations 0.08-0.19 over 10 runs).
 - **Mean** (per cell): ``--sims`` experiments of n runs each; the percentile bootstrap interval
   with ``--reps`` replicates and the Student t-interval (n - 1 degrees of freedom); the true
-  value is the Beta's mean.
+  value is the Beta's mean. Beside the headline cells, two strongly skewed reference Betas
+  (:data:`REFERENCE`, mean 0.09: arms that rarely learn, such as the off-policy learners on
+  push-v3 at 0.01-0.14), where the bootstrap covers least.
 - **IQM** (per method, over its two tasks): ``--sims`` experiments of n runs per task; the
   stratified-bootstrap interval of the IQM of all runs (``--reps`` replicates); the true value
   is the interquartile mean of the two tasks' equal mixture (the 25%-trimmed mean of the
@@ -53,6 +55,8 @@ ROOT = Path(__file__).resolve().parents[1]
 CELLS = ROOT / "docs" / "results" / "ndp_regimes" / "headline.csv"
 KEY = "det_success_area"
 CONF = 0.95
+REFERENCE = (("skewed, mean 0.09, sd 0.11", 0.5, 5.0), ("skewed, mean 0.09, sd 0.14", 0.3, 3.0))
+"""(name, alpha, beta) of the reference Betas beside the fitted cells (mean coverage only)."""
 
 
 def beta_cells(path: Path, key: str = KEY) -> list[dict[str, float | str | int]]:
@@ -163,7 +167,10 @@ def run(cells_csv: Path, ns: list[int], sims: int, reps: int, seed: int) -> dict
         by_method.setdefault(str(c["method"]), []).append((float(c["alpha"]), float(c["beta"])))
     check_against_library(next(iter(by_method.values())), reps)
     ss = np.random.SeedSequence(seed)
-    out: dict[str, object] = {"distributions": cells, "mean": {}, "iqm": {}}
+    out: dict[str, object] = {
+        "distributions": cells,
+        "reference": [{"name": n, "alpha": a, "beta": b} for n, a, b in REFERENCE],
+    }
     mean_out: dict[str, object] = {}
     iqm_out: dict[str, object] = {}
     for n in ns:
@@ -173,10 +180,14 @@ def run(cells_csv: Path, ns: list[int], sims: int, reps: int, seed: int) -> dict
             per[f"{c['task']} {c['method']}"] = mean_coverage(
                 float(c["alpha"]), float(c["beta"]), n, sims, reps, rng
             )
+        ref = {}
+        for (name, a, b), child in zip(REFERENCE, ss.spawn(len(REFERENCE)), strict=True):
+            ref[name] = mean_coverage(a, b, n, sims, reps, np.random.default_rng(child))
         mean_out[str(n)] = {
             "cells": per,
             "bootstrap": _span([v["bootstrap"] for v in per.values()]),
             "t": _span([v["t"] for v in per.values()]),
+            "reference": ref,
         }
         per_iqm = {}
         for (method, params), child in zip(by_method.items(), ss.spawn(len(by_method)),

@@ -225,3 +225,35 @@ def test_optimality_gap_and_performance_profile_from_rliable():
     # fraction of the 9 runs above tau: all above 0, 5 of 9 above 0.5, none above 1
     np.testing.assert_allclose(prof["a"], [1.0, 5 / 9, 0.0])
     assert ci["a"].shape == (2, 3)
+
+
+def test_the_coverage_note_quotes_the_measured_coverages():
+    """stats.COVERAGE (and the note every condition table carries) holds the numbers
+    benchmarks/bootstrap_coverage.py wrote, rounded to percent, lowest to highest."""
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / S.COVERAGE_FILE
+    if not path.is_file():
+        pytest.skip("the results folder is not in this checkout")
+    got = json.loads(path.read_text())
+    mean3, mean10 = got["mean"]["3"], got["mean"]["10"]
+    skewed = [r["bootstrap"] for r in mean3["reference"].values()]
+    skewed_t = [r["t"] for r in mean3["reference"].values()]
+
+    def pct(lo, hi):
+        return (round(100 * lo), round(100 * hi))
+
+    measured = {
+        "mean_bootstrap_n3": pct(mean3["bootstrap"]["min"], mean3["bootstrap"]["max"]),
+        "mean_bootstrap_n3_skewed": pct(min(skewed), max(skewed)),
+        "mean_t_n3": pct(mean3["t"]["min"], mean3["t"]["max"]),
+        "mean_t_n3_skewed": pct(min(skewed_t), max(skewed_t)),
+        "iqm_bootstrap_n3": pct(got["iqm"]["3"]["bootstrap"]["min"],
+                                got["iqm"]["3"]["bootstrap"]["max"]),
+        "mean_bootstrap_n10": pct(mean10["bootstrap"]["min"], mean10["bootstrap"]["max"]),
+        "iqm_bootstrap_n10": pct(got["iqm"]["10"]["bootstrap"]["min"],
+                                 got["iqm"]["10"]["bootstrap"]["max"]),
+    }  # fmt: skip
+    assert measured == S.COVERAGE
+    assert "73-75% per task at n = 3" in S.COVERAGE_NOTE and "76%" not in S.COVERAGE_NOTE

@@ -457,6 +457,7 @@ def test_report_header_names_environments_lost_commits_and_mixed_runs(tmp_path):
     md = (tmp_path / "two.md").read_text()
     assert f"{fp} (3 runs)" in md and "CPU B (1 run)" in md and "CPU not recorded (1 run)" in md
     assert "**MIXED: the 4 runs of this table were trained at 2 commits (" in md
+    assert f"{head[:7]}: 3 runs" in md and "abcdef0: 1 run" in md
     assert "and 3 environment fingerprints (above)" in md
     if commit_in_history(head[:7]):  # a git checkout with its history (not an sdist)
         assert f"{head[:7]}, abcdef0 (lost: not in this repository's history)" in md or (

@@ -437,6 +437,7 @@ def report(
         "run_commits": sorted({x for c in cells for i in c.runs.values() for x in i.commits}),
         "run_environments": _environments([i for c in cells for i in c.runs.values()]),
         "n_runs": sum(len(c.runs) for c in cells),
+        "runs_per_commit": _per_commit([i for c in cells for i in c.runs.values()]),
     }
     out = Path(out)
     check_output_path(out, "out")
@@ -800,6 +801,16 @@ def _environments(infos: Sequence[RunInfo]) -> list[tuple[str, int]]:
     return sorted(count.items(), key=lambda kv: (-kv[1], kv[0]))
 
 
+def _per_commit(infos: Sequence[RunInfo]) -> dict[str, int]:
+    """How many runs have a session at each commit (a run resumed at another commit counts
+    under both)."""
+    count: dict[str, int] = {}
+    for i in infos:
+        for c in i.commits:
+            count[c] = count.get(c, 0) + 1
+    return dict(sorted(count.items()))
+
+
 def _provenance_lines(prov: dict[str, Any]) -> list[str]:
     """The header's lines on the runs' environments, and a MIXED warning when the runs were
     trained at several commits or under several environment fingerprints."""
@@ -813,7 +824,11 @@ def _provenance_lines(prov: dict[str, Any]) -> list[str]:
     mixed = []
     commits = prov.get("run_commits", [])
     if len(commits) > 1:
-        mixed.append(f"{len(commits)} commits ({', '.join(commits)})")
+        per = prov.get("runs_per_commit", {})
+        named = [
+            f"{c}: {per[c]} run{'' if per[c] == 1 else 's'}" if c in per else c for c in commits
+        ]
+        mixed.append(f"{len(commits)} commits ({', '.join(named)})")
     if len(envs) > 1:
         mixed.append(f"{len(envs)} environment fingerprints (above)")
     if mixed:

@@ -36,6 +36,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from ndp.checks import install_hint
+
 __version__ = "0.1.0"
 """The source tree's version (``pyproject.toml``'s; a test keeps them equal). The installed
 distribution's version: :func:`version`."""
@@ -151,8 +153,7 @@ def _missing_extra(
     if extra is None or (exc.name or "ndp").split(".")[0] == "ndp":
         return None
     return ModuleNotFoundError(
-        f"{exc}: ndp.{what} needs the [{extra}] extra "
-        f"(pip install 'neural-dynamic-policies[{extra}]')",
+        f"{exc}: ndp.{what} needs the [{extra}] extra ({install_hint(extra)})",
         name=exc.name,
     )
 

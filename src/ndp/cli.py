@@ -16,6 +16,7 @@ from types import ModuleType
 from typing import Any
 
 from ndp import version
+from ndp.checks import install_hint
 
 # Sub-command modules, each with ``add_subparser(subparsers) -> None`` that registers a parser
 # whose ``func(args) -> int`` runs the command.
@@ -34,7 +35,7 @@ _EXTRAS = {"ndp.il.cli": ("il", "il"), "ndp.bc.cli": ("il", "rl"), "ndp.rl.cli":
 def _missing_extra_message(command: str, extra: str, missing: str) -> str:
     return (
         f"ndp {command}: needs the [{extra}] extra (missing module {missing!r}): "
-        f"pip install 'neural-dynamic-policies[{extra}]'"
+        f"{install_hint(extra)}"
     )
 
 
@@ -126,7 +127,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # a third-party package of an extra that is not installed (a core-only install)
         print(
             f"ndp: error: {exc}: install the extras this command needs "
-            "(pip install 'neural-dynamic-policies[envs]', '[rl]', '[il]'; '[dev]' for all)",
+            f"({install_hint('rl')}; [envs], [il], [dev] for all)",
             file=sys.stderr,
         )
         return 2

@@ -39,7 +39,7 @@ import torch
 from torch import nn
 
 from ndp.act_inputs import check_act_inputs
-from ndp.checks import check_flag
+from ndp.checks import check_flag, install_hint
 from ndp.chunk_info import frame_of_keys
 from ndp.io import atomic_write_bytes, check_output_path
 from ndp.provenance import git_commit, installed_versions
@@ -134,8 +134,7 @@ def _require(name: str) -> Any:
         return importlib.import_module(name)
     except ModuleNotFoundError as exc:
         raise ModuleNotFoundError(
-            f"{exc}: the ONNX export needs the [onnx] extra "
-            "(pip install 'neural-dynamic-policies[onnx]')",
+            f"{exc}: the ONNX export needs the [onnx] extra ({install_hint('onnx')})",
             name=exc.name,
         ) from None
 

@@ -55,7 +55,7 @@ import torch
 import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
 from ndp import zoo
 from ndp.act_inputs import RobotState, check_act_inputs
-from ndp.checks import check_flag
+from ndp.checks import check_flag, install_hint
 from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
@@ -229,8 +229,8 @@ class Policy:
             if (exc.name or "ndp").split(".")[0] == "ndp":
                 raise
             raise ModuleNotFoundError(
-                f"{exc}: policy.make_env() needs the simulators, the [envs] extra (pip install "
-                "'neural-dynamic-policies[envs]'); act() does not",
+                f"{exc}: policy.make_env() needs the simulators, the [envs] extra "
+                f"({install_hint('envs')}); act() does not",
                 name=exc.name,
             ) from exc
 

@@ -242,7 +242,7 @@ def _cmd_methods(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from ndp.rl.evaluate import evaluate, save_evaluation
+    from ndp.rl.evaluate import check_save_target, evaluate, save_evaluation
 
     modes = {"both": (True, False), "deterministic": (True,), "stochastic": (False,)}[args.mode]
     values = args.exec_k if args.exec_k is not None else [None]
@@ -253,6 +253,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         trained = load_policy(args.run_dir)
         for k2 in values:
             substeps_for(trained, k2)
+    if args.save:  # refused before anything is evaluated
+        check_save_target(args.run_dir)
     for det in modes:
         for k2 in values:
             result = evaluate(args.run_dir, args.episodes, det, args.seed, k2)

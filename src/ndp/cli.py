@@ -100,6 +100,22 @@ def version_line() -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``ndp`` command. SIGINT and SIGTERM stop it from its first instant (before any heavy
+    import; also where SIGINT was ignored at start-up, as for a shell's background job): one
+    line on stderr and exit 130 / 143, however far the command got."""
+    from ndp.runs.signals import exit_code, stop_on_sigterm
+
+    try:
+        with stop_on_sigterm():
+            return _main(argv)
+    except KeyboardInterrupt as exc:  # a stop no command turned into its own message
+        code = exit_code(exc)
+        name = "SIGTERM" if code == 143 else "SIGINT"
+        print(f"ndp: stopped by {name} (exit {code})", file=sys.stderr)
+        return code
+
+
+def _main(argv: Sequence[str] | None = None) -> int:
     args_list = list(sys.argv[1:] if argv is None else argv)
     if args_list[:1] == ["--version"]:  # before the sub-command modules are imported
         print(version_line())

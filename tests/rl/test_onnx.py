@@ -131,6 +131,12 @@ FRESH = {
         {"absolute_mode": "dmp", "dmp_state": "commanded", "dmp_velocity": "state"},
     ),
     "vices-low-freq": ("push-v3", "vices-low-freq", {}),  # the hold head
+    # PPO-multi with a chunk basis (k 10 >= 1 + N = 7); 'dmp' on push-v3 reads the measured
+    # state (its offset in dy0), so y0 / dy0 enter the graph (the 'pca' basis:
+    # tests/rl/test_chunk_basis_train.py)
+    "ppo-multi-dct": ("point-mass", "ppo-multi", {"k": 10, "chunk_basis": "dct"}),
+    "ppo-multi-bspline": ("point-mass", "ppo-multi", {"k": 10, "chunk_basis": "bspline"}),
+    "ppo-multi-dmp": ("push-v3", "ppo-multi", {"k": 10, "chunk_basis": "dmp"}),
 }
 
 

@@ -28,6 +28,14 @@ DMP_STATES = ("commanded", "measured")
 """Where the NDP DMP starts: the commanded target (mocap, joint targets) or the measured robot."""
 
 
+CHUNK_BASES = ("none", "dmp", "dct", "bspline", "pca")
+"""Values of ``PolicyConfig.chunk_basis`` (``ndp.policies.chunk_basis``): PPO-multi's free chunk,
+or a fixed basis of 1 + n_basis columns per DoF."""
+FILE_BASES = ("pca",)
+"""Chunk bases read from ``PolicyConfig.chunk_basis_file``."""
+BASIS_HEADS = ("multi",)
+"""Heads that read ``PolicyConfig.chunk_basis`` (PPO-multi's); the others have it cleared."""
+
 AR1_HEADS = ("step", "multi", "ndp")
 """Heads whose exploration is a Gaussian around each sub-action (``noise="ar1"`` applies)."""
 PRESET_FIELDS = ("n_basis", "a_z", "dmp_steps", "goal_scale", "weight_scale")
@@ -204,6 +212,15 @@ class PolicyConfig:
     velocity is the previous decision's last *sampled* sub-action, i.e. its exploration noise;
     the measured one double-counts the momentum stored in the target's lead); None: the task's
     preset ('state' on Meta-World, 'zero' on Jaco and the toy task)."""
+    chunk_basis: str = "none"
+    """PPO-multi only: restrict each DoF's k sub-action means to a fixed basis of 1 + n_basis
+    columns (n_basis: the task's NDP preset unless given): 'none' (k free means, PPO-multi as
+    it is), 'dmp' (the NDP head's affine span from the robot state, tanh bounds removed), 'dct',
+    'bspline' (cubic) or 'pca' (--chunk-basis-file); refused where 1 + n_basis > k
+    (docs/policies.md, 'Chunk bases')."""
+    chunk_basis_file: str | None = None
+    """The 'pca' basis' file, written by ndp rl fit-basis; its task, k and DoF count must be the
+    run's."""
 
     def __post_init__(self) -> None:
         plain_numbers(self)
@@ -228,6 +245,17 @@ class PolicyConfig:
             v = getattr(self, name)
             if v is not None and v not in allowed:  # None: the task's preset (resolve_config)
                 raise ValueError(f"{name}: expected one of {', '.join(allowed)}, got {v!r}")
+        if self.chunk_basis not in CHUNK_BASES:
+            raise ValueError(
+                f"chunk_basis: expected one of {', '.join(CHUNK_BASES)}, got {self.chunk_basis!r}"
+            )
+        has_file = self.chunk_basis_file is not None
+        if has_file != (self.chunk_basis in FILE_BASES):
+            raise ValueError(
+                f"chunk_basis_file: expected a file for chunk_basis in {', '.join(FILE_BASES)} "
+                f"only (ndp rl fit-basis writes one), got chunk_basis={self.chunk_basis!r} and "
+                f"chunk_basis_file={self.chunk_basis_file!r}"
+            )
         if self.hidden_gain is not None and not self.hidden_gain > 0:
             raise ValueError(f"hidden_gain: expected a number > 0, got {self.hidden_gain!r}")
         if self.ndp.param_noise and self.head != "ndp":

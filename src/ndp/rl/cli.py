@@ -7,6 +7,7 @@ Examples::
     ndp rl eval runs/push-v3-ndp-s0 --episodes 20
     ndp rl eval runs/push-v3-ndp-s0 --exec-k 5 25 --mode deterministic
     ndp rl render runs/push-v3-ndp-s0 --out push.mp4
+    ndp rl fit-basis runs/push-v3-ppo-multi-s0 --decisions 2000 --out basis.npz
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ def train_description() -> str:
 
 
 def add_subparser(sub: Any) -> None:
-    """Register ``rl`` with sub-commands ``train``, ``eval``, ``render`` and ``export``."""
+    """Register ``rl`` with sub-commands ``train``, ``methods``, ``eval``, ``export``,
+    ``fit-basis`` and ``render``."""
     rl = sub.add_parser(
         "rl", help="reinforcement learning: NDP and its baselines (ndp rl methods lists them)"
     )
@@ -113,6 +115,31 @@ def add_subparser(sub: Any) -> None:
     )
     ex.set_defaults(func=_cmd_export)
 
+    fb = rl_sub.add_parser(
+        "fit-basis",
+        help="fit PPO-multi's 'pca' chunk basis (--chunk-basis pca) to trained PPO-multi runs",
+        description="Record the k sub-action means of every decision of trained PPO-multi "
+        "policies acting in their env, and save per DoF the top 1 + N principal directions "
+        "(uncentred) with their provenance in one .npz file for ndp rl train --algo ppo-multi "
+        "--chunk-basis pca --chunk-basis-file FILE (docs/policies.md, 'Chunk bases').",
+    )
+    fb.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="PPO-multi runs (or exports)")
+    fb.add_argument("--out", required=True, metavar="FILE", help="the .npz file to write")
+    fb.add_argument(
+        "--decisions", type=int, default=2000, help="decisions recorded per run (default 2000)"
+    )
+    fb.add_argument(
+        "--n-basis",
+        type=int,
+        default=None,
+        metavar="N",
+        help="1 + N directions per DoF (default: the task's NDP preset, as the head reads it)",
+    )
+    fb.add_argument("--seed", type=int, default=EVAL_SEED, help="first episode's reset seed")
+    fb.add_argument("--stochastic", action="store_true", help="sample actions (default: mean)")
+    fb.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    fb.set_defaults(func=_cmd_fit_basis)
+
     rd = rl_sub.add_parser("render", help="render a trained run to mp4")
     rd.add_argument("run_dir", metavar="RUN_DIR")
     rd.add_argument("--out", default=None, help="mp4 path (default RUN_DIR/video.mp4)")
@@ -163,6 +190,7 @@ def train_command(argv: list[str]) -> int:
         SAFE_ON_RESUME,
         load_config,
         resolve_config,
+        unused_basis_options,
         unused_head_options,
         unused_method_options,
     )
@@ -208,6 +236,7 @@ def train_command(argv: list[str]) -> int:
             else:
                 cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description())
                 unused = unused_head_options(cfg)  # before resolving, which clears them
+                unused_basis = unused_basis_options(cfg)
                 other = unused_method_options(cfg)
                 # resolved once, here: the run directory every message names is the one the
                 # run writes (an alias task or VICES's task variant gives the canonical row)
@@ -216,6 +245,10 @@ def train_command(argv: list[str]) -> int:
                 if unused:
                     print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "
                           f"--algo {cfg.algo} does not run; not used", file=sys.stderr)  # fmt: skip
+                if unused_basis:
+                    print(f"ndp: note: {', '.join(unused_basis)}: options of PPO-multi's "
+                          f"chunk basis, which --algo {cfg.algo} does not run; not used",
+                          file=sys.stderr)  # fmt: skip
                 if other:
                     print(f"ndp: note: {', '.join(other)}: options of another learner, which "
                           f"--algo {cfg.algo} does not read; not used",
@@ -269,6 +302,22 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     out = export_policy(args.run_dir, args.out, format=args.format)
     print(json.dumps({"export": str(out), "format": args.format}))
+    return 0
+
+
+def _cmd_fit_basis(args: argparse.Namespace) -> int:
+    from ndp.rl.fit_basis import fit_basis
+
+    summary = fit_basis(
+        args.run_dirs,
+        args.out,
+        decisions=args.decisions,
+        n_basis=args.n_basis,
+        seed=args.seed,
+        deterministic=not args.stochastic,
+        overwrite=args.overwrite,
+    )
+    print(json.dumps(summary))
     return 0
 
 

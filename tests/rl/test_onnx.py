@@ -131,6 +131,13 @@ FRESH = {
         {"absolute_mode": "dmp", "dmp_state": "commanded", "dmp_velocity": "state"},
     ),
     "vices-low-freq": ("push-v3", "vices-low-freq", {}),  # the hold head
+    "ndp-linear": ("point-mass", "ndp", {"param_map": "linear"}),  # no tanh: actions clipped
+    # W (a float64 buffer) in the graph; parameter noise over the whitened raw outputs
+    "ndp-whitened-param-noise": (
+        "point-mass",
+        "ndp",
+        {"param_map": "whitened", "param_noise": True},
+    ),
 }
 
 

@@ -137,6 +137,13 @@ FRESH = {
     "ppo-multi-dct": ("point-mass", "ppo-multi", {"k": 10, "chunk_basis": "dct"}),
     "ppo-multi-bspline": ("point-mass", "ppo-multi", {"k": 10, "chunk_basis": "bspline"}),
     "ppo-multi-dmp": ("push-v3", "ppo-multi", {"k": 10, "chunk_basis": "dmp"}),
+    "ndp-linear": ("point-mass", "ndp", {"param_map": "linear"}),  # no tanh: actions clipped
+    # W (a float64 buffer) in the graph; parameter noise over the whitened raw outputs
+    "ndp-whitened-param-noise": (
+        "point-mass",
+        "ndp",
+        {"param_map": "whitened", "param_noise": True},
+    ),
 }
 
 

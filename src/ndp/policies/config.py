@@ -24,6 +24,9 @@ ABSOLUTE_MODES = ("direct", "dmp")
 """NDP absolute-command DoF (gripper): the goal emitted as the command, or a DMP from y0."""
 DMP_VELOCITIES = ("zero", "state")
 """NDP DMP start velocity: at rest, or the state's velocity (commanded or measured)."""
+PARAM_MAPS = ("tanh", "linear", "whitened")
+"""NDP raw outputs -> goal and weights: bounded by tanh, linear (unbounded), or linear after a
+fixed whitening transform W (``ndp.policies.heads.NDPHead``, docs/rl.md)."""
 DMP_STATES = ("commanded", "measured")
 """Where the NDP DMP starts: the commanded target (mocap, joint targets) or the measured robot."""
 
@@ -100,6 +103,11 @@ class NDPHeadConfig:
     """Absolute-command DoF (Meta-World gripper): 'direct' emits the decision's goal as the
     command of all k sub-steps (no dependence on the previous decision's noise); 'dmp'
     integrates a DMP from the last sampled command (the first release's form)."""
+    param_map: str = "tanh"
+    """How the raw outputs become goal and weights: 'tanh' (bounded, g - y0 = s tanh(raw)),
+    'linear' (the same scale without tanh; only the executed actions are clipped) or 'whitened'
+    (linear after a fixed transform W making the map's Jacobian at raw = 0 isotropic on the
+    chunk's reachable directions; 'amplitude' forcing, fixed a_z). NDP (PPO) head only."""
 
     def __post_init__(self) -> None:
         plain_numbers(self)
@@ -113,11 +121,20 @@ class NDPHeadConfig:
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise ValueError(f"{name}: expected a number > 0, got {v!r}")
-        for name, allowed in (("forcing", FORCING), ("absolute_mode", ABSOLUTE_MODES)):
+        for name, allowed in (
+            ("forcing", FORCING),
+            ("absolute_mode", ABSOLUTE_MODES),
+            ("param_map", PARAM_MAPS),
+        ):
             if getattr(self, name) not in allowed:
                 raise ValueError(
                     f"{name}: expected one of {', '.join(allowed)}, got {getattr(self, name)!r}"
                 )
+        if self.param_map == "whitened" and (self.forcing != "amplitude" or self.learn_az):
+            raise ValueError(
+                "param_map: 'whitened' needs forcing='amplitude' and a fixed a_z (a map linear in "
+                f"the raw outputs), got forcing={self.forcing!r}, learn_az={self.learn_az}"
+            )
 
     @property
     def resolved(self) -> bool:
@@ -260,6 +277,11 @@ class PolicyConfig:
             raise ValueError(f"hidden_gain: expected a number > 0, got {self.hidden_gain!r}")
         if self.ndp.param_noise and self.head != "ndp":
             raise ValueError("param_noise: parameter-space exploration needs the 'ndp' head")
+        if self.ndp.param_map != "tanh" and self.head in DMP_HEADS and self.head != "ndp":
+            raise ValueError(
+                f"param_map: {self.ndp.param_map!r} needs the 'ndp' head; the {self.head!r} head "
+                "bounds its DMP parameters by tanh in its density (use 'tanh')"
+            )
         from ndp.policies.distributions import NOISES
 
         if self.noise not in NOISES:

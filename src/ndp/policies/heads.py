@@ -13,6 +13,9 @@ state) into an exploration distribution over the k sub-actions of a decision [B,
       g = centre + half_range * tanh(raw_g)                 (absolute DoF, e.g. the gripper)
       w = weight_scale * tanh(raw_w)                        (per DoF, see ``forcing``)
 
+  (``param_map='tanh'``, the default; ``'linear'`` drops the tanh, ``'whitened'`` also applies
+  a fixed transform W to the raw outputs first: :class:`NDPHead`, docs/rl.md),
+
   the DMP is integrated from the robot state (y0, dy0; the commanded target by default, see
   ``PolicyConfig.dmp_state``) over one decision, the trajectory [B, k + 1, D] is cut at the k
   sub-step boundaries and the task's inverse controller maps it to the k sub-action means
@@ -46,6 +49,7 @@ from ndp.policies.base import HEAD_BUILDERS as HEAD_BUILDERS  # the registry, re
 from ndp.policies.base import SINGLE_STEP_HEADS as SINGLE_STEP_HEADS  # importing this module
 from ndp.policies.base import ActionHead, HeadOutput  # registers every built-in head first
 from ndp.policies.base import register_head as register_head
+from ndp.policies.conditioning import raw_jacobian, whitening_transform
 from ndp.policies.distributions import ParamGaussian, SubActionGaussian
 from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
 from ndp.policies.squashed import SquashedActionHead as SquashedActionHead  # the SAC family's
@@ -179,6 +183,11 @@ class ChunkBasisHead(_RawActionHead):
         return f"kind={self.kind!r}, k={self.k}, A={self.action_dim}, P={self.columns}"
 
 
+PARAM_MAPS = ("tanh", "linear", "whitened")
+"""How the NDP head maps its raw outputs to the goal and forcing weights (the same tuple as
+``ndp.policies.config.PARAM_MAPS``, which the config validates against without torch)."""
+
+
 DERIVED_BUFFERS = (
     "goal_scale",
     "absolute_goal",
@@ -218,6 +227,26 @@ class NDPHead(ActionHead):
             value itself; A = D): the DMP, the inverse controller and ``direct`` then fold into
             one precomputed map per DoF (:meth:`decode` uses it; :meth:`decode_reference` is
             the composed form, equal in value and gradient, tested).
+        param_map: how the raw outputs become the goal and weights (``u``: the first
+            ``D + D N`` raw outputs; a learned a_z's output is mapped as always):
+
+            - ``'tanh'`` (default): ``g - y0 = goal_scale * tanh(u_g)`` (absolute DoF: ``g -
+              centre``), ``w = weight_scale * tanh(u_w)``: bounded parameters;
+            - ``'linear'``: the same without the tanh, ``g - y0 = goal_scale * u_g``, ``w =
+              weight_scale * u_w`` (the same Jacobian at raw = 0); only the executed sample is
+              clipped to the action bounds (and the means with ``mean_clip``), as PPO-multi's;
+            - ``'whitened'``: ``'linear'`` after a fixed transform, ``u = W raw``, with ``W``
+              [D + D N, D + D N] (:func:`ndp.policies.conditioning.whitening_transform`) of the
+              ``'linear'`` map's Jacobian of the k sub-action means at raw = 0, y0 = dy0 = 0 (the
+              map is affine in (raw, y0, dy0) with 'amplitude' forcing, so the Jacobian and W
+              are the same at every start): unit noise in raw space is unit noise over the
+              chunk's reachable directions. W is a buffer (``whitening``, float64) saved in
+              checkpoints and exports, computed once here and then loaded, never recomputed.
+              Needs 'amplitude' forcing (``dmp.scale_by_goal`` False; with 'goal' forcing the
+              weights' columns vanish at raw = 0) and a fixed a_z. Composed with the linear map,
+              not with tanh: an elementwise bound after W would make the map's slopes depend on
+              the raw outputs again, so the whitening would hold at raw = 0 only; without it J
+              is ``J_map W`` at every raw output and state.
     """
 
     needs_robot_state = True
@@ -231,6 +260,7 @@ class NDPHead(ActionHead):
     action_map: torch.Tensor
     action_low: torch.Tensor
     action_high: torch.Tensor
+    whitening: torch.Tensor  # param_map 'whitened' only
 
     def __init__(
         self,
@@ -249,8 +279,19 @@ class NDPHead(ActionHead):
         direct: torch.Tensor | None = None,
         start_at_rest: bool = False,
         linear_controller: tuple[torch.Tensor, ...] | None = None,
+        param_map: str = "tanh",
     ) -> None:
         super().__init__()
+        if param_map not in PARAM_MAPS:
+            raise ValueError(
+                f"param_map: expected one of {', '.join(PARAM_MAPS)}, got {param_map!r}"
+            )
+        if param_map == "whitened" and (dmp.learn_az or dmp.scale_by_goal):
+            raise ValueError(
+                "param_map: 'whitened' needs a fixed a_z and 'amplitude' forcing (the map must be "
+                f"linear in the raw outputs), got learn_az={dmp.learn_az}, "
+                f"forcing={'goal' if dmp.scale_by_goal else 'amplitude'}"
+            )
         if dmp.steps // dmp.subsample != k or dmp.steps % dmp.subsample:
             raise ValueError(
                 f"dmp: steps/subsample must give k={k} points, got steps={dmp.steps}, "
@@ -311,6 +352,13 @@ class NDPHead(ActionHead):
             )
             self.register_buffer("action_low", low.to(torch.float32).clone(), persistent=False)
             self.register_buffer("action_high", high.to(torch.float32).clone(), persistent=False)
+        self.param_map = "linear" if param_map == "whitened" else param_map
+        self.n_mapped = self.dmp_dofs + n_w  # the raw outputs that become g and w (D + D N)
+        self.whitening_rank = 0
+        if param_map == "whitened":  # computed once on the linear map, then a saved buffer
+            w, self.whitening_rank = whitening_transform(self._map_jacobian_at_rest())
+            self.register_buffer("whitening", w)
+            self.param_map = "whitened"
 
     def _load_from_state_dict(
         self, state_dict: dict[str, Any], prefix: str, *args: Any, **kwargs: Any
@@ -336,11 +384,66 @@ class NDPHead(ActionHead):
             maps.append(m)
         return torch.stack(maps).to(torch.float32)
 
+    def _map_jacobian_at_rest(self) -> torch.Tensor:
+        """The linear map's Jacobian [k A, D + D N] of the sub-action means w.r.t. the bounded
+        raw outputs at raw = 0, y0 = dy0 = 0, in float64 (a float64 copy of this head)."""
+        twin = copy.deepcopy(self).double()
+        zero = torch.zeros(1, self.n_params, dtype=torch.float64, device=self.goal_scale.device)
+        state = torch.zeros(1, self.dmp_dofs, dtype=torch.float64, device=zero.device)
+        jac = raw_jacobian(lambda r: twin.decode(r, state, state)[0], zero)[0]
+        return jac[:, : self.n_mapped]
+
+    def _bound(self, x: torch.Tensor) -> torch.Tensor:
+        """The elementwise bound of the goal / weight outputs: tanh, or none."""
+        return torch.tanh(x) if self.param_map == "tanh" else x
+
+    def _whiten(self, raw: torch.Tensor) -> torch.Tensor:
+        """``'whitened'``: the raw outputs [B, P] with ``W`` applied to the first
+        ``D + D N``; the others as they are."""
+        n = self.n_mapped
+        u = raw[:, :n] @ self.whitening.to(raw.dtype).T
+        return torch.cat((u, raw[:, n:]), dim=-1) if raw.shape[1] > n else u
+
+    def unit_params(self, raw: torch.Tensor) -> torch.Tensor:
+        """The raw outputs [B, P] as the ``'linear'`` map would take them to give the same
+        goal and weights: ``tanh(raw)`` in the first ``D + D N`` for ``'tanh'``, ``W raw`` for
+        ``'whitened'``, ``raw`` for ``'linear'`` (a learned a_z's output unchanged)."""
+        if self.param_map == "whitened":
+            return self._whiten(raw)
+        n = self.n_mapped
+        return torch.cat((self._bound(raw[:, :n]), raw[:, n:]), dim=-1)
+
+    def raw_jacobians(
+        self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The Jacobians of the k sub-action means of each decision, in float64 (on a copy).
+
+        Args:
+            raw: [B, P] raw outputs; y0, dy0: [B, D] the robot state (physical units).
+
+        Returns:
+            ``(J, J_map)``, each [B, k A, P] (rows sub-step major: ``j * A + a``): ``J = d
+            means / d raw``, and ``J_map`` the same map's Jacobian w.r.t. :meth:`unit_params`
+            (the ``'linear'`` map at ``unit_params(raw)``: the tanh slopes replaced by 1, W
+            left out), so that ``J = J_map diag(1 - tanh(raw)^2)`` ('tanh', on the first ``D +
+            D N`` columns), ``J_map W`` ('whitened') or ``J_map`` ('linear').
+        """
+        twin = copy.deepcopy(self).double()
+        dev = twin.goal_scale.device
+        r, s0, s1 = (t.detach().to(dev, torch.float64) for t in (raw, y0, dy0))
+        jac = raw_jacobian(lambda x: twin.decode(x, s0, s1)[0], r)
+        unit = twin.unit_params(r).detach()
+        twin.param_map = "linear"
+        map_jac = raw_jacobian(lambda x: twin.decode(x, s0, s1)[0], unit)
+        return jac, map_jac
+
     def _goal_weights_dy0(
         self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, bounded: bool = True
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         b, d = raw.shape[0], self.dmp_dofs
-        squash = torch.tanh if bounded else _identity
+        if self.param_map == "whitened":
+            raw = self._whiten(raw)
+        squash = self._bound if bounded else _identity
         step = self.goal_scale * squash(raw[:, :d])
         goal = torch.where(self.absolute_goal, self.goal_center + step, y0 + step)
         if self.only_g:
@@ -521,7 +624,7 @@ class NDPHead(ActionHead):
             f"decision_dt={self.decision_dt}, param_noise={self.param_noise}, "
             f"mean_clip={self.mean_clip}, direct={self.direct.tolist()}, "
             f"start_at_rest={self.start_at_rest}, only_g={self.only_g}, "
-            f"learn_az={self.learn_az}"
+            f"learn_az={self.learn_az}, param_map={self.param_map}"
         )
 
 
@@ -648,6 +751,7 @@ def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
         direct=torch.as_tensor(direct),
         start_at_rest=_dmp_velocity(cfg, spec) == "zero",
         linear_controller=_linear_controller(spec),
+        param_map=head.param_map,
     )
 
 

@@ -36,8 +36,9 @@ clip and the env steps per iteration (their metrics row)."""
 
 
 def no_dmp(policy: Any, spec: Any) -> dict[str, Any]:
-    """Resolution of heads without a DMP: the NDP head's preset fields are cleared."""
-    return {**dict.fromkeys(PRESET_FIELDS), "param_noise": False}
+    """Resolution of heads without a DMP: the NDP head's preset fields are cleared (and its
+    exploration and parameter map set back to their defaults)."""
+    return {**dict.fromkeys(PRESET_FIELDS), "param_noise": False, "param_map": "tanh"}
 
 
 def resolve_ndp(policy: Any, spec: Any) -> dict[str, Any]:

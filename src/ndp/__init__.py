@@ -48,9 +48,9 @@ _LAZY = {
     "DMPLayer": ("ndp.dmp", "DMPLayer", None),
     "DMPConfig": ("ndp.dmp", "DMPConfig", None),
     "Policy": ("ndp.rl.policy", "Policy", None),
-    "load_policy": ("ndp.rl.policy", "load_any_policy", None),
+    "load_policy": ("ndp.rl.loading", "load_any", None),
     "export_policy": ("ndp.rl.policy", "export_policy", None),
-    "RobotState": ("ndp.rl.policy", "RobotState", None),
+    "RobotState": ("ndp.act_inputs", "RobotState", None),
     "zoo": ("ndp.zoo", None, None),
 }
 

@@ -64,7 +64,8 @@ from ndp.rl.card import check_export_dir, write_card
 from ndp.rl.config import EVAL_SEED, TrainConfig, load_config
 from ndp.rl.exec_k import at_exec_k
 from ndp.rl.normalize import ObsNormalizer
-from ndp.rl.onnx_export import OnnxPolicy, write_onnx_export
+from ndp.rl.onnx_export import write_onnx_export
+from ndp.rl.onnx_policy import OnnxPolicy
 from ndp.runs import load_checkpoint
 from ndp.runs.layout import PROVENANCE_NAME, run_commits
 from ndp.schema import PolicySpec, check_record, spec_record

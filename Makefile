@@ -47,12 +47,11 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/dmp_speed.py
 
 # the API reference from the docstrings, browsable: open build/api/index.html (warnings are errors)
-# The API reference needs the package importable and pdoc, nothing of the [dev] install: it
-# uses .venv when there is one (else $(PYTHON)) and adds pdoc (pinned) only if it is missing.
-API_PY = $(if $(wildcard $(BIN)/python),$(BIN)/python,$(PYTHON))
-api:
-	$(API_PY) -c "import pdoc" 2>/dev/null || $(API_PY) -m pip install -c constraints.txt pdoc
-	$(API_PY) docs/api/build.py --out build/api
+# The reference documents every module, the optional ones too (ndp.sb3 imports
+# Stable-Baselines3, ndp.rl gymnasium), so it builds in the full development install (.venv,
+# every extra and pdoc), as `make test` does.
+api: $(STAMP)
+	$(BIN)/python docs/api/build.py --out build/api
 
 clean:
 	rm -rf $(VENV) runs build/api

@@ -106,7 +106,7 @@ else:
 try:
     import ndp.sb3
 except ModuleNotFoundError as exc:
-    assert "pip install 'neural-dynamic-policies[sb3]'" in str(exc), exc
+    assert "pip install -c constraints.txt '.[sb3]' in a clone" in str(exc), exc
 else:
     raise AssertionError("ndp.sb3 imported without stable_baselines3")
 

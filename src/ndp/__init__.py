@@ -36,6 +36,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from ndp.checks import install_hint
+
 __version__ = "0.1.0"
 """The source tree's version (``pyproject.toml``'s; a test keeps them equal). The installed
 distribution's version: :func:`version`."""
@@ -46,9 +48,9 @@ _LAZY = {
     "DMPLayer": ("ndp.dmp", "DMPLayer", None),
     "DMPConfig": ("ndp.dmp", "DMPConfig", None),
     "Policy": ("ndp.rl.policy", "Policy", None),
-    "load_policy": ("ndp.rl.policy", "load_any_policy", None),
+    "load_policy": ("ndp.rl.loading", "load_any", None),
     "export_policy": ("ndp.rl.policy", "export_policy", None),
-    "RobotState": ("ndp.rl.policy", "RobotState", None),
+    "RobotState": ("ndp.act_inputs", "RobotState", None),
     "zoo": ("ndp.zoo", None, None),
 }
 
@@ -151,8 +153,7 @@ def _missing_extra(
     if extra is None or (exc.name or "ndp").split(".")[0] == "ndp":
         return None
     return ModuleNotFoundError(
-        f"{exc}: ndp.{what} needs the [{extra}] extra "
-        f"(pip install 'neural-dynamic-policies[{extra}]')",
+        f"{exc}: ndp.{what} needs the [{extra}] extra ({install_hint(extra)})",
         name=exc.name,
     )
 

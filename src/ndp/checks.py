@@ -113,3 +113,9 @@ def check_device_available(device: str) -> None:
             raise ValueError(f"device: {device!r} is not available: {n} CUDA device(s) here")
     elif d.type == "mps" and not torch.backends.mps.is_available():
         raise ValueError(f"device: {device!r} is not available on this machine; use 'cpu'")
+
+
+def install_hint(extra: str) -> str:
+    """The install line for an optional extra, as a user can run it: the package is not on
+    PyPI yet, so from a clone of the repository, pinned by its constraints file."""
+    return f"pip install -c constraints.txt '.[{extra}]' in a clone of the repository"

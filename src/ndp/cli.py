@@ -16,6 +16,7 @@ from types import ModuleType
 from typing import Any
 
 from ndp import version
+from ndp.checks import install_hint
 
 # Sub-command modules, each with ``add_subparser(subparsers) -> None`` that registers a parser
 # whose ``func(args) -> int`` runs the command.
@@ -34,7 +35,7 @@ _EXTRAS = {"ndp.il.cli": ("il", "il"), "ndp.bc.cli": ("il", "rl"), "ndp.rl.cli":
 def _missing_extra_message(command: str, extra: str, missing: str) -> str:
     return (
         f"ndp {command}: needs the [{extra}] extra (missing module {missing!r}): "
-        f"pip install 'neural-dynamic-policies[{extra}]'"
+        f"{install_hint(extra)}"
     )
 
 
@@ -99,6 +100,22 @@ def version_line() -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``ndp`` command. SIGINT and SIGTERM stop it from its first instant (before any heavy
+    import; also where SIGINT was ignored at start-up, as for a shell's background job): one
+    line on stderr and exit 130 / 143, however far the command got."""
+    from ndp.runs.signals import exit_code, stop_on_sigterm
+
+    try:
+        with stop_on_sigterm():
+            return _main(argv)
+    except KeyboardInterrupt as exc:  # a stop no command turned into its own message
+        code = exit_code(exc)
+        name = "SIGTERM" if code == 143 else "SIGINT"
+        print(f"ndp: stopped by {name} (exit {code})", file=sys.stderr)
+        return code
+
+
+def _main(argv: Sequence[str] | None = None) -> int:
     args_list = list(sys.argv[1:] if argv is None else argv)
     if args_list[:1] == ["--version"]:  # before the sub-command modules are imported
         print(version_line())
@@ -126,7 +143,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # a third-party package of an extra that is not installed (a core-only install)
         print(
             f"ndp: error: {exc}: install the extras this command needs "
-            "(pip install 'neural-dynamic-policies[envs]', '[rl]', '[il]'; '[dev]' for all)",
+            f"({install_hint('rl')}; [envs], [il], [dev] for all)",
             file=sys.stderr,
         )
         return 2

@@ -284,3 +284,39 @@ def test_old_ids_are_deprecated_aliases_of_the_one_scheme():
     assert gym.spec("ndp/point-mass").max_episode_steps == 50
     old.close()
     new.close()
+
+
+@pytest.mark.parametrize(
+    "env_id,steps,env_steps",
+    [("ndp/point-mass", 37, 37), ("ndp/push-v3", 300, 300), ("ndp/push-v3-k5", 40, 200)],
+)
+def test_max_episode_steps_is_honoured_at_both_ends(env_id, steps, env_steps):
+    """gymnasium.make(..., max_episode_steps=N) runs N steps (N decisions of k env steps for a
+    chunked id), longer and shorter than the task's own horizon, and the default stays it."""
+    import gymnasium
+
+    import ndp.envs  # noqa: F401  # registers the ids
+
+    def length(env) -> tuple[int, int]:
+        env.reset(seed=0)
+        n = 0
+        while True:
+            _, _, term, trunc, info = env.step(env.action_space.sample() * 0)
+            n += 1
+            if term or trunc:
+                return n, int(info.get("n_substeps", 1))
+
+    env = gymnasium.make(env_id, max_episode_steps=steps)
+    try:
+        n, _ = length(env)
+        assert n == steps
+        n, sub = length(env)  # every episode, not only the first
+        assert n == steps and sub == env_steps // steps
+    finally:
+        env.close()
+    default = gymnasium.make(env_id)  # the registered horizon
+    try:
+        n, _ = length(default)
+        assert n == default.spec.max_episode_steps
+    finally:
+        default.close()

@@ -224,3 +224,36 @@ def test_an_export_never_overwrites_a_file_nor_lands_in_a_run_folder(tmp_path, f
     other = "safetensors" if fmt == "onnx" else "onnx"
     with pytest.raises(FileExistsError, match="already holds"):  # not a second format beside it
         src.export(first, format=other)
+
+
+@pytest.mark.parametrize("fmt", ["safetensors", "onnx"])
+def test_a_card_names_the_files_its_folder_holds_and_the_graphs_dtypes(tmp_path, fmt):
+    """Every file the card's 'Files:' line names is in the folder; the ONNX card states the
+    graph's real input dtype (float32: feeding float64 is onnxruntime's INVALID_ARGUMENT)."""
+    import re
+
+    out = ndp.load_policy("zoo:push-v3-ndp").export(tmp_path / fmt, format=fmt)
+    card = (out / "README.md").read_text()
+    files_line = next(line for line in card.splitlines() if line.startswith("Files:"))
+    named = set(re.findall(r"`([\w.]+\.(?:onnx|json|safetensors))`", files_line))
+    assert named and named <= {p.name for p in out.iterdir()}, (named, files_line)
+    if fmt == "onnx":
+        onnx = pytest.importorskip("onnx")
+        graph = onnx.load(str(out / "policy.onnx")).graph
+        elem = {i.name: i.type.tensor_type.elem_type for i in graph.input}
+        assert set(elem.values()) == {onnx.TensorProto.FLOAT}, elem
+        assert "float64" not in card and "[E, D], float32" in card
+
+
+def test_an_export_card_reads_the_saved_fresh_evaluation(tmp_path):
+    """ndp rl eval --save's file reaches the export's card (the largest episode count), with the
+    command that made it and its seeds."""
+    from ndp.rl.policy import cached_evaluation
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "eval-det-e10.json").write_text(json.dumps({"success_any": 0.3}))
+    (run / "eval-det-e100-s20000.json").write_text(json.dumps({"success_any": 0.42}))
+    ev = cached_evaluation(run)
+    assert ev is not None and ev["episodes"] == 100 and ev["first_seed"] == 20000
+    assert ev["success"] == 0.42 and "--seed 20000 --save" in ev["command"]

@@ -131,6 +131,19 @@ FRESH = {
         {"absolute_mode": "dmp", "dmp_state": "commanded", "dmp_velocity": "state"},
     ),
     "vices-low-freq": ("push-v3", "vices-low-freq", {}),  # the hold head
+    # PPO-multi with a chunk basis (k 10 >= 1 + N = 7); 'dmp' on push-v3 reads the measured
+    # state (its offset in dy0), so y0 / dy0 enter the graph (the 'pca' basis:
+    # tests/rl/test_chunk_basis_train.py)
+    "ppo-multi-dct": ("point-mass", "ppo-multi", {"k": 10, "chunk_basis": "dct"}),
+    "ppo-multi-bspline": ("point-mass", "ppo-multi", {"k": 10, "chunk_basis": "bspline"}),
+    "ppo-multi-dmp": ("push-v3", "ppo-multi", {"k": 10, "chunk_basis": "dmp"}),
+    "ndp-linear": ("point-mass", "ndp", {"param_map": "linear"}),  # no tanh: actions clipped
+    # W (a float64 buffer) in the graph; parameter noise over the whitened raw outputs
+    "ndp-whitened-param-noise": (
+        "point-mass",
+        "ndp",
+        {"param_map": "whitened", "param_noise": True},
+    ),
 }
 
 

@@ -47,3 +47,20 @@ def test_save_evaluation_writes_protocol_and_interval(tmp_path):
     assert save_evaluation(tmp_path, result, 10_000).name == "eval-det-e100-s10000.json"
     sto = save_evaluation(tmp_path, {**result, "deterministic": False, "exec_k": 25, "m": 5}, 1)
     assert sto.name == "eval-sto-e100-s1-k25.json"
+
+
+def test_zoo_policies_get_a_clean_default_folder_and_no_saved_evaluation(tmp_path):
+    from ndp.rl.evaluate import default_output_dir
+
+    assert default_output_dir("zoo:push-v3-ndp").as_posix() == "push-v3-ndp"
+    assert default_output_dir(tmp_path) == tmp_path
+    with pytest.raises(ValueError, match="run_dir: --save writes into a run directory"):
+        save_evaluation("zoo:push-v3-ndp", {"episodes": 1, "deterministic": True,
+                                            "success_any": 1.0}, 0)  # fmt: skip
+
+
+def test_cli_eval_save_refuses_a_zoo_policy_before_evaluating(capsys):
+    from ndp.cli import main
+
+    assert main(["rl", "eval", "zoo:push-v3-ndp", "--episodes", "1", "--save"]) != 0
+    assert "run_dir: --save writes into a run directory" in capsys.readouterr().err

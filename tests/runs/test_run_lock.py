@@ -111,3 +111,47 @@ def test_an_interrupt_before_anything_is_written_leaves_no_run_directory(tmp_pat
         T.train(cfg)
     assert not run.exists()
     assert lock.holder(tmp_path) is None and not lock._HELD
+
+
+@pytest.mark.parametrize("where", ["run", "sweep"])
+def test_a_lock_that_is_a_symlink_is_refused_and_its_target_untouched(tmp_path, where):
+    """A planted .run.lock / .sweep.lock symlink: refused in one line naming the file; the
+    target keeps its bytes (it was truncated and overwritten before)."""
+    from ndp.experiments.sweep.jobs import LOCK_NAME
+    from ndp.experiments.sweep.runner import _RunLock
+
+    run = tmp_path / "r"
+    run.mkdir()
+    target = tmp_path / "precious.txt"
+    target.write_text("keep me\n")
+    name = lock.RUN_LOCK_NAME if where == "run" else LOCK_NAME
+    (run / name).symlink_to(target)
+    with pytest.raises(OSError, match=rf"{name} is a symbolic link, not a lock file"):
+        lock.acquire(run) if where == "run" else _RunLock.take(run)
+    assert target.read_text() == "keep me\n"
+
+
+def test_a_lock_that_is_a_directory_is_refused_in_one_line(tmp_path):
+    run = tmp_path / "r"
+    (run / lock.RUN_LOCK_NAME).mkdir(parents=True)
+    with pytest.raises(OSError, match=r"\.run\.lock is a directory, not a lock file \(remove it"):
+        lock.acquire(run)
+    with pytest.raises(OSError, match="is a directory, not a lock file"):
+        lock.open_lock(run / lock.RUN_LOCK_NAME)
+
+
+def test_a_sweep_leaves_a_run_that_a_hand_started_trainer_holds(tmp_path):
+    """The sweep honours the run's own lock: a run held by a trainer started outside any sweep
+    is reported busy, not trained a second time, and no failed.json is written into it."""
+    from ndp.experiments.sweep.runner import is_busy
+
+    run = tmp_path / "r"
+    proc = _holder(run)
+    try:
+        assert is_busy(run) is not None
+        assert "pid" in is_busy(run)
+        assert not (run / "failed.json").exists()
+    finally:
+        proc.kill()
+        proc.wait()
+    assert is_busy(run) is None  # the holder died: the lock is free again

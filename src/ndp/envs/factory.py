@@ -230,9 +230,17 @@ def fixed_goal_seed(run_seed: int) -> int:
     return int(np.random.SeedSequence([int(run_seed), 0x6F41]).generate_state(1)[0])
 
 
+GYM_ID_HORIZON = 10**9
+"""The env's own horizon when it is made through a gymnasium id: gymnasium's ``TimeLimit``
+(the registered horizon, or ``gymnasium.make(..., max_episode_steps=N)``) ends the episode.
+gymnasium calls the entry point without N, so an env keeping the task's horizon (150 on
+Meta-World) would end a longer episode early, silently."""
+
+
 def _make_registered(name: str, deprecated_id: str | None = None, **kw: Any) -> gym.Env:
     """gymnasium entry point (per-step env); ``deprecated_id``: the id to use instead (the
-    registration is an old name, said once per make)."""
+    registration is an old name, said once per make). The env's own horizon is lifted
+    (:data:`GYM_ID_HORIZON`) unless ``horizon`` is given."""
     if deprecated_id is not None:
         import warnings
 
@@ -242,12 +250,14 @@ def _make_registered(name: str, deprecated_id: str | None = None, **kw: Any) -> 
             DeprecationWarning,
             stacklevel=3,
         )
-    return make_env(name, **kw)
+    return make_env(name, **{"horizon": GYM_ID_HORIZON, **kw})
 
 
 def _make_registered_chunked(name: str, k: int, stale_world: bool = True, **kw: Any) -> gym.Env:
-    """gymnasium entry point (chunked env)."""
-    return ChunkedEnv(make_env(name, **kw), k, stale_world=stale_world)
+    """gymnasium entry point (chunked env; its ``TimeLimit`` counts decisions of k env
+    steps)."""
+    env = make_env(name, **{"horizon": GYM_ID_HORIZON, **kw})
+    return ChunkedEnv(env, k, stale_world=stale_world)
 
 
 def register_torque_envs() -> list[str]:

@@ -24,9 +24,20 @@ ABSOLUTE_MODES = ("direct", "dmp")
 """NDP absolute-command DoF (gripper): the goal emitted as the command, or a DMP from y0."""
 DMP_VELOCITIES = ("zero", "state")
 """NDP DMP start velocity: at rest, or the state's velocity (commanded or measured)."""
+PARAM_MAPS = ("tanh", "linear", "whitened")
+"""NDP raw outputs -> goal and weights: bounded by tanh, linear (unbounded), or linear after a
+fixed whitening transform W (``ndp.policies.heads.NDPHead``, docs/rl.md)."""
 DMP_STATES = ("commanded", "measured")
 """Where the NDP DMP starts: the commanded target (mocap, joint targets) or the measured robot."""
 
+
+CHUNK_BASES = ("none", "dmp", "dct", "bspline", "pca")
+"""Values of ``PolicyConfig.chunk_basis`` (``ndp.policies.chunk_basis``): PPO-multi's free chunk,
+or a fixed basis of 1 + n_basis columns per DoF."""
+FILE_BASES = ("pca",)
+"""Chunk bases read from ``PolicyConfig.chunk_basis_file``."""
+BASIS_HEADS = ("multi",)
+"""Heads that read ``PolicyConfig.chunk_basis`` (PPO-multi's); the others have it cleared."""
 
 AR1_HEADS = ("step", "multi", "ndp")
 """Heads whose exploration is a Gaussian around each sub-action (``noise="ar1"`` applies)."""
@@ -92,6 +103,11 @@ class NDPHeadConfig:
     """Absolute-command DoF (Meta-World gripper): 'direct' emits the decision's goal as the
     command of all k sub-steps (no dependence on the previous decision's noise); 'dmp'
     integrates a DMP from the last sampled command (the first release's form)."""
+    param_map: str = "tanh"
+    """How the raw outputs become goal and weights: 'tanh' (bounded, g - y0 = s tanh(raw)),
+    'linear' (the same scale without tanh; only the executed actions are clipped) or 'whitened'
+    (linear after a fixed transform W making the map's Jacobian at raw = 0 isotropic on the
+    chunk's reachable directions; 'amplitude' forcing, fixed a_z). NDP (PPO) head only."""
 
     def __post_init__(self) -> None:
         plain_numbers(self)
@@ -105,11 +121,20 @@ class NDPHeadConfig:
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise ValueError(f"{name}: expected a number > 0, got {v!r}")
-        for name, allowed in (("forcing", FORCING), ("absolute_mode", ABSOLUTE_MODES)):
+        for name, allowed in (
+            ("forcing", FORCING),
+            ("absolute_mode", ABSOLUTE_MODES),
+            ("param_map", PARAM_MAPS),
+        ):
             if getattr(self, name) not in allowed:
                 raise ValueError(
                     f"{name}: expected one of {', '.join(allowed)}, got {getattr(self, name)!r}"
                 )
+        if self.param_map == "whitened" and (self.forcing != "amplitude" or self.learn_az):
+            raise ValueError(
+                "param_map: 'whitened' needs forcing='amplitude' and a fixed a_z (a map linear in "
+                f"the raw outputs), got forcing={self.forcing!r}, learn_az={self.learn_az}"
+            )
 
     @property
     def resolved(self) -> bool:
@@ -204,6 +229,15 @@ class PolicyConfig:
     velocity is the previous decision's last *sampled* sub-action, i.e. its exploration noise;
     the measured one double-counts the momentum stored in the target's lead); None: the task's
     preset ('state' on Meta-World, 'zero' on Jaco and the toy task)."""
+    chunk_basis: str = "none"
+    """PPO-multi only: restrict each DoF's k sub-action means to a fixed basis of 1 + n_basis
+    columns (n_basis: the task's NDP preset unless given): 'none' (k free means, PPO-multi as
+    it is), 'dmp' (the NDP head's affine span from the robot state, tanh bounds removed), 'dct',
+    'bspline' (cubic) or 'pca' (--chunk-basis-file); refused where 1 + n_basis > k
+    (docs/policies.md, 'Chunk bases')."""
+    chunk_basis_file: str | None = None
+    """The 'pca' basis' file, written by ndp rl fit-basis; its task, k and DoF count must be the
+    run's."""
 
     def __post_init__(self) -> None:
         plain_numbers(self)
@@ -228,10 +262,26 @@ class PolicyConfig:
             v = getattr(self, name)
             if v is not None and v not in allowed:  # None: the task's preset (resolve_config)
                 raise ValueError(f"{name}: expected one of {', '.join(allowed)}, got {v!r}")
+        if self.chunk_basis not in CHUNK_BASES:
+            raise ValueError(
+                f"chunk_basis: expected one of {', '.join(CHUNK_BASES)}, got {self.chunk_basis!r}"
+            )
+        has_file = self.chunk_basis_file is not None
+        if has_file != (self.chunk_basis in FILE_BASES):
+            raise ValueError(
+                f"chunk_basis_file: expected a file for chunk_basis in {', '.join(FILE_BASES)} "
+                f"only (ndp rl fit-basis writes one), got chunk_basis={self.chunk_basis!r} and "
+                f"chunk_basis_file={self.chunk_basis_file!r}"
+            )
         if self.hidden_gain is not None and not self.hidden_gain > 0:
             raise ValueError(f"hidden_gain: expected a number > 0, got {self.hidden_gain!r}")
         if self.ndp.param_noise and self.head != "ndp":
             raise ValueError("param_noise: parameter-space exploration needs the 'ndp' head")
+        if self.ndp.param_map != "tanh" and self.head in DMP_HEADS and self.head != "ndp":
+            raise ValueError(
+                f"param_map: {self.ndp.param_map!r} needs the 'ndp' head; the {self.head!r} head "
+                "bounds its DMP parameters by tanh in its density (use 'tanh')"
+            )
         from ndp.policies.distributions import NOISES
 
         if self.noise not in NOISES:

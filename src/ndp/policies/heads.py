@@ -5,11 +5,16 @@ state) into an exploration distribution over the k sub-actions of a decision [B,
 
 - :class:`StepHead` (PPO): P = A, k = 1, the raw output is the action mean.
 - :class:`MultiHead` (PPO-multi): P = k * A, the raw output is k action means.
+- :class:`ChunkBasisHead` (PPO-multi with ``--chunk-basis``): P = A (1 + N), each action
+  dimension's k means restricted to a fixed basis (``ndp.policies.chunk_basis``).
 - :class:`NDPHead`: P = D (1 + N) DMP parameters per decision. Goal and weights are bounded,
 
       g = y0 + goal_scale * tanh(raw_g)                     (delta DoF, e.g. the hand's xyz)
       g = centre + half_range * tanh(raw_g)                 (absolute DoF, e.g. the gripper)
       w = weight_scale * tanh(raw_w)                        (per DoF, see ``forcing``)
+
+  (``param_map='tanh'``, the default; ``'linear'`` drops the tanh, ``'whitened'`` also applies
+  a fixed transform W to the raw outputs first: :class:`NDPHead`, docs/rl.md),
 
   the DMP is integrated from the robot state (y0, dy0; the commanded target by default, see
   ``PolicyConfig.dmp_state``) over one decision, the trajectory [B, k + 1, D] is cut at the k
@@ -27,6 +32,7 @@ physical velocity v (units/s) is therefore ``v * decision_dt / tau`` in DMP time
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable
 from typing import Any
@@ -38,10 +44,12 @@ from torch import nn
 from ndp.dmp import DMPConfig, DMPLayer
 from ndp.dmp.controllers import DeltaController
 from ndp.dmp.integrate import _linear_map_f64, check_finite, recording
+from ndp.policies import chunk_basis
 from ndp.policies.base import HEAD_BUILDERS as HEAD_BUILDERS  # the registry, re-exported:
 from ndp.policies.base import SINGLE_STEP_HEADS as SINGLE_STEP_HEADS  # importing this module
 from ndp.policies.base import ActionHead, HeadOutput  # registers every built-in head first
 from ndp.policies.base import register_head as register_head
+from ndp.policies.conditioning import raw_jacobian, whitening_transform
 from ndp.policies.distributions import ParamGaussian, SubActionGaussian
 from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
 from ndp.policies.squashed import SquashedActionHead as SquashedActionHead  # the SAC family's
@@ -85,6 +93,101 @@ class MultiHead(_RawActionHead):
         return SubActionGaussian(mean, self.log_std), {}
 
 
+class ChunkBasisHead(_RawActionHead):
+    """PPO-multi with each action dimension's chunk restricted to a fixed basis.
+
+    For action dimension a the actor outputs c_a [P] (``raw`` [B, A * P], c_a contiguous) and
+    the k sub-action means are
+
+        m[:, a] = basis[a] @ c_a + offset[:, a] (+ offset_y0[:, a] y0_a + offset_dy0[:, a] dy0_a)
+
+    the state-dependent terms for the ``dmp`` basis only (:attr:`needs_robot_state`). The
+    exploration is :class:`MultiHead`'s: a Gaussian around each sub-action with the shared
+    learned log std [A]. The basis and offsets are persistent buffers (saved in checkpoints and
+    exports, restored by ``load_policy``); a basis of NaN (a ``pca`` head built without its
+    file) must be loaded from a state dict before the head acts.
+
+    Args:
+        k: sub-steps per decision.
+        action_dim: A.
+        kind: the basis' name (``ndp.policies.config.CHUNK_BASES``, not 'none').
+        basis: [A, k, P].
+        offset, offset_y0, offset_dy0: [k, A] (zeros where None).
+        init_log_std: initial log std.
+    """
+
+    basis: torch.Tensor
+    offset: torch.Tensor
+    offset_y0: torch.Tensor
+    offset_dy0: torch.Tensor
+
+    def __init__(
+        self,
+        k: int,
+        action_dim: int,
+        kind: str,
+        basis: torch.Tensor,
+        offset: torch.Tensor | None = None,
+        offset_y0: torch.Tensor | None = None,
+        offset_dy0: torch.Tensor | None = None,
+        init_log_std: float = 0.0,
+    ) -> None:
+        b = torch.as_tensor(basis, dtype=torch.float32)
+        if b.ndim != 3 or tuple(b.shape[:2]) != (int(action_dim), int(k)):
+            raise ValueError(f"basis: expected [A={action_dim}, k={k}, P], got {list(b.shape)}")
+        super().__init__(k, action_dim, int(action_dim) * int(b.shape[2]), init_log_std)
+        self.kind = str(kind)
+        self.columns = int(b.shape[2])
+        self.needs_robot_state = self.kind == "dmp"
+        self.register_buffer("basis", b.clone())
+        for name, value in (("offset", offset), ("offset_y0", offset_y0),
+                            ("offset_dy0", offset_dy0)):  # fmt: skip
+            t = torch.zeros(self.k, self.action_dim) if value is None else torch.as_tensor(value)
+            if tuple(t.shape) != (self.k, self.action_dim):
+                raise ValueError(
+                    f"{name}: expected [k={self.k}, A={self.action_dim}], got {list(t.shape)}"
+                )
+            self.register_buffer(name, t.to(torch.float32).clone())
+        self._has_basis = bool(torch.isfinite(self.basis).all())
+
+    def _load_from_state_dict(
+        self, state_dict: dict[str, Any], prefix: str, *args: Any, **kwargs: Any
+    ) -> None:
+        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
+        self._has_basis = bool(torch.isfinite(self.basis).all())
+
+    def means(
+        self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """The k sub-action means [B, k, A] of raw outputs [B, A * P] (and the robot state
+        y0, dy0 [B, A], physical, for the ``dmp`` basis)."""
+        if not self._has_basis:
+            raise ValueError(
+                f"chunk_basis: the {self.kind!r} head holds no basis (its file was not read "
+                "and no checkpoint set it); load the run's state or give chunk_basis_file"
+            )
+        c = raw.reshape(raw.shape[0], self.action_dim, self.columns).transpose(0, 1)  # [A, B, P]
+        mean = torch.bmm(c, self.basis.transpose(1, 2)).permute(1, 2, 0) + self.offset
+        if self.needs_robot_state:
+            if y0 is None or dy0 is None:
+                raise ValueError("ChunkBasisHead: the 'dmp' basis needs the robot state y0, dy0")
+            mean = mean + y0.unsqueeze(1) * self.offset_y0 + dy0.unsqueeze(1) * self.offset_dy0
+        return mean
+
+    def distribution(
+        self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
+    ) -> HeadOutput:
+        return SubActionGaussian(self.means(raw, y0, dy0), self.log_std), {}
+
+    def extra_repr(self) -> str:
+        return f"kind={self.kind!r}, k={self.k}, A={self.action_dim}, P={self.columns}"
+
+
+PARAM_MAPS = ("tanh", "linear", "whitened")
+"""How the NDP head maps its raw outputs to the goal and forcing weights (the same tuple as
+``ndp.policies.config.PARAM_MAPS``, which the config validates against without torch)."""
+
+
 DERIVED_BUFFERS = (
     "goal_scale",
     "absolute_goal",
@@ -124,6 +227,26 @@ class NDPHead(ActionHead):
             value itself; A = D): the DMP, the inverse controller and ``direct`` then fold into
             one precomputed map per DoF (:meth:`decode` uses it; :meth:`decode_reference` is
             the composed form, equal in value and gradient, tested).
+        param_map: how the raw outputs become the goal and weights (``u``: the first
+            ``D + D N`` raw outputs; a learned a_z's output is mapped as always):
+
+            - ``'tanh'`` (default): ``g - y0 = goal_scale * tanh(u_g)`` (absolute DoF: ``g -
+              centre``), ``w = weight_scale * tanh(u_w)``: bounded parameters;
+            - ``'linear'``: the same without the tanh, ``g - y0 = goal_scale * u_g``, ``w =
+              weight_scale * u_w`` (the same Jacobian at raw = 0); only the executed sample is
+              clipped to the action bounds (and the means with ``mean_clip``), as PPO-multi's;
+            - ``'whitened'``: ``'linear'`` after a fixed transform, ``u = W raw``, with ``W``
+              [D + D N, D + D N] (:func:`ndp.policies.conditioning.whitening_transform`) of the
+              ``'linear'`` map's Jacobian of the k sub-action means at raw = 0, y0 = dy0 = 0 (the
+              map is affine in (raw, y0, dy0) with 'amplitude' forcing, so the Jacobian and W
+              are the same at every start): unit noise in raw space is unit noise over the
+              chunk's reachable directions. W is a buffer (``whitening``, float64) saved in
+              checkpoints and exports, computed once here and then loaded, never recomputed.
+              Needs 'amplitude' forcing (``dmp.scale_by_goal`` False; with 'goal' forcing the
+              weights' columns vanish at raw = 0) and a fixed a_z. Composed with the linear map,
+              not with tanh: an elementwise bound after W would make the map's slopes depend on
+              the raw outputs again, so the whitening would hold at raw = 0 only; without it J
+              is ``J_map W`` at every raw output and state.
     """
 
     needs_robot_state = True
@@ -137,6 +260,7 @@ class NDPHead(ActionHead):
     action_map: torch.Tensor
     action_low: torch.Tensor
     action_high: torch.Tensor
+    whitening: torch.Tensor  # param_map 'whitened' only
 
     def __init__(
         self,
@@ -155,8 +279,19 @@ class NDPHead(ActionHead):
         direct: torch.Tensor | None = None,
         start_at_rest: bool = False,
         linear_controller: tuple[torch.Tensor, ...] | None = None,
+        param_map: str = "tanh",
     ) -> None:
         super().__init__()
+        if param_map not in PARAM_MAPS:
+            raise ValueError(
+                f"param_map: expected one of {', '.join(PARAM_MAPS)}, got {param_map!r}"
+            )
+        if param_map == "whitened" and (dmp.learn_az or dmp.scale_by_goal):
+            raise ValueError(
+                "param_map: 'whitened' needs a fixed a_z and 'amplitude' forcing (the map must be "
+                f"linear in the raw outputs), got learn_az={dmp.learn_az}, "
+                f"forcing={'goal' if dmp.scale_by_goal else 'amplitude'}"
+            )
         if dmp.steps // dmp.subsample != k or dmp.steps % dmp.subsample:
             raise ValueError(
                 f"dmp: steps/subsample must give k={k} points, got steps={dmp.steps}, "
@@ -217,6 +352,13 @@ class NDPHead(ActionHead):
             )
             self.register_buffer("action_low", low.to(torch.float32).clone(), persistent=False)
             self.register_buffer("action_high", high.to(torch.float32).clone(), persistent=False)
+        self.param_map = "linear" if param_map == "whitened" else param_map
+        self.n_mapped = self.dmp_dofs + n_w  # the raw outputs that become g and w (D + D N)
+        self.whitening_rank = 0
+        if param_map == "whitened":  # computed once on the linear map, then a saved buffer
+            w, self.whitening_rank = whitening_transform(self._map_jacobian_at_rest())
+            self.register_buffer("whitening", w)
+            self.param_map = "whitened"
 
     def _load_from_state_dict(
         self, state_dict: dict[str, Any], prefix: str, *args: Any, **kwargs: Any
@@ -242,16 +384,72 @@ class NDPHead(ActionHead):
             maps.append(m)
         return torch.stack(maps).to(torch.float32)
 
-    def _goal_weights_dy0(
+    def _map_jacobian_at_rest(self) -> torch.Tensor:
+        """The linear map's Jacobian [k A, D + D N] of the sub-action means w.r.t. the bounded
+        raw outputs at raw = 0, y0 = dy0 = 0, in float64 (a float64 copy of this head)."""
+        twin = copy.deepcopy(self).double()
+        zero = torch.zeros(1, self.n_params, dtype=torch.float64, device=self.goal_scale.device)
+        state = torch.zeros(1, self.dmp_dofs, dtype=torch.float64, device=zero.device)
+        jac = raw_jacobian(lambda r: twin.decode(r, state, state)[0], zero)[0]
+        return jac[:, : self.n_mapped]
+
+    def _bound(self, x: torch.Tensor) -> torch.Tensor:
+        """The elementwise bound of the goal / weight outputs: tanh, or none."""
+        return torch.tanh(x) if self.param_map == "tanh" else x
+
+    def _whiten(self, raw: torch.Tensor) -> torch.Tensor:
+        """``'whitened'``: the raw outputs [B, P] with ``W`` applied to the first
+        ``D + D N``; the others as they are."""
+        n = self.n_mapped
+        u = raw[:, :n] @ self.whitening.to(raw.dtype).T
+        return torch.cat((u, raw[:, n:]), dim=-1) if raw.shape[1] > n else u
+
+    def unit_params(self, raw: torch.Tensor) -> torch.Tensor:
+        """The raw outputs [B, P] as the ``'linear'`` map would take them to give the same
+        goal and weights: ``tanh(raw)`` in the first ``D + D N`` for ``'tanh'``, ``W raw`` for
+        ``'whitened'``, ``raw`` for ``'linear'`` (a learned a_z's output unchanged)."""
+        if self.param_map == "whitened":
+            return self._whiten(raw)
+        n = self.n_mapped
+        return torch.cat((self._bound(raw[:, :n]), raw[:, n:]), dim=-1)
+
+    def raw_jacobians(
         self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The Jacobians of the k sub-action means of each decision, in float64 (on a copy).
+
+        Args:
+            raw: [B, P] raw outputs; y0, dy0: [B, D] the robot state (physical units).
+
+        Returns:
+            ``(J, J_map)``, each [B, k A, P] (rows sub-step major: ``j * A + a``): ``J = d
+            means / d raw``, and ``J_map`` the same map's Jacobian w.r.t. :meth:`unit_params`
+            (the ``'linear'`` map at ``unit_params(raw)``: the tanh slopes replaced by 1, W
+            left out), so that ``J = J_map diag(1 - tanh(raw)^2)`` ('tanh', on the first ``D +
+            D N`` columns), ``J_map W`` ('whitened') or ``J_map`` ('linear').
+        """
+        twin = copy.deepcopy(self).double()
+        dev = twin.goal_scale.device
+        r, s0, s1 = (t.detach().to(dev, torch.float64) for t in (raw, y0, dy0))
+        jac = raw_jacobian(lambda x: twin.decode(x, s0, s1)[0], r)
+        unit = twin.unit_params(r).detach()
+        twin.param_map = "linear"
+        map_jac = raw_jacobian(lambda x: twin.decode(x, s0, s1)[0], unit)
+        return jac, map_jac
+
+    def _goal_weights_dy0(
+        self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, bounded: bool = True
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         b, d = raw.shape[0], self.dmp_dofs
-        step = self.goal_scale * torch.tanh(raw[:, :d])
+        if self.param_map == "whitened":
+            raw = self._whiten(raw)
+        squash = self._bound if bounded else _identity
+        step = self.goal_scale * squash(raw[:, :d])
         goal = torch.where(self.absolute_goal, self.goal_center + step, y0 + step)
         if self.only_g:
             weights = raw.new_zeros(b, d, self.n_basis)
         else:
-            weights = self.weight_scale.unsqueeze(-1) * torch.tanh(
+            weights = self.weight_scale.unsqueeze(-1) * squash(
                 raw[:, d : d + d * self.n_basis].reshape(b, d, self.n_basis)
             )
         if self.start_at_rest:
@@ -269,13 +467,18 @@ class NDPHead(ActionHead):
         return lo + (hi - lo) * torch.sigmoid(raw[:, -1] + self._az_offset)
 
     def decode(
-        self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+        self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, bounded: bool = True
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Raw parameters [B, P] and robot state (physical, [B, D]) -> (actions [B, k, A],
-        goal [B, D], weights [B, D, N])."""
+        goal [B, D], weights [B, D, N]).
+
+        ``bounded=False`` removes the tanh bounds: ``raw`` takes the place of ``tanh(raw)``
+        (g = y0 + goal_scale * raw_g, w = weight_scale * raw_w, ...), which makes the actions
+        an affine function of ``raw`` for a fixed robot state (:meth:`affine_parts`; the
+        ``dmp`` chunk basis of PPO-multi)."""
         if not self._fused:
-            return self.decode_reference(raw, y0, dy0)
-        goal, weights, dy0_dmp = self._goal_weights_dy0(raw, y0, dy0)
+            return self.decode_reference(raw, y0, dy0, bounded)
+        goal, weights, dy0_dmp = self._goal_weights_dy0(raw, y0, dy0, bounded)
         cfg = self.dmp.config
         v = weights * (goal - y0).unsqueeze(-1) if cfg.scale_by_goal else weights
         u = torch.cat((v, torch.stack((goal, y0, dy0_dmp), dim=-1)), dim=-1)  # [B, D, N + 3]
@@ -288,10 +491,10 @@ class NDPHead(ActionHead):
         return actions, goal, weights
 
     def decode_reference(
-        self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+        self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, bounded: bool = True
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """:meth:`decode` composed step by step: DMP layer, then the inverse controller."""
-        goal, weights, dy0_dmp = self._goal_weights_dy0(raw, y0, dy0)
+        goal, weights, dy0_dmp = self._goal_weights_dy0(raw, y0, dy0, bounded)
         if self.learn_az:
             traj = self.dmp(goal, weights, y0, dy0_dmp, a_z=self.a_z_of(raw)).pos
         else:
@@ -300,6 +503,100 @@ class NDPHead(ActionHead):
             traj = torch.where(self.direct, goal.unsqueeze(1), traj)
         actions = self.inverse_controller(traj, clip=self.mean_clip)  # [B, k, A]
         return actions, goal, weights
+
+    def affine_parts(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """:meth:`decode` without the tanh bounds as an affine map per DoF (the ``dmp`` chunk
+        basis of PPO-multi, ``ChunkBasisHead``).
+
+        For a fixed start state the DMP is linear in (g, w) (forcing 'amplitude'), so with the
+        bounds removed (``decode(raw, y0, dy0, bounded=False)``) the k sub-action means of DoF d
+        are, exactly,
+
+            m[:, d] = basis[d] @ c_d + offset[:, d] + offset_y0[:, d] y0_d + offset_dy0[:, d] dy0_d
+
+        with c_d = (raw goal of d, its N raw weights) [1 + N]. Computed by probing
+        :meth:`decode` (``bounded=False``) of a float64 copy of this head: the offset at
+        raw = 0 and (y0, dy0) = 0, then one unit input at a time (every raw output, every y0_d,
+        every dy0_d); each unit input may move its own DoF's actions only, and a random batch
+        must match the assembled map (relative 1e-9), else the head is refused.
+
+        Returns:
+            float64 ``(basis [D, k, 1 + N], offset [k, D], offset_y0 [k, D], offset_dy0
+            [k, D])``; y0 and dy0 in the physical units the head takes (dy0 per second).
+
+        Raises:
+            ValueError: a head that is not affine per DoF: ``learn_az``, ``only_g``,
+                ``mean_clip``, forcing 'goal' (w multiplies g - y0), A != D, or a probe that
+                moves another DoF or a random batch off the affine map.
+        """
+        cfg = self.dmp.config
+        why = [
+            name
+            for name, bad in (
+                ("learn_az", self.learn_az),
+                ("only_g", self.only_g),
+                ("mean_clip", self.mean_clip),
+                ("forcing='goal'", cfg.scale_by_goal),
+                (f"action_dim {self.action_dim} != dmp_dofs {self.dmp_dofs}",
+                 self.action_dim != self.dmp_dofs),
+            )
+            if bad
+        ]  # fmt: skip
+        if why:
+            raise ValueError(
+                f"head: the NDP head's chunk is not affine per DoF in (g, w) with {', '.join(why)}"
+            )
+        head = copy.deepcopy(self).to(torch.float64).eval()
+        d, n, k = self.dmp_dofs, self.n_basis, self.k
+        p = 1 + n
+        zeros = torch.zeros(1, d, dtype=torch.float64)
+
+        def run(raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor) -> torch.Tensor:
+            with torch.no_grad():
+                return head.decode(raw, y0, dy0, bounded=False)[0]  # [B, k, A]
+
+        base = run(torch.zeros(1, self.n_params, dtype=torch.float64), zeros, zeros)[0]
+        eye_raw, eye_d = (torch.eye(m, dtype=torch.float64) for m in (self.n_params, d))
+        no_raw, no_state = torch.zeros_like(eye_raw[:d]), torch.zeros_like(eye_d)
+        at_zero = zeros.expand(self.n_params, d)
+        j_raw = run(eye_raw, at_zero, at_zero) - base  # [n_params, k, A]
+        j_y0 = run(no_raw, eye_d, no_state) - base  # [D, k, A]
+        j_dy0 = run(no_raw, no_state, eye_d) - base
+        basis = torch.zeros(d, k, p, dtype=torch.float64)
+        own = torch.zeros(self.n_params, d, dtype=torch.bool)  # which DoF each raw output moves
+        for dof in range(d):
+            for col in range(p):
+                idx = dof if col == 0 else d + dof * n + col - 1
+                basis[dof, :, col] = j_raw[idx, :, dof]
+                own[idx, dof] = True
+        scale = max(float(j.abs().max()) for j in (j_raw, j_y0, j_dy0, torch.ones(1)))
+        cross = max(
+            float(j_raw.masked_fill(own.unsqueeze(1), 0.0).abs().max()),
+            float(j_y0.masked_fill(torch.eye(d, dtype=torch.bool).unsqueeze(1), 0.0).abs().max()),
+            float(j_dy0.masked_fill(torch.eye(d, dtype=torch.bool).unsqueeze(1), 0.0).abs().max()),
+        )
+        if cross > 1e-12 * scale:
+            raise ValueError(
+                f"head: the NDP head's chunk couples DoF (a unit input moves another DoF's "
+                f"actions by {cross:.3g}); a per-DoF basis cannot represent it"
+            )
+        offset_y0 = torch.diagonal(j_y0, dim1=0, dim2=2)  # [k, D]
+        offset_dy0 = torch.diagonal(j_dy0, dim1=0, dim2=2)
+        gen = torch.Generator().manual_seed(0)
+        raw = torch.randn(8, self.n_params, generator=gen, dtype=torch.float64)
+        y0 = torch.rand(8, d, generator=gen, dtype=torch.float64) * 2 - 1
+        dy0 = torch.rand(8, d, generator=gen, dtype=torch.float64) * 2 - 1
+        c = torch.cat((raw[:, :d, None], raw[:, d:].reshape(8, d, n)), dim=-1)  # [B, D, P]
+        want = run(raw, y0, dy0)
+        got = torch.einsum("dkp,bdp->bkd", basis, c) + base
+        got = got + y0[:, None, :] * offset_y0 + dy0[:, None, :] * offset_dy0
+        err = float((got - want).abs().max())
+        if err > 1e-9 * max(float(want.abs().max()), 1.0):
+            raise ValueError(
+                f"head: the NDP head's chunk is not affine in (g, w) for a fixed start state "
+                f"(off by {err:.3g} at random inputs)"
+            )
+        return basis, base, offset_y0, offset_dy0
 
     def distribution(
         self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
@@ -327,8 +624,12 @@ class NDPHead(ActionHead):
             f"decision_dt={self.decision_dt}, param_noise={self.param_noise}, "
             f"mean_clip={self.mean_clip}, direct={self.direct.tolist()}, "
             f"start_at_rest={self.start_at_rest}, only_g={self.only_g}, "
-            f"learn_az={self.learn_az}"
+            f"learn_az={self.learn_az}, param_map={self.param_map}"
         )
+
+
+def _identity(x: torch.Tensor) -> torch.Tensor:
+    return x
 
 
 def build_head(cfg: Any, spec: Any) -> ActionHead:
@@ -350,7 +651,64 @@ def _build_step(cfg: Any, spec: Any) -> ActionHead:
 
 @register_head("multi")
 def _build_multi(cfg: Any, spec: Any) -> ActionHead:
-    return MultiHead(cfg.k, spec.action_dim, cfg.init_log_std)
+    if cfg.chunk_basis == "none":
+        return MultiHead(cfg.k, spec.action_dim, cfg.init_log_std)
+    return build_chunk_basis_head(cfg, spec)
+
+
+def build_chunk_basis_head(cfg: Any, spec: Any) -> ChunkBasisHead:
+    """PPO-multi's head restricted to ``cfg.chunk_basis`` (a resolved policy config with
+    ``ndp.n_basis`` set; for 'dmp' every NDP field, as the 'ndp' method resolves them).
+
+    - 'dct' / 'bspline': ``chunk_basis.dct_basis`` / ``bspline_basis`` (k, 1 + N), the same for
+      every action dimension;
+    - 'dmp': :meth:`NDPHead.affine_parts` of the NDP head this config builds (bounds, DMP
+      frame and clocks of the task) with the tanh bounds removed, offsets included;
+    - 'pca': the file ``cfg.chunk_basis_file`` when it exists and fits the task, k, DoF count
+      and columns (``resolve_config`` refuses a run whose file does not), else a NaN basis that
+      a checkpoint's state must replace (``load_policy`` of a run or export needs no file).
+
+    Raises:
+        ValueError: 1 + N > k, or a 'dmp' head that is not affine per DoF.
+    """
+    kind, k, a = str(cfg.chunk_basis), int(cfg.k), int(spec.action_dim)
+    if cfg.ndp.n_basis is None:
+        raise ValueError("policy config: n_basis must be resolved for a chunk basis")
+    columns = 1 + int(cfg.ndp.n_basis)
+    chunk_basis.check_columns(kind, columns, k)
+    offsets: tuple[torch.Tensor | None, ...] = (None, None, None)
+    if kind == "dmp":
+        ndp_cfg = cfg.updated(
+            head="ndp",
+            chunk_basis="none",
+            chunk_basis_file=None,
+            param_noise=False,
+            mean_clip=False,
+        )
+        ndp = HEAD_BUILDERS["ndp"](ndp_cfg, spec)  # the NDP head as the 'ndp' method builds it
+        if not isinstance(ndp, NDPHead):
+            raise ValueError(f"head: the registered 'ndp' head is a {type(ndp).__name__}")
+        basis_t, *rest = ndp.affine_parts()
+        offsets = tuple(rest)
+    elif kind in ("dct", "bspline"):
+        fn = chunk_basis.dct_basis if kind == "dct" else chunk_basis.bspline_basis
+        basis_t = torch.as_tensor(fn(k, columns)).unsqueeze(0).expand(a, k, columns)
+    elif kind == "pca":
+        basis_t = torch.full((a, k, columns), float("nan"))
+        try:
+            data = chunk_basis.read_basis_file(cfg.chunk_basis_file)
+            chunk_basis.check_basis_file(
+                data, cfg.chunk_basis_file, task=spec.name, k=k, action_dim=a, columns=columns
+            )
+            basis_t = torch.as_tensor(data.basis)
+        except (OSError, ValueError, TypeError):
+            pass  # resolve_config refuses a training run without a fitting file
+    else:
+        raise ValueError(f"chunk_basis: expected one of dmp, dct, bspline, pca, got {kind!r}")
+    offset, offset_y0, offset_dy0 = offsets
+    return ChunkBasisHead(
+        k, a, kind, basis_t, offset, offset_y0, offset_dy0, init_log_std=cfg.init_log_std
+    )
 
 
 @register_head("ndp")
@@ -393,6 +751,7 @@ def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
         direct=torch.as_tensor(direct),
         start_at_rest=_dmp_velocity(cfg, spec) == "zero",
         linear_controller=_linear_controller(spec),
+        param_map=head.param_map,
     )
 
 

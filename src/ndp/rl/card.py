@@ -351,9 +351,14 @@ def model_card(
             "",
         ]
     lines += [
-        "Files: `policy.safetensors` (weights), `policy.json` (format, resolved training "
-        "config, observation normaliser, task spec, versions, commit); they load without "
-        "unpickling anything.",
+        (
+            "Files: `policy.onnx` (the graph, with the policy's metadata: task, spec, resolved "
+            "training config, commit) and this card; no torch is needed to run it."
+            if onnx
+            else "Files: `policy.safetensors` (weights), `policy.json` (format, resolved "
+            "training config, observation normaliser, task spec, versions, commit); they load "
+            "without unpickling anything."
+        ),
         "",
         "Neural Dynamic Policies: Shikhar Bahl, Mustafa Mukadam, Abhinav Gupta, Deepak Pathak. "
         "Neural Dynamic Policies for End-to-End Sensorimotor Learning. NeurIPS 2020.",
@@ -390,7 +395,7 @@ def _torch_use(name: str, evaluation: dict[str, Any] | None) -> list[str]:
 def _onnx_use(name: str) -> list[str]:
     return [
         "`policy.onnx` is the whole deterministic decision as one graph (inputs `obs` [E, O], "
-        "`y0`, `dy0` [E, D], float64; output the k sub-actions [E, k, A], float32). Run it with "
+        "`y0`, `dy0` [E, D], float32; output the k sub-actions [E, k, A], float32). Run it with "
         "onnxruntime alone, or through the package ([onnx] extra), which checks the inputs as "
         "the torch policy does:",
         "",

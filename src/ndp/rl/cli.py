@@ -1,4 +1,4 @@
-"""``ndp rl train | eval | render``: thin entry points over :mod:`ndp.rl`.
+"""``ndp rl train | eval | render | export | diagnose``: thin entry points over :mod:`ndp.rl`.
 
 Examples::
 
@@ -7,6 +7,8 @@ Examples::
     ndp rl eval runs/push-v3-ndp-s0 --episodes 20
     ndp rl eval runs/push-v3-ndp-s0 --exec-k 5 25 --mode deterministic
     ndp rl render runs/push-v3-ndp-s0 --out push.mp4
+    ndp rl fit-basis runs/push-v3-ppo-multi-s0 --decisions 2000 --out basis.npz
+    ndp rl diagnose --jacobian zoo:push-v3-ndp --png push-spectrum.png
 """
 
 from __future__ import annotations
@@ -48,7 +50,8 @@ def train_description() -> str:
 
 
 def add_subparser(sub: Any) -> None:
-    """Register ``rl`` with sub-commands ``train``, ``eval``, ``render`` and ``export``."""
+    """Register ``rl`` with sub-commands ``train``, ``methods``, ``eval``, ``export``,
+    ``fit-basis``, ``render`` and ``diagnose``."""
     rl = sub.add_parser(
         "rl", help="reinforcement learning: NDP and its baselines (ndp rl methods lists them)"
     )
@@ -113,6 +116,31 @@ def add_subparser(sub: Any) -> None:
     )
     ex.set_defaults(func=_cmd_export)
 
+    fb = rl_sub.add_parser(
+        "fit-basis",
+        help="fit PPO-multi's 'pca' chunk basis (--chunk-basis pca) to trained PPO-multi runs",
+        description="Record the k sub-action means of every decision of trained PPO-multi "
+        "policies acting in their env, and save per DoF the top 1 + N principal directions "
+        "(uncentred) with their provenance in one .npz file for ndp rl train --algo ppo-multi "
+        "--chunk-basis pca --chunk-basis-file FILE (docs/policies.md, 'Chunk bases').",
+    )
+    fb.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="PPO-multi runs (or exports)")
+    fb.add_argument("--out", required=True, metavar="FILE", help="the .npz file to write")
+    fb.add_argument(
+        "--decisions", type=int, default=2000, help="decisions recorded per run (default 2000)"
+    )
+    fb.add_argument(
+        "--n-basis",
+        type=int,
+        default=None,
+        metavar="N",
+        help="1 + N directions per DoF (default: the task's NDP preset, as the head reads it)",
+    )
+    fb.add_argument("--seed", type=int, default=EVAL_SEED, help="first episode's reset seed")
+    fb.add_argument("--stochastic", action="store_true", help="sample actions (default: mean)")
+    fb.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    fb.set_defaults(func=_cmd_fit_basis)
+
     rd = rl_sub.add_parser("render", help="render a trained run to mp4")
     rd.add_argument("run_dir", metavar="RUN_DIR")
     rd.add_argument("--out", default=None, help="mp4 path (default RUN_DIR/video.mp4)")
@@ -156,6 +184,134 @@ def add_subparser(sub: Any) -> None:
     )
     rd.set_defaults(func=_cmd_render)
 
+    dg = rl_sub.add_parser(
+        "diagnose",
+        help="the NDP head's handicaps on a rollout, or (--jacobian) the conditioning of its "
+        "map from raw outputs to sub-actions",
+        description="Without --jacobian: the handicap diagnostic of one policy (intended vs "
+        "executed displacement, the gripper's noise leak; docs/rl.md). With --jacobian: the "
+        "Jacobian of the k sub-action means w.r.t. the head's raw outputs at raw = 0, at the "
+        "fresh network's outputs and along a trained policy's deterministic episodes: singular "
+        "values, condition number over the reachable directions, goal / weight shares, "
+        "saturated tanh outputs (docs/rl.md, 'The conditioning of the action map').",
+    )
+    add_diagnose_arguments(dg)
+    dg.set_defaults(func=diagnose_command)
+
+
+def add_diagnose_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``ndp rl diagnose`` (and ``python -m ndp.experiments.diagnose``)."""
+    p.add_argument(
+        "runs",
+        nargs="*",
+        metavar="RUN",
+        help="trained policies: run directories, exports or zoo:NAME (--jacobian: any number)",
+    )
+    p.add_argument("--run", action="append", default=[], help="a trained policy (as RUN)")
+    p.add_argument(
+        "--task",
+        action="append",
+        default=[],
+        help="a fresh policy on this task (repeatable with --jacobian)",
+    )
+    p.add_argument("--algo", default="ndp", help="the method of a fresh policy (default ndp)")
+    p.add_argument(
+        "--set",
+        nargs="*",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="policy-config overrides of a fresh policy, e.g. mean_clip=true param_map=whitened",
+    )
+    p.add_argument("--seed", type=int, default=0, help="the (first) episode seed (default 0)")
+    p.add_argument(
+        "--decisions", type=int, default=300, help="handicaps: decisions to run (default 300)"
+    )
+    p.add_argument(
+        "--jacobian",
+        action="store_true",
+        help="the conditioning of the head's map instead of the handicaps (JSON)",
+    )
+    p.add_argument(
+        "--episodes",
+        type=int,
+        default=3,
+        help="--jacobian: deterministic episodes per rollout, every decision read (default 3)",
+    )
+    p.add_argument(
+        "--png",
+        default=None,
+        metavar="PATH",
+        help="--jacobian: also write a figure of the singular-value spectra (a panel per policy)",
+    )
+
+
+def _overrides(items: list[str]) -> dict[str, Any]:
+    """``FIELD=VALUE`` items as a dict (values read as JSON, else as plain strings)."""
+    out: dict[str, Any] = {}
+    for item in items:
+        name, eq, val = item.partition("=")
+        if not eq or not name:
+            raise ValueError(f"set: expected FIELD=VALUE, got {item!r}")
+        try:
+            out[name] = json.loads(val)
+        except json.JSONDecodeError:
+            out[name] = val  # a plain string such as forcing=goal
+    return out
+
+
+def diagnose_command(args: argparse.Namespace) -> int:
+    """``ndp rl diagnose``: print the handicap diagnostic, or the conditioning reports, as JSON."""
+    runs = list(args.runs) + list(args.run)
+    sources = [(None, r) for r in runs] + [(t, None) for t in args.task]
+    overrides = _overrides(args.set)
+    if not sources:
+        raise ValueError("runs: give a trained policy (RUN) or --task T (a fresh policy)")
+    if overrides and not args.task:
+        raise ValueError(
+            "set: the overrides are of a fresh policy's config (--task); a run's is its own"
+        )
+    if args.png is not None and not args.jacobian:
+        raise ValueError("--png: the figure is of the --jacobian diagnostic")
+    if args.jacobian:
+        from ndp.io import check_output_path
+
+        if args.png is not None:
+            check_output_path(args.png, "png")  # before the rollouts
+        from ndp.rl.diagnose import jacobian_diagnostic, plot_spectra
+
+        reports = [
+            jacobian_diagnostic(
+                task, args.algo, run, args.episodes, args.seed, **(overrides if run is None else {})
+            )
+            for task, run in sources
+        ]
+        out: dict[str, Any] = {"jacobian": reports}
+        if args.png is not None:
+            out["png"] = str(plot_spectra(reports, args.png))
+        print(json.dumps(out, indent=1))
+        return 0
+    if len(sources) != 1:
+        raise ValueError(
+            f"runs: the handicap diagnostic reads one policy, got {len(sources)} (--jacobian "
+            "reads several)"
+        )
+    from ndp.rl.diagnose import diagnose
+
+    task, run = sources[0]
+    print(
+        json.dumps(diagnose(task, args.algo, run, args.decisions, args.seed, **overrides), indent=1)
+    )
+    return 0
+
+
+def diagnose_main(argv: list[str] | None = None) -> int:
+    """``python -m ndp.experiments.diagnose``: ``ndp rl diagnose`` under its earlier name."""
+    p = argparse.ArgumentParser(
+        prog="python -m ndp.experiments.diagnose", description="ndp rl diagnose (its options)"
+    )
+    add_diagnose_arguments(p)
+    return diagnose_command(p.parse_args(argv))
+
 
 def train_command(argv: list[str]) -> int:
     """``ndp rl train [--resume RUN_DIR | --overwrite] [options of TrainConfig]``."""
@@ -163,6 +319,7 @@ def train_command(argv: list[str]) -> int:
         SAFE_ON_RESUME,
         load_config,
         resolve_config,
+        unused_basis_options,
         unused_head_options,
         unused_method_options,
     )
@@ -208,6 +365,7 @@ def train_command(argv: list[str]) -> int:
             else:
                 cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description())
                 unused = unused_head_options(cfg)  # before resolving, which clears them
+                unused_basis = unused_basis_options(cfg)
                 other = unused_method_options(cfg)
                 # resolved once, here: the run directory every message names is the one the
                 # run writes (an alias task or VICES's task variant gives the canonical row)
@@ -216,6 +374,10 @@ def train_command(argv: list[str]) -> int:
                 if unused:
                     print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "
                           f"--algo {cfg.algo} does not run; not used", file=sys.stderr)  # fmt: skip
+                if unused_basis:
+                    print(f"ndp: note: {', '.join(unused_basis)}: options of PPO-multi's "
+                          f"chunk basis, which --algo {cfg.algo} does not run; not used",
+                          file=sys.stderr)  # fmt: skip
                 if other:
                     print(f"ndp: note: {', '.join(other)}: options of another learner, which "
                           f"--algo {cfg.algo} does not read; not used",
@@ -242,7 +404,7 @@ def _cmd_methods(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from ndp.rl.evaluate import evaluate, save_evaluation
+    from ndp.rl.evaluate import check_save_target, evaluate, save_evaluation
 
     modes = {"both": (True, False), "deterministic": (True,), "stochastic": (False,)}[args.mode]
     values = args.exec_k if args.exec_k is not None else [None]
@@ -253,6 +415,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         trained = load_policy(args.run_dir)
         for k2 in values:
             substeps_for(trained, k2)
+    if args.save:  # refused before anything is evaluated
+        check_save_target(args.run_dir)
     for det in modes:
         for k2 in values:
             result = evaluate(args.run_dir, args.episodes, det, args.seed, k2)
@@ -267,6 +431,22 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     out = export_policy(args.run_dir, args.out, format=args.format)
     print(json.dumps({"export": str(out), "format": args.format}))
+    return 0
+
+
+def _cmd_fit_basis(args: argparse.Namespace) -> int:
+    from ndp.rl.fit_basis import fit_basis
+
+    summary = fit_basis(
+        args.run_dirs,
+        args.out,
+        decisions=args.decisions,
+        n_basis=args.n_basis,
+        seed=args.seed,
+        deterministic=not args.stochastic,
+        overwrite=args.overwrite,
+    )
+    print(json.dumps(summary))
     return 0
 
 

@@ -425,6 +425,8 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
       None (every method: the trainer records the robot state in that frame);
     - NDP: ``n_basis``, ``a_z``, ``goal_scale`` from the task's preset where None;
       ``dmp_steps`` = preset steps per sub-step * k; ``weight_scale`` = a_z^2 / 4 where None.
+    - ``policy.chunk_basis`` / ``chunk_basis_file``: PPO-multi's (``ndp.rl.methods.
+      resolve_multi`` checks them and resolves ``n_basis``); cleared for every other head.
     - ``run_dir`` defaults to ``runs/<task>-<algo>-s<seed>``.
     - ``goals="as-release"`` becomes what the release gave the method on the task
       (``ndp.envs.release.release_goals``).
@@ -467,6 +469,10 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
         name: getattr(pol, name) if getattr(pol, name) is not None else getattr(preset, name)
         for name in ("dmp_state", "dmp_velocity")
     }
+    from ndp.policies.config import BASIS_HEADS
+
+    if method.head not in BASIS_HEADS:  # PPO-multi's chunk basis: cleared for other heads
+        frame.update(chunk_basis="none", chunk_basis_file=None)  # (a note names it: cli)
     with_k = dataclasses.replace(pol, head=method.head, k=k, **frame)
     policy = with_k.updated(**method.resolve(with_k, spec)).with_defaults()
     if k_asked is not None and policy.k != k_asked:  # one check for every method's own k
@@ -505,17 +511,50 @@ def unused_head_options(cfg: TrainConfig) -> list[str]:
     (``--algo ppo --n-basis 3``): ``["n_basis=3", ...]``, empty when none or when the method runs
     the NDP head. Such options are accepted and not used (a sweep's ``-o`` overrides span every
     arm); ``ndp rl train`` names them in a note so that they are not dropped silently."""
-    from ndp.policies.config import DMP_HEADS, NDPHeadConfig
+    from ndp.policies.config import BASIS_HEADS, DMP_HEADS, NDPHeadConfig
     from ndp.rl.methods import METHODS
 
     method = METHODS.get(cfg.algo)
     if method is None or method.head in DMP_HEADS:
         return []
     default = NDPHeadConfig()
+    used = _basis_reads(cfg) if method.head in BASIS_HEADS else ()
     return [
         f"{f.name}={getattr(cfg.policy.ndp, f.name)!r}"
         for f in dataclasses.fields(NDPHeadConfig)
-        if getattr(cfg.policy.ndp, f.name) != getattr(default, f.name)
+        if getattr(cfg.policy.ndp, f.name) != getattr(default, f.name) and f.name not in used
+    ]
+
+
+def _basis_reads(cfg: TrainConfig) -> tuple[str, ...]:
+    """The NDP head's fields PPO-multi's chunk basis reads: ``n_basis`` (its columns), and for
+    the 'dmp' basis every field of the NDP head it is the span of (not ``param_noise``,
+    ``mean_clip``: its exploration and mean are PPO-multi's)."""
+    from ndp.policies.config import NDP_FIELDS
+
+    basis = cfg.policy.chunk_basis
+    if basis == "none":
+        return ()
+    if basis == "dmp":
+        return tuple(f for f in NDP_FIELDS if f not in ("param_noise", "mean_clip"))
+    return ("n_basis",)
+
+
+def unused_basis_options(cfg: TrainConfig) -> list[str]:
+    """PPO-multi's chunk-basis options given to a method whose head does not read them
+    (``--algo ndp --chunk-basis dct``): ``["chunk_basis='dct'", ...]``; empty when none.
+    Accepted and cleared by :func:`resolve_config`; ``ndp rl train`` names them in a note."""
+    from ndp.policies.config import BASIS_HEADS
+    from ndp.rl.methods import METHODS
+
+    method = METHODS.get(cfg.algo)
+    if method is None or method.head in BASIS_HEADS:
+        return []
+    pol = cfg.policy
+    return [
+        f"{name}={getattr(pol, name)!r}"
+        for name, default in (("chunk_basis", "none"), ("chunk_basis_file", None))
+        if getattr(pol, name) != default
     ]
 
 

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ndp import zoo
 from ndp.envs.base import check_render_size
 from ndp.envs.render import check_video_size, write_mp4
 from ndp.io import atomic_write_text, check_output_path
@@ -40,6 +41,29 @@ def _check_episodes(episodes: Any, seed: Any) -> None:
         raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed: expected an integer >= 0 (the first episode seed), got {seed!r}")
+
+
+def default_output_dir(run_dir: str | Path) -> Path:
+    """Where a command writes by default for ``run_dir``: the run directory itself, or for a
+    shipped policy ``"zoo:<name>"`` the folder ``<name>`` in the working directory (not a
+    folder named ``zoo:<name>``, and not the installed package)."""
+    text = str(run_dir)
+    if text.startswith(zoo.PREFIX):
+        return Path(text[len(zoo.PREFIX) :])
+    return Path(run_dir)
+
+
+def check_save_target(run_dir: str | Path) -> None:
+    """Refuse to save an evaluation into a policy shipped with the package (``zoo:<name>``).
+
+    Raises:
+        ValueError: naming ``run_dir`` and what to do instead.
+    """
+    if str(run_dir).startswith(zoo.PREFIX):
+        raise ValueError(
+            f"run_dir: --save writes into a run directory; {run_dir} is a policy shipped with "
+            "the package (export it first: ndp rl export zoo:NAME DIR)"
+        )
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -77,6 +101,7 @@ def save_evaluation(run_dir: str | Path, result: dict[str, Any], seed: int) -> P
     Returns:
         The file written: ``<run_dir>/eval-<det|sto>-e<episodes>-s<seed>[-k<K2>].json``.
     """
+    check_save_target(run_dir)
     n = int(result["episodes"])
     successes = round(float(result["success_any"]) * n)
     low, high = wilson_interval(successes, n)
@@ -237,7 +262,8 @@ def render(
 
     Args:
         run_dir: a training run directory.
-        out: mp4 path (default ``run_dir/video.mp4``).
+        out: mp4 path (default ``run_dir/video.mp4``; for ``"zoo:<name>"``, ``./<name>/video.mp4``,
+            never the installed package's folder).
         episodes: episodes to record back to back.
         deterministic: act with the mode.
         seed: first episode seed.
@@ -260,7 +286,7 @@ def render(
 
     os.environ.setdefault("MUJOCO_GL", "egl")
 
-    target = Path(out) if out is not None else Path(run_dir) / "video.mp4"
+    target = Path(out) if out is not None else default_output_dir(run_dir) / "video.mp4"
     # before rendering anything; an existing file at a path the user named needs overwrite
     check_output_path(target, "out", overwrite=None if out is None else overwrite)
     for name, side in (("width", width), ("height", height)):

@@ -27,7 +27,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ndp.policies.config import PRESET_FIELDS
+from ndp.policies import chunk_basis
+from ndp.policies.config import FILE_BASES, PRESET_FIELDS
 
 OFF_POLICY_PPO_READS = ("ppo.gamma", "ppo.clip_obs", "ppo.steps_per_update")
 """The ``ppo`` fields the off-policy learners share with PPO: the discount, the observation
@@ -35,8 +36,9 @@ clip and the env steps per iteration (their metrics row)."""
 
 
 def no_dmp(policy: Any, spec: Any) -> dict[str, Any]:
-    """Resolution of heads without a DMP: the NDP head's preset fields are cleared."""
-    return {**dict.fromkeys(PRESET_FIELDS), "param_noise": False}
+    """Resolution of heads without a DMP: the NDP head's preset fields are cleared (and its
+    exploration and parameter map set back to their defaults)."""
+    return {**dict.fromkeys(PRESET_FIELDS), "param_noise": False, "param_map": "tanh"}
 
 
 def resolve_ndp(policy: Any, spec: Any) -> dict[str, Any]:
@@ -57,6 +59,51 @@ def resolve_ndp(policy: Any, spec: Any) -> dict[str, Any]:
             head.weight_scale if head.weight_scale is not None else a_z * a_z / 4.0
         ),
     }
+
+
+def resolve_multi(policy: Any, spec: Any) -> dict[str, Any]:
+    """PPO-multi: no DMP, unless its chunk is restricted to a basis (``policy.chunk_basis``).
+
+    A basis has 1 + N columns per DoF, N = ``n_basis`` (the task's NDP preset where None); the
+    'dmp' basis resolves every NDP field as the 'ndp' method does (:func:`resolve_ndp`: the
+    DMP, bounds and clocks whose span it is). Checked here, before any env is built: 1 + N
+    <= k; 'dmp' without ``only_g``, ``learn_az`` or forcing 'goal' (not affine in (g, w));
+    'pca': its file exists and was fitted for this task, k, DoF count and N.
+
+    Raises:
+        ValueError: one line naming the option and what was expected.
+    """
+    basis = policy.chunk_basis
+    if basis == "none":
+        return no_dmp(policy, spec)
+    from ndp.envs.presets import preset_of
+
+    head = policy.ndp
+    n_basis = int(head.n_basis if head.n_basis is not None else preset_of(spec).n_basis)
+    chunk_basis.check_columns(basis, 1 + n_basis, int(policy.k))
+    if basis == "dmp":
+        bad = [f"{name}={value!r}" for name, value, ok in (
+            ("only_g", head.only_g, False), ("learn_az", head.learn_az, False),
+            ("forcing", head.forcing, "amplitude")) if value != ok]  # fmt: skip
+        if bad:
+            raise ValueError(
+                f"chunk_basis: the 'dmp' basis is the NDP head's affine span in (g, w) "
+                f"(forcing 'amplitude', no only_g, no learn_az), got {', '.join(bad)}"
+            )
+        # the mean and the exploration are PPO-multi's: no clip of the mean, no parameter noise
+        return {**resolve_ndp(policy, spec), "param_noise": False, "mean_clip": False}
+    if basis in FILE_BASES:
+        path = policy.chunk_basis_file
+        data = chunk_basis.read_basis_file(path)
+        chunk_basis.check_basis_file(
+            data,
+            path,
+            task=spec.name,
+            k=int(policy.k),
+            action_dim=int(spec.action_dim),
+            columns=1 + n_basis,
+        )
+    return {**no_dmp(policy, spec), "n_basis": n_basis}
 
 
 @dataclass(frozen=True)
@@ -146,7 +193,15 @@ def register_method(method: Method) -> Method:
 
 
 register_method(Method("ppo", "step", "PPO: one raw action per env step (k = 1)"))
-register_method(Method("ppo-multi", "multi", "PPO-multi: k raw actions per decision"))
+register_method(
+    Method(
+        "ppo-multi",
+        "multi",
+        "PPO-multi: k raw actions per decision (--chunk-basis: restricted to a fixed basis of "
+        "1 + n_basis columns per DoF)",
+        resolve=resolve_multi,
+    )
+)
 register_method(
     Method(
         "ppo-repeat",

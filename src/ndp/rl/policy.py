@@ -55,7 +55,7 @@ import torch
 import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
 from ndp import zoo
 from ndp.act_inputs import RobotState, check_act_inputs
-from ndp.checks import check_flag
+from ndp.checks import check_flag, install_hint
 from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
@@ -64,7 +64,8 @@ from ndp.rl.card import check_export_dir, write_card
 from ndp.rl.config import EVAL_SEED, TrainConfig, load_config
 from ndp.rl.exec_k import at_exec_k
 from ndp.rl.normalize import ObsNormalizer
-from ndp.rl.onnx_export import OnnxPolicy, write_onnx_export
+from ndp.rl.onnx_export import write_onnx_export
+from ndp.rl.onnx_policy import OnnxPolicy
 from ndp.runs import load_checkpoint
 from ndp.runs.layout import PROVENANCE_NAME, run_commits
 from ndp.schema import PolicySpec, check_record, spec_record
@@ -229,8 +230,8 @@ class Policy:
             if (exc.name or "ndp").split(".")[0] == "ndp":
                 raise
             raise ModuleNotFoundError(
-                f"{exc}: policy.make_env() needs the simulators, the [envs] extra (pip install "
-                "'neural-dynamic-policies[envs]'); act() does not",
+                f"{exc}: policy.make_env() needs the simulators, the [envs] extra "
+                f"({install_hint('envs')}); act() does not",
                 name=exc.name,
             ) from exc
 
@@ -570,33 +571,46 @@ def cached_evaluation(run_dir: Path) -> dict[str, Any] | None:
     on; the largest N) in the card's terms, or None."""
     import re
 
-    best: tuple[int, dict[str, Any]] | None = None
+    best: tuple[int, int, str, dict[str, Any]] | None = None
     for f in Path(run_dir).glob("eval-det-e*.json"):
-        m = re.fullmatch(r"eval-det-e(\d+)\.json", f.name)
+        # eval-det-e<N>.json (the report's cache, seeds from EVAL_SEED) or
+        # eval-det-e<N>-s<seed>.json (ndp rl eval --save); an --exec-k file is not the trained k
+        m = re.fullmatch(r"eval-det-e(\d+)(?:-s(\d+))?\.json", f.name)
         if m is None:
             continue
         try:
             data = json.loads(f.read_text())
         except (OSError, ValueError):
             continue
+        seed = int(m[2]) if m[2] is not None else EVAL_SEED
         if (
             isinstance(data, dict)
             and "success_any" in data
             and (best is None or int(m[1]) > best[0])
         ):
-            best = (int(m[1]), data)
+            best = (int(m[1]), seed, f.name, data)
     if best is None:
         return None
-    n, data = best
+    n, seed, name, data = best
+    how = (
+        f"ndp rl eval RUN --episodes {n} --seed {seed} --save ({name})"
+        if _saved_by_eval(name)
+        else f"ndp report (its cached evaluation of the run, {name})"
+    )
     return {
         "success": float(data["success_any"]),
         "episodes": n,
         "deterministic": True,
-        "first_seed": EVAL_SEED,
+        "first_seed": seed,
         "success_final": data.get("success_final"),
         "episode_return": data.get("episode_return"),
-        "command": f"ndp report (its cached evaluation of the run, eval-det-e{n}.json)",
+        "command": how,
     }
+
+
+def _saved_by_eval(name: str) -> bool:
+    """Whether an evaluation file was written by ``ndp rl eval --save`` (it names its seed)."""
+    return "-s" in name.removeprefix("eval-det-")
 
 
 def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | None = None) -> Path:

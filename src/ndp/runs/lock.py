@@ -18,6 +18,7 @@ trainer started by hand.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import socket
 from collections.abc import Iterator
@@ -38,6 +39,41 @@ class RunBusyError(ValueError):
 
 def _key(run_dir: str | Path) -> Path:
     return Path(run_dir).resolve()
+
+
+def open_lock(path: str | Path, what: str = "run_dir") -> IO[str]:
+    """Open (creating it if missing) the lock file ``path`` for :func:`try_flock`: never through
+    a symbolic link (``O_NOFOLLOW``: a planted link would have its target truncated and
+    overwritten), never a directory. The one way every lock of the package (a run's, a sweep's,
+    an export's) is opened.
+
+    Raises:
+        OSError: one line naming ``what``, the file and how to clear it: a symbolic link, a
+            directory, or not writable.
+    """
+    path = Path(path)
+    if path.is_symlink():
+        raise OSError(
+            f"{what}: {path} is a symbolic link, not a lock file; nothing was written through "
+            f"it (remove it: rm {path})"
+        )
+    if path.is_dir():
+        raise OSError(f"{what}: {path} is a directory, not a lock file (remove it: rmdir {path})")
+    flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags, 0o644)
+    except OSError as exc:
+        if exc.errno in (errno.ELOOP, errno.EMLINK):  # a link planted after the check
+            raise OSError(
+                f"{what}: {path} is a symbolic link, not a lock file; nothing was written "
+                f"through it (remove it: rm {path})"
+            ) from None
+        if exc.errno == errno.EISDIR:
+            raise OSError(
+                f"{what}: {path} is a directory, not a lock file (remove it: rmdir {path})"
+            ) from None
+        raise
+    return os.fdopen(fd, "r+")
 
 
 def try_flock(fh: IO[str]) -> str | None:
@@ -77,7 +113,7 @@ def acquire(run_dir: str | Path) -> None:
     made = not key.exists()
     try:
         key.mkdir(parents=True, exist_ok=True)
-        fh = (key / RUN_LOCK_NAME).open("a+")
+        fh = open_lock(key / RUN_LOCK_NAME)
     except (FileExistsError, NotADirectoryError):
         raise OSError(f"run_dir: cannot create {run_dir}: a parent is a file") from None
     except PermissionError:

@@ -41,6 +41,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from ndp.checks import install_hint
+
 try:
     import gymnasium as gym
     from gymnasium import spaces
@@ -51,7 +53,7 @@ except ModuleNotFoundError as _exc:  # name the extra that installs what is miss
     if (_exc.name or "").split(".")[0] not in ("stable_baselines3", "gymnasium"):
         raise
     raise ModuleNotFoundError(
-        f"{_exc}: ndp.sb3 needs the [sb3] extra (pip install 'neural-dynamic-policies[sb3]')",
+        f"{_exc}: ndp.sb3 needs the [sb3] extra ({install_hint('sb3')})",
         name=_exc.name,
     ) from _exc
 

@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from ndp.io import atomic_write_text
+from ndp.io import atomic_write_bytes, atomic_write_text
 
 __all__ = [
     "FOREST_ROWS",
@@ -171,8 +171,6 @@ def forest_plot(rows: Sequence[ForestRow], path: str | Path, title: str | None =
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from ndp.io import atomic_write_bytes
 
     labels: list[str] = []
     ys: list[float] = []

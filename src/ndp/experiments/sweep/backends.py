@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from concurrent import futures
 from typing import Any
 
+from ndp.checks import install_hint
 from ndp.experiments.sweep.jobs import STOP_GRACE_S, Job
 from ndp.experiments.sweep.runner import _STOP, _stop_all, execute
 
@@ -69,9 +70,7 @@ class RayBackend:
         try:
             import ray
         except ModuleNotFoundError:
-            raise ValueError(
-                "--backend ray: needs Ray (pip install 'neural-dynamic-policies[ray]')"
-            ) from None
+            raise ValueError("--backend ray: needs Ray (" + install_hint("ray") + ")") from None
         self.ray = ray
         self.started = False
         if not ray.is_initialized():

@@ -7,7 +7,6 @@ Part of :mod:`ndp.experiments.sweep` (its docstring describes the whole).
 from __future__ import annotations
 
 import contextlib
-import io
 import os
 import shlex
 import signal
@@ -17,6 +16,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import IO
 
 from ndp.experiments.study import (
     _check_arm,
@@ -24,7 +24,8 @@ from ndp.experiments.study import (
     prepare_run,
 )
 from ndp.experiments.sweep.jobs import FAILED_NAME, LOCK_NAME, RUN_ENV, STOP_GRACE_S, Job, Outcome
-from ndp.runs.lock import try_flock
+from ndp.runs.lock import holder as run_lock_holder
+from ndp.runs.lock import open_lock, try_flock
 
 # ----------------------------------------------------------------------------- one run
 
@@ -38,13 +39,13 @@ class _RunLock:
     another process holds it); the trainer process inherits the descriptor, so the lock stays
     held while it runs even if the sweep dies."""
 
-    def __init__(self, fh: io.TextIOWrapper) -> None:
+    def __init__(self, fh: IO[str]) -> None:
         self.fh = fh
 
     @staticmethod
     def take(run: Path) -> _RunLock | str:
         run.mkdir(parents=True, exist_ok=True)
-        fh = (run / LOCK_NAME).open("a+")
+        fh = open_lock(run / LOCK_NAME)
         holder = try_flock(fh)
         return _RunLock(fh) if holder is None else holder
 
@@ -60,7 +61,10 @@ class _RunLock:
 
 
 def is_busy(run: Path) -> str | None:
-    """Who holds the run's lock (another sweep's trainer), or None."""
+    """Who holds the run (another sweep's trainer, or a trainer started by hand), or None."""
+    by_hand = run_lock_holder(run)
+    if by_hand is not None:
+        return by_hand
     if not (Path(run) / LOCK_NAME).is_file():
         return None
     lock = _RunLock.take(Path(run))
@@ -142,6 +146,10 @@ def execute(job: Job) -> Outcome:
     lock = _RunLock.take(run)
     if isinstance(lock, str):
         return Outcome(job, "busy", error=f"{run} is being trained by {lock}")
+    by_hand = run_lock_holder(run)  # a trainer started outside any sweep holds the run's lock
+    if by_hand is not None:
+        lock.close()
+        return Outcome(job, "busy", error=f"{run} is being trained by {by_hand} (not a sweep)")
     t0 = time.time()
     try:
         _check_arm(run, job.arm, job.steps, job.task, job.seed)

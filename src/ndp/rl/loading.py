@@ -1,0 +1,21 @@
+"""``ndp.load_policy``: one entry for every kind of saved policy. An ONNX export loads as an
+:class:`ndp.rl.onnx_policy.OnnxPolicy` without importing torch; a run, a safetensors export or
+``zoo:NAME`` through :func:`ndp.rl.policy.load_any_policy` (torch)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ndp.rl.onnx_policy import OnnxPolicy, is_onnx_export
+
+
+def load_any(path: str | Path) -> Any:
+    """``ndp.load_policy``: an ONNX export as an :class:`OnnxPolicy` without importing torch;
+    anything else (a run, a safetensors export, ``zoo:NAME``) through
+    :func:`ndp.rl.policy.load_any_policy`."""
+    if isinstance(path, (str, Path)) and not str(path).startswith("zoo:") and is_onnx_export(path):
+        return OnnxPolicy(path)
+    from ndp.rl.policy import load_any_policy  # torch: only for a torch policy
+
+    return load_any_policy(path)

@@ -31,6 +31,7 @@ from ndp.chunk_info import dmp_start, dmp_start_keys
 from ndp.envs import get_task_spec, make_env, task_options
 from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.factory import RELEASE9, check_observation
+from ndp.envs.rewards import check_reward, check_smooth_lambda
 from ndp.envs.vector import WorkerVectorEnv, default_workers
 
 
@@ -48,14 +49,22 @@ def resolve_task(name: str, **options: Any) -> TaskHandle:
     """Resolve a task name or alias through ``ndp.envs.TASKS`` (the toy tasks included).
 
     ``options``: task options every env of the handle gets (``reward_version``,
-    ``fixed_goal``: ``ndp.envs.make_env``), checked here against the task's row.
+    ``fixed_goal``, ``observation``, ``reward``, ``smooth_lambda``: ``ndp.envs.make_env``),
+    checked here against the task's row.
 
     Raises:
         ValueError: unknown name (the message lists close names), or a bad option.
     """
     spec = get_task_spec(name)
     observation = check_observation(spec, options.pop("observation", "full"))
+    reward = check_reward(options.pop("reward", "dense"))
+    price = options.pop("smooth_lambda", None)
+    check_smooth_lambda(price, reward)
     kw = task_options(spec, **options)
+    if reward != "dense":
+        kw["reward"] = reward
+    if price is not None:
+        kw["smooth_lambda"] = price
     if observation != "full":
         kw["observation"] = observation
         spec = dataclasses.replace(spec, obs_dim=len(RELEASE9))

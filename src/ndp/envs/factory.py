@@ -149,7 +149,7 @@ def make_env(
     kw.update(task_options(spec, reward_version, fixed_goal))
     release9 = check_observation(spec, observation) == "release9"
     reward = check_reward(reward)
-    price = check_smooth_lambda(smooth_lambda, reward)
+    check_smooth_lambda(smooth_lambda, reward)  # before the env is built
     families = TORQUE_FAMILIES if spec.actuation == "torque" else FAMILIES
     if spec.family not in families:
         raise ValueError(
@@ -159,7 +159,7 @@ def make_env(
     env = families[spec.family](spec, horizon, render_mode, **kw)
     defer_seed(env, seed)
     if reward != "dense":
-        env = RewardVariant(env, reward, price)
+        env = RewardVariant(env, reward, smooth_lambda)
     return ReleaseObservation(env) if release9 else env
 
 

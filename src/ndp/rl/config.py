@@ -272,8 +272,8 @@ class TrainConfig:
     change of the executed action since the previous env step); ndp.envs.rewards. Success is
     the task's own under all three. 'sparse' and 'smooth' need --no-stale-world at k > 1."""
     smooth_lambda: float | None = None
-    """Price of the 'smooth' reward per unit squared action change (>= 0); None: 0.2
-    (ndp.envs.rewards.DEFAULT_SMOOTH_LAMBDA: about 15 % of push-v3's per-step reward at trained
+    """Price of the 'smooth' reward per unit squared action change (>= 0); None: 0.25
+    (ndp.envs.rewards.DEFAULT_SMOOTH_LAMBDA: 15 % of push-v3's per-step reward at trained
     policies' training-time action changes, docs/envs.md). Only with --reward smooth."""
     run_dir: str | None = None
     """Run directory; None: runs/<task>-<algo>-s<seed>."""

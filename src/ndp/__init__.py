@@ -102,6 +102,8 @@ def make_env(
     reward_version: str = "v2",
     fixed_goal: int | str | None = None,
     observation: str = "full",
+    reward: str = "dense",
+    smooth_lambda: float | None = None,
 ) -> Any:
     """The chunked env of a task: k sub-steps per decision (``k = 1``: plain per-step).
 
@@ -120,6 +122,12 @@ def make_env(
             hard-coded configuration (``ndp.envs.release``).
         observation: ``"full"`` or ``"release9"`` (Meta-World: the release's 9-D observation,
             hand, object and goal xyz).
+        reward: ``"dense"`` (the task's own), ``"sparse"`` (1 at the first successful env
+            step, which ends the episode) or ``"smooth"`` (minus ``smooth_lambda`` times the
+            squared change of the executed action per env step): ``ndp.envs.rewards``; the
+            last two need ``stale_world=False`` at k > 1.
+        smooth_lambda: the smooth reward's price (None: ``ndp.envs.rewards.
+            DEFAULT_SMOOTH_LAMBDA``).
 
     Returns:
         An :class:`ndp.envs.ChunkedEnv` (actions [k, A]; info with the robot and commanded
@@ -142,6 +150,8 @@ def make_env(
         reward_version=reward_version,
         fixed_goal=fixed_goal,
         observation=observation,
+        reward=reward,
+        smooth_lambda=smooth_lambda,
     )
     return ChunkedEnv(base, k, stale_world=stale_world)
 

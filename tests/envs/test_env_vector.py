@@ -123,3 +123,42 @@ def test_bad_arguments():
     finally:
         work.close()
     assert 1 <= default_workers(8) <= 8
+
+
+def test_sync_env_takes_a_reset_beside_a_step_in_any_env_order():
+    """Env 0's episode ends (and it resets) while env 1 steps on: gymnasium's SyncVectorEnv
+    sizes ``robot_pos`` from env 0's reset info ([D]) and cannot take env 1's step rows
+    ([k+1, D]); ndp's sync env widens the array, the reset's rows repeated, as the worker env
+    does (an early termination, e.g. the sparse reward's, hits this)."""
+    from ndp.envs.vector import SyncChunkedVectorEnv
+
+    k = 2
+    make = resolve_task("point-mass").make
+    fns = [functools.partial(_make_chunked, make, k, True, h) for h in (2, 7)]  # env 0 ends first
+    mode = gym.vector.AutoresetMode.SAME_STEP
+    plain = gym.vector.SyncVectorEnv(fns, autoreset_mode=mode)
+    ours = SyncChunkedVectorEnv(fns, autoreset_mode=mode)
+    spec = get_task_spec("point-mass")
+    work = WorkerVectorEnv(fns, spec.obs_dim, k, spec.action_dim, spec.dmp_dofs, workers=1)
+    try:
+        for env in (plain, ours, work):
+            env.reset(seed=[3, 4])
+        act = np.full((2, k, 2), 0.3)
+        with pytest.raises(ValueError, match="could not broadcast"):
+            plain.step(act)
+        s1, s2 = ours.step(act), work.step(act)
+        assert s1[3].tolist() == [True, False]  # env 0 truncated at its horizon
+        for x, y in zip(s1[:4], s2[:4], strict=True):
+            np.testing.assert_array_equal(x, y)
+        for key in ("robot_pos", "robot_vel", "dmp_y0", "sub_rewards", "n_substeps"):
+            np.testing.assert_array_equal(s1[4][key], s2[4][key], err_msg=key)
+            np.testing.assert_array_equal(
+                s1[4]["final_info"][key], s2[4]["final_info"][key], err_msg=key
+            )
+        assert s1[4]["robot_pos"].shape == (2, k + 1, 2)
+        np.testing.assert_array_equal(s1[4]["robot_pos"][0], np.tile(s1[4]["dmp_y0"][0], (3, 1)))
+        _, info = ours.reset(seed=[3, 4])  # every env resets: the reset's own shapes, as before
+        assert info["robot_pos"].shape == (2, 2)
+    finally:
+        for env in (plain, ours, work):
+            env.close()

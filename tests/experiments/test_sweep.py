@@ -340,6 +340,7 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "sac-vs-sb3",
         "off-policy",
         "sac-critic",
+        "ndp-mechanism",
     }
     # the new studies: every arm accepted on its tasks; every condition's arms exist and run
     # the condition's method
@@ -349,6 +350,13 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         sw.check_arms([a.arm() for a in arms.values()], list(st.task_list()), name)
         for cond in st.conditions:
             assert all(lb in arms and arms[lb].algo == m for m, lb in cond.methods), cond.name
+    # ndp-mechanism: its default arms (the pca arm needs a fitted basis file) are accepted,
+    # the reward arms' --reward among them
+    st = get_study("ndp-mechanism")
+    mech = {a.label: a for a in st.arm_specs() if a.in_default}
+    sw.check_arms([a.arm() for a in mech.values()], list(st.task_list()), "ndp-mechanism")
+    assert mech["ndp-sparse"].args == ("--reward", "sparse", "--no-stale-world")
+    assert mech["ppo-smooth"].args == ("--reward", "smooth")  # k = 1: no stale rule to turn off
     rx = {a.label: a for a in get_study("release-explained").arm_specs()}
     assert rx["ndp-rall"].tasks == ("push-v3", "soccer-v3", "faucet-open-v3")
     assert "--execution" in rx["ndp-rall"].args and "--execution" not in rx["ppo-rall"].args

@@ -27,6 +27,7 @@ from gymnasium import spaces
 from ndp.checks import check_flag
 from ndp.chunk_info import ChunkInfo
 from ndp.envs.base import CTRL_INFO
+from ndp.envs.rewards import check_stale_world, reward_of
 
 
 class _RobotEnv(Protocol):
@@ -88,8 +89,9 @@ class ChunkedEnv(gym.Wrapper):
                 sub-action k times, the 2021 release's execution; :data:`EXECUTIONS`).
 
         Raises:
-            ValueError: bad ``k`` or ``execution``, a non-Box action space, or an env without
-                the methods the wrapper needs.
+            ValueError: bad ``k`` or ``execution``, a non-Box action space, an env without
+                the methods the wrapper needs, or a sparse or smooth reward
+                (:mod:`ndp.envs.rewards`) with ``stale_world`` at k > 1.
         """
         super().__init__(env)
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
@@ -99,6 +101,7 @@ class ChunkedEnv(gym.Wrapper):
                 f"execution: expected one of {', '.join(EXECUTIONS)}, got {execution!r}"
             )
         check_flag("stale_world", stale_world)  # "no" would apply the rule
+        check_stale_world(reward_of(env), bool(stale_world), int(k))
         self.execution = str(execution)
         box = env.action_space
         if not isinstance(box, spaces.Box) or len(box.shape) != 1:

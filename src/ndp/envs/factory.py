@@ -31,6 +31,7 @@ from ndp.envs.metaworld_env import (
 )
 from ndp.envs.point_mass import PointMassEnv
 from ndp.envs.release import RELEASE_GOAL_TASKS
+from ndp.envs.rewards import RewardVariant, check_reward, check_smooth_lambda
 from ndp.envs.spec import (
     TASKS,
     TORQUE_TASKS,
@@ -91,6 +92,8 @@ def make_env(
     reward_version: str = "v2",
     fixed_goal: int | str | None = None,
     observation: str = "full",
+    reward: str = "dense",
+    smooth_lambda: float | None = None,
     **kw: Any,
 ) -> gym.Env:
     """Create the plain per-step env of a task.
@@ -118,14 +121,22 @@ def make_env(
         observation: ``"full"`` (the task's observation) or ``"release9"`` (Meta-World only: the
             2021 release's 9 values, hand xyz, first object xyz, goal xyz; a
             :class:`ReleaseObservation` wrapper, the env's own state is unchanged).
+        reward: ``"dense"`` (the env's own reward), ``"sparse"`` (1 at the first successful
+            step, which ends the episode, else 0) or ``"smooth"`` (the env's reward minus
+            ``smooth_lambda * ||a_t - a_{t-1}||^2``): :mod:`ndp.envs.rewards`. Success is the
+            task's own under every variant.
+        smooth_lambda: the smooth reward's price (None: ``ndp.envs.rewards.
+            DEFAULT_SMOOTH_LAMBDA``); given with another reward: ValueError.
         **kw: Passed to the env class (``width``, ``height``, ``camera_name`` for Meta-World,
             ``camera`` for Jaco).
 
     Returns:
-        A :class:`ndp.envs.metaworld_env.MetaWorldEnv` or :class:`ndp.envs.jaco.JacoEnv`.
+        A :class:`ndp.envs.metaworld_env.MetaWorldEnv` or :class:`ndp.envs.jaco.JacoEnv`
+        (in a :class:`ndp.envs.rewards.RewardVariant` for a sparse or smooth reward).
 
     Raises:
-        ValueError: unknown name (with close names), bad horizon, render mode or substeps.
+        ValueError: unknown name (with close names), bad horizon, render mode, substeps,
+            reward or smooth_lambda.
     """
     spec = get_task_spec(name)
     if substeps != 1:
@@ -137,6 +148,8 @@ def make_env(
         raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
     kw.update(task_options(spec, reward_version, fixed_goal))
     release9 = check_observation(spec, observation) == "release9"
+    reward = check_reward(reward)
+    check_smooth_lambda(smooth_lambda, reward)  # before the env is built
     families = TORQUE_FAMILIES if spec.actuation == "torque" else FAMILIES
     if spec.family not in families:
         raise ValueError(
@@ -145,6 +158,8 @@ def make_env(
         )
     env = families[spec.family](spec, horizon, render_mode, **kw)
     defer_seed(env, seed)
+    if reward != "dense":
+        env = RewardVariant(env, reward, smooth_lambda)
     return ReleaseObservation(env) if release9 else env
 
 

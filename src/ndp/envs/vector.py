@@ -33,6 +33,50 @@ import numpy as np
 from ndp.chunk_info import info_schema  # the step info's arrays, from its schema
 
 
+def widen_info_arrays(vector_infos: dict[str, Any], env_info: dict[str, Any], n: int) -> None:
+    """Before gymnasium's ``_add_info`` adds env ``i``'s info to ``vector_infos``: an array
+    [n, *s] that the info's value [*p, *s] (more leading axes) cannot be written into is
+    widened to [n, *p, *s], each row repeated along the new axes (in place).
+
+    A chunked env's reset info has ``robot_pos`` [D] where its step info has [k+1, D]; when an
+    earlier env of a same-step-autoreset vector env has just reset, gymnasium sized the array
+    from that reset. Widened, the reset rows hold the reset state k+1 times, as the worker env's
+    shared arrays do (:class:`WorkerVectorEnv`).
+    """
+    for key, value in env_info.items():
+        old = vector_infos.get(key)
+        if not (isinstance(old, np.ndarray) and isinstance(value, np.ndarray)):
+            continue
+        row = old.shape[1:]
+        extra = value.ndim - len(row)
+        if old.dtype == object or extra <= 0 or value.shape[extra:] != row:
+            continue
+        grown = np.zeros((n, *value.shape), dtype=old.dtype)
+        grown[:] = old.reshape((n,) + (1,) * extra + row)
+        vector_infos[key] = grown
+
+
+class SyncChunkedVectorEnv(gym.vector.SyncVectorEnv):
+    """gymnasium's ``SyncVectorEnv`` whose info arrays take a reset's rows and a step's rows in
+    any env order (:func:`widen_info_arrays`); the same arrays as :class:`WorkerVectorEnv`."""
+
+    def _add_info(
+        self, vector_infos: dict[str, Any], env_info: dict[str, Any], env_num: int
+    ) -> dict[str, Any]:
+        widen_info_arrays(vector_infos, env_info, self.num_envs)
+        return super()._add_info(vector_infos, env_info, env_num)
+
+
+class AsyncChunkedVectorEnv(gym.vector.AsyncVectorEnv):
+    """gymnasium's ``AsyncVectorEnv`` with :class:`SyncChunkedVectorEnv`'s info arrays."""
+
+    def _add_info(
+        self, vector_infos: dict[str, Any], env_info: dict[str, Any], env_num: int
+    ) -> dict[str, Any]:
+        widen_info_arrays(vector_infos, env_info, self.num_envs)
+        return super()._add_info(vector_infos, env_info, env_num)
+
+
 class WorkerError(RuntimeError):
     """An env worker failed or died."""
 

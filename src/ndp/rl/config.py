@@ -46,6 +46,8 @@ EXECUTIONS = ("all", "first-held")
 """Values of ``TrainConfig.execution`` (``ndp.envs.chunked.EXECUTIONS``)."""
 FIRST_HELD_RATIOS = ("own", "release")
 """Values of ``TrainConfig.first_held_ratio``."""
+REWARDS = ("dense", "sparse", "smooth")
+"""Values of ``TrainConfig.reward`` (``ndp.envs.rewards.REWARDS``)."""
 
 SAFE_ON_RESUME = (
     "progress",
@@ -263,6 +265,16 @@ class TrainConfig:
     observation: str = "full"
     """'full' (the task's observation) or 'release9' (Meta-World only: the 2021 release's 9
     values, hand, object and goal xyz)."""
+    reward: str = "dense"
+    """The reward every env step of the run (training and evaluation) gets: 'dense' (the
+    task's own), 'sparse' (1 at the first env step the task reports success, which ends the
+    episode, else 0) or 'smooth' (the task's reward minus smooth_lambda times the squared
+    change of the executed action since the previous env step); ndp.envs.rewards. Success is
+    the task's own under all three. 'sparse' and 'smooth' need --no-stale-world at k > 1."""
+    smooth_lambda: float | None = None
+    """Price of the 'smooth' reward per unit squared action change (>= 0); None: 0.25
+    (ndp.envs.rewards.DEFAULT_SMOOTH_LAMBDA: 15 % of push-v3's per-step reward at trained
+    policies' training-time action changes, docs/envs.md). Only with --reward smooth."""
     run_dir: str | None = None
     """Run directory; None: runs/<task>-<algo>-s<seed>."""
     checkpoint_every: int = 10
@@ -321,6 +333,17 @@ class TrainConfig:
             raise ValueError(
                 f"execution: expected one of {', '.join(EXECUTIONS)}, got {self.execution!r}"
             )
+        if self.reward not in REWARDS:
+            raise ValueError(f"reward: expected one of {', '.join(REWARDS)}, got {self.reward!r}")
+        if self.smooth_lambda is not None:
+            if self.reward != "smooth":
+                raise ValueError(
+                    f"smooth_lambda: only --reward smooth has a price, got smooth_lambda="
+                    f"{self.smooth_lambda!r} with reward={self.reward!r}"
+                )
+            v = self.smooth_lambda
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 0:
+                raise ValueError(f"smooth_lambda: expected a finite number >= 0, got {v!r}")
         if self.first_held_ratio not in FIRST_HELD_RATIOS:
             raise ValueError(
                 f"first_held_ratio: expected one of {', '.join(FIRST_HELD_RATIOS)}, "
@@ -369,12 +392,17 @@ class TrainConfig:
 
     def env_options(self) -> dict[str, Any]:
         """The task options every env of this run gets (``ndp.envs.make_env`` keywords):
-        ``reward_version``, ``observation`` where not 'full', and the ``fixed_goal``: for
-        ``goals="per-seed"`` the seed derived from ``seed`` (``ndp.envs.fixed_goal_seed``), for
-        ``goals="release"`` the string ``"release"``."""
+        ``reward_version``, ``observation`` where not 'full', ``reward`` where not 'dense' (with
+        ``smooth_lambda`` where set), and the ``fixed_goal``: for ``goals="per-seed"`` the seed
+        derived from ``seed`` (``ndp.envs.fixed_goal_seed``), for ``goals="release"`` the
+        string ``"release"``."""
         out: dict[str, Any] = {"reward_version": self.reward_version}
         if self.observation != "full":
             out["observation"] = self.observation
+        if self.reward != "dense":
+            out["reward"] = self.reward
+        if self.smooth_lambda is not None:
+            out["smooth_lambda"] = self.smooth_lambda
         if self.goals == "per-seed":
             from ndp.envs.factory import fixed_goal_seed
 
@@ -430,6 +458,9 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     - ``run_dir`` defaults to ``runs/<task>-<algo>-s<seed>``.
     - ``goals="as-release"`` becomes what the release gave the method on the task
       (``ndp.envs.release.release_goals``).
+    - ``smooth_lambda`` of a smooth reward: ``ndp.envs.rewards.DEFAULT_SMOOTH_LAMBDA`` where
+      None; a sparse or smooth reward with the stale-world rule at k > 1 is refused
+      (ValueError naming ``--reward`` and ``--no-stale-world``).
 
     Args:
         cfg: the requested config.
@@ -493,7 +524,14 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
             raise ValueError(f"goals: 'as-release' needs a task the release ran ({exc})") from None
     if goals == "release":  # refused here, before any run folder, where there is none
         task_options(spec, cfg.reward_version, "release")
-    return dataclasses.replace(cfg, task=spec.name, policy=policy, run_dir=run_dir, goals=goals)
+    from ndp.envs.rewards import check_smooth_lambda, check_stale_world
+
+    assert policy.k is not None  # set just above
+    check_stale_world(cfg.reward, cfg.stale_world, policy.k)
+    price = check_smooth_lambda(cfg.smooth_lambda, cfg.reward) if cfg.reward == "smooth" else None
+    return dataclasses.replace(
+        cfg, task=spec.name, policy=policy, run_dir=run_dir, goals=goals, smooth_lambda=price
+    )
 
 
 def default_run_dir(task: str, algo: str, seed: int) -> str:

@@ -7,10 +7,12 @@ decision) in a vector env with same-step autoreset: when an episode ends, the re
 observation and info are the reset ones and the finished step's info is under
 ``info["final_info"]`` (its observation under ``final_obs``). Kinds (``vector``):
 
-- ``"sync"``: gymnasium's ``SyncVectorEnv``, one process (debugging, determinism tests);
+- ``"sync"``: gymnasium's ``SyncVectorEnv``, one process (debugging, determinism tests), as
+  :class:`ndp.envs.vector.SyncChunkedVectorEnv` (its info arrays take one env's reset beside
+  another's step);
 - ``"workers"``: :class:`ndp.envs.vector.WorkerVectorEnv`, ``env_workers`` subprocesses with
   several envs each and shared-memory arrays (same numbers as sync, both cores busy);
-- ``"async"``: gymnasium's ``AsyncVectorEnv``, one subprocess per env;
+- ``"async"``: gymnasium's ``AsyncVectorEnv``, one subprocess per env (likewise);
 - ``"auto"``: ``workers`` with one worker per core when this process may use two or more cores
   and there are two or more envs, else ``sync``.
 """
@@ -25,13 +27,19 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv
+from gymnasium.vector import AutoresetMode
 
 from ndp.chunk_info import dmp_start, dmp_start_keys
 from ndp.envs import get_task_spec, make_env, task_options
 from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.factory import RELEASE9, check_observation
-from ndp.envs.vector import WorkerVectorEnv, default_workers
+from ndp.envs.rewards import check_reward, check_smooth_lambda
+from ndp.envs.vector import (
+    AsyncChunkedVectorEnv,
+    SyncChunkedVectorEnv,
+    WorkerVectorEnv,
+    default_workers,
+)
 
 
 @dataclass(frozen=True)
@@ -48,14 +56,22 @@ def resolve_task(name: str, **options: Any) -> TaskHandle:
     """Resolve a task name or alias through ``ndp.envs.TASKS`` (the toy tasks included).
 
     ``options``: task options every env of the handle gets (``reward_version``,
-    ``fixed_goal``: ``ndp.envs.make_env``), checked here against the task's row.
+    ``fixed_goal``, ``observation``, ``reward``, ``smooth_lambda``: ``ndp.envs.make_env``),
+    checked here against the task's row.
 
     Raises:
         ValueError: unknown name (the message lists close names), or a bad option.
     """
     spec = get_task_spec(name)
     observation = check_observation(spec, options.pop("observation", "full"))
+    reward = check_reward(options.pop("reward", "dense"))
+    price = options.pop("smooth_lambda", None)
+    check_smooth_lambda(price, reward)
     kw = task_options(spec, **options)
+    if reward != "dense":
+        kw["reward"] = reward
+    if price is not None:
+        kw["smooth_lambda"] = price
     if observation != "full":
         kw["observation"] = observation
         spec = dataclasses.replace(spec, obs_dim=len(RELEASE9))
@@ -103,8 +119,8 @@ def make_vector_env(
         spec = task.spec
         return WorkerVectorEnv(fns, spec.obs_dim, k, spec.action_dim, spec.dmp_dofs, workers)
     if kind == "async":
-        return AsyncVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
-    return SyncVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
+        return AsyncChunkedVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
+    return SyncChunkedVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
 
 
 VECTOR_KINDS = ("auto", "sync", "workers", "async")

@@ -155,3 +155,28 @@ def test_a_sweep_leaves_a_run_that_a_hand_started_trainer_holds(tmp_path):
         proc.kill()
         proc.wait()
     assert is_busy(run) is None  # the holder died: the lock is free again
+
+
+def test_two_exports_into_one_folder_one_is_refused(tmp_path):
+    """A second writer of the same export folder is refused while the first writes (it used to
+    succeed too, interleaving files); the lock beside the folder is gone afterwards."""
+    out = tmp_path / "export"
+    code = (
+        "import sys, time; from ndp.runs import lock\n"
+        "with lock.output_lock(sys.argv[1]):\n"
+        "    print('held', flush=True); time.sleep(600)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code, str(out)], stdout=subprocess.PIPE)
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == b"held"
+        import ndp
+
+        with pytest.raises(lock.RunBusyError, match=r"out_dir: .* is being written now by pid"):
+            ndp.load_policy("zoo:push-v3-ndp").export(out)
+        assert not out.exists()
+    finally:
+        proc.kill()
+        proc.wait()
+    with lock.output_lock(out):
+        pass
+    assert not (tmp_path / ".export.lock").exists()

@@ -68,6 +68,7 @@ from ndp.rl.onnx_export import write_onnx_export
 from ndp.rl.onnx_policy import OnnxPolicy
 from ndp.runs import load_checkpoint
 from ndp.runs.layout import PROVENANCE_NAME, run_commits
+from ndp.runs.lock import output_lock
 from ndp.schema import PolicySpec, check_record, spec_record
 
 EXPORT_FORMAT = "ndp-policy"
@@ -261,12 +262,13 @@ class Policy:
         (:mod:`ndp.rl.onnx_export`)."""
         if format not in EXPORT_FORMATS:
             raise ValueError(f"format: expected one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
-        if format == "onnx":
-            out = write_onnx_export(self, out_dir)
-            meta, evaluation = export_meta(self, evaluation)
-            write_card(out, meta, evaluation, onnx=True)
-            return out
-        return _write_export(self, Path(out_dir), evaluation)
+        with output_lock(out_dir):  # a second export into the same folder is refused
+            if format == "onnx":
+                out = write_onnx_export(self, out_dir)
+                meta, evaluation = export_meta(self, evaluation)
+                write_card(out, meta, evaluation, onnx=True)
+                return out
+            return _write_export(self, Path(out_dir), evaluation)
 
 
 def _task_spec(cfg: TrainConfig, recorded: dict[str, Any] | None, source: str) -> Any:

@@ -183,3 +183,30 @@ def held(run_dir: str | Path) -> Iterator[None]:
         yield
     finally:
         release(run_dir, every=True)
+
+
+@contextlib.contextmanager
+def output_lock(out: str | Path, what: str = "out_dir") -> Iterator[None]:
+    """One writer at a time for an output that is not a run directory (an export folder): an
+    flock on ``<parent>/.<name>.lock`` beside it (so the folder itself stays as the writer
+    leaves it), taken with :func:`open_lock` and removed when the block ends, however it ends.
+
+    Raises:
+        RunBusyError: another process writes ``out`` now (one line naming it and the holder).
+    """
+    target = Path(out)
+    lock_path = target.parent / f".{target.name}.lock"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fh = open_lock(lock_path, what)
+    holder_text = try_flock(fh)
+    if holder_text is not None:
+        raise RunBusyError(
+            f"{what}: {out} is being written now by {holder_text}; wait for it to finish or "
+            "choose another folder"
+        )
+    try:
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            lock_path.unlink()
+        fh.close()

@@ -41,6 +41,20 @@ def _require(name: str) -> Any:
         ) from None
 
 
+def _onnx_file(path: str | Path) -> Path:
+    """The graph file of an export: ``path`` itself, or ``path/policy.onnx`` for a folder.
+
+    Raises:
+        FileNotFoundError: no such file.
+    """
+    p = Path(path)
+    if p.is_dir():
+        p = p / ONNX_FILE
+    if not p.is_file():
+        raise FileNotFoundError(f"policy: no {ONNX_FILE} at {p}")
+    return p
+
+
 def onnx_metadata(path: str | Path) -> dict[str, Any]:
     """The metadata of an exported ``policy.onnx`` (or of the directory holding it), JSON values
     decoded.
@@ -49,11 +63,7 @@ def onnx_metadata(path: str | Path) -> dict[str, Any]:
         ValueError: not an export of this format and version.
     """
     onnx = _require("onnx")
-    path = Path(path)
-    if path.is_dir():
-        path = path / ONNX_FILE
-    if not path.is_file():
-        raise FileNotFoundError(f"policy: no {ONNX_FILE} at {path}")
+    path = _onnx_file(path)
     try:
         model = onnx.load(str(path), load_external_data=False)
     except Exception as exc:  # protobuf's DecodeError and others for a damaged file
@@ -86,11 +96,7 @@ class OnnxPolicy:
 
     def __init__(self, path: str | Path) -> None:
         ort = _require("onnxruntime")
-        path = Path(path)
-        if path.is_dir():
-            path = path / ONNX_FILE
-        if not path.is_file():
-            raise FileNotFoundError(f"policy: no {ONNX_FILE} at {path}")
+        path = _onnx_file(path)
         self.path = path
         self.meta = onnx_metadata(path)
         keys = self.meta.get("state_keys")

@@ -300,14 +300,8 @@ def run_fingerprints(run_dir: str | Path) -> list[dict[str, str]]:
     """The environment fingerprints (:func:`ndp.provenance.fingerprint`: Python, torch, numpy,
     MuJoCo and Meta-World versions, the CPU model) of a run's sessions, each distinct one once,
     in session order; empty when provenance.json is missing or unreadable."""
-    try:
-        sessions = json.loads((Path(run_dir) / PROVENANCE_NAME).read_text())
-    except (OSError, json.JSONDecodeError):
-        return []
-    if not isinstance(sessions, list):
-        return []
     out: list[dict[str, str]] = []
-    for e in sessions:
+    for e in _sessions(run_dir):
         if isinstance(e, dict) and (fp := fingerprint(e)) not in out:
             out.append(fp)
     return out
@@ -316,12 +310,20 @@ def run_fingerprints(run_dir: str | Path) -> list[dict[str, str]]:
 def run_commits(run_dir: str | Path) -> list[str]:
     """The commits (7 hex digits, sorted) a run's sessions were trained at, from its
     provenance.json; empty when the file is missing or unreadable (runs older than it)."""
+    return sorted(
+        {
+            str(e["commit"])[:7]
+            for e in _sessions(run_dir)
+            if isinstance(e, dict) and e.get("commit")
+        }
+    )
+
+
+def _sessions(run_dir: str | Path) -> list[Any]:
+    """The session records of a run's provenance.json; empty when it is missing or
+    unreadable."""
     try:
         sessions = json.loads((Path(run_dir) / PROVENANCE_NAME).read_text())
     except (OSError, json.JSONDecodeError):
         return []
-    if not isinstance(sessions, list):
-        return []
-    return sorted(
-        {str(e["commit"])[:7] for e in sessions if isinstance(e, dict) and e.get("commit")}
-    )
+    return sessions if isinstance(sessions, list) else []

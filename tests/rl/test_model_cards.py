@@ -257,3 +257,23 @@ def test_an_export_card_reads_the_saved_fresh_evaluation(tmp_path):
     ev = cached_evaluation(run)
     assert ev is not None and ev["episodes"] == 100 and ev["first_seed"] == 20000
     assert ev["success"] == 0.42 and "--seed 20000 --save" in ev["command"]
+
+
+def test_card_and_progress_report_the_env_steps_trained_not_the_request(tmp_path):
+    """--steps 300 trains whole updates (here 2,048 env steps): the export's card says what was
+    trained (from run.json), and the progress bar's total is the same number."""
+    from ndp.rl.config import PPOConfig, TrainConfig
+    from ndp.rl.policy import export_policy
+    from ndp.rl.progress import TrainProgress
+    from ndp.rl.run import train
+
+    cfg = TrainConfig(task="point-mass", algo="ppo", steps=300, num_envs=2, vector="sync",
+                      run_dir=str(tmp_path / "run"), progress=False, tensorboard=False,
+                      eval_every=0, ppo=PPOConfig(steps_per_update=512, minibatches=2))  # fmt: skip
+    train(cfg)
+    trained = cfg.num_updates * cfg.env_steps_per_update
+    assert trained == 512 != cfg.steps
+    card = (export_policy(tmp_path / "run", tmp_path / "out") / "README.md").read_text()
+    assert "budget_env_steps: 512" in card
+    with TrainProgress(tmp_path / "p", ["update", "global_step"], cfg, 0, 0, False) as prog:
+        assert prog.bar.total == 512

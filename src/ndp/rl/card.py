@@ -136,7 +136,10 @@ def card_fields(
         fields["success_rate"] = NOT_RECORDED
         fields["success_rate_ci95"] = NOT_RECORDED
         fields["episodes"] = NOT_RECORDED
-    steps = cfg.get("steps")
+    # what the run trained (its run.json, through the export's training record); the
+    # requested --steps for exports made before the record had it
+    trained = training.get("env_steps_trained")
+    steps = trained if isinstance(trained, int) else cfg.get("steps")
     fields["budget_env_steps"] = int(steps) if isinstance(steps, int) else NOT_RECORDED
     seed = cfg.get("seed")
     fields["seeds"] = [int(seed)] if isinstance(seed, int) else NOT_RECORDED

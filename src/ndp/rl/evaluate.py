@@ -16,6 +16,7 @@ from ndp.envs.base import check_render_size
 from ndp.envs.render import check_video_size, write_mp4
 from ndp.io import atomic_write_text, check_output_path
 from ndp.provenance import git_commit
+from ndp.rl.card import wilson_interval
 from ndp.rl.config import EVAL_SEED
 from ndp.rl.envs import FrameRecorder
 from ndp.rl.exec_k import exec_k_values
@@ -64,28 +65,6 @@ def check_save_target(run_dir: str | Path) -> None:
             f"run_dir: --save writes into a run directory; {run_dir} is a policy shipped with "
             "the package (export it first: ndp rl export zoo:NAME DIR)"
         )
-
-
-def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
-    """Wilson score interval of a binomial proportion (95% at the default ``z``).
-
-    Args:
-        successes: successes, 0 <= successes <= n.
-        n: trials, >= 1.
-
-    Returns:
-        ``(low, high)`` in [0, 1]; unlike the normal approximation it stays inside [0, 1] and is
-        not empty at 0 or n successes.
-    """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n: expected an integer >= 1, got {n!r}")
-    if not (0 <= successes <= n):
-        raise ValueError(f"successes: expected an integer in [0, {n}], got {successes!r}")
-    p = successes / n
-    den = 1.0 + z * z / n
-    mid = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return max(0.0, mid - half), min(1.0, mid + half)
 
 
 def save_evaluation(run_dir: str | Path, result: dict[str, Any], seed: int) -> Path:

@@ -67,8 +67,9 @@ from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.onnx_export import write_onnx_export
 from ndp.rl.onnx_policy import OnnxPolicy
 from ndp.runs import load_checkpoint
-from ndp.runs.layout import PROVENANCE_NAME, run_commits
+from ndp.runs.layout import provenance_sessions, run_commits
 from ndp.runs.lock import output_lock
+from ndp.runs.session import read_manifest
 from ndp.schema import PolicySpec, check_record, spec_record
 
 EXPORT_FORMAT = "ndp-policy"
@@ -468,18 +469,17 @@ def run_training(run_dir: Path) -> dict[str, Any] | None:
     resumes) and the commits they ran at, from its ``provenance.json``; None without one."""
     import shlex
 
-    try:
-        sessions = json.loads((Path(run_dir) / PROVENANCE_NAME).read_text())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(sessions, list):
+    sessions = provenance_sessions(run_dir)
+    if not sessions:
         return None
     commands = [
         shlex.join(portable_command([str(a) for a in e["argv"]]))
         for e in sessions
         if isinstance(e, dict) and isinstance(e.get("argv"), list)
     ]
-    return {"commands": commands, "commits": run_commits(run_dir)}
+    manifest = read_manifest(run_dir)
+    trained = int(manifest.done) if manifest is not None else None
+    return {"commands": commands, "commits": run_commits(run_dir), "env_steps_trained": trained}
 
 
 EXPORT_SCHEMA: dict[str, tuple[type, ...]] = {

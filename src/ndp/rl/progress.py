@@ -57,7 +57,8 @@ class TrainProgress:
     ) -> None:
         from tqdm import tqdm
 
-        self.steps = int(cfg.steps)
+        # the env steps the run trains (``--steps`` rounded up to whole updates: say_budget)
+        self.steps = int(cfg.num_updates * cfg.env_steps_per_update)
         self.logger = MetricsLogger(
             run_dir,
             columns,

@@ -301,7 +301,7 @@ def run_fingerprints(run_dir: str | Path) -> list[dict[str, str]]:
     MuJoCo and Meta-World versions, the CPU model) of a run's sessions, each distinct one once,
     in session order; empty when provenance.json is missing or unreadable."""
     out: list[dict[str, str]] = []
-    for e in _sessions(run_dir):
+    for e in provenance_sessions(run_dir):
         if isinstance(e, dict) and (fp := fingerprint(e)) not in out:
             out.append(fp)
     return out
@@ -313,13 +313,13 @@ def run_commits(run_dir: str | Path) -> list[str]:
     return sorted(
         {
             str(e["commit"])[:7]
-            for e in _sessions(run_dir)
+            for e in provenance_sessions(run_dir)
             if isinstance(e, dict) and e.get("commit")
         }
     )
 
 
-def _sessions(run_dir: str | Path) -> list[Any]:
+def provenance_sessions(run_dir: str | Path) -> list[Any]:
     """The session records of a run's provenance.json; empty when it is missing or
     unreadable."""
     try:

@@ -188,15 +188,25 @@ def held(run_dir: str | Path) -> Iterator[None]:
 @contextlib.contextmanager
 def output_lock(out: str | Path, what: str = "out_dir") -> Iterator[None]:
     """One writer at a time for an output that is not a run directory (an export folder): an
-    flock on ``<parent>/.<name>.lock`` beside it (so the folder itself stays as the writer
-    leaves it), taken with :func:`open_lock` and removed when the block ends, however it ends.
+    flock on ``<parent>/.<name>.lock`` beside it (in the nearest existing folder above it, so
+    that nothing is created before the writer's checks, and the folder itself stays as the
+    writer leaves it), taken with :func:`open_lock` and removed when the block ends, however it
+    ends.
 
     Raises:
         RunBusyError: another process writes ``out`` now (one line naming it and the holder).
     """
-    target = Path(out)
-    lock_path = target.parent / f".{target.name}.lock"
-    target.parent.mkdir(parents=True, exist_ok=True)
+    target = Path(out).absolute()
+    # the lock lives in the nearest folder that exists (no folder is made before the writer's
+    # own checks, so a refused write leaves nothing behind), named after the path below it
+    base = target.parent
+    while not base.exists() and base != base.parent:
+        base = base.parent
+    if not base.is_dir():  # a parent is a file: the writer's own checks name it
+        yield
+        return
+    rel = target.relative_to(base).as_posix().replace("/", "__")
+    lock_path = base / f".{rel}.lock"
     fh = open_lock(lock_path, what)
     holder_text = try_flock(fh)
     if holder_text is not None:

@@ -21,10 +21,14 @@ def test_every_forest_row_is_in_a_committed_csv_and_the_headline_comes_first():
     rows = read_forest(ROOT)
     assert len(rows) == len(FOREST_ROWS)
     first = rows[0]
-    assert first.spec.group.startswith("headline, 10 seeds") and first.n == 10
-    # the 10-seed headline's push-v3 difference (docs/rl-release.md: -0.02 [-0.12, +0.07])
-    assert first.diff == pytest.approx(-0.0235, abs=1e-4)
-    assert (first.low, first.high) == pytest.approx((-0.115, 0.068), abs=1e-3)
+    assert first.spec.group.startswith("headline, 10 seeds, one reward rule") and first.n == 10
+    # the fair-live headline's push-v3 difference (docs/rl-release.md part 3: +0.01 [-0.12, +0.13])
+    assert first.diff == pytest.approx(0.009, abs=1e-4)
+    stale = rows[6]
+    assert stale.spec.group.startswith("headline, 10 seeds, stale-world")
+    # the stale-rule headline's push-v3 difference (-0.02 [-0.12, +0.07])
+    assert stale.diff == pytest.approx(-0.0235, abs=1e-4)
+    assert (stale.low, stale.high) == pytest.approx((-0.115, 0.068), abs=1e-3)
     assert all(r.low <= r.diff <= r.high for r in rows)
 
 

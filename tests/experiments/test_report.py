@@ -700,3 +700,33 @@ def test_a_dotted_report_stem_keeps_every_file_together(tmp_path):
     assert not (tmp_path / "v1.md").exists()
     plain = report([runs], tmp_path / "r.md", "cmd", plots=False)
     assert plain["markdown"] == str(tmp_path / "r.md")
+
+
+def test_compare_writes_the_registered_family_with_holm_over_all_of_it(tmp_path, capsys):
+    """``ndp report --compare A:B C:D --compare-pooled``: each pair per task and over both
+    tasks, Holm over the whole family (m = 6), in the markdown and ``-family.csv``; an unknown
+    label is refused before anything is written."""
+    runs = tmp_path / "runs"
+    for seed in (0, 1, 2):
+        for task, base in (("push-v3", 0.5), ("soccer-v3", 0.1)):
+            _rl_run(runs, task, "ndp", seed, base + 0.3 + 0.01 * seed)
+            _rl_run(runs, task, "ppo", seed, base + 0.01 * seed)
+            _rl_run(runs, task, "sac", seed, base + 0.01 * (2 - seed))
+    out = tmp_path / "fam"
+    assert main(["report", str(runs), "--out", str(out), "--no-plots",
+                 "--compare", "ndp:ppo", "sac:ppo", "--compare-pooled"]) == 0  # fmt: skip
+    with (tmp_path / "fam-family.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["task"], r["method"]) for r in rows] == [
+        ("push-v3", "ndp vs ppo"), ("soccer-v3", "ndp vs ppo"), ("all tasks", "ndp vs ppo"),
+        ("push-v3", "sac vs ppo"), ("soccer-v3", "sac vs ppo"), ("all tasks", "sac vs ppo"),
+    ]  # fmt: skip
+    assert {r["holm_m"] for r in rows} == {"6"}
+    assert float(rows[2]["p_two_sided"]) == pytest.approx(2 / 400)  # stratified, both tasks
+    assert all(r["commit"] and r["command"].startswith("ndp report") for r in rows)
+    assert "Registered family (6 tests" in (tmp_path / "fam.md").read_text()
+    assert (
+        main(["report", str(runs), "--out", str(tmp_path / "bad"), "--compare", "ndp:vices"]) != 0
+    )
+    assert "compare: vices is not a method of this report" in capsys.readouterr().err
+    assert not list(tmp_path.glob("bad*"))

@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from ndp.experiments.report import family
 from ndp.experiments.report.conditions import conditions_section, metrics_of, pairwise_section
 from ndp.experiments.report.selection import selection_section
 from ndp.experiments.rows import (  # noqa: F401  # re-exported: the report's public names
@@ -392,8 +393,14 @@ def report(
     plots: bool = True,
     eval_episodes: int = 0,
     study: str | None = None,
+    compare: Sequence[str] = (),
+    compare_pooled: bool = False,
 ) -> dict[str, Any]:
     """Write ``<out>.md``, ``<out>.csv`` and ``<out>-<task>.png`` (see the module doc).
+
+    ``compare``: a registered family of tests, ``"A:B"`` pairs of method labels (A - B on each
+    task, with ``compare_pooled`` also over all tasks), Holm-adjusted over the whole family
+    (:mod:`ndp.experiments.report.family`; ``<out>-family.csv``).
 
     ``study``: a named study; where it has conditions (``release-conditions``), the report adds
     the condition x method section (:mod:`ndp.experiments.report.conditions`: bootstrap
@@ -415,8 +422,10 @@ def report(
     out = report_stem(out)
     check_report_stem(out)  # before reading any run
     _check_args(budgets, eval_episodes, seeds)
+    pairs = family.parse_pairs(compare)
     sc = _scope(run_dirs, study, tasks, methods)
     cells, expected = build_cells(sc.infos, seeds, sc.tasks, sc.methods, sc.arm_tasks)
+    family.check_pairs(pairs, [c.label for c in cells])
     if any(c.missing for c in cells) and not allow_missing:
         raise MissingSeedsError(_missing_message(cells, expected))
     tables: dict[str, list[Cell]] = {"success": [], "imitation": [], "cloning": []}
@@ -449,6 +458,15 @@ def report(
         at = md.index("", md.index(next(x for x in md if x.startswith("Seeds per cell")))) + 1
         md[at:at] = _bc_markdown(bc_cells)
     pngs, extra_csv = _study_sections(md, pngs, tables, sc, expected, out, prov, plots)
+    if pairs and rl_cells:
+        fmd, frows = family.family_section(rl_cells, expected, pairs, compare_pooled)
+        if frows:
+            path = out.with_name(out.name + "-family.csv")
+            _write_csv(path, [{**r, **{k: prov[k] for k in ("command", "commit", "date")}}
+                              for r in frows])  # fmt: skip
+            extra_csv.append(path)
+        at = next((i for i, line in enumerate(md) if line.startswith("CSV:")), len(md))
+        md[at:at] = fmd
     atomic_write_text(_ext(out, ".md"), "\n".join(md) + "\n")
     return {
         **prov,

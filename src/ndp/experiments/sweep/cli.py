@@ -188,6 +188,20 @@ def report_parser() -> argparse.ArgumentParser:
         "without --methods, the study's arms (and those its conditions take from other "
         "studies' runs: off-policy) that have runs",
     )
+    p.add_argument(
+        "--compare",
+        nargs="+",
+        default=[],
+        metavar="A:B",
+        help="a registered family of tests: A - B per task for each pair of method labels, "
+        "Holm-adjusted over the whole family, paired sign-flip p beside "
+        "(<out>-family.csv)",
+    )
+    p.add_argument(
+        "--compare-pooled",
+        action="store_true",
+        help="with --compare: each pair also over all tasks (stratified), in the same family",
+    )
     return p
 
 
@@ -451,6 +465,8 @@ def report_command(argv: list[str]) -> int:
         plots=not args.no_plots,
         eval_episodes=args.eval_episodes,
         study=args.study,
+        compare=args.compare,
+        compare_pooled=args.compare_pooled,
     )
     print(Path(res["markdown"]).read_text())
     written = [res["markdown"], res["csv"], *res["section_csv"], *res["png"]]

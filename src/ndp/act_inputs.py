@@ -10,11 +10,16 @@ deployment with onnxruntime alone uses it too.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+"""The largest magnitude an observation may have: every runtime computes in float32 at some
+point (the ONNX graph's inputs, the torch network), where a larger value becomes inf."""
 
 
 @dataclass(frozen=True)
@@ -34,6 +39,52 @@ class RobotState:
     DMP starts at rest (``dmp_velocity == "zero"``)."""
 
 
+@dataclass
+class ObsRange:
+    """The inputs a policy was trained on: the observation normaliser's frozen statistics.
+
+    An observation entry further than ``clip`` standard deviations from the training mean is
+    cut to that bound by the normaliser (torch and ONNX alike): :meth:`check` says so once per
+    policy (a ``RuntimeWarning`` naming ``obs``, the index, the value and the range), with the
+    same words in every runtime, instead of acting on it silently.
+    """
+
+    mean: np.ndarray
+    """Training mean [O]."""
+    std: np.ndarray
+    """Training standard deviation [O] (sqrt(var + 1e-8), as the normaliser divides)."""
+    clip: float
+    """The normaliser's bound in standard deviations."""
+    warned: bool = field(default=False, compare=False)
+    """Set after the first warning (once per policy)."""
+
+    def check(self, obs: np.ndarray, stacklevel: int = 3) -> None:
+        """Warn (once) where ``obs`` [E, O] leaves ``mean +- clip * std``."""
+        if self.warned:
+            return
+        z = np.abs(obs - self.mean) / self.std
+        if not (z > self.clip).any():
+            return
+        self.warned = True
+        idx = [int(i) for i in np.unravel_index(int(np.argmax(z)), z.shape)]
+        j = idx[-1]
+        lo, hi = self.mean[j] - self.clip * self.std[j], self.mean[j] + self.clip * self.std[j]
+        where = idx if obs.shape[0] > 1 else idx[-1:]
+        warnings.warn(
+            f"obs: entry {where} is {float(obs[tuple(idx)]):.3g}, outside the trained range "
+            f"[{lo:.3g}, {hi:.3g}] (mean +- {self.clip:g} std of the training observations): "
+            "clipped to it; the policy has not seen such inputs (said once per policy)",
+            RuntimeWarning,
+            stacklevel=stacklevel,
+        )
+
+
+def obs_range_of(mean: Any, var: Any, clip: float) -> ObsRange:
+    """An :class:`ObsRange` from the normaliser's mean [O] and variance [O]."""
+    m = np.asarray(mean, dtype=np.float64)
+    return ObsRange(m, np.sqrt(np.asarray(var, dtype=np.float64) + 1e-8), float(clip))
+
+
 def check_act_inputs(
     obs: Any,
     info: Any,
@@ -44,6 +95,7 @@ def check_act_inputs(
     needs_state: bool,
     starts_at_rest: bool,
     what: str = "this policy",
+    state_name: str = "info",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """``(obs [E, O] float64, y0 [E, D], dy0 [E, D], single)`` of a policy's inputs, checked.
 
@@ -57,6 +109,8 @@ def check_act_inputs(
         needs_state: the policy reads the robot state (NDP); else zeros stand in for it.
         starts_at_rest: the DMP starts at rest, so a RobotState without dy0 is allowed.
         what: how messages name the policy.
+        state_name: how messages name the argument holding the robot state (``info``; SB3's
+            ``observation`` dict).
 
     Raises:
         ValueError: one line naming the argument, the expected and the received shape or value.
@@ -76,6 +130,12 @@ def check_act_inputs(
     if not np.isfinite(o).all():
         bad = np.argwhere(~np.isfinite(o))[0].tolist()
         raise ValueError(f"obs: expected finite values, got {o[tuple(bad)]} at {bad}")
+    if (np.abs(o) > FLOAT32_MAX).any():
+        bad = np.argwhere(np.abs(o) > FLOAT32_MAX)[0].tolist()
+        raise ValueError(
+            f"obs: expected values within float32's range (|x| <= {FLOAT32_MAX:.3g}), got "
+            f"{o[tuple(bad)]:.3g} at {bad}"
+        )
     shape = (dofs,) if single else (len(o), dofs)
     mapping = _state_mapping(info, shape, state_keys, needs_state, starts_at_rest, what)
     if ky not in mapping or kdy not in mapping:
@@ -89,12 +149,14 @@ def check_act_inputs(
         try:
             v = np.asarray(mapping[key], dtype=np.float64)
         except (TypeError, ValueError):
-            raise ValueError(f"info: {key!r} expected numbers, got {mapping[key]!r}") from None
+            raise ValueError(
+                f"{state_name}: {key!r} expected numbers, got {mapping[key]!r}"
+            ) from None
         if v.shape != shape:
             want = f"[{dofs}]" if single else f"[{len(o)}, {dofs}] for {len(o)} observations"
-            raise ValueError(f"info: {key!r} expected shape {want}, got {list(v.shape)}")
+            raise ValueError(f"{state_name}: {key!r} expected shape {want}, got {list(v.shape)}")
         if not np.isfinite(v).all():
-            raise ValueError(f"info: {key!r} expected finite values, got {v.tolist()}")
+            raise ValueError(f"{state_name}: {key!r} expected finite values, got {v.tolist()}")
         states.append(v.reshape(len(o), dofs))
     return o, states[0], states[1], single
 

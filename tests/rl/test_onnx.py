@@ -283,3 +283,38 @@ def test_the_graph_takes_float32_inputs(tmp_path):
     state = {k: np.zeros(4, dtype=np.float16) for k in onnx_pol.state_keys}
     np.testing.assert_allclose(onnx_pol.act(obs, state), pol.act(obs.astype(np.float64), state),
                                atol=1e-5)  # fmt: skip
+
+
+def test_torch_and_onnx_refuse_and_warn_on_bad_observations_with_the_same_words(tmp_path):
+    """One input check for every runtime (ndp.act_inputs): a NaN, a value beyond float32 and a
+    value outside the trained range get the same one-line error / the same single warning,
+    naming ``obs``, the index and what was expected, from the torch policy and its ONNX
+    export."""
+    import warnings
+
+    import ndp
+
+    torch_pol = ndp.load_policy("zoo:throw-ndp")
+    onnx_pol = ndp.load_policy(torch_pol.export(tmp_path / "onnx", format="onnx"))
+    env = torch_pol.make_env()
+    obs, info = env.reset(seed=1)
+    env.close()
+    for bad, message in ((np.nan, r"^obs: expected finite values, got nan at \[0, 3\]$"),
+                         (1e39, r"^obs: expected values within float32's range")):  # fmt: skip
+        o = obs.astype(np.float64).copy()
+        o[3] = bad
+        for pol in (torch_pol, onnx_pol):
+            with pytest.raises(ValueError, match=message):
+                pol.act(o, info)
+    far = obs.astype(np.float64).copy()
+    far[2] = 1e30
+    said = []
+    for pol in (torch_pol, onnx_pol):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            out = pol.act(far, info)
+            pol.act(far, info)  # once per policy
+        assert np.isfinite(out).all()
+        said.append([str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)])
+    assert len(said[0]) == 1 and said[0] == said[1]
+    assert said[0][0].startswith("obs: entry [2] is 1e+30, outside the trained range [")

@@ -162,3 +162,23 @@ def test_vecnormalize_statistics_saved_and_loaded_with_the_model(one_thread, tmp
     # without the statistics: raw observations, other actions
     bare = PPO.load(tmp_path / "m.zip", device="cpu")
     assert not np.allclose(bare.predict(raw_batch, deterministic=True)[0], want, atol=1e-3)
+
+
+def test_ndp_policy_predict_checks_its_inputs_as_every_runtime_does():
+    """A NaN observation is refused naming ``obs`` and the index (not the DMP's internal
+    ``goal``); a NaN robot state names its key; a good observation still predicts."""
+    env = ndp.sb3.make_env("point-mass", k=5)
+    model = PPO(ndp.sb3.NDPPolicy, env, n_steps=8, batch_size=8, device="cpu")
+    obs, _ = env.reset(seed=0)
+    actions, _ = model.predict(obs, deterministic=True)
+    assert actions.shape == env.action_space.shape
+    bad = {**obs, "obs": obs["obs"].copy()}
+    bad["obs"][1] = np.nan
+    with pytest.raises(ValueError, match=r"^obs: expected finite values, got nan at \[0, 1\]$"):
+        model.predict(bad)
+    bad = {**obs, "y0": np.full_like(obs["y0"], np.inf)}
+    with pytest.raises(ValueError, match=r"^observation: 'y0' expected finite values"):
+        model.predict(bad)
+    with pytest.raises(ValueError, match=r"^observation: expected the dict"):
+        model.predict(obs["obs"])
+    env.close()

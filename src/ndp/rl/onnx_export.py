@@ -234,6 +234,12 @@ def onnx_metadata_of(policy: Policy) -> dict[str, str]:
         "uses_robot_state": bool(head.needs_robot_state),
         "action_low": np.asarray(spec.action_low, dtype=np.float64).tolist(),
         "action_high": np.asarray(spec.action_high, dtype=np.float64).tolist(),
+        "obs_norm": {
+            "enabled": bool(policy.obs_norm.enabled),
+            "mean": np.asarray(policy.obs_norm.rms.mean, dtype=np.float64).tolist(),
+            "var": np.asarray(policy.obs_norm.rms.var, dtype=np.float64).tolist(),
+            "clip": float(policy.obs_norm.clip),
+        },
         "config": policy.cfg.to_dict(),
         "spec": spec_record(spec),
         "versions": installed_versions(),

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ndp.act_inputs import check_act_inputs
+from ndp.act_inputs import ObsRange, check_act_inputs, obs_range_of
 from ndp.checks import check_flag, install_hint
 
 ONNX_FORMAT = "ndp-policy-onnx"
@@ -125,6 +125,10 @@ class OnnxPolicy:
             "starts_at_rest": velocity == "zero",
             "what": "this ONNX policy",
         }
+        self.obs_range: ObsRange | None = _obs_range(self.meta, path)
+        """The trained observation range (exports that record ``obs_norm``; None for older
+        ones, or without observation normalisation): :meth:`act` says once when an
+        observation leaves it, with the torch policy's words."""
         found = self.meta.get("spec")
         rec: dict[str, Any] = found if isinstance(found, dict) else {}
         self.spec = OnnxSpec(
@@ -155,6 +159,8 @@ class OnnxPolicy:
                 "with the torch policy (ndp.load_policy of the run or its safetensors export)"
             )
         o, y0, dy0, single = check_act_inputs(obs, info, **self._checks)
+        if self.obs_range is not None:
+            self.obs_range.check(o)
         feed = {
             name: value.astype(self._dtypes[name])
             for name, value in (("obs", o), ("y0", y0), ("dy0", dy0))
@@ -167,6 +173,31 @@ class OnnxPolicy:
                 f"{str(exc).splitlines()[0][:160]})"
             ) from None
         return out[0] if single else out
+
+
+def _obs_range(meta: dict[str, Any], path: Path) -> ObsRange | None:
+    """The metadata's ``obs_norm`` as an :class:`ObsRange` (None where absent or disabled).
+
+    Raises:
+        ValueError: naming the file and the field, where it is malformed.
+    """
+    norm = meta.get("obs_norm")
+    if norm is None:
+        return None
+    n = int(meta["obs_dim"])
+    try:
+        if not norm["enabled"]:
+            return None
+        rng = obs_range_of(norm["mean"], norm["var"], float(norm["clip"]))
+    except (KeyError, TypeError, ValueError):
+        rng = None
+    if rng is None or rng.mean.shape != (n,) or rng.std.shape != (n,) or rng.clip <= 0:
+        raise ValueError(
+            f"{path}: metadata 'obs_norm': expected enabled, mean [{n}], var [{n}] and clip > 0"
+        )
+    if not (np.isfinite(rng.mean).all() and np.isfinite(rng.std).all()):
+        raise ValueError(f"{path}: metadata 'obs_norm': expected finite mean and var")
+    return rng
 
 
 @dataclass(frozen=True)

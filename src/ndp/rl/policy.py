@@ -54,7 +54,7 @@ import torch
 
 import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
 from ndp import zoo
-from ndp.act_inputs import RobotState, check_act_inputs
+from ndp.act_inputs import ObsRange, RobotState, check_act_inputs, obs_range_of
 from ndp.checks import check_flag, install_hint
 from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
@@ -112,6 +112,11 @@ class Policy:
     """Where the weights come from, as far as recorded: ``{"commands": [...], "commits":
     [...]}`` (a run's ``provenance.json`` sessions, or an export's ``"training"``); None when
     nothing is recorded. Exports carry it on."""
+
+    obs_range: ObsRange | None = field(default=None, repr=False, compare=False)
+    """The trained observation range (:class:`ndp.act_inputs.ObsRange`): :meth:`act` says once
+    when an observation leaves it, with the ONNX policy's words; None: set from ``obs_norm`` at
+    the first :meth:`act` (a policy without observation normalisation has none)."""
 
     @property
     def exec_k(self) -> int:
@@ -192,6 +197,11 @@ class Policy:
             needs_state=self.needs_robot_state,
             starts_at_rest=self.cfg.policy.dmp_velocity == "zero",
         )
+        if self.obs_range is None and self.obs_norm.enabled:
+            rms = self.obs_norm.rms
+            self.obs_range = obs_range_of(rms.mean, rms.var, self.obs_norm.clip)
+        if self.obs_range is not None:
+            self.obs_range.check(o)
         with torch.no_grad():
             dist, _ = self.model.distribution(
                 torch.from_numpy(self.obs_norm(o)),
@@ -326,7 +336,6 @@ def _build(
             )
     obs_norm = ObsNormalizer(obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
     obs_norm.load_state_dict(obs_norm_state)
-    obs_norm.warn_clip = True  # frozen statistics: an input beyond them is said, once
     return Policy(cfg, spec, model, obs_norm)
 
 

@@ -41,6 +41,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from ndp.act_inputs import check_act_inputs
 from ndp.checks import install_hint
 
 try:
@@ -332,6 +333,37 @@ class NDPPolicy(ActorCriticPolicy):
         dist = self._distribution(latent_pi, obs)
         flat = actions.reshape(actions.shape[0], -1)
         return self.value_net(latent_vf), dist.log_prob(flat), dist.entropy()
+
+    def predict(  # type: ignore[override]
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, Any]:
+        """SB3's ``predict``, its inputs checked first as every policy runtime checks them
+        (:func:`ndp.act_inputs.check_act_inputs`: shapes, finite values, float32's range; one
+        line naming ``obs`` or the state key, the index and what was expected)."""
+        if not isinstance(observation, dict) or not {"obs", "y0", "dy0"} <= set(observation):
+            got = sorted(observation) if isinstance(observation, dict) else type(observation)
+            raise ValueError(
+                "observation: expected the dict of ndp.sb3.with_robot_state (obs, y0, dy0), "
+                f"got {got}"
+            )
+        obs_space = self.observation_space
+        assert isinstance(obs_space, spaces.Dict)
+        check_act_inputs(
+            observation["obs"],
+            {"y0": observation["y0"], "dy0": observation["dy0"]},
+            obs_dim=int(np.prod(obs_space["obs"].shape)),  # type: ignore[arg-type]
+            dofs=int(np.prod(obs_space["y0"].shape)),  # type: ignore[arg-type]
+            state_keys=("y0", "dy0"),
+            needs_state=True,
+            starts_at_rest=False,
+            what="this NDPPolicy",
+            state_name="observation",
+        )
+        return super().predict(observation, state, episode_start, deterministic)
 
     def get_distribution(self, obs: Any) -> DiagGaussianDistribution:
         features = super(ActorCriticPolicy, self).extract_features(obs, self.pi_features_extractor)

@@ -81,6 +81,20 @@ def test_ar1_is_refused_where_it_does_not_apply():
         PolicyConfig(noise="ar1", noise_corr=1.0)
     with pytest.raises(ValueError, match="noise: expected one of white, ar1"):
         PolicyConfig(noise="pink")
+    # an option nothing reads is refused, not ignored (--noise white --noise-corr 0.5)
+    with pytest.raises(ValueError, match=r"^noise_corr: only 'ar1' noise reads it"):
+        PolicyConfig(noise="white", noise_corr=0.5)
+    assert PolicyConfig(noise="white").noise_corr == 0.8  # the default stays accepted
+
+
+def test_noise_corr_without_ar1_is_refused_on_the_command_line(capsys):
+    from ndp.cli import main
+
+    code = main(["rl", "train", "--task", "point-mass", "--algo", "ppo", "--noise-corr", "0.5",
+                 "--steps", "64", "--run-dir", "/nonexistent/never-created"])  # fmt: skip
+    assert code != 0
+    err = capsys.readouterr().err
+    assert "noise_corr: only 'ar1' noise reads it" in err and "Traceback" not in err
 
 
 @pytest.mark.parametrize("algo", ["ppo", "ppo-multi", "ndp"])

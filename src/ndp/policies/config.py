@@ -173,6 +173,10 @@ NDP_FIELDS = tuple(f.name for f in dataclasses.fields(NDPHeadConfig))
 its ``policy`` (:meth:`PolicyConfig.from_dict` reads both forms)."""
 
 
+NOISE_CORR = 0.8
+"""The default ``noise_corr`` (the only value accepted with noise other than 'ar1')."""
+
+
 @dataclass(frozen=True)
 class PolicyConfig:
     """Actor-critic settings: the ones every method reads, and the NDP head's (``ndp``).
@@ -211,9 +215,10 @@ class PolicyConfig:
     continued across decisions, restarted at each episode; exact conditional log-probs,
     ndp.policies.distributions.AR1SubActionGaussian). PPO, PPO-multi and NDP (not with
     param_noise or the hold head). Acting with a loaded policy samples the white marginal."""
-    noise_corr: float = 0.8
+    noise_corr: float = NOISE_CORR
     """'ar1' noise: correlation of consecutive env steps' noise, in [0, 1) (0.8: a correlation
-    time of about one k = 5 decision)."""
+    time of about one k = 5 decision). Another value with any other noise is refused (it would
+    be read by nothing); the default itself cannot be told apart from a value given."""
     hidden_gain: float | None = None
     """Orthogonal-init gain of the hidden layers; None: the activation's (5/3 for tanh)."""
     ndp: NDPHeadConfig = field(default_factory=NDPHeadConfig)
@@ -288,6 +293,11 @@ class PolicyConfig:
             raise ValueError(f"noise: expected one of {', '.join(NOISES)}, got {self.noise!r}")
         if not (isinstance(self.noise_corr, (int, float)) and 0.0 <= self.noise_corr < 1.0):
             raise ValueError(f"noise_corr: expected a number in [0, 1), got {self.noise_corr!r}")
+        if self.noise != "ar1" and self.noise_corr != NOISE_CORR:
+            raise ValueError(
+                f"noise_corr: only 'ar1' noise reads it, got noise_corr={self.noise_corr!r} with "
+                f"noise={self.noise!r} (add --noise ar1, or leave noise_corr at {NOISE_CORR})"
+            )
         if self.noise == "ar1" and (self.head not in AR1_HEADS or self.ndp.param_noise):
             raise ValueError(
                 "noise: 'ar1' needs a Gaussian around each sub-action (ppo, ppo-multi, ndp "

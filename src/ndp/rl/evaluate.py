@@ -106,9 +106,38 @@ def save_evaluation(run_dir: str | Path, result: dict[str, Any], seed: int) -> P
     return path
 
 
-def run_episode(pol: Policy, env: Any, seed: int, deterministic: bool) -> dict[str, float]:
+def env_task(env: Any) -> str | None:
+    """The task an env built by ``ndp.make_env`` runs (its simulator class's ``task``), or None
+    for an env that does not say."""
+    task = getattr(getattr(env, "unwrapped", env), "task", None)
+    return task if isinstance(task, str) else None
+
+
+def check_env_task(pol: Any, env: Any, force: bool = False) -> None:
+    """Refuse to act with ``pol`` in an env of another task: tasks of one family share their
+    observation and action sizes (reach-v3 and push-v3: 39 and 4), so nothing else would say.
+
+    Raises:
+        ValueError: naming ``env``, both tasks and ``force``, unless ``force``.
+    """
+    have = env_task(env)
+    spec = pol.spec
+    want = {str(getattr(spec, "name", "")), str(getattr(spec, "metaworld_name", None) or "")}
+    if force or have is None or have in want:
+        return
+    raise ValueError(
+        f"env: the policy was trained on {spec.name!r}, the env runs {have!r}; pass force=True "
+        "to evaluate it on another task on purpose"
+    )
+
+
+def run_episode(
+    pol: Policy, env: Any, seed: int, deterministic: bool, force: bool = False
+) -> dict[str, float]:
     """One episode of ``pol`` in ``env`` (a chunked env) from reset seed ``seed``: success at
-    any step and at the final step, return and length in env steps."""
+    any step and at the final step, return and length in env steps. An env of another task than
+    the policy's is refused unless ``force`` (:func:`check_env_task`)."""
+    check_env_task(pol, env, force)
     obs, info = env.reset(seed=seed)
     pol.reset(seed)  # the action noise of a stochastic episode is seeded by the episode seed
     ret, length = 0.0, 0

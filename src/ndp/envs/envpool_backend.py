@@ -209,14 +209,18 @@ class StdUniform:
     def uniform(self, low: Any = 0.0, high: Any = 1.0, size: Any = None) -> Any:
         """``low + u * (high - low)`` per entry (numpy's broadcasting of ``low`` / ``high``)."""
         lo, hi = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
-        shape = np.broadcast_shapes(lo.shape, hi.shape) if size is None else tuple(np.atleast_1d(size))
+        shape = (
+            np.broadcast_shapes(lo.shape, hi.shape) if size is None else tuple(np.atleast_1d(size))
+        )
         n = int(np.prod(shape))
         u = self.random(n).reshape(shape)
-        out = np.broadcast_to(lo, shape) + u * (np.broadcast_to(hi, shape) - np.broadcast_to(lo, shape))
+        out = np.broadcast_to(lo, shape) + u * (
+            np.broadcast_to(hi, shape) - np.broadcast_to(lo, shape)
+        )
         return out if shape else float(out)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def metaworld_facts(task: str) -> dict[str, Any]:
     """What the adapter takes from metaworld's own env of ``task`` (built once per process):
     the goal-visible observation space, the hand's reset position, the mocap box, the action

@@ -231,15 +231,12 @@ def write_results(rows: list[dict[str, Any]], meta: dict[str, Any], root: Path) 
             f"{r['first_obs_step']} | {r['hand_vel_max_diff']:.2e} | {r['cmd_max_diff']:.2e} |"
         )
     (out / "README.md").write_text("\n".join(lines) + "\n")
-    body = ", ".join(f'"{t}"' for t in differing)
     text = (root / TASKS_MODULE).read_text()
     head, _, rest = text.partition("ENVPOOL_DIFFERING")
     doc = rest[rest.index('"""') :]
-    (root / TASKS_MODULE).write_text(
-        f"{head}ENVPOOL_DIFFERING: frozenset[str] = frozenset({{{body}}})\n{doc}"
-        if differing
-        else f"{head}ENVPOOL_DIFFERING: frozenset[str] = frozenset()\n{doc}"
-    )
+    body = "".join(f'        "{t}",\n' for t in differing)  # as ruff formats it
+    value = f"frozenset(\n    {{\n{body}    }}\n)" if differing else "frozenset()"
+    (root / TASKS_MODULE).write_text(f"{head}ENVPOOL_DIFFERING: frozenset[str] = {value}\n{doc}")
 
 
 def main(argv: list[str] | None = None) -> None:

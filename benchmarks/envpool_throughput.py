@@ -5,8 +5,9 @@ Prints one JSON object: for 1 and 4 envs, steps/s of
 - ``raw``: the simulators themselves: metaworld's env class (N envs stepped in turn in this
   process) against ``envpool.make_gymnasium(num_envs=N)`` (one batched call per step;
   ``num_threads`` EnvPool's default);
-- ``adapter``: the package's per-step envs, ``ndp.make_env("push-v3", backend=...)``, N stepped
-  in turn (what the trainer's sync vector env and each env worker run);
+- ``adapter``: the package's per-step envs, ``MetaWorldEnv`` and ``EnvPoolMetaWorldEnv``, N
+  stepped in turn (what the trainer's sync vector env and each env worker run; built directly:
+  ``--backend envpool`` itself refuses push-v3, which its equivalence check lists as differing);
 
 and the envpool / metaworld ratio of each. Each measurement runs for ``--seconds`` of wall
 time after a warm-up, with resets at the 150-step horizon counted in. Ratios are what to read:
@@ -89,12 +90,14 @@ def raw_envpool(n: int, seconds: float) -> float:
 
 
 def adapter(backend: str, n: int, seconds: float) -> float:
-    """``ndp.make_env(TASK, backend=backend)``, ``n`` envs stepped in turn."""
-    from ndp.envs import make_env
+    """The package's per-step env of ``backend``, ``n`` envs stepped in turn."""
+    from ndp.envs.envpool_backend import EnvPoolMetaWorldEnv
+    from ndp.envs.metaworld_env import MetaWorldEnv
 
-    envs = [make_env(TASK, backend=backend, seed=i) for i in range(n)]
-    for env in envs:
-        env.reset()
+    cls = EnvPoolMetaWorldEnv if backend == "envpool" else MetaWorldEnv
+    envs = [cls(TASK, horizon=HORIZON) for _ in range(n)]
+    for i, env in enumerate(envs):
+        env.reset(seed=i)
     rng = np.random.default_rng(0)
     t = [0]
 

@@ -41,11 +41,11 @@ def test_backend_names_and_ids() -> None:
     [
         ("throw", {}, "position-actuated Meta-World"),
         ("push-v3-osc", {}, "position-actuated Meta-World"),
-        ("push-v3", {"k": 5, "stale_world": True}, "live reward only"),
-        ("push-v3", {"reward_version": "v1"}, "v2 reward"),
-        ("push-v3", {"fixed_goal": 3}, "fresh task configuration"),
-        ("push-v3", {"substeps": 5}, "substeps=1"),
-        ("push-v3", {"render_mode": "rgb_array"}, "does not render"),
+        ("button-press-v3", {"k": 5, "stale_world": True}, "live reward only"),
+        ("button-press-v3", {"reward_version": "v1"}, "v2 reward"),
+        ("button-press-v3", {"fixed_goal": 3}, "fresh task configuration"),
+        ("button-press-v3", {"substeps": 5}, "substeps=1"),
+        ("button-press-v3", {"render_mode": "rgb_array"}, "does not render"),
     ],
 )
 def test_check_backend_refuses(task: str, kw: dict, needle: str) -> None:
@@ -57,7 +57,7 @@ def test_check_backend_refuses(task: str, kw: dict, needle: str) -> None:
 
 
 def test_check_backend_accepts_live_runs() -> None:
-    spec = get_task_spec("push-v3")
+    spec = get_task_spec("button-press-v3")
     assert check_backend("envpool", spec, k=1, stale_world=True) == "envpool"  # no rule at k=1
     assert check_backend("envpool", spec, k=5, stale_world=False) == "envpool"
 
@@ -65,16 +65,16 @@ def test_check_backend_accepts_live_runs() -> None:
 def test_differing_tasks_refused(monkeypatch: pytest.MonkeyPatch) -> None:
     import ndp.envs.envpool_tasks as tasks
 
-    monkeypatch.setattr(tasks, "ENVPOOL_DIFFERING", frozenset({"push-v3"}))
-    with pytest.raises(ValueError, match=r"^backend: 'envpool' differs from metaworld on push"):
-        check_backend("envpool", get_task_spec("push-v3"))
+    monkeypatch.setattr(tasks, "ENVPOOL_DIFFERING", frozenset({"button-press-v3"}))
+    with pytest.raises(ValueError, match=r"^backend: 'envpool' differs from metaworld on button"):
+        check_backend("envpool", get_task_spec("button-press-v3"))
 
 
 def test_resolve_config_refuses_stale_rule() -> None:
     with pytest.raises(ValueError, match=r"^backend: .*--no-stale-world"):
-        resolve_config(TrainConfig(task="push-v3", algo="ndp", backend="envpool"))
+        resolve_config(TrainConfig(task="button-press-v3", algo="ndp", backend="envpool"))
     with pytest.raises(ValueError, match=r"^backend: .*v2 reward"):
-        resolve_config(TrainConfig(task="push-v3", algo="ppo", backend="envpool",
+        resolve_config(TrainConfig(task="button-press-v3", algo="ppo", backend="envpool",
                                    reward_version="v1"))  # fmt: skip
 
 
@@ -83,6 +83,8 @@ def test_missing_envpool_install_hint(monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(ImportError, match=r"^backend: 'envpool' needs EnvPool 1\.2\.5 \(pip"):
         import_envpool()
     with pytest.raises(ImportError, match=r"\[envpool\]"):
+        resolve_config(TrainConfig(task="button-press-v3", algo="ppo", backend="envpool"))
+    with pytest.raises(ValueError, match=r"^backend: 'envpool' differs from metaworld on push"):
         resolve_config(TrainConfig(task="push-v3", algo="ppo", backend="envpool"))
 
 
@@ -118,7 +120,7 @@ def test_make_env_and_vector_env_on_envpool() -> None:
     from ndp.envs import make_env
     from ndp.rl.envs import make_vector_env, resolve_task
 
-    env = make_env("push-v3", backend="envpool", seed=3, horizon=5)
+    env = make_env("button-press-v3", backend="envpool", seed=3, horizon=5)
     obs, info = env.reset()
     assert obs.shape == (39,) and env.observation_space.shape == (39,)
     assert np.any(obs[36:39] != 0)  # the goal is visible
@@ -126,7 +128,7 @@ def test_make_env_and_vector_env_on_envpool() -> None:
         obs, _r, term, trunc, info = env.step(np.zeros(4, dtype=np.float32))
     assert trunc and not term and set(info) >= {"success", "robot_pos", "robot_vel"}
     env.close()
-    task = resolve_task("push-v3", backend="envpool")
+    task = resolve_task("button-press-v3", backend="envpool")
     venv = make_vector_env(task, k=5, num_envs=2, stale_world=False, horizon=20)
     obs, _ = venv.reset(seed=[1, 2])
     obs, _r, term, trunc, info = venv.step(np.zeros((2, 5, 4), dtype=np.float32))

@@ -304,9 +304,10 @@ class EnvPoolMetaWorldEnv(NDPEnv):
     # ------------------------------------------------------------------ state access
     def robot_state(self) -> tuple[np.ndarray, np.ndarray]:
         """``(pos [4], vel [4])``: hand xyz (m, observation[0:3]) and the last gripper command;
-        hand velocity over the last env step (m/s, finite difference) and the command's rate."""
-        assert self._obs is not None
-        return np.append(self._obs[:3], self._gripper), np.append(self._vel, self._gripper_rate)
+        hand velocity over the last env step (m/s, finite difference) and the command's rate
+        (before the first reset: the hand's reset position, at rest)."""
+        hand = self._hand_init if self._obs is None else self._obs[:3]
+        return np.append(hand, self._gripper), np.append(self._vel, self._gripper_rate)
 
     def command_state(self) -> tuple[np.ndarray, np.ndarray]:
         """``(pos [4], vel [4])``: the mocap target xyz (tracked) and the last gripper command;

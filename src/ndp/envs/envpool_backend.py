@@ -130,9 +130,9 @@ def check_backend(
     Raises:
         ValueError: one line naming ``backend`` and what was expected.
     """
-    backend = check_backend_name(backend)
-    if backend == "metaworld":
-        return backend
+    name_ok: str = check_backend_name(backend)
+    if name_ok == "metaworld":
+        return name_ok
     from ndp.envs.envpool_tasks import ENVPOOL_DIFFERING
 
     name = spec.metaworld_name or spec.name
@@ -172,7 +172,7 @@ def check_backend(
             f"backend: 'envpool' does not render here, got render_mode={render_mode!r}; "
             "use --backend metaworld to render"
         )
-    return backend
+    return name_ok
 
 
 class StdUniform:
@@ -239,7 +239,7 @@ def metaworld_facts(task: str) -> dict[str, Any]:
         "action_scale": float(env.action_scale),
         "control_dt": float(env.model.opt.timestep * env.frame_skip),
     }
-    env.close()
+    env.close()  # type: ignore[no-untyped-call]
     return facts
 
 

@@ -107,7 +107,9 @@ class ChunkedEnv(gym.Wrapper):
         if not isinstance(box, spaces.Box) or len(box.shape) != 1:
             raise ValueError(f"env: expected a 1-D Box action space, got {box}")
         base = env.unwrapped
-        needed = ["robot_state"] + (["world_snapshot", "stale_reward"] if stale_world else [])
+        # the stale-world rule only acts at k > 1 (an env without it runs k = 1 either way)
+        stale = bool(stale_world) and int(k) > 1
+        needed = ["robot_state"] + (["world_snapshot", "stale_reward"] if stale else [])
         missing = [m for m in needed if not callable(getattr(base, m, None))]
         if missing:
             raise ValueError(f"env: expected env.unwrapped to provide {missing}")

@@ -94,6 +94,7 @@ def make_env(
     observation: str = "full",
     reward: str = "dense",
     smooth_lambda: float | None = None,
+    backend: str = "metaworld",
     **kw: Any,
 ) -> gym.Env:
     """Create the plain per-step env of a task.
@@ -127,6 +128,9 @@ def make_env(
             task's own under every variant.
         smooth_lambda: the smooth reward's price (None: ``ndp.envs.rewards.
             DEFAULT_SMOOTH_LAMBDA``); given with another reward: ValueError.
+        backend: ``"metaworld"`` (default) or ``"envpool"``: the simulator of a Meta-World task
+            (:mod:`ndp.envs.envpool_backend`; refused, naming ``backend``, for what it does not
+            serve: other tasks, v1 rewards, fixed goals, substeps, rendering).
         **kw: Passed to the env class (``width``, ``height``, ``camera_name`` for Meta-World,
             ``camera`` for Jaco).
 
@@ -150,13 +154,22 @@ def make_env(
     release9 = check_observation(spec, observation) == "release9"
     reward = check_reward(reward)
     check_smooth_lambda(smooth_lambda, reward)  # before the env is built
+    from ndp.envs.envpool_backend import EnvPoolMetaWorldEnv, check_backend
+
+    check_backend(backend, spec, reward_version=reward_version, fixed_goal=fixed_goal,
+                  substeps=substeps, render_mode=render_mode)  # fmt: skip
     families = TORQUE_FAMILIES if spec.actuation == "torque" else FAMILIES
     if spec.family not in families:
         raise ValueError(
             f"family: no env class for family {spec.family!r} of task {spec.name!r}"
             f" (known: {', '.join(families)})"
         )
-    env = families[spec.family](spec, horizon, render_mode, **kw)
+    if backend == "envpool":
+        if kw.keys() - {"reward_version"}:
+            raise ValueError(f"backend: 'envpool' takes no env options, got {sorted(kw)}")
+        env: gym.Env = EnvPoolMetaWorldEnv(spec.metaworld_name or spec.name, horizon)
+    else:
+        env = families[spec.family](spec, horizon, render_mode, **kw)
     defer_seed(env, seed)
     if reward != "dense":
         env = RewardVariant(env, reward, smooth_lambda)

@@ -275,6 +275,12 @@ class TrainConfig:
     """Price of the 'smooth' reward per unit squared action change (>= 0); None: 0.25
     (ndp.envs.rewards.DEFAULT_SMOOTH_LAMBDA: 15 % of push-v3's per-step reward at trained
     policies' training-time action changes, docs/envs.md). Only with --reward smooth."""
+    backend: str = "metaworld"
+    """Simulator of the Meta-World tasks: 'metaworld' (metaworld's Python envs) or 'envpool'
+    (EnvPool 1.2.5's C++ port, the [envpool] extra; ndp.envs.envpool_backend). 'envpool' serves
+    the live reward only (k = 1, or --no-stale-world), the v2 reward, random goals and the tasks
+    its equivalence check accepted (docs/envs.md, "Simulator backend"); anything else is
+    refused before the run starts."""
     run_dir: str | None = None
     """Run directory; None: runs/<task>-<algo>-s<seed>."""
     checkpoint_every: int = 10
@@ -335,6 +341,9 @@ class TrainConfig:
             )
         if self.reward not in REWARDS:
             raise ValueError(f"reward: expected one of {', '.join(REWARDS)}, got {self.reward!r}")
+        from ndp.envs.envpool_backend import check_backend_name
+
+        check_backend_name(self.backend)
         if self.smooth_lambda is not None:
             if self.reward != "smooth":
                 raise ValueError(
@@ -392,11 +401,14 @@ class TrainConfig:
 
     def env_options(self) -> dict[str, Any]:
         """The task options every env of this run gets (``ndp.envs.make_env`` keywords):
-        ``reward_version``, ``observation`` where not 'full', ``reward`` where not 'dense' (with
+        ``reward_version``, ``backend`` where not 'metaworld', ``observation`` where not 'full',
+        ``reward`` where not 'dense' (with
         ``smooth_lambda`` where set), and the ``fixed_goal``: for ``goals="per-seed"`` the seed
         derived from ``seed`` (``ndp.envs.fixed_goal_seed``), for ``goals="release"`` the
         string ``"release"``."""
         out: dict[str, Any] = {"reward_version": self.reward_version}
+        if self.backend != "metaworld":
+            out["backend"] = self.backend
         if self.observation != "full":
             out["observation"] = self.observation
         if self.reward != "dense":
@@ -461,6 +473,9 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     - ``smooth_lambda`` of a smooth reward: ``ndp.envs.rewards.DEFAULT_SMOOTH_LAMBDA`` where
       None; a sparse or smooth reward with the stale-world rule at k > 1 is refused
       (ValueError naming ``--reward`` and ``--no-stale-world``).
+    - ``backend='envpool'``: refused (ValueError naming ``backend``) for what it does not serve
+      (``ndp.envs.envpool_backend.check_backend``), and ImportError with the install hint where
+      EnvPool is missing.
 
     Args:
         cfg: the requested config.
@@ -528,6 +543,15 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
 
     assert policy.k is not None  # set just above
     check_stale_world(cfg.reward, cfg.stale_world, policy.k)
+    from ndp.envs.envpool_backend import check_backend
+
+    fixed = None if goals == "random" else goals
+    check_backend(cfg.backend, spec, k=policy.k, stale_world=cfg.stale_world,
+                  reward_version=cfg.reward_version, fixed_goal=fixed)  # fmt: skip
+    if cfg.backend == "envpool":
+        from ndp.envs.envpool_backend import import_envpool
+
+        import_envpool()  # the install hint before any run folder
     price = check_smooth_lambda(cfg.smooth_lambda, cfg.reward) if cfg.reward == "smooth" else None
     return dataclasses.replace(
         cfg, task=spec.name, policy=policy, run_dir=run_dir, goals=goals, smooth_lambda=price

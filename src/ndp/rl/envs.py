@@ -56,7 +56,8 @@ def resolve_task(name: str, **options: Any) -> TaskHandle:
     """Resolve a task name or alias through ``ndp.envs.TASKS`` (the toy tasks included).
 
     ``options``: task options every env of the handle gets (``reward_version``,
-    ``fixed_goal``, ``observation``, ``reward``, ``smooth_lambda``: ``ndp.envs.make_env``),
+    ``fixed_goal``, ``observation``, ``reward``, ``smooth_lambda``, ``backend``:
+    ``ndp.envs.make_env``),
     checked here against the task's row.
 
     Raises:
@@ -65,9 +66,17 @@ def resolve_task(name: str, **options: Any) -> TaskHandle:
     spec = get_task_spec(name)
     observation = check_observation(spec, options.pop("observation", "full"))
     reward = check_reward(options.pop("reward", "dense"))
+    backend = options.pop("backend", "metaworld")
     price = options.pop("smooth_lambda", None)
     check_smooth_lambda(price, reward)
     kw = task_options(spec, **options)
+    if backend != "metaworld":
+        from ndp.envs.envpool_backend import check_backend
+
+        # the run's k and stale-world rule are checked by resolve_config / make_vector_env
+        check_backend(backend, spec, reward_version=kw.get("reward_version", "v2"),
+                      fixed_goal=kw.get("fixed_goal"))  # fmt: skip
+        kw["backend"] = backend
     if reward != "dense":
         kw["reward"] = reward
     if price is not None:

@@ -158,3 +158,12 @@ def test_equivalence_all_tasks_match_the_table() -> None:
 
     rows = check_tasks(metaworld_env_names())
     assert {r["task"] for r in rows if not r["match"]} == set(ENVPOOL_DIFFERING)
+
+
+def test_the_config_knows_the_backends_without_the_simulators():
+    """TrainConfig checks ``backend`` from its own copy of the names (a config loads where
+    gymnasium is not installed: tests/test_install.py); the copy is the backend's list."""
+    from ndp.envs.envpool_backend import BACKENDS
+    from ndp.rl import config
+
+    assert config.BACKENDS == BACKENDS

@@ -254,3 +254,49 @@ def test_a_clash_in_any_new_row_adds_none_of_them(monkeypatch):
     with pytest.raises(ValueError, match="'ndp/ZzPush-v0' names two of the new rows"):
         spec.add_tasks([dataclasses.replace(new, aliases=()), twin])
     assert "zz-push" not in spec.TASKS and "zz-push-2" not in spec.TASKS
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"name": ""}, r"^spec\.name: expected letters"),
+        ({"name": "has space"}, r"^spec\.name: expected letters"),
+        ({"horizon": -3}, r"^spec\.horizon: expected an integer >= 1, got -3"),
+        ({"dmp_dofs": 0}, r"^spec\.dmp_dofs: expected an integer >= 1"),
+        ({"env_id": "bad id!"}, r"^spec\.env_id: expected a gymnasium id"),
+        ({"action_low": (1.0,)}, r"^spec\.action_low: expected below action_high"),
+        ({"action_dim": 2}, r"^spec\.action_low: expected 2 values, got 1"),
+        ({"control_dt": float("nan")}, r"^spec\.control_dt: expected finite numbers"),
+        ({"sim_dt": 0.1}, r"^spec\.sim_dt: expected at most control_dt"),
+        ({"obs_dim": 7}, r"^spec\.obs_dim: the row says 7, but the env's obs has shape \[3\]"),
+    ],
+)
+def test_a_malformed_row_is_refused_naming_its_field_and_leaves_no_trace(change, message):
+    """register_task checks every field, and probes the env, before anything is added."""
+    import dataclasses
+
+    from ndp.envs import factory
+
+    fields = {"name": "slider-bad", "env_id": "ndp/SliderBad-v0", "aliases": (),
+              "family": "rail-bad", **change}  # fmt: skip
+    row = dataclasses.replace(SPEC, **fields)
+    ids_before = set(gym.registry)
+    with pytest.raises(ValueError, match=message):
+        register_task(row, _make)
+    assert "slider-bad" not in TASKS and "rail-bad" not in factory.FAMILIES
+    assert set(gym.registry) == ids_before
+
+
+def test_a_factory_that_fails_is_named_and_leaves_no_trace():
+    import dataclasses
+
+    from ndp.envs import factory
+
+    def broken(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> Any:
+        raise RuntimeError("no simulator here")
+
+    row = dataclasses.replace(SPEC, name="slider-broken", env_id="ndp/SliderBroken-v0",
+                              aliases=(), family="rail-broken")  # fmt: skip
+    with pytest.raises(ValueError, match=r"^make: building 'slider-broken' failed \(Runtime"):
+        register_task(row, broken)
+    assert "slider-broken" not in TASKS and "rail-broken" not in factory.FAMILIES

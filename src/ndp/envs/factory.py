@@ -15,10 +15,12 @@ start-up hook described in :mod:`ndp.gym_ids`); ``gymnasium.make("ndp.envs:ndp/p
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 from ndp.envs.base import check_fixed_goal, defer_seed
 from ndp.envs.chunked import ChunkedEnv
@@ -36,6 +38,7 @@ from ndp.envs.spec import (
     TASKS,
     TORQUE_TASKS,
     add_tasks,
+    check_free,
     finer_spec,
     get_task_spec,
     jaco_spec,
@@ -327,6 +330,7 @@ def register_task(
     make: Callable[..., gym.Env] | None = None,
     *,
     torque: Callable[..., gym.Env] | None = None,
+    probe: bool = True,
 ) -> list[str]:
     """Add a task, and with ``make`` its robot family, so that everything built on the task
     table works on it: ``ndp.make_env(name, k)``, ``ndp rl train --task NAME`` (every method),
@@ -344,14 +348,22 @@ def register_task(
         torque: the family's factory of torque-actuated envs (VICES; the rows of
             :func:`ndp.envs.spec.torque_rows`, which are then added with the task); None: the
             family's existing one, if any.
+        probe: build the env once (reset with seed 0, one zero action) and check its
+            observation, action and robot-state sizes against the row (the built-in tasks,
+            registered at import, skip it; their tests build every one).
+
+    Every field is checked (:func:`check_task_spec`) and the env probed before anything is
+    added: a refused call leaves no trace (no task, alias, family or gymnasium id).
 
     Returns:
         The gymnasium ids registered (per-step and chunked; the torque rows' per-step ids).
 
     Raises:
-        ValueError: the name, an alias or the env id is taken, or the family has no factory
-            (or already has another one).
+        ValueError: a field of the row is malformed, the probed env disagrees with it, the
+            name, an alias or the env id is taken, or the family has no factory (or already
+            has another one); one line naming the field.
     """
+    check_task_spec(spec)
     if make is None and spec.family not in FAMILIES:
         raise ValueError(
             f"make: family {spec.family!r} has no env factory yet ({', '.join(FAMILIES)}); "
@@ -367,6 +379,9 @@ def register_task(
             f"torque: family {spec.family!r} has no torque-actuated rows (ndp.envs.spec."
             "torque_rows knows the impedance controllers of metaworld and jaco only)"
         )
+    check_free([spec, *rows])  # before the probe builds anything
+    if probe:
+        probe_env(spec, make if make is not None else FAMILIES[spec.family])
     add_tasks([spec, *rows])  # all or none: a clash of any name adds nothing
     if make is not None:
         FAMILIES[spec.family] = make
@@ -376,17 +391,116 @@ def register_task(
     return register(expand({spec.name: (spec.env_id, spec.horizon)}, CHUNKED_KS, per_torque))
 
 
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+"""A task name, alias or family: what a command line, a file name and a gymnasium id take."""
+
+
+def check_task_spec(spec: Any) -> None:
+    """Every field of a task row, before anything is registered.
+
+    Raises:
+        ValueError: one line naming ``spec.<field>``, the value and what was expected.
+    """
+    from gymnasium.envs.registration import parse_env_id
+
+    from ndp.envs.spec import TaskSpec
+    from ndp.schema import check_record, spec_record
+
+    if not isinstance(spec, TaskSpec):
+        raise ValueError(f"spec: expected an ndp.envs.spec.TaskSpec row, got {type(spec).__name__}")
+    for key in ("name", "family"):
+        v = getattr(spec, key)
+        if not (isinstance(v, str) and _NAME.match(v)):
+            raise ValueError(
+                f"spec.{key}: expected letters, digits, '.', '_' or '-' (not first), got {v!r}"
+            )
+    bad = [a for a in spec.aliases if not (isinstance(a, str) and _NAME.match(a))]
+    if not isinstance(spec.aliases, tuple) or bad:
+        raise ValueError(
+            f"spec.aliases: expected a tuple of names like spec.name, got {spec.aliases!r}"
+        )
+    try:
+        parse_env_id(spec.env_id)
+    except Exception:  # gymnasium raises its own error kind
+        raise ValueError(
+            f"spec.env_id: expected a gymnasium id '[namespace/]name-vN', got {spec.env_id!r}"
+        ) from None
+    for key in ("horizon", "obs_dim", "dmp_dofs", "action_dim"):
+        v = getattr(spec, key)
+        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            raise ValueError(f"spec.{key}: expected an integer >= 1, got {v!r}")
+    try:
+        record = spec_record(spec)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"spec: a field of {spec.name!r} is not of its type ({e})") from None
+    check_record(record, "spec")  # types, lengths, finite numbers, actuation
+    for key in ("control_dt", "sim_dt"):
+        if not record[key] > 0:
+            raise ValueError(f"spec.{key}: expected seconds > 0, got {record[key]!r}")
+    if record["sim_dt"] > record["control_dt"]:
+        raise ValueError(
+            f"spec.sim_dt: expected at most control_dt ({record['control_dt']}), got "
+            f"{record['sim_dt']}"
+        )
+    low, high = record["action_low"], record["action_high"]
+    if any(lo >= hi for lo, hi in zip(low, high, strict=True)):
+        raise ValueError(f"spec.action_low: expected below action_high, got {low} and {high}")
+
+
+def probe_env(spec: Any, make: Callable[..., gym.Env]) -> None:
+    """Build the row's env with its family's ``make``, reset it (seed 0), step it once with a
+    zero action, and check what it returns against the row.
+
+    Raises:
+        ValueError: naming ``make`` (it failed) or the field the env disagrees with.
+    """
+    try:
+        env = make(spec, spec.horizon, None)
+    except Exception as e:  # a user's factory: any error is reported in one line
+        raise ValueError(f"make: building {spec.name!r} failed ({type(e).__name__}: {e})") from None
+    try:
+        shapes = {}
+        try:
+            obs, _ = env.reset(seed=0)
+            shapes["obs"] = np.shape(obs)
+            shapes["action"] = tuple(env.action_space.shape or ())
+            zero = np.zeros(shapes["action"], dtype=env.action_space.dtype)
+            obs, *_ = env.step(zero)
+            shapes["step obs"] = np.shape(obs)
+            state = getattr(env.unwrapped, "robot_state", None)
+            if callable(state):
+                shapes["robot state"] = np.shape(state()[0])
+        except Exception as e:
+            raise ValueError(
+                f"make: the env of {spec.name!r} fails on reset / step ({type(e).__name__}: {e})"
+            ) from None
+    finally:
+        env.close()
+    want = {
+        "obs": ("obs_dim", (spec.obs_dim,)),
+        "step obs": ("obs_dim", (spec.obs_dim,)),
+        "action": ("action_dim", (spec.action_dim,)),
+        "robot state": ("dmp_dofs", (spec.dmp_dofs,)),
+    }
+    for what, got in shapes.items():
+        key, shape = want[what]
+        if tuple(got) != shape:
+            raise ValueError(
+                f"spec.{key}: the row says {shape[0]}, but the env's {what} has shape {list(got)}"
+            )
+
+
 def register_builtin_families() -> None:
     """Register the built-in tasks through :func:`register_task`, as a user's family would: the
     50 Meta-World v3 tasks (with their ``-osc`` torque rows), Jaco ``throw`` / ``pick`` (with
     ``-joint`` / ``-osc``) and the toy point masses (2-D, 3-D). Called once, when
     :mod:`ndp.envs` is imported."""
     for name in metaworld_env_names():
-        register_task(metaworld_spec(name), _make_metaworld, torque=_torque_metaworld)
+        register_task(metaworld_spec(name), _make_metaworld, torque=_torque_metaworld, probe=False)
     for task in ("throw", "pick"):
-        register_task(jaco_spec(task), _make_jaco, torque=_torque_jaco)
+        register_task(jaco_spec(task), _make_jaco, torque=_torque_jaco, probe=False)
     for dim in (2, 3):
-        register_task(toy_spec(dim), _make_toy)
+        register_task(toy_spec(dim), _make_toy, probe=False)
 
 
 register_builtin_families()

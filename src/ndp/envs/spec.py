@@ -330,13 +330,11 @@ def add_task(spec: TaskSpec) -> TaskSpec:
     return add_tasks([spec])[0]
 
 
-def add_tasks(specs: Sequence[TaskSpec]) -> list[TaskSpec]:
-    """Add several rows as one: every name, alias and env id is checked (against the tables
-    and against each other) before any row is added, so a clash adds none of them.
+def check_free(specs: Sequence[TaskSpec]) -> None:
+    """Every name, alias and env id of ``specs`` is free (in the tables and among the rows).
 
     Raises:
-        ValueError: a name, an alias or an env id already names a task, or two of the rows
-            share one; nothing was added.
+        ValueError: naming the first one taken (``name: ...``).
     """
     seen: dict[str, str] = {}
     for spec in specs:
@@ -346,6 +344,17 @@ def add_tasks(specs: Sequence[TaskSpec]) -> list[TaskSpec]:
             if n in seen:
                 raise ValueError(f"name: {n!r} names two of the new rows ({seen[n]}, {spec.name})")
             seen[n] = spec.name
+
+
+def add_tasks(specs: Sequence[TaskSpec]) -> list[TaskSpec]:
+    """Add several rows as one: every name, alias and env id is checked (against the tables
+    and against each other) before any row is added, so a clash adds none of them.
+
+    Raises:
+        ValueError: a name, an alias or an env id already names a task, or two of the rows
+            share one; nothing was added.
+    """
+    check_free(specs)
     for spec in specs:
         table = TORQUE_TASKS if spec.actuation == "torque" else TASKS
         table[spec.name] = spec

@@ -48,6 +48,9 @@ FIRST_HELD_RATIOS = ("own", "release")
 """Values of ``TrainConfig.first_held_ratio``."""
 REWARDS = ("dense", "sparse", "smooth")
 """Values of ``TrainConfig.reward`` (``ndp.envs.rewards.REWARDS``)."""
+BACKENDS = ("metaworld", "envpool")
+"""Values of ``TrainConfig.backend`` (``ndp.envs.envpool_backend.BACKENDS``; here too, so that
+a config checks without the simulators installed)."""
 
 SAFE_ON_RESUME = (
     "progress",
@@ -341,9 +344,10 @@ class TrainConfig:
             )
         if self.reward not in REWARDS:
             raise ValueError(f"reward: expected one of {', '.join(REWARDS)}, got {self.reward!r}")
-        from ndp.envs.envpool_backend import check_backend_name
-
-        check_backend_name(self.backend)
+        if self.backend not in BACKENDS:
+            raise ValueError(
+                f"backend: expected one of {', '.join(BACKENDS)}, got {self.backend!r}"
+            )
         if self.smooth_lambda is not None:
             if self.reward != "smooth":
                 raise ValueError(

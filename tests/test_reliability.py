@@ -282,3 +282,43 @@ def test_rendering_without_a_display_is_one_line(tmp_path, task):
     lines = [ln for ln in res.stdout.splitlines() if ln.startswith("ONE-LINE")]
     assert len(lines) == 1 and "Traceback" not in res.stderr, res.stderr[-2000:]
     assert "MUJOCO_GL=glfw" in lines[0] and "MUJOCO_GL=egl" in lines[0]
+
+
+def test_a_figure_that_does_not_fit_leaves_no_partial_png(small_fs):
+    """Every figure the package writes goes through ndp.io.atomic_savefig: on a full disk the
+    write fails with ENOSPC and neither a 0-byte / truncated PNG nor a temporary file is left
+    (the previous file, if any, is kept)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from ndp.io import atomic_savefig
+
+    small = plt.figure(figsize=(1, 1))
+    kept = atomic_savefig(small, small_fs / "fig.png", dpi=20)
+    before = kept.read_bytes()
+    big = plt.figure(figsize=(10, 10))
+    big.figimage(np.random.default_rng(0).random((1000, 1000)))  # incompressible: > 200 KB
+    with pytest.raises(OSError) as e:
+        atomic_savefig(big, small_fs / "fig.png", dpi=100)
+    assert e.value.errno == errno.ENOSPC
+    with pytest.raises(OSError):
+        atomic_savefig(big, small_fs / "new.png", dpi=100)
+    plt.close("all")
+    assert kept.read_bytes() == before
+    assert sorted(p.name for p in small_fs.iterdir()) == ["fig.png"]
+
+
+def test_no_figure_is_written_but_through_atomic_savefig():
+    """The class, not the example: no module of the package calls ``savefig`` on a path."""
+    src = Path(__file__).resolve().parents[1] / "src" / "ndp"
+    calls = [
+        f"{p.relative_to(src)}:{i}"
+        for p in sorted(src.rglob("*.py"))
+        if p.name != "io.py"
+        for i, line in enumerate(p.read_text().splitlines(), 1)
+        if ".savefig(" in line
+    ]
+    assert calls == []

@@ -59,6 +59,18 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes | memoryview) -
     atomic_write(path, lambda f: f.write(data))
 
 
+def atomic_savefig(fig: Any, path: str | os.PathLike[str], **kwargs: Any) -> Path:
+    """Save a matplotlib figure atomically as PNG (``fig.savefig(..., format='png',
+    **kwargs)`` into memory, then :func:`atomic_write_bytes`): a full disk or an interrupt
+    leaves the earlier file or none, never a truncated image. Returns the path."""
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", **kwargs)
+    atomic_write_bytes(path, buf.getvalue())
+    return Path(path)
+
+
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
     """Atomic text write (UTF-8); see :func:`atomic_write`."""
     atomic_write_bytes(path, text.encode("utf-8"))

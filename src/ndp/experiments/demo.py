@@ -14,12 +14,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
-import os
 import time
 from pathlib import Path
 from typing import Any
 
-from ndp.io import atomic_write_text, check_output_path
+from ndp.io import atomic_savefig, atomic_write_text, check_output_path
 
 
 def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
@@ -92,9 +91,7 @@ def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
 
     fig.tight_layout()
     path = out_dir / "dmp_rollouts.png"
-    tmp = path.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=110)
-    os.replace(tmp, path)
+    atomic_savefig(fig, path, dpi=110)
     plt.close(fig)
     return {"figure": str(path), "fit_mse_px2": mse}
 

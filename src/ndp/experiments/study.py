@@ -38,7 +38,7 @@ import numpy as np
 
 from ndp.experiments.rows import final_success, smooth, success_area
 from ndp.experiments.run_kinds import kind_of_algo, run_kind
-from ndp.io import atomic_write_text
+from ndp.io import atomic_savefig, atomic_write_text
 from ndp.runs import metrics_path, read_metrics
 from ndp.runs.layout import run_name
 from ndp.runs.session import read_manifest
@@ -347,5 +347,5 @@ def plot(summary: dict[str, Any], arms: Sequence[Arm], path: Path) -> None:
     axes[0][-1].legend(fontsize=7, loc="upper left")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=60)
+    atomic_savefig(fig, path, dpi=60)
     plt.close(fig)

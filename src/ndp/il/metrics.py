@@ -18,6 +18,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ndp.io import atomic_savefig
+
 
 def per_sample_mse(pred: torch.Tensor | np.ndarray, demo: torch.Tensor | np.ndarray) -> np.ndarray:
     """Per-sample mean squared error in px^2.
@@ -170,8 +172,6 @@ def save_prediction_grid(
     Returns:
         The path written.
     """
-    import os
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -196,8 +196,6 @@ def save_prediction_grid(
             ax.set_title(titles[k], fontsize=7)
     fig.suptitle("green: demonstration, red dashed: prediction, yellow: start", fontsize=8)
     fig.tight_layout()
-    tmp = path.with_name(path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=100)
+    atomic_savefig(fig, path, dpi=100)
     plt.close(fig)
-    os.replace(tmp, path)
     return path

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from ndp.io import atomic_savefig
 from ndp.policies import PolicyConfig
 from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.runs import read_metrics
@@ -62,7 +63,7 @@ def plot_curve(run: Path, out_png: Path, title: str) -> Path:
     fig.suptitle(title)
     fig.tight_layout()
     out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png, dpi=80)
+    atomic_savefig(fig, out_png, dpi=80)
     plt.close(fig)
     return out_png
 

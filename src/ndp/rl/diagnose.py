@@ -53,7 +53,7 @@ import torch
 
 from ndp.chunk_info import dmp_start
 from ndp.envs.chunked import ChunkedEnv
-from ndp.io import check_output_path
+from ndp.io import atomic_savefig, check_output_path
 from ndp.policies import build_actor_critic
 from ndp.policies.conditioning import (
     SATURATION_SLOPE,
@@ -416,6 +416,6 @@ def plot_spectra(reports: list[dict[str, Any]], path: str | Path) -> Path:
         ax.legend(fontsize=7)
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(out, dpi=110, format="png")
+    atomic_savefig(fig, out, dpi=110)
     plt.close(fig)
     return out

@@ -65,7 +65,7 @@ from ndp.experiments.run_kinds import RUN_KINDS, kind_of_algo, run_kind
 from ndp.experiments.studies import get_study
 from ndp.experiments.study import is_finished
 from ndp.il.config import data_task_name
-from ndp.io import atomic_write_text, check_output_path
+from ndp.io import atomic_savefig, atomic_write_text, check_output_path
 from ndp.provenance import commit_in_history, fingerprint_text, git_commit
 from ndp.rl.config import EVAL_SEED
 from ndp.runs import metrics_path, read_metrics, run_commits, run_fingerprints
@@ -1021,7 +1021,7 @@ def _plot_all(
             safe = re.sub(r"[^A-Za-z0-9_.-]", "_", task)
             suffix = "-det" if curve_key == "det_curve" else ""
             path = out.with_name(f"{out.name}-{safe}{suffix}.png")
-            fig.savefig(path, dpi=80, metadata=meta)
+            atomic_savefig(fig, path, dpi=80, metadata=meta)
             plt.close(fig)
             paths.append(path)
     if len({c.task for c in rl_cells}) >= 3:
@@ -1068,6 +1068,6 @@ def _plot_over_tasks(
     fig.text(0.01, 0.002, "\n".join(foot_lines), fontsize=5, color="0.35", ha="left", va="bottom")
     fig.tight_layout(rect=(0, 0.004 + 0.012 * len(foot_lines), 1, 1))
     path = out.with_name(f"{out.name}-over-tasks.png")
-    fig.savefig(path, dpi=80, metadata=meta)
+    atomic_savefig(fig, path, dpi=80, metadata=meta)
     plt.close(fig)
     return path

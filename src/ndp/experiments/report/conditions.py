@@ -37,6 +37,7 @@ import numpy as np
 
 from ndp.experiments.report import stats
 from ndp.experiments.report.readings import interval
+from ndp.io import atomic_savefig
 
 METRICS = (
     ("area", "success area"),
@@ -465,7 +466,7 @@ def _profiles(
     fig.text(0.01, 0.005, "\n".join(lines), fontsize=5, color="0.35", ha="left", va="bottom")
     fig.tight_layout(rect=(0, 0.02 + 0.02 * len(lines), 1, 1))
     path = out.with_name(f"{out.name}-profiles.png")
-    fig.savefig(path, dpi=80)
+    atomic_savefig(fig, path, dpi=80)
     plt.close(fig)
     return path
 
@@ -513,7 +514,7 @@ def _plot(
     fig.text(0.01, 0.005, "\n".join(lines), fontsize=5, color="0.35", ha="left", va="bottom")
     fig.tight_layout(rect=(0, 0.02 + 0.02 * len(lines), 1, top))
     path = out.with_name(f"{out.name}-conditions.png")
-    fig.savefig(path, dpi=90)
+    atomic_savefig(fig, path, dpi=90)
     plt.close(fig)
     return path
 

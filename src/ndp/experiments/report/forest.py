@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from ndp.io import atomic_write_bytes, atomic_write_text
+from ndp.io import atomic_savefig, atomic_write_text
 
 __all__ = [
     "FOREST_ROWS",
@@ -169,8 +169,6 @@ def read_forest(root: str | Path, specs: Sequence[ForestSpec] = FOREST_ROWS) -> 
 def forest_plot(rows: Sequence[ForestRow], path: str | Path, title: str | None = None) -> Path:
     """Draw ``rows`` (top to bottom, grouped by :attr:`ForestSpec.group`) with their intervals
     and a vertical line at zero; written atomically as PNG."""
-    import io
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -214,11 +212,8 @@ def forest_plot(rows: Sequence[ForestRow], path: str | Path, title: str | None =
     ax.set_title(title or "Does NDP beat its baselines? Every study's difference", fontsize=10)
     ax.grid(axis="x", alpha=0.3)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
+    out = atomic_savefig(fig, path, dpi=110)
     plt.close(fig)
-    out = Path(path)
-    atomic_write_bytes(out, buf.getvalue())
     return out
 
 

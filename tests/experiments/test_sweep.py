@@ -579,3 +579,33 @@ def test_a_sweep_that_fails_to_start_leaves_no_empty_runs_directory(tmp_path, mo
     assert main(["sweep", *TINY, "--methods", "ppo", "--runs-dir", str(old)]) != 0
     assert old.is_dir()
     capsys.readouterr()
+
+
+def test_a_failed_unpack_leaves_no_folder_it_made(tmp_path, monkeypatch):
+    """A full disk while restoring the first run: the runs directory (and the parents) that
+    unpack made are removed again, not left empty; the error is one line naming the run."""
+    import errno
+    import tarfile
+
+    from ndp.experiments.sweep.archive import unpack
+
+    src = tmp_path / "src" / "point-mass-ppo-s0"
+    src.mkdir(parents=True)
+    (src / "metrics.csv").write_text("update,global_step\n1,64\n")
+    archive = tmp_path / "a.tar.gz"
+    with tarfile.open(archive, "w:gz") as tf:
+        tf.add(src / "metrics.csv", arcname="point-mass-ppo-s0/metrics.csv")
+
+    def full(self, data):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_bytes", full)
+    target = tmp_path / "new" / "runs"
+    with pytest.raises(ValueError, match=r"^unpack: cannot restore point-mass-ppo-s0 from "):
+        unpack(archive, target)
+    assert not (tmp_path / "new").exists()
+    existing = tmp_path / "mine"
+    existing.mkdir()
+    with pytest.raises(ValueError):
+        unpack(archive, existing)
+    assert existing.is_dir() and not list(existing.iterdir())  # the user's folder stays

@@ -26,6 +26,7 @@ files) is refused when unpacking.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import re
@@ -166,6 +167,8 @@ def unpack(archive: Path, runs_dir: Path) -> tuple[list[str], list[str]]:
             f"unpack: {archive} is not a readable .tar.gz archive ({type(exc).__name__}: "
             f"{str(exc)[:120]})"
         ) from None
+    # the folders this call makes (runs_dir and missing parents), removed again on failure
+    made = [p for p in (runs_dir, *runs_dir.parents) if not p.exists()]
     with tf:
         names: dict[str, list[tarfile.TarInfo]] = {}
         for m in members:
@@ -186,6 +189,9 @@ def unpack(archive: Path, runs_dir: Path) -> tuple[list[str], list[str]]:
                 tmp.replace(target)
             except (tarfile.TarError, EOFError, OSError, zlib.error) as exc:
                 shutil.rmtree(tmp, ignore_errors=True)  # a failed unpack leaves nothing behind
+                for folder in made:  # innermost first; only while empty (restored runs stay)
+                    with contextlib.suppress(OSError):
+                        folder.rmdir()
                 raise ValueError(
                     f"unpack: cannot restore {name} from {archive} ({type(exc).__name__}: "
                     f"{str(exc)[:120]})"

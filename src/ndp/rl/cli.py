@@ -116,6 +116,17 @@ def add_subparser(sub: Any) -> None:
     )
     ex.set_defaults(func=_cmd_export)
 
+    pu = rl_sub.add_parser(
+        "push",
+        help="upload a run's policy (exported, with its card) or an export folder to the "
+        "Hugging Face Hub; load it back with ndp.load_policy('hf://ORG/NAME')",
+    )
+    pu.add_argument("source", metavar="RUN_DIR|EXPORT_DIR|zoo:NAME")
+    pu.add_argument("repo_id", metavar="ORG/NAME", help="the model repository (created if missing)")
+    pu.add_argument("--private", action="store_true", help="create the repository private")
+    pu.add_argument("--message", default=None, help="the commit message")
+    pu.set_defaults(func=_cmd_push)
+
     fb = rl_sub.add_parser(
         "fit-basis",
         help="fit PPO-multi's 'pca' chunk basis (--chunk-basis pca) to trained PPO-multi runs",
@@ -431,6 +442,14 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     out = export_policy(args.run_dir, args.out, format=args.format)
     print(json.dumps({"export": str(out), "format": args.format}))
+    return 0
+
+
+def _cmd_push(args: argparse.Namespace) -> int:
+    from ndp.hub import push
+
+    res = push(args.source, args.repo_id, private=args.private, message=args.message)
+    print(json.dumps(res))
     return 0
 
 

@@ -47,10 +47,15 @@ def _check_episodes(episodes: Any, seed: Any) -> None:
 def default_output_dir(run_dir: str | Path) -> Path:
     """Where a command writes by default for ``run_dir``: the run directory itself, or for a
     shipped policy ``"zoo:<name>"`` the folder ``<name>`` in the working directory (not a
-    folder named ``zoo:<name>``, and not the installed package)."""
+    folder named ``zoo:<name>``, and not the installed package); for a Hub address
+    ``"hf://ORG/NAME[@REV]"`` the folder ``NAME`` (not the Hub's cache)."""
     text = str(run_dir)
     if text.startswith(zoo.PREFIX):
         return Path(text[len(zoo.PREFIX) :])
+    from ndp.hub import is_hub_ref, parse_hub_ref
+
+    if is_hub_ref(text):
+        return Path(parse_hub_ref(text).repo_id.split("/")[1])
     return Path(run_dir)
 
 
@@ -64,6 +69,11 @@ def check_save_target(run_dir: str | Path) -> None:
         raise ValueError(
             f"run_dir: --save writes into a run directory; {run_dir} is a policy shipped with "
             "the package (export it first: ndp rl export zoo:NAME DIR)"
+        )
+    if str(run_dir).startswith("hf://"):
+        raise ValueError(
+            f"run_dir: --save writes into a run directory; {run_dir} is a policy on the Hub "
+            "(export it first: ndp rl export hf://ORG/NAME DIR)"
         )
 
 

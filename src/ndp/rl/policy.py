@@ -364,7 +364,8 @@ def load_policy(path: str | Path) -> Policy:
     Args:
         path: a directory with ``config.json`` + ``checkpoint.pt`` (``ndp rl train``) or with
             ``policy.json`` + ``policy.safetensors`` (:func:`export_policy`), or
-            ``"zoo:<name>"``, a policy shipped with the package (``ndp.zoo.list()``).
+            ``"zoo:<name>"``, a policy shipped with the package (``ndp.zoo.list()``), or
+            ``"hf://ORG/NAME[@REVISION]"``, an export on the Hugging Face Hub (:mod:`ndp.hub`).
 
     An export loads without the simulators (only torch, numpy and safetensors) when its
     ``policy.json`` records the task's spec (exports of this version on, and the zoo's); a run
@@ -381,6 +382,10 @@ def load_policy(path: str | Path) -> Policy:
         )
     if isinstance(path, str) and path.startswith("zoo:"):
         path = zoo.path(path)
+    from ndp.hub import download, is_hub_ref
+
+    if is_hub_ref(path):
+        path = download(str(path))
     path = Path(path)
     if (path / "policy.json").is_file():
         meta = read_export_meta(path / "policy.json")

@@ -182,3 +182,43 @@ def test_ndp_policy_predict_checks_its_inputs_as_every_runtime_does():
     with pytest.raises(ValueError, match=r"^observation: expected the dict"):
         model.predict(obs["obs"])
     env.close()
+
+
+def test_an_ndppolicy_model_becomes_a_package_policy_that_exports(one_thread, tmp_path):
+    """ndp.sb3.to_policy: the SB3 model's deterministic actions (VecNormalize on obs) equal the
+    converted policy's on raw observations; it exports to safetensors (with its card) and
+    ONNX, and both load back and act the same; bad inputs are one line."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from ndp.act_inputs import RobotState
+
+    venv = DummyVecEnv([lambda: ndp.sb3.make_env("point-mass", k=5) for _ in range(2)])
+    venv = VecNormalize(venv, gamma=0.99**5, norm_obs_keys=["obs"])
+    model = PPO(ndp.sb3.NDPPolicy, venv, n_steps=32, batch_size=32, n_epochs=2, seed=0,
+                device="cpu")  # fmt: skip
+    model.learn(total_timesteps=128)
+    venv.training = False
+    pol = ndp.sb3.to_policy(model, venv)
+    assert pol.cfg.algo == "ndp" and pol.cfg.k == 5 and pol.obs_norm.enabled
+    env = ndp.sb3.make_env("point-mass", k=5)
+    exported = pol.export(tmp_path / "exp")
+    onnx_dir = pol.export(tmp_path / "onnx", format="onnx")
+    again, graph = ndp.load_policy(exported), ndp.load_policy(onnx_dir)
+    assert "Stable-Baselines3" in (exported / "README.md").read_text()
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        sb3_action, _ = model.predict(venv.normalize_obs(obs), deterministic=True)
+        state = RobotState(obs["y0"], obs["dy0"])
+        ours = pol.act(obs["obs"], state)
+        np.testing.assert_allclose(ours, sb3_action, atol=1e-5)
+        np.testing.assert_allclose(again.act(obs["obs"], state), ours, atol=1e-6)
+        np.testing.assert_allclose(graph.act(obs["obs"], state), ours, atol=1e-5)
+    env.close()
+    with pytest.raises(ValueError, match=r"^model: expected an SB3 model with ndp.sb3.NDPPolicy"):
+        ndp.sb3.to_policy(PPO("MlpPolicy", "Pendulum-v1", device="cpu"))
+    bad = VecNormalize(
+        DummyVecEnv([lambda: ndp.sb3.make_env("point-mass", k=5)]), norm_obs_keys=["obs", "y0"]
+    )
+    with pytest.raises(ValueError, match=r"^vec_normalize: expected norm_obs_keys=\['obs'\]"):
+        ndp.sb3.to_policy(model, bad)
+    venv.close()

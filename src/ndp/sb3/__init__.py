@@ -62,7 +62,14 @@ import ndp
 from ndp.chunk_info import DMP_START_KEYS
 from ndp.policies import PolicyConfig, build_head
 
-__all__ = ["NDPPolicy", "ObservationOnly", "RobotStateSpace", "make_env", "with_robot_state"]
+__all__ = [
+    "NDPPolicy",
+    "ObservationOnly",
+    "RobotStateSpace",
+    "make_env",
+    "to_policy",
+    "with_robot_state",
+]
 
 STATE_KEYS = DMP_START_KEYS
 """DMP frame -> the chunked env's info keys of the DMP start (:mod:`ndp.chunk_info`)."""
@@ -368,3 +375,121 @@ class NDPPolicy(ActorCriticPolicy):
     def get_distribution(self, obs: Any) -> DiagGaussianDistribution:
         features = super(ActorCriticPolicy, self).extract_features(obs, self.pi_features_extractor)
         return self._distribution(self.mlp_extractor.forward_actor(features), obs)
+
+
+def to_policy(model: Any, vec_normalize: Any = None) -> Any:
+    """An SB3 model with :class:`NDPPolicy` as the package's :class:`ndp.rl.policy.Policy`,
+    so that it exports (``.export(DIR)``: safetensors + JSON + card; ``format="onnx"``),
+    evaluates and renders like a policy trained by ``ndp rl train``.
+
+    The weights are copied, not retrained: SB3's policy MLP and action layer become the actor,
+    the NDP head is the same module, and SB3's value network becomes the critic (its one value
+    repeated for the k sub-step value heads the package's critic has; the critic does not act).
+    ``vec_normalize``: the ``VecNormalize`` the model was trained with (its frozen ``obs``
+    statistics and clip become the policy's observation normaliser); None: no normalisation.
+
+    Raises:
+        ValueError: a model whose policy is not an NDPPolicy, different policy and value
+            widths (``net_arch``), an activation the package has no name for, or a VecNormalize
+            that normalises more than ``obs`` (one line naming the argument).
+    """
+    from ndp.rl.config import PPOConfig, TrainConfig, resolve_config
+    from ndp.rl.envs import resolve_task
+    from ndp.rl.normalize import ObsNormalizer
+    from ndp.rl.policy import Policy
+
+    pol = getattr(model, "policy", model)
+    if not isinstance(pol, NDPPolicy):
+        raise ValueError(f"model: expected an SB3 model with ndp.sb3.NDPPolicy, got {type(pol)}")
+    pi, vf = _widths(pol.mlp_extractor.policy_net), _widths(pol.mlp_extractor.value_net)
+    if pi != vf:
+        raise ValueError(
+            f"model: the package's actor-critic has one hidden width list; this NDPPolicy has "
+            f"net_arch pi={list(pi)}, vf={list(vf)}"
+        )
+    activation = _ACTIVATIONS.get(pol.activation_fn)
+    if activation is None:
+        raise ValueError(
+            f"model: activation_fn {pol.activation_fn.__name__} has no name in the package "
+            f"({', '.join(c.__name__ for c in _ACTIVATIONS)})"
+        )
+    obs_space = pol.observation_space
+    assert isinstance(obs_space, spaces.Dict)
+    obs_dim = int(np.prod(obs_space["obs"].shape))  # type: ignore[arg-type]
+    norm = _normaliser(vec_normalize, obs_dim)
+    policy_cfg = PolicyConfig.from_dict(
+        {**pol.ndp_config.to_dict(), "hidden": list(pi), "activation": activation}
+    )
+    cfg = resolve_config(
+        TrainConfig(
+            task=pol.task,
+            algo="ndp",
+            policy=policy_cfg,
+            ppo=PPOConfig(norm_obs=norm is not None, clip_obs=norm[2] if norm else 10.0),
+        )
+    )
+    spec = resolve_task(cfg.task).spec
+    from ndp.policies import build_actor_critic
+
+    net = build_actor_critic(obs_dim, spec, cfg.policy)
+    state = _state_from_sb3(pol, net.k)
+    net.load_state_dict(state)
+    net.eval()
+    obs_norm = ObsNormalizer(obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
+    if norm is not None:
+        obs_norm.load_state_dict({"mean": norm[0], "var": norm[1], "count": 1.0})
+    return Policy(
+        cfg,
+        spec,
+        net,
+        obs_norm,
+        training={"commands": ["Stable-Baselines3 PPO with ndp.sb3.NDPPolicy"], "commits": []},
+    )
+
+
+_ACTIVATIONS = {nn.Tanh: "tanh", nn.ReLU: "relu", nn.ELU: "elu", nn.GELU: "gelu"}
+"""SB3's ``activation_fn`` classes -> the package's activation names."""
+
+
+def _widths(seq: nn.Module) -> tuple[int, ...]:
+    return tuple(m.out_features for m in seq.modules() if isinstance(m, nn.Linear))
+
+
+def _normaliser(vec_normalize: Any, obs_dim: int) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """(mean [O], var [O], clip) of a VecNormalize's ``obs`` statistics; None without one."""
+    if vec_normalize is None or not getattr(vec_normalize, "norm_obs", False):
+        return None
+    keys = getattr(vec_normalize, "norm_obs_keys", None)
+    if keys is not None and list(keys) != ["obs"]:
+        raise ValueError(
+            f"vec_normalize: expected norm_obs_keys=['obs'] (a normalised robot state is not "
+            f"where the robot is), got {keys}"
+        )
+    rms = vec_normalize.obs_rms
+    rms = rms["obs"] if isinstance(rms, dict) else rms
+    mean, var = np.asarray(rms.mean, dtype=np.float64), np.asarray(rms.var, dtype=np.float64)
+    if mean.shape != (obs_dim,) or var.shape != (obs_dim,):
+        raise ValueError(
+            f"vec_normalize: expected obs statistics of {obs_dim} values, got {list(mean.shape)}"
+        )
+    return mean, var, float(vec_normalize.clip_obs)
+
+
+def _state_from_sb3(pol: NDPPolicy, k: int) -> dict[str, torch.Tensor]:
+    """The package ActorCritic's state dict from an NDPPolicy's modules (names mapped; the
+    value layer's row repeated for the k value heads)."""
+    out: dict[str, torch.Tensor] = {}
+    lin = [m for m in pol.mlp_extractor.policy_net if isinstance(m, nn.Linear)]
+    for i, m in enumerate([*lin, pol.action_net]):
+        out[f"actor.net.{2 * i}.weight"] = m.weight.detach().clone()
+        out[f"actor.net.{2 * i}.bias"] = m.bias.detach().clone()
+    lin = [m for m in pol.mlp_extractor.value_net if isinstance(m, nn.Linear)]
+    for i, m in enumerate(lin):
+        out[f"critic.net.{2 * i}.weight"] = m.weight.detach().clone()
+        out[f"critic.net.{2 * i}.bias"] = m.bias.detach().clone()
+    n = 2 * len(lin)
+    out[f"critic.net.{n}.weight"] = pol.value_net.weight.detach().repeat(k, 1)
+    out[f"critic.net.{n}.bias"] = pol.value_net.bias.detach().repeat(k)
+    for name, t in pol.ndp_head.state_dict().items():
+        out[f"head.{name}"] = t.detach().clone()
+    return out

@@ -293,6 +293,36 @@ def _clipped_obs(root: Path) -> list[str]:
     return [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
 
 
+def _register(root: Path, **change: Any) -> Any:
+    """register_task with one field of the toy row changed; a refusal must leave no task."""
+    import dataclasses
+
+    from ndp.envs import get_task_spec
+    from ndp.envs.factory import register_task
+    from ndp.envs.spec import TASKS
+
+    row = dataclasses.replace(get_task_spec("point-mass"), aliases=(), env_id="ndp/Hostile-v0",
+                              **{"name": "hostile-pm", **change})  # fmt: skip
+    before = set(TASKS)
+    try:
+        return register_task(row)
+    finally:
+        if set(TASKS) != before:  # a half-registered task counts as silent
+            raise AssertionError(f"register_task left {set(TASKS) - before} behind")
+
+
+def _other_task_env(root: Path) -> Any:
+    import ndp
+    from ndp.rl.evaluate import run_episode
+
+    pol = ndp.load_policy(root / "rl")
+    env = ndp.make_env("point-mass-3d", k=pol.cfg.k, horizon=5)
+    try:
+        return run_episode(pol, env, seed=0, deterministic=True)
+    finally:
+        env.close()
+
+
 def _cases() -> list[Case]:
     rl = lambda r: str(r / "rl")  # noqa: E731
     protect_rl = ["rl/config.json", "rl/checkpoint.pt", "rl/metrics.csv"]
@@ -480,6 +510,23 @@ def _cases() -> list[Case]:
         # inputs clipped silently
         Case("policy.act(observations of 1e30)", _clipped_obs, "ok",
              lambda w: len(w) == 1 and "outside the trained range" in w[0], api=True),
+        # the same bad input, every runtime, the same words (ndp.act_inputs)
+        Case("export policy.act(obs beyond float32)", lambda r: __import__("ndp").load_policy(
+             r / "export").act(np.full(6, 1e39), {k: np.zeros(2) for k in ("cmd_y0", "cmd_dy0",
+             "dmp_y0", "dmp_dy0")}), "error", api=True),
+        # options that nothing reads
+        Case("rl train --noise white --noise-corr 0.5", lambda r: _cli(["rl", "train", *RL,
+             "--noise-corr", "0.5", "--steps", "256", "--run-dir", str(r / "noisecorr")]),
+             "error", lambda res: "noise_corr: only 'ar1' noise reads it" in res[1]),
+        # register_task: every field checked, the env probed, nothing left on refusal
+        Case("register_task(empty name)", lambda r: _register(r, name=""), "error", api=True),
+        Case("register_task(obs_dim the env does not have)", lambda r: _register(r, obs_dim=99),
+             "error", api=True),
+        Case("register_task(negative horizon)", lambda r: _register(r, horizon=-1), "error",
+             api=True),
+        # a policy in another task's env
+        Case("run_episode(a point-mass policy in the 3-D point mass)", _other_task_env, "error",
+             api=True),
     ]
     # fmt: on
 

@@ -173,6 +173,7 @@ def make_env(
         env: gym.Env = EnvPoolMetaWorldEnv(spec.metaworld_name or spec.name, horizon)
     else:
         env = families[spec.family](spec, horizon, render_mode, **kw)
+    env.unwrapped.ndp_task = spec.name  # type: ignore[attr-defined]  # the row (evaluation)
     defer_seed(env, seed)
     if reward != "dense":
         env = RewardVariant(env, reward, smooth_lambda)

@@ -117,9 +117,9 @@ def save_evaluation(run_dir: str | Path, result: dict[str, Any], seed: int) -> P
 
 
 def env_task(env: Any) -> str | None:
-    """The task an env built by ``ndp.make_env`` runs (its simulator class's ``task``), or None
-    for an env that does not say."""
-    task = getattr(getattr(env, "unwrapped", env), "task", None)
+    """The task-table row an env built by ``ndp.make_env`` runs (``env.unwrapped.ndp_task``,
+    set by the factory), or None for an env built otherwise."""
+    task = getattr(getattr(env, "unwrapped", env), "ndp_task", None)
     return task if isinstance(task, str) else None
 
 
@@ -132,8 +132,7 @@ def check_env_task(pol: Any, env: Any, force: bool = False) -> None:
     """
     have = env_task(env)
     spec = pol.spec
-    want = {str(getattr(spec, "name", "")), str(getattr(spec, "metaworld_name", None) or "")}
-    if force or have is None or have in want:
+    if force or have is None or have == spec.name:
         return
     raise ValueError(
         f"env: the policy was trained on {spec.name!r}, the env runs {have!r}; pass force=True "

@@ -75,3 +75,23 @@ def test_family_leaves_out_an_arm_missing_a_seed() -> None:
     assert [r["method"] for r in rows] == ["a vs b", "a vs b", "c vs b"]
     assert {r["holm_m"] for r in rows} == {3}
     assert any("Left out of the family" in line and "c" in line for line in md)
+
+
+def test_holm_over_the_pooled_rows_only_describes_the_per_task_rows() -> None:
+    """The mechanism reading's family: the pooled rows only (2 tests); per-task rows keep their
+    p-values but get no Holm p and no verdict word."""
+    md, rows = family.family_section(_cells(), list(range(5)), [("a", "b"), ("c", "b")],
+                                     pooled=True, holm_over="pooled")  # fmt: skip
+    pooled = [r for r in rows if r["task"] == family.ALL_TASKS]
+    per_task = [r for r in rows if r["task"] != family.ALL_TASKS]
+    assert {r["holm_m"] for r in pooled} == {2} and {r["holm_m"] for r in per_task} == {0}
+    assert np.allclose(
+        [r["p_holm"] for r in pooled], stats.holm([r["p_two_sided"] for r in pooled])
+    )
+    assert all(np.isnan(r["p_holm"]) and not r["significant"] for r in per_task)
+    assert sum("- (description)" in line for line in md) == 4
+    assert "Registered family (2 tests" in md[0]
+    with pytest.raises(ValueError, match=r"^holm_over: 'pooled' leaves no row in the family"):
+        family.family_section(_cells(), list(range(5)), [("a", "b")], holm_over="pooled")
+    with pytest.raises(ValueError, match=r"^holm_over: expected one of all, pooled, tasks"):
+        family.family_section(_cells(), list(range(5)), [("a", "b")], holm_over="some")

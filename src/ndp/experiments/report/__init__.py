@@ -395,12 +395,15 @@ def report(
     study: str | None = None,
     compare: Sequence[str] = (),
     compare_pooled: bool = False,
+    compare_holm: str = "all",
 ) -> dict[str, Any]:
     """Write ``<out>.md``, ``<out>.csv`` and ``<out>-<task>.png`` (see the module doc).
 
     ``compare``: a registered family of tests, ``"A:B"`` pairs of method labels (A - B on each
     task, with ``compare_pooled`` also over all tasks), Holm-adjusted over the whole family
-    (:mod:`ndp.experiments.report.family`; ``<out>-family.csv``).
+    (:mod:`ndp.experiments.report.family`; ``<out>-family.csv``); ``compare_holm``: which rows
+    the family holds ('all', 'pooled': the rows over all tasks, per-task rows described;
+    'tasks').
 
     ``study``: a named study; where it has conditions (``release-conditions``), the report adds
     the condition x method section (:mod:`ndp.experiments.report.conditions`: bootstrap
@@ -459,7 +462,7 @@ def report(
         md[at:at] = _bc_markdown(bc_cells)
     pngs, extra_csv = _study_sections(md, pngs, tables, sc, expected, out, prov, plots)
     if pairs and rl_cells:
-        fmd, frows = family.family_section(rl_cells, expected, pairs, compare_pooled)
+        fmd, frows = family.family_section(rl_cells, expected, pairs, compare_pooled, compare_holm)
         if frows:
             path = out.with_name(out.name + "-family.csv")
             _write_csv(path, [{**r, **{k: prov[k] for k in ("command", "commit", "date")}}

@@ -15,6 +15,7 @@ missing seeds unless ``--allow-missing``; a pair with a missing seed is left out
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -31,7 +32,7 @@ from ndp.experiments.report.conditions import (
 )
 from ndp.experiments.report.readings import ArmRuns
 
-__all__ = ["ALL_TASKS", "check_pairs", "family_section", "parse_pairs"]
+__all__ = ["ALL_TASKS", "HOLM_OVER", "check_pairs", "family_section", "parse_pairs"]
 
 ALL_TASKS = "all tasks"
 """The ``task`` of a pooled row."""
@@ -62,6 +63,7 @@ def family_section(
     seeds: Sequence[int],
     pairs: Sequence[tuple[str, str]],
     pooled: bool = False,
+    holm_over: str = "all",
 ) -> tuple[list[str], list[dict[str, Any]]]:
     """The family of ``pairs`` on every task of ``cells`` (and over all tasks with ``pooled``).
 
@@ -76,6 +78,9 @@ def family_section(
         seeds: the report's seeds (every pair's arms need all of them).
         pairs: ``(A, B)`` labels; A - B is tested.
         pooled: add one row per pair over all tasks to the family.
+        holm_over: which rows the registered family holds, the others being descriptions
+            (their tests given, no Holm p, no verdict word): 'all', 'pooled' (the rows over all
+            tasks; per-task rows described) or 'tasks'.
 
     Returns:
         (markdown lines, CSV rows); no pair with runs: a markdown line saying so, no rows.
@@ -104,8 +109,28 @@ def family_section(
     missing = sorted(runs.waiting)
     if not family:
         return [f"Family: no pair has runs of every seed ({', '.join(missing) or 'none'}).", ""], []
-    with_holm(family)
-    return _markdown(family, names, missing, pooled), family
+    if holm_over not in HOLM_OVER:
+        raise ValueError(f"holm_over: expected one of {', '.join(HOLM_OVER)}, got {holm_over!r}")
+    tested = [r for r in family if _in_family(r, holm_over)]
+    if not tested:
+        raise ValueError(
+            f"holm_over: {holm_over!r} leaves no row in the family (pooled rows need "
+            "--compare-pooled and two tasks or more)"
+        )
+    with_holm(tested)
+    for r in family:
+        if not _in_family(r, holm_over):
+            r.update({"p_holm": math.nan, "holm_m": 0, "significant": False})
+    return _markdown(family, names, missing, pooled, holm_over), family
+
+
+HOLM_OVER = ("all", "pooled", "tasks")
+"""Values of ``family_section(holm_over=...)`` / ``ndp report --compare-holm``."""
+
+
+def _in_family(row: dict[str, Any], holm_over: str) -> bool:
+    pooled = row["task"] == ALL_TASKS
+    return holm_over == "all" or (holm_over == "pooled") == pooled
 
 
 def _row(task: str, a: str, b: str, x: np.ndarray, y: np.ndarray, key: str) -> dict[str, Any]:
@@ -120,16 +145,25 @@ def _paired_cols(r: paired.PairedResult) -> dict[str, Any]:
 
 
 def _markdown(
-    family: Sequence[dict[str, Any]], names: dict[str, str], missing: Sequence[str], pooled: bool
+    family: Sequence[dict[str, Any]],
+    names: dict[str, str],
+    missing: Sequence[str],
+    pooled: bool,
+    holm_over: str = "all",
 ) -> list[str]:
-    m = len(family)
-    scope = "each pair on each task" + (" and over all tasks" if pooled else "")
+    m = sum(_in_family(r, holm_over) for r in family)
+    scope = {
+        "all": "each pair on each task" + (" and over all tasks" if pooled else ""),
+        "pooled": "each pair over all tasks; the per-task rows are descriptions (no Holm p)",
+        "tasks": "each pair on each task; the rows over all tasks are descriptions (no Holm p)",
+    }[holm_over]
+    which = f"all {m} rows of this table" if m == len(family) else f"the {m} tested rows"
     md = [
         f"Registered family ({m} tests: {scope}): {names.get(family[0]['metric'], 'the area')}, "
         "A - B with its Welch 95% t-interval; unpaired permutation test over runs (labels "
         "exchanged between the two arms' runs, stratified by task over all tasks); the paired "
         "sign-flip p over the seeds both arms ran is beside it and does not replace it. "
-        + SIGNIFICANCE_NOTE.format(family=f"all {m} rows of this table", floor=""),
+        + SIGNIFICANCE_NOTE.format(family=which, floor=""),
         "",
         f"| task | A vs B | runs | mean A | mean B | A - B | 95% t-interval | {P_HEADS} "
         "| paired p (sign-flip) |",
@@ -140,12 +174,19 @@ def _markdown(
         md.append(
             f"| {r['task']} | {r['method']} | {r['n_a']} + {r['n_b']} | {r['mean_a']:.3f} "
             f"| {r['mean_b']:.3f} | {r['diff_mean']:+.3f} | [{lo:+.3f}, {hi:+.3f}] "
-            f"| {pvalue_cells(r)} | {r['p_paired']:.3g} ({r['paired_method']}) |"
+            f"| {pvalue_cells(r) if r['holm_m'] else _described(r)} "
+            f"| {r['p_paired']:.3g} ({r['paired_method']}) |"
         )
     md.append("")
     if missing:
         md += [f"Left out of the family (a seed missing): {', '.join(missing)}.", ""]
     return md
+
+
+def _described(r: dict[str, Any]) -> str:
+    """The p columns of a row outside the family: its tests, no Holm p and no verdict."""
+    return (f"{r['p_two_sided']:.3g} | - (description) | - | {r['p_a_greater']:.3g} "
+            f"| {r['p_b_greater']:.3g} | {r['p_method']}")  # fmt: skip
 
 
 def check_pairs(pairs: Sequence[tuple[str, str]], labels: Sequence[str]) -> None:

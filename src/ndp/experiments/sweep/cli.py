@@ -202,6 +202,13 @@ def report_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="with --compare: each pair also over all tasks (stratified), in the same family",
     )
+    p.add_argument(
+        "--compare-holm",
+        choices=("all", "pooled", "tasks"),
+        default="all",
+        help="with --compare: the rows the registered family holds (Holm over them); the "
+        "others are descriptions: 'pooled' tests the rows over all tasks only (default all)",
+    )
     return p
 
 
@@ -467,6 +474,7 @@ def report_command(argv: list[str]) -> int:
         study=args.study,
         compare=args.compare,
         compare_pooled=args.compare_pooled,
+        compare_holm=args.compare_holm,
     )
     print(Path(res["markdown"]).read_text())
     written = [res["markdown"], res["csv"], *res["section_csv"], *res["png"]]

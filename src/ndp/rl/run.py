@@ -16,7 +16,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -184,8 +184,13 @@ def train(
     max_updates: int | None = None,
     overwrite: bool = False,
     resolved: bool = False,
+    callbacks: Sequence[Any] | None = None,
 ) -> Row:
     """Train a fresh run through the run driver; returns the last update's metrics.
+
+    ``callbacks``: :class:`ndp.runs.callbacks.Callback` instances called after every update
+    (``on_update``, ``on_eval``, ``should_stop``: e.g. ``StopAtSuccess(0.9)``,
+    ``CheckpointEvery(5)``); a stop writes a checkpoint first, and the run resumes from it.
 
     ``overwrite``: remove an earlier run in the run directory first (its files are named on
     stderr); without it such a directory is refused. ``resolved``: ``cfg`` is already
@@ -197,10 +202,15 @@ def train(
     """
     if not resolved:
         cfg = resolve_config(cfg)  # once: the learner gets it resolved
-    return run(RLRecipe(cfg), overwrite=overwrite, max_steps=max_updates)
+    return run(RLRecipe(cfg), overwrite=overwrite, max_steps=max_updates, callbacks=callbacks)
 
 
-def resume(run_dir: str | Path, max_updates: int | None = None, **overrides: Any) -> Row:
+def resume(
+    run_dir: str | Path,
+    max_updates: int | None = None,
+    callbacks: Sequence[Any] | None = None,
+    **overrides: Any,
+) -> Row:
     """Continue a run from its directory's checkpoint (at most one interval is lost).
 
     Args:
@@ -219,4 +229,6 @@ def resume(run_dir: str | Path, max_updates: int | None = None, **overrides: Any
         )
     cfg = dataclasses.replace(cfg, run_dir=str(run_dir), **overrides)
     RunDir(run_dir).open_for_resume()
-    return run(RLRecipe(resolve_config(cfg)), resume=True, max_steps=max_updates)
+    return run(
+        RLRecipe(resolve_config(cfg)), resume=True, max_steps=max_updates, callbacks=callbacks
+    )

@@ -39,12 +39,13 @@ Example (the shape of every recipe; ``tests/runs/test_driver.py`` has a complete
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Generic, Protocol, TypeVar
 
+from ndp.runs.callbacks import Callback, CallbackContext, check_callbacks, has_eval
 from ndp.runs.session import (
     Learner,
     Manifest,
@@ -196,11 +197,13 @@ class Run(Generic[L, S]):
             self.close()
             raise
 
-    def train(self, max_steps: int | None = None) -> S:
-        """Drive to the budget (or ``max_steps`` more steps), rewrite run.json, and return the
-        recipe's summary. May be called again to continue."""
+    def train(self, max_steps: int | None = None, callbacks: Sequence[Any] | None = None) -> S:
+        """Drive to the budget (or ``max_steps`` more steps, or until a callback stops it:
+        :mod:`ndp.runs.callbacks`), rewrite run.json, and return the recipe's summary. May be
+        called again to continue."""
+        cbs = check_callbacks(callbacks)
         stop = stop_at(self.plan.budget, self.learner.step, max_steps)
-        last = drive(self.recipe, self.learner, self.session, stop)
+        last = drive(self.recipe, self.learner, self.session, stop, cbs)
         self.session.finish(self.recipe.manifest(self.learner))
         return self.recipe.summary(self.learner, last, self.session)
 
@@ -231,9 +234,12 @@ def run(
     resume: bool = False,
     overwrite: bool = False,
     max_steps: int | None = None,
+    callbacks: Sequence[Any] | None = None,
 ) -> S:
     """Run ``recipe`` from its start, or from its checkpoint with ``resume``, to its budget
-    (or ``max_steps`` more steps); returns ``recipe.summary(...)``.
+    (or ``max_steps`` more steps, or until a callback stops it); returns
+    ``recipe.summary(...)``. ``callbacks``: :class:`ndp.runs.callbacks.Callback` instances,
+    called after every update.
 
     ``overwrite``: remove an earlier run in the directory first (named on stderr); without it
     such a directory is refused.
@@ -245,8 +251,9 @@ def run(
             good checkpoint).
         ValueError: a refused directory, resume or config (one line).
     """
+    cbs = check_callbacks(callbacks)  # before the run directory is touched
     with stop_on_sigterm(), Run(recipe, resume=resume, overwrite=overwrite) as opened:
-        return opened.train(max_steps)
+        return opened.train(max_steps, cbs)
 
 
 def seed_run(plan: RunPlan) -> None:
@@ -258,17 +265,54 @@ def seed_run(plan: RunPlan) -> None:
     seed_everything(plan.seed)
 
 
-def drive(recipe: Recipe[L, Any], learner: L, session: RunSession, stop: int) -> Row:
+def drive(
+    recipe: Recipe[L, Any],
+    learner: L,
+    session: RunSession,
+    stop: int,
+    callbacks: Sequence[Callback] = (),
+) -> Row:
     """The loop: iterate until ``learner.step`` reaches ``stop`` (or the learner stops by its
-    own rule), log each row, checkpoint when the recipe says; returns the last row."""
+    own rule, or a callback does), log each row, checkpoint when the recipe says (and before a
+    callback's stop, so the run resumes from there); returns the last row."""
     last: Row = {}
     with recipe.log(learner, session) as log:
         while learner.step < stop and not learner.stopped:
             last = learner.iterate()
             log(last)
-            if recipe.checkpoint_due(learner):
+            due = recipe.checkpoint_due(learner)
+            if due:
                 save(session, learner, recipe.plan)
+            if callbacks and _callbacks_stop(callbacks, last, recipe, learner, session):
+                if not due:
+                    save(session, learner, recipe.plan)
+                break
     return last
+
+
+def _callbacks_stop(
+    callbacks: Sequence[Callback],
+    row: Row,
+    recipe: Recipe[L, Any],
+    learner: L,
+    session: RunSession,
+) -> bool:
+    """Call every callback on this update's row; whether any asks to stop."""
+    ctx = CallbackContext(
+        step=int(learner.step),
+        budget=int(recipe.plan.budget),
+        run_dir=Path(recipe.plan.run_dir),
+        learner=learner,
+        save=lambda: save(session, learner, recipe.plan),
+    )
+    evaluated = has_eval(row)
+    stop = False
+    for cb in callbacks:
+        cb.on_update(row, ctx)
+        if evaluated:
+            cb.on_eval(row, ctx)
+        stop = cb.should_stop(row, ctx) or stop
+    return stop
 
 
 def default_cadence(learner: Learner, plan: RunPlan) -> bool:

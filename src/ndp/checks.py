@@ -115,6 +115,34 @@ def check_device_available(device: str) -> None:
         raise ValueError(f"device: {device!r} is not available on this machine; use 'cpu'")
 
 
+def check_int(name: str, value: Any, low: int = 0, note: str = "") -> int:
+    """``value`` as an int >= ``low`` (numpy integers accepted, bools refused).
+
+    Raises:
+        ValueError: ``"<name>: expected an integer >= <low>[ <note>], got <value!r>"``.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
+        more = f" {note}" if note else ""
+        raise ValueError(f"{name}: expected an integer >= {low}{more}, got {value!r}")
+    return int(value)
+
+
+def check_positive(name: str, value: Any) -> float:
+    """``value`` as a finite float > 0 (bools refused).
+
+    Raises:
+        ValueError: ``"<name>: expected a finite number > 0, got <value!r>"``.
+    """
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, numbers.Real)
+        or not math.isfinite(value)
+        or value <= 0
+    ):
+        raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+    return float(value)
+
+
 def install_hint(extra: str) -> str:
     """The install line for an optional extra, as a user can run it: the package is not on
     PyPI yet, so from a clone of the repository, pinned by its constraints file."""

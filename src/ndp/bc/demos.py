@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from ndp.bc.experts import expert_for
+from ndp.checks import check_int
 from ndp.chunk_info import dmp_start
 from ndp.io import atomic_save_npz
 
@@ -111,8 +112,7 @@ def collect(
     from ndp.envs import ChunkedEnv, make_env
     from ndp.envs.spec import get_task_spec
 
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
+    check_int("episodes", episodes, 1)
     spec = get_task_spec(task)
     expert = expert_for(spec.name)
     env = ChunkedEnv(make_env(spec.name, horizon=horizon), k=1, stale_world=False)

@@ -30,7 +30,7 @@ from typing import Annotated, Any
 
 import numpy as np
 
-from ndp.checks import plain_numbers
+from ndp.checks import check_int, plain_numbers
 from ndp.policies.config import PolicyConfig
 from ndp.runs.cli import cli
 from ndp.runs.driver import run
@@ -87,8 +87,7 @@ class BCConfig:
         for name, low in (("episodes", 0), ("epochs", 1), ("batch_size", 1), ("threads", 1),
                           ("seed", 0)):  # fmt: skip
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
+            check_int(name, v, low)
         if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr: expected a finite number > 0, got {self.lr!r}")
         floor = self.obs_std_floor
@@ -161,7 +160,9 @@ class CloningLearner(LearnerDefaults):
             sel = perm[lo : lo + self.cfg.batch_size]
             loss, _ = self.loss_of(sel)
             if not bool(torch.isfinite(loss)):
-                raise self.session.diverged(f"the cloning loss became {float(loss)}", self.step)
+                raise self.session.diverged(
+                    f"the cloning loss became {float(loss.detach())}", self.step
+                )
             self.opt.zero_grad(set_to_none=True)
             loss.backward()
             self.opt.step()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ndp.checks import plain_numbers
+from ndp.checks import check_int, check_positive, plain_numbers
 
 FORCING_FORMS = ("released", "supplement")
 
@@ -52,16 +52,16 @@ class DMPConfig:
 
     def __post_init__(self) -> None:
         plain_numbers(self)
-        _check_int("n_basis", self.n_basis, 1)
-        _check_int("steps", self.steps, 1)
-        _check_int("subsample", self.subsample, 1)
-        _check_pos("a_z", self.a_z)
+        check_int("n_basis", self.n_basis, 1)
+        check_int("steps", self.steps, 1)
+        check_int("subsample", self.subsample, 1)
+        check_positive("a_z", self.a_z)
         if self.b_z is not None:
-            _check_pos("b_z", self.b_z)
-        _check_pos("a_x", self.a_x)
-        _check_pos("tau", self.tau)
+            check_positive("b_z", self.b_z)
+        check_positive("a_x", self.a_x)
+        check_positive("tau", self.tau)
         if self.dt is not None:
-            _check_pos("dt", self.dt)
+            check_positive("dt", self.dt)
         from ndp.dmp.basis import RBF_FUNCTIONS  # the one table of kinds
 
         if self.rbf not in RBF_FUNCTIONS:
@@ -122,21 +122,6 @@ def euler_step_radius(a_z: float, b_z: float, tau: float, dt: float) -> float:
     d = 1.0 - dt * a_z / tau + dt * dt * a_z * b_z / (tau * tau)  # determinant of M
     root = cmath.sqrt(t * t / 4.0 - d)
     return max(abs(t / 2.0 + root), abs(t / 2.0 - root))
-
-
-def _check_int(name: str, value: object, low: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
-
-
-def _check_pos(name: str, value: object) -> None:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float))
-        or not math.isfinite(value)
-        or value <= 0
-    ):
-        raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
 
 
 def __getattr__(name: str) -> object:

@@ -22,6 +22,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ndp.checks import check_int
 from ndp.envs.base import check_fixed_goal, defer_seed
 from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.jaco import JacoEnv
@@ -428,8 +429,7 @@ def check_task_spec(spec: Any) -> None:
         ) from None
     for key in ("horizon", "obs_dim", "dmp_dofs", "action_dim"):
         v = getattr(spec, key)
-        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-            raise ValueError(f"spec.{key}: expected an integer >= 1, got {v!r}")
+        check_int(f"spec.{key}", v, 1)
     try:
         record = spec_record(spec)
     except (TypeError, ValueError) as e:

@@ -39,7 +39,7 @@ from typing import ClassVar, Literal, NoReturn
 import mujoco
 import numpy as np
 
-from ndp.checks import plain_numbers
+from ndp.checks import check_int, plain_numbers
 
 KP_RANGE = (10.0, 300.0)
 """Stiffness range per axis (robosuite's variable-impedance range; 1/s^2, mass-normalised)."""
@@ -248,8 +248,7 @@ class ImpedanceController:
         lo, hi = self.zeta_range
         if not 0 <= lo <= hi:
             raise ValueError(f"zeta_range: expected 0 <= low <= high, got {self.zeta_range!r}")
-        if isinstance(self.period, bool) or not isinstance(self.period, int) or self.period < 1:
-            raise ValueError(f"period: expected an integer >= 1, got {self.period!r}")
+        check_int("period", self.period, 1)
         if not 0 < self.ramp_ratio <= 1:
             raise ValueError(f"ramp_ratio: expected a number in (0, 1], got {self.ramp_ratio!r}")
 

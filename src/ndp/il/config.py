@@ -11,7 +11,7 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Annotated, Any
 
-from ndp.checks import plain_numbers
+from ndp.checks import check_int, plain_numbers
 from ndp.runs.cli import HIDDEN, cli
 
 if TYPE_CHECKING:
@@ -73,8 +73,7 @@ class ModelConfig:
             )
         for name in ("n_basis", "steps", "feat_dim", "image_size"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+            check_int(name, v, 1)
         for name in ("a_z", "frame", "amp_scale", "weight_scale"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and v > 0):
@@ -154,8 +153,7 @@ class DataConfig:
             raise ValueError(f"split: expected one of {', '.join(SPLITS)}, got {self.split!r}")
         for name in ("n_samples", "n_train", "n_test"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+            check_int(name, v, 1)
         if not (isinstance(self.test_fraction, (int, float)) and 0 < self.test_fraction < 1):
             raise ValueError(
                 f"test_fraction: expected a number in (0, 1), got {self.test_fraction!r}"
@@ -229,12 +227,10 @@ class TrainConfig:
             object.__setattr__(self, "model", ModelConfig(**self.model))
         for name, low in (("epochs", 1), ("batch_size", 1), ("threads", 0), ("seed", 0)):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
+            check_int(name, v, low)
         for name in ("eval_every", "max_train_batches"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise ValueError(f"{name}: expected an integer >= 0, got {v!r}")
+            check_int(name, v, 0)
         if not (isinstance(self.lr, (int, float)) and math.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr: expected a finite number > 0, got {self.lr!r}")
         if not (isinstance(self.val_fraction, (int, float)) and 0 <= self.val_fraction < 1):

@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from ndp.checks import check_int
+
 BSPLINE_DEGREE = 3
 """Degree of the ``bspline`` basis (cubic)."""
 BASIS_FILE_FORMAT = "ndp-chunk-basis"
@@ -91,8 +93,7 @@ def bspline_knots(columns: int, degree: int = BSPLINE_DEGREE) -> np.ndarray:
         ValueError: ``columns < degree + 1`` (too few to be clamped at both ends) or
             ``degree < 0``.
     """
-    if isinstance(degree, bool) or not isinstance(degree, int) or degree < 0:
-        raise ValueError(f"degree: expected an integer >= 0, got {degree!r}")
+    check_int("degree", degree, 0)
     if isinstance(columns, bool) or not isinstance(columns, int) or columns < degree + 1:
         raise ValueError(
             f"columns: a clamped B-spline basis of degree {degree} needs at least {degree + 1} "
@@ -302,5 +303,4 @@ def _shape_of(basis: np.ndarray) -> dict[str, int]:
 
 def _check_sizes(k: int, columns: int) -> None:
     for name, v in (("k", k), ("columns", columns)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-            raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+        check_int(name, v, 1)

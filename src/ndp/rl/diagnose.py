@@ -51,6 +51,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
+from ndp.checks import check_int
 from ndp.chunk_info import dmp_start
 from ndp.envs.chunked import ChunkedEnv
 from ndp.io import atomic_savefig, check_output_path
@@ -336,8 +337,7 @@ def jacobian_diagnostic(
         JSON-ready dict: the source, task, k, ``param_map``, P, M = k A, the rank rule, and a
         :func:`conditioning_report` for ``raw0``, ``init`` and (a run) ``trained``.
     """
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
+    check_int("episodes", episodes, 1)
     trained: Policy | None = None
     if run is not None:
         if overrides:

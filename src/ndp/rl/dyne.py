@@ -161,7 +161,7 @@ def train_embedding(
         loss, pred, kl = emb.loss(s0[idx], actions[idx], delta[idx], cfg.kl_weight)
         if not bool(torch.isfinite(loss)):
             raise TrainingDivergedError(
-                f"the embedding's loss became {float(loss)} (check the exploration data)"
+                f"the embedding's loss became {float(loss.detach())} (check the exploration data)"
             )
         opt.zero_grad()
         loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
@@ -187,7 +187,7 @@ def train_embedding(
         recon = F.mse_loss(z_hat, z)
         loss = recon + cfg.norm_weight * a.norm(dim=2).sum()
         if not bool(torch.isfinite(loss)):
-            raise TrainingDivergedError(f"the action decoder's loss became {float(loss)}")
+            raise TrainingDivergedError(f"the action decoder's loss became {float(loss.detach())}")
         dopt.zero_grad()
         loss.backward()
         dopt.step()

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ndp import zoo
+from ndp.checks import check_int
 from ndp.envs.base import check_render_size
 from ndp.envs.render import check_video_size, write_mp4
 from ndp.io import atomic_write_text, check_output_path
@@ -38,10 +39,8 @@ EVAL_FILE = "eval-{mode}-e{episodes}-s{seed}{exec_k}.json"
 
 def _check_episodes(episodes: Any, seed: Any) -> None:
     """Episode count and first seed checked before anything loads (one-line errors)."""
-    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
-        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed: expected an integer >= 0 (the first episode seed), got {seed!r}")
+    check_int("episodes", episodes, 1)
+    check_int("seed", seed, 0, note="(the first episode seed)")
 
 
 def default_output_dir(run_dir: str | Path) -> Path:

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from ndp.checks import check_int
 from ndp.io import atomic_write_bytes, check_output_path
 from ndp.policies import chunk_basis
 from ndp.provenance import git_commit, installed_versions, portable_path
@@ -98,10 +99,8 @@ def fit_basis(
     """
     if not run_dirs:
         raise ValueError("run_dirs: expected at least one PPO-multi run directory")
-    if isinstance(decisions, bool) or not isinstance(decisions, int) or decisions < 1:
-        raise ValueError(f"decisions: expected an integer >= 1, got {decisions!r}")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
+    check_int("decisions", decisions, 1)
+    check_int("seed", seed, 0)
     out_path = check_output_path(out, "out", overwrite=overwrite)
     policies = [load_policy(r) for r in run_dirs]
     first = policies[0]
@@ -120,8 +119,7 @@ def fit_basis(
         from ndp.envs.presets import preset_of
 
         n_basis = int(preset_of(first.spec).n_basis)
-    if isinstance(n_basis, bool) or not isinstance(n_basis, int) or n_basis < 1:
-        raise ValueError(f"n_basis: expected an integer >= 1, got {n_basis!r}")
+    check_int("n_basis", n_basis, 1)
     columns = 1 + n_basis
     chunk_basis.check_columns("pca", columns, k)
     chunks = np.concatenate([collect_chunks(p, decisions, seed, deterministic) for p in policies])

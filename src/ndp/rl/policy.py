@@ -55,7 +55,7 @@ import torch
 import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
 from ndp import zoo
 from ndp.act_inputs import ObsRange, RobotState, check_act_inputs, obs_range_of
-from ndp.checks import check_flag, install_hint
+from ndp.checks import check_flag, check_int, install_hint
 from ndp.chunk_info import dmp_start_keys
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
@@ -154,8 +154,7 @@ class Policy:
         (None: the sampler continues as it is; an unseeded policy draws from torch's global
         generator)."""
         if seed is not None:
-            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-                raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
+            check_int("seed", seed, 0)
             self._generator = torch.Generator().manual_seed(int(seed))
 
     def act(

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from ndp.checks import check_int
+
 
 class RingReplay:
     """A ring buffer of decisions with named float32 columns.
@@ -26,8 +28,7 @@ class RingReplay:
     """
 
     def __init__(self, capacity: int, shapes: Mapping[str, tuple[int, ...]]) -> None:
-        if isinstance(capacity, bool) or not isinstance(capacity, int) or capacity < 1:
-            raise ValueError(f"capacity: expected an integer >= 1, got {capacity!r}")
+        check_int("capacity", capacity, 1)
         self.capacity = capacity
         self.shapes = {name: tuple(int(d) for d in s) for name, s in shapes.items()}
         self._slices: dict[str, slice] = {}

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ndp.checks import check_int
+
 __all__ = ["Callback", "CallbackContext", "CheckpointEvery", "StopAtSuccess", "check_callbacks"]
 
 EVAL_PREFIX = "eval/"
@@ -86,8 +88,7 @@ class StopAtSuccess(Callback):
     def __init__(self, threshold: float, key: str = "eval/success_any", patience: int = 1) -> None:
         if not (isinstance(threshold, (int, float)) and 0.0 <= threshold <= 1.0):
             raise ValueError(f"threshold: expected a success rate in [0, 1], got {threshold!r}")
-        if isinstance(patience, bool) or not isinstance(patience, int) or patience < 1:
-            raise ValueError(f"patience: expected an integer >= 1, got {patience!r}")
+        check_int("patience", patience, 1)
         self.threshold, self.key, self.patience = float(threshold), str(key), patience
         self.streak = 0
         """Consecutive evaluations at or above the threshold so far."""
@@ -109,8 +110,7 @@ class CheckpointEvery(Callback):
     """
 
     def __init__(self, n: int) -> None:
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise ValueError(f"n: expected an integer >= 1 (updates), got {n!r}")
+        check_int("n", n, 1, note="(updates)")
         self.n = n
         self.paths: list[Path] = []
 

@@ -30,7 +30,7 @@ from ndp.experiments.report.conditions import (
     pvalue_cells,
     with_holm,
 )
-from ndp.experiments.report.readings import ArmRuns
+from ndp.experiments.report.readings import ArmRuns, interval
 
 __all__ = ["ALL_TASKS", "HOLM_OVER", "check_pairs", "family_section", "parse_pairs"]
 
@@ -98,7 +98,7 @@ def family_section(
                 continue
             per_task[task] = (x, y)
             row = _row(task, a, b, x[:, None], y[:, None], key)
-            row.update(_paired_cols(paired.paired_sign_flip(x, y)))
+            row.update(_paired_cols(paired.paired_sign_flip(x, y) if len(x) >= 2 else None))
             family.append(row)
         if pooled and len(per_task) >= 2 and len(per_task) == len(tasks):
             xs = np.stack([v[0] for v in per_task.values()], axis=1)  # [seeds, tasks]
@@ -140,7 +140,10 @@ def _row(task: str, a: str, b: str, x: np.ndarray, y: np.ndarray, key: str) -> d
             "mean_b": float(y.mean(0).mean()), **_difference(x, y)}  # fmt: skip
 
 
-def _paired_cols(r: paired.PairedResult) -> dict[str, Any]:
+def _paired_cols(r: paired.PairedResult | None) -> dict[str, Any]:
+    """The paired test's columns (None: one seed, no paired test: NaN)."""
+    if r is None:
+        return {"p_paired": math.nan, "paired_pairs": 1, "paired_method": "one seed: none"}
     return {"p_paired": r.p, "paired_pairs": r.n_pairs, "paired_method": r.method}
 
 
@@ -170,10 +173,10 @@ def _markdown(
         "|---" * (7 + P_HEADS.count("|") + 1 + 1) + "|",
     ]
     for r in family:
-        lo, hi = r["diff_t_low"], r["diff_t_high"]
         md.append(
             f"| {r['task']} | {r['method']} | {r['n_a']} + {r['n_b']} | {r['mean_a']:.3f} "
-            f"| {r['mean_b']:.3f} | {r['diff_mean']:+.3f} | [{lo:+.3f}, {hi:+.3f}] "
+            f"| {r['mean_b']:.3f} | {r['diff_mean']:+.3f} "
+            f"| {interval(r['diff_t_low'], r['diff_t_high'])} "
             f"| {pvalue_cells(r) if r['holm_m'] else _described(r)} "
             f"| {r['p_paired']:.3g} ({r['paired_method']}) |"
         )

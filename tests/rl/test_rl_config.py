@@ -12,11 +12,11 @@ from ndp.envs.presets import NDP_PRESETS
 from ndp.policies import NDPHeadConfig, PolicyConfig
 from ndp.rl import envs as rl_envs
 from ndp.rl.config import (
-    DyneConfig,
     PPOConfig,
     TrainConfig,
     resolve_config,
 )
+from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.run import open_run
 
 

@@ -36,7 +36,7 @@ from ndp.policies.squashed import SquashedGaussian, SquashedNDPHead
 from ndp.rl import envs as rl_envs
 from ndp.rl.config import TrainConfig
 from ndp.rl.logger import METRICS
-from ndp.rl.methods import SAC_METRICS
+from ndp.rl.sac import SAC_METRICS
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts

@@ -1,0 +1,1 @@
+"""What the off-policy learners share: the collection loop (:mod:`ndp.rl.offpolicy.loop`)."""

@@ -365,7 +365,7 @@ def networks(policy: Any, hidden: tuple[int, ...], activation: str) -> dict[str,
     return out
 
 
-BUILTIN_LEARNERS = ("ndp.rl.dyne", "ndp.rl.sac")
+BUILTIN_LEARNERS = ("ndp.rl.dyne", "ndp.rl.sac", "ndp.rl.td3")
 """The packages of the built-in learners with their own settings and methods, imported here
 (each registers itself with one :func:`register_learner` call, as a learner of one's own
 would): by name, as gymnasium imports an env's entry point, so that the registry has no import

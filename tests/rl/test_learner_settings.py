@@ -44,7 +44,7 @@ def test_old_configs_load_and_to_dict_keeps_the_nested_sections():
     old = {k: v for k, v in d.items() if k not in SETTINGS}  # written before any section
     assert TrainConfig.from_dict(old) == TrainConfig(task="point-mass", algo="sac")
     assert section(cfg, SACConfig).lr == 1e-3
-    with pytest.raises(ValueError, match="config: .*no_such"):
+    with pytest.raises(ValueError, match=r"config: .*no_such"):
         TrainConfig.from_dict({**d, "sac": {"no_such": 1}})
 
 
@@ -54,7 +54,7 @@ def test_a_section_after_train_config_is_built_is_refused_with_one_line():
         x: Annotated[int, cli(name="late-x")] = 1
         """x."""
 
-    with pytest.raises(ValueError, match="settings: 'late' registered after ndp.rl.config"):
+    with pytest.raises(ValueError, match=r"settings: 'late' registered after ndp\.rl\.config"):
         register_learner(Settings("late", Late, "late", "late."))
     assert "late" not in SETTINGS
     with pytest.raises(ValueError, match="name: settings 'sac' are already registered"):
@@ -69,7 +69,7 @@ def test_settings_check_the_flag_prefix_and_the_class():
         lr: Annotated[float, cli(name="lr")] = 1.0
         """lr."""
 
-    with pytest.raises(ValueError, match="flag_prefix: Bad.lr's option --lr does not start"):
+    with pytest.raises(ValueError, match=r"flag_prefix: Bad\.lr's option --lr does not start"):
         Settings("bad", Bad, "bad", "bad.")
     with pytest.raises(ValueError, match="name: expected an identifier"):
         Settings("ppo", Bad, "", "taken.")

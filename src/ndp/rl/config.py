@@ -26,7 +26,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, cast
 
 from ndp.checks import plain_numbers
 from ndp.policies.config import PolicyConfig
@@ -291,7 +291,8 @@ class RunConfig:
     def k(self) -> int:
         """Sub-steps per decision (1 for PPO; an unresolved config's k is the method's)."""
         if self.policy.k is None:
-            return resolve_config(self).k
+            # every instance is a TrainConfig (RunConfig is only ever built as its base)
+            return resolve_config(cast("TrainConfig", self)).k
         return self.policy.k
 
     @property
@@ -367,8 +368,14 @@ def _train_config() -> type[RunConfig]:
         (s.name, Annotated[s.cls, cli(help=s.doc)], field(default_factory=s.cls))
         for s in settings_sections()
     ]
-    cls = dataclasses.make_dataclass("TrainConfig", fields, bases=(RunConfig,), frozen=True)
-    cls.__module__, cls.__qualname__ = __name__, "TrainConfig"  # pickles as ndp.rl.config's
+    # built in this module's namespace: pickled as ndp.rl.config.TrainConfig, and the
+    # generated __init__ resolves RunConfig's string annotations here
+    here = {"__module__": __name__, "__qualname__": "TrainConfig"}
+    cls = dataclasses.make_dataclass(
+        "TrainConfig", fields, bases=(RunConfig,), frozen=True, namespace=here
+    )
+    for s in SETTINGS.values():  # the class attribute: the section's defaults (as a plain
+        setattr(cls, s.name, s.cls())  # dataclass field with a default has; docs tools read it)
     cls.__doc__ = (
         "One training run: task, method, budget, envs, logging; plus PPO and policy settings, "
         f"and the learners' sections ({', '.join(SETTINGS)})."

@@ -325,6 +325,21 @@ def section(cfg: Any, cls: type[T]) -> T:
     raise ValueError(f"cls: no settings section is registered with {cls.__name__}")
 
 
+def with_section(cfg: T, value: Any) -> T:
+    """``cfg`` with its settings section of ``type(value)`` replaced by ``value`` (a new
+    config).
+
+    Raises:
+        ValueError: no section was registered with that class.
+    """
+    for s in SETTINGS.values():
+        if s.cls is type(value):
+            changes: dict[str, Any] = {s.name: value}
+            out: T = dataclasses.replace(cfg, **changes)  # type: ignore[type-var]
+            return out
+    raise ValueError(f"value: no settings section is registered with {type(value).__name__}")
+
+
 register_method(Method("ppo", "step", "PPO: one raw action per env step (k = 1)"))
 register_method(
     Method(

@@ -57,7 +57,7 @@ from ndp.rl.config import TrainConfig
 from ndp.rl.dyne import DYNE_METRICS
 from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.logger import METRICS
-from ndp.rl.methods import section
+from ndp.rl.methods import section, with_section
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.optim import soft_update
 from ndp.rl.periodic_eval import PeriodicEvaluator
@@ -93,7 +93,7 @@ def resolve_dyne_config(cfg: TrainConfig) -> TrainConfig:
     if _dyne(cfg).explore_steps is not None:
         return cfg
     n = min(DYNE_EXPLORE_STEPS.get(cfg.task, DEFAULT_EXPLORE_STEPS), max(cfg.steps // 6, 1))
-    return dataclasses.replace(cfg, **{"dyne": dataclasses.replace(_dyne(cfg), explore_steps=n)})
+    return with_section(cfg, dataclasses.replace(_dyne(cfg), explore_steps=n))
 
 
 def explore_iterations(cfg: TrainConfig) -> int:

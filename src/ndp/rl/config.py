@@ -386,12 +386,11 @@ def _train_config() -> type[RunConfig]:
 if TYPE_CHECKING:
 
     class TrainConfig(RunConfig):
-        """:class:`RunConfig` plus the registered learners' sections (attributes by name;
-        ``ndp.rl.methods.section(cfg, SACConfig)`` reads one typed)."""
+        """:class:`RunConfig` plus the registered learners' sections (for the type checker:
+        the sections are read typed with ``ndp.rl.methods.section(cfg, SACConfig)`` and
+        replaced with ``ndp.rl.methods.with_section``; the constructor takes every field)."""
 
         def __init__(self, **fields: Any) -> None: ...
-
-        def __getattr__(self, name: str) -> Any: ...
 
 else:
     TrainConfig = _train_config()

@@ -31,12 +31,14 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 from ndp.policies import chunk_basis
 from ndp.policies.config import FILE_BASES, PRESET_FIELDS
+from ndp.runs.cli import HIDDEN
 
 OFF_POLICY_PPO_READS = ("ppo.gamma", "ppo.clip_obs", "ppo.steps_per_update")
 """The ``ppo`` fields the off-policy learners share with PPO: the discount, the observation
@@ -240,7 +242,7 @@ class Settings:
             raise ValueError(f"cls: expected a dataclass, got {self.cls!r}")
         if not self.cls.__dataclass_params__.frozen:  # type: ignore[attr-defined]
             raise ValueError(f"cls: expected a frozen dataclass, got {self.cls.__name__}")
-        for f in dataclasses.fields(self.cls):
+        for f in dataclasses.fields(self.cls) if TYPED_CLI else ():  # (no tyro: no options)
             flag = _flag_of(self.cls, f.name)
             if self.flag_prefix and not flag.startswith(self.flag_prefix + "-"):
                 raise ValueError(
@@ -261,11 +263,14 @@ sections after ``ppo`` and ``policy``, and of ``--help``)."""
 _SETTINGS_FROZEN: list[bool] = [False]
 
 
+TYPED_CLI = HIDDEN is not None
+"""Whether tyro (the command lines' parser, an extra) is installed; without it the options'
+annotations are empty and :class:`Settings` checks no prefix."""
+
+
 def _flag_of(cls: type, name: str) -> str:
     """The command-line option (without ``--``) of field ``name`` of ``cls``: its
     ``cli(name=...)`` annotation, else the field name with dashes."""
-    import typing
-
     hint = typing.get_type_hints(cls, include_extras=True).get(name)
     for meta in getattr(hint, "__metadata__", ()):
         given = getattr(meta, "name", None)

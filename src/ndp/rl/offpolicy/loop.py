@@ -29,10 +29,10 @@ from ndp.chunk_info import dmp_start_keys
 from ndp.rl import envs as rl_envs
 from ndp.rl.config import TrainConfig
 from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.offpolicy.replay import DecisionReplay
+from ndp.rl.offpolicy.returns import bootstrap_discount, chunk_return
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
-from ndp.rl.sac.losses import bootstrap_discount, chunk_return
-from ndp.rl.sac.replay import DecisionReplay
 from ndp.runs.session import CountsUpdates, RunSession, TrainingDivergedError
 
 REPLAY_COLUMNS = ("obs", "y0", "dy0", "ret", "discount", "next_obs", "next_y0", "next_dy0")

@@ -28,12 +28,12 @@ import numpy as np
 import torch
 from torch import nn
 
-from ndp.nets.mlp import MLP
 from ndp.policies import build_actor_critic
 from ndp.policies.squashed import SquashedGaussian, SquashedNDPHead
 from ndp.rl.config import TrainConfig
 from ndp.rl.logger import METRICS
 from ndp.rl.methods import section
+from ndp.rl.offpolicy.critics import TwinQ as TwinQ  # re-exported (its old home)
 from ndp.rl.offpolicy.loop import OffPolicyLearner, first_learning_decision, mean_of
 from ndp.rl.sac import SAC_METRICS
 from ndp.rl.sac.config import SACConfig
@@ -102,27 +102,6 @@ def check_budget(cfg: TrainConfig) -> None:
             f"sac.updates_per_step: expected at least one gradient step in the run's "
             f"{(rounds - first) * E * k:,} learning env steps, got {s.updates_per_step!r}"
         )
-
-
-class TwinQ(nn.Module):
-    """Two critics ``Q_i(s, c)`` [B] of a state [B, O] and its action input [B, C]
-    (``layer_norm``: LayerNorm after each hidden linear map, :class:`ndp.nets.mlp.MLP`)."""
-
-    def __init__(
-        self,
-        obs_dim: int,
-        in_dim: int,
-        hidden: tuple[int, ...],
-        activation: str,
-        layer_norm: bool = False,
-    ) -> None:
-        super().__init__()
-        self.q1 = MLP(obs_dim + in_dim, hidden, 1, activation, layer_norm=layer_norm)
-        self.q2 = MLP(obs_dim + in_dim, hidden, 1, activation, layer_norm=layer_norm)
-
-    def forward(self, obs: torch.Tensor, c: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        x = torch.cat([obs, c], dim=-1)
-        return self.q1(x)[:, 0], self.q2(x)[:, 0]
 
 
 class SACLearner(OffPolicyLearner):

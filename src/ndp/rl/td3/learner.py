@@ -36,9 +36,9 @@ from ndp.policies.squashed import SquashedGaussian
 from ndp.rl.config import TrainConfig
 from ndp.rl.logger import METRICS
 from ndp.rl.methods import section
+from ndp.rl.offpolicy.critics import TwinQ
 from ndp.rl.offpolicy.loop import OffPolicyLearner, first_learning_decision, mean_of
 from ndp.rl.optim import soft_update
-from ndp.rl.sac.learner import TwinQ
 from ndp.rl.td3 import TD3_METRICS
 from ndp.rl.td3.config import TD3Config
 from ndp.rl.td3.losses import (

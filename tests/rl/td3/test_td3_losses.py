@@ -10,7 +10,7 @@ from ndp.rl.td3.losses import (
     actor_loss,
     actor_update_due,
     critic_loss,
-    explore,
+    exploration_action,
     smoothed_target_action,
     td3_target,
 )
@@ -42,7 +42,7 @@ def test_critic_and_actor_losses_by_hand():
 
 
 def test_exploration_noise_is_clipped_to_the_bounds():
-    got = explore(torch.tensor([[0.95, -0.5]]), torch.tensor([[0.1, -0.1]]))
+    got = exploration_action(torch.tensor([[0.95, -0.5]]), torch.tensor([[0.1, -0.1]]))
     assert torch.allclose(got, torch.tensor([[1.0, -0.6]]))
 
 

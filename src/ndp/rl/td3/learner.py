@@ -45,7 +45,7 @@ from ndp.rl.td3.losses import (
     actor_loss,
     actor_update_due,
     critic_loss,
-    explore,
+    exploration_action,
     smoothed_target_action,
     td3_target,
 )
@@ -168,15 +168,15 @@ class TD3Learner(OffPolicyLearner):
         return self.low + (a + 1.0) * 0.5 * (self.high - self.low)
 
     def act(
-        self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, explore_: bool
+        self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, explore: bool
     ) -> tuple[torch.Tensor, dict[str, np.ndarray]]:
         """The actor's action plus Gaussian noise, clipped (uniform in [-1, 1]^P during the
         random steps): the env actions [E, k, A] and the replay's ``u`` = ``critic_in`` = the
         bounded action [E, P]."""
-        if explore_:
+        if explore:
             p = self.policy_action(self.model, obs, y0, dy0)
             noise = self.rng.normal(0.0, self.settings.expl_noise, size=(self.E, self.P))
-            p = explore(p, torch.as_tensor(noise, dtype=torch.float32))
+            p = exploration_action(p, torch.as_tensor(noise, dtype=torch.float32))
         else:
             p = torch.as_tensor(self.rng.uniform(-1.0, 1.0, size=(self.E, self.P)),
                                 dtype=torch.float32)  # fmt: skip

@@ -8,7 +8,7 @@ from __future__ import annotations
 import torch
 
 
-def explore(p: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
+def exploration_action(p: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
     """Exploration: ``clip(p + noise, -1, 1)`` [E, P] of the actor's bounded action p [E, P]
     and a Gaussian draw ``noise`` [E, P] (std ``expl_noise``)."""
     return (p + noise).clamp(-1.0, 1.0)

@@ -209,7 +209,7 @@ def test_smooth_lambda_default_is_recorded_and_the_other_learners_get_the_reward
     change an old run); PPO at k = 1 needs no --no-stale-world; SAC, chunked SAC, NDP-SAC,
     Dyn-E, PPO-multi and PPO-repeat build their training envs and their policy's evaluation
     env with the run's reward."""
-    from ndp.rl.config import DyneConfig
+    from ndp.rl.dyne.config import DyneConfig
     from ndp.rl.policy import Policy, load_policy
     from ndp.rl.run import open_run
     from ndp.rl.sac.config import SACConfig

@@ -43,7 +43,10 @@ def test_sweep_commands_name_the_method_and_evaluation_for_the_chunked_methods(t
 @pytest.mark.parametrize(
     ("kw", "match"),
     [
-        ({"method": "sb3-td3"}, "method: expected one of sb3-ppo, sb3-ndp, sb3-multi, sb3-sac"),
+        (
+            {"method": "sb3-ddpg"},
+            "method: expected one of sb3-ppo, sb3-ndp, sb3-multi, sb3-sac, sb3-td3",
+        ),
         ({"method": "sb3-ppo", "k": 5}, "k: sb3-ppo runs one env step per decision"),
         ({"method": "sb3-ndp", "k": 0}, "k: expected an integer >= 1"),
         ({"eval_episodes": -1}, "eval_episodes: expected an integer >= 0"),

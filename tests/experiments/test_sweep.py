@@ -338,6 +338,7 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
         "digits-head",
         "mt50-attribution",
         "sac-vs-sb3",
+        "td3-vs-sb3",
         "off-policy",
         "sac-critic",
         "ndp-mechanism",
@@ -369,7 +370,7 @@ def test_studies_are_defined_and_their_arms_accepted(capsys):
     assert {a.label: a.args for a in r1m.arm_specs()} == {lb: rg[lb].args for lb in REGIME_1M_ARMS}
     # the benchmarks' grids, as named studies
     for name in ("ndp-head-ablation", "ppo-vs-sb3", "sb3-ndp", "il-robot", "sac-vs-sb3",
-                 "off-policy", "sac-critic"):  # fmt: skip
+                 "td3-vs-sb3", "off-policy", "sac-critic"):  # fmt: skip
         st = get_study(name)
         sw.check_arms([a.arm() for a in st.arm_specs()], list(st.task_list()), name)
     # the off-policy table takes its on-policy arms from ndp-regimes' runs: each arm exists there

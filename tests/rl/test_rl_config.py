@@ -12,11 +12,11 @@ from ndp.envs.presets import NDP_PRESETS
 from ndp.policies import NDPHeadConfig, PolicyConfig
 from ndp.rl import envs as rl_envs
 from ndp.rl.config import (
-    DyneConfig,
     PPOConfig,
     TrainConfig,
     resolve_config,
 )
+from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.run import open_run
 
 
@@ -108,7 +108,7 @@ def test_cli_bad_value_names_the_option(capsys):
 
     assert main(["rl", "train", "--lr", "abc"]) == 2
     assert "--lr" in capsys.readouterr().err
-    assert main(["rl", "train", "--algo", "td3"]) == 2
+    assert main(["rl", "train", "--algo", "ddpg"]) == 2
     assert "algo" in capsys.readouterr().err
 
 
@@ -120,7 +120,7 @@ def _no_env(*a, **k):
     "kwargs,match",
     [
         ({"task": "pussh-v3"}, "push-v3"),
-        ({"algo": "td3"}, "algo"),
+        ({"algo": "ddpg"}, "algo"),
         ({"steps": 0}, "steps"),
         ({"num_envs": 0}, "num_envs"),
         ({"policy": {"k": 0}}, "k"),

@@ -12,7 +12,8 @@ import torch
 
 from ndp.cli import main as ndp_main
 from ndp.rl import envs as rl_envs
-from ndp.rl.config import DyneConfig, PPOConfig, TrainConfig, resolve_config
+from ndp.rl.config import PPOConfig, TrainConfig, resolve_config
+from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.methods import METHODS, POLICY_CHECKPOINT_KEYS
 from ndp.runs import load_checkpoint, read_metrics
 
@@ -337,8 +338,9 @@ def test_exploration_preset_is_at_most_a_sixth_of_the_budget():
 def test_a_td3_phase_shorter_than_one_batch_is_refused():
     import dataclasses
 
-    from ndp.rl.config import DyneConfig, PPOConfig, TrainConfig
+    from ndp.rl.config import PPOConfig, TrainConfig
     from ndp.rl.dyne import check_budget
+    from ndp.rl.dyne.config import DyneConfig
 
     cfg = TrainConfig(
         task="point-mass",

@@ -245,8 +245,9 @@ def test_every_trainer_of_the_package_runs_through_the_driver():
     """The trainers' modules hold no lifecycle of their own: none opens a RunSession, seeds or
     drives a loop; each supplies a recipe to ndp.runs.driver."""
     root = Path(__file__).resolve().parents[2] / "src" / "ndp"
-    trainers = ["rl/onpolicy/trainer.py", "rl/dyne.py", "rl/run.py", "il/train.py", "bc/train.py",
-                "sb3/runs.py"]  # fmt: skip
+    trainers = ["rl/onpolicy/trainer.py", "rl/dyne/learner.py", "rl/sac/learner.py",
+                "rl/td3/learner.py", "rl/offpolicy/loop.py", "rl/run.py", "il/train.py",
+                "bc/train.py", "sb3/runs.py"]  # fmt: skip
     for rel in trainers:
         src = (root / rel).read_text()
         for lifecycle in ("RunSession.open(", "seed_everything(", "set_num_threads(cfg.torch",
@@ -261,9 +262,12 @@ def test_the_learners_satisfy_the_one_protocol():
     from ndp.il.train import ImitationLearner
     from ndp.rl.dyne import DyneLearner
     from ndp.rl.onpolicy.trainer import Trainer
+    from ndp.rl.sac.learner import SACLearner
+    from ndp.rl.td3.learner import TD3Learner
     from ndp.sb3.runs import SB3Learner
 
-    for cls in (Trainer, DyneLearner, ImitationLearner, CloningLearner, SB3Learner):
+    for cls in (Trainer, DyneLearner, SACLearner, TD3Learner, ImitationLearner, CloningLearner,
+                SB3Learner):  # fmt: skip
         for name in ("step", "stopped", "state_dict", "load_state_dict", "iterate", "nonfinite",
                      "close"):  # fmt: skip
             assert hasattr(cls, name) or name == "step", (cls.__name__, name)

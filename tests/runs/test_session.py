@@ -168,7 +168,7 @@ def test_ppo_and_dyne_runs_write_run_json_and_finish_it(tmp_path, algo):
 
     extra = {}
     if algo == "dyne":
-        from ndp.rl.config import DyneConfig
+        from ndp.rl.dyne.config import DyneConfig
 
         extra = {
             "dyne": DyneConfig(explore_steps=260, embed_updates=5, decoder_updates=5, batch_size=16)

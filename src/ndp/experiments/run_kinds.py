@@ -18,7 +18,7 @@ from typing import Any
 
 from ndp.experiments.rows import CLONING_ROW, IMITATION_ROW, SUCCESS_ROW, ReportRow
 
-EXTERNAL_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac")
+EXTERNAL_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac", "sb3-td3")
 """Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``): the
 Stable-Baselines3 runs of :mod:`ndp.sb3.runs` (``SB3_METHODS`` there; kept here as
 a literal so that ``ndp --help`` imports nothing of it)."""

@@ -346,6 +346,15 @@ def _sac_vs_sb3_arms() -> tuple[ArmSpec, ...]:
     )  # fmt: skip
 
 
+def _td3_vs_sb3_arms() -> tuple[ArmSpec, ...]:
+    return (
+        ArmSpec("td3", "td3", (), "this package's TD3 (ndp.rl.td3; evaluation every 15,000 env "
+                "steps)"),
+        ArmSpec("sb3-td3", "sb3-td3", (), "Stable-Baselines3 2.x TD3, the same settings; 20 "
+                "deterministic episodes at the end"),
+    )  # fmt: skip
+
+
 OFF_POLICY_TASKS = ("push-v3", "throw")
 """Tasks of the off-policy study (those of ndp-regimes, whose fair on-policy arms it is read
 beside)."""
@@ -1077,6 +1086,21 @@ STUDIES: dict[str, Study] = {
             ),
             tasks=lambda: ("push-v3",),
             arms=_sac_vs_sb3_arms,
+            steps=100_000,
+        ),
+        Study(
+            name="td3-vs-sb3",
+            title="Our TD3 vs Stable-Baselines3's TD3 on push-v3",
+            doc=(
+                "push-v3 x this package's TD3 (ndp.rl.td3) and SB3's TD3 with the same settings "
+                "(buffer 1M, batch 256, lr 1e-3, tau 0.005, policy delay 2, target noise 0.2 "
+                "clipped at 0.5, exploration noise 0.1, 5,000 random env steps, 400-300 ReLU, "
+                "one gradient step per env step; ndp.sb3.runs), 3 seeds, 100k env steps (the "
+                "second budget: --steps 300000): the check that ours is level with the "
+                "reference within noise (training-episode success; deterministic at the end)."
+            ),
+            tasks=lambda: ("push-v3",),
+            arms=_td3_vs_sb3_arms,
             steps=100_000,
         ),
         Study(

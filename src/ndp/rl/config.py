@@ -1,11 +1,14 @@
 """Typed configuration of an RL run, its resolution against a task, and its argparse CLI.
 
-A run is one :class:`TrainConfig` holding a :class:`PPOConfig`, a :class:`DyneConfig` and a
-:class:`ndp.policies.PolicyConfig`. Every field has a docstring, which becomes its ``--help``
-text: ``ndp rl train`` is this dataclass tree parsed by tyro (:mod:`ndp.runs.cli`), one flat
-``--field-name`` option per field. :func:`resolve_config` fills what depends on the
-task (the action head of the method, the NDP preset, k = 1 for PPO) and validates everything
-before any environment is built; the resolved config is what runs and what is saved as
+A run is one :class:`TrainConfig` holding a :class:`PPOConfig` (the shared on-policy trainer's),
+a :class:`ndp.policies.PolicyConfig` and one settings section per registered learner
+(``ndp.rl.methods.register_learner``; this module names none of them). ``TrainConfig`` is
+built here from :class:`RunConfig` (the run's own fields) and the registered sections, once,
+when this module is imported. Every field has a docstring, which becomes its ``--help`` text:
+``ndp rl train`` is this dataclass tree parsed by tyro (:mod:`ndp.runs.cli`), one flat
+``--field-name`` option per field. :func:`resolve_config` fills what depends on the task (the
+action head of the method, the NDP preset, k = 1 for PPO) and validates everything before any
+environment is built; the resolved config is what runs and what is saved as
 ``config.json`` in the run directory.
 
 Defaults are the supplement's PPO hyperparameters (ndp-method.md section 3): hidden [100, 100]
@@ -23,11 +26,12 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Annotated, Any, cast
 
 from ndp.checks import plain_numbers
 from ndp.policies.config import PolicyConfig
-from ndp.rl.sac.config import SACConfig
+from ndp.rl.methods import METHODS, SETTINGS, settings_sections
+from ndp.runs.cli import cli
 
 EVAL_SEED = 10_000
 """Reset seed of the first evaluation episode (episodes ``EVAL_SEED .. EVAL_SEED + N - 1``) for
@@ -138,89 +142,9 @@ class PPOConfig:
 
 
 @dataclass(frozen=True)
-class DyneConfig:
-    """Dyn-E (Whitney et al., ICLR 2020): TD3 acting in a learned embedding of k-action sequences.
-
-    Only read by ``--algo dyne``. Defaults follow the original code (``embedding/main.py``,
-    ``rl/main_dyne.py``, ``rl/EmbeddedTD3.py`` of willwhitney/dynamics-aware-embeddings) and
-    TD3 (Fujimoto et al., 2018); docs/dyne.md lists each value with its source and every
-    deviation. The discount is ``--gamma`` (per env step, shared with PPO); the TD3 actor and
-    critics use ``--hidden`` / ``--activation`` (400-300 ReLU for Dyn-E, see docs/dyne.md).
-    """
-
-    explore_steps: int | None = None
-    """Dyn-E: env steps of uniformly random k-action sequences collected first to train the
-    embedding (counted in --steps, rounded up to whole iterations); None: the task's preset
-    (ndp.rl.dyne.DYNE_EXPLORE_STEPS)."""
-    embed_updates: int = 4000
-    """Dyn-E: gradient steps of the embedding VAE (encoder + state predictor)."""
-    decoder_updates: int = 10000
-    """Dyn-E: gradient steps of the action decoder (trained after the VAE, encoder frozen)."""
-    embed_batch: int = 128
-    """Dyn-E: batch size (action sequences) of the VAE and decoder steps."""
-    embed_lr: float = 1e-4
-    """Dyn-E: Adam learning rate of the VAE (amsgrad) and of the decoder."""
-    kl_weight: float = 1e-4
-    """Dyn-E: weight of the VAE's KL term against the whitened state-prediction error."""
-    norm_weight: float = 1e-4
-    """Dyn-E: decoder penalty on the L2 norm of each decoded action (summed over the batch)."""
-    replay_size: int = 200_000
-    """Dyn-E: replay buffer capacity in decisions (k env steps each; saved in the checkpoint,
-    about 4 * (2 * obs_dim + latent + 2 k + 2) bytes per decision)."""
-    start_steps: int = 0
-    """Dyn-E: env steps (after the exploration data) acting with uniformly random latents
-    instead of the actor (the original used 0)."""
-    updates_per_step: float = 1.0
-    """Dyn-E: TD3 gradient steps per env step (the original: 1, run at episode ends)."""
-    batch_size: int = 100
-    """Dyn-E: TD3 batch size (decisions)."""
-    actor_lr: float = 1e-3
-    """Dyn-E: Adam learning rate of the TD3 actor."""
-    critic_lr: float = 1e-3
-    """Dyn-E: Adam learning rate of the TD3 twin critics."""
-    tau: float = 0.005
-    """Dyn-E: soft target-update rate of the TD3 target nets."""
-    policy_delay: int = 2
-    """Dyn-E: critic steps per actor (and target) update."""
-    expl_noise: float = 0.1
-    """Dyn-E: std of the Gaussian exploration noise on the latent, times the latent range."""
-    target_noise: float = 0.2
-    """Dyn-E: std of the target-policy smoothing noise, times the latent range (the original
-    divides it further by k)."""
-    target_noise_clip: float = 0.5
-    """Dyn-E: clip of the target-policy smoothing noise, times the latent range."""
-
-    def __post_init__(self) -> None:
-        plain_numbers(self)
-        if self.explore_steps is not None:
-            _check_int("explore_steps", self.explore_steps, 1)
-        for name in ("embed_updates", "decoder_updates", "start_steps"):
-            _check_int(name, getattr(self, name), 0)
-        for name in ("embed_batch", "replay_size", "batch_size", "policy_delay"):
-            _check_int(name, getattr(self, name), 1)
-        for name in ("embed_lr", "actor_lr", "critic_lr", "updates_per_step"):
-            _check_positive(name, getattr(self, name))
-        for name in ("kl_weight", "norm_weight", "expl_noise", "target_noise", "target_noise_clip"):
-            v = getattr(self, name)
-            if (
-                isinstance(v, bool)
-                or not isinstance(v, (int, float))
-                or not math.isfinite(v)
-                or v < 0
-            ):
-                raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")
-        if not (isinstance(self.tau, (int, float)) and 0.0 < self.tau <= 1.0):
-            raise ValueError(f"tau: expected a number in (0, 1], got {self.tau!r}")
-        if self.batch_size > self.replay_size:
-            raise ValueError(
-                f"batch_size: expected at most replay_size={self.replay_size}, "
-                f"got {self.batch_size}"
-            )
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    """One training run: task, method, budget, envs, logging; plus PPO and policy settings."""
+class RunConfig:
+    """One training run: task, method, budget, envs, logging; plus PPO and policy settings
+    (:class:`TrainConfig` adds the registered learners' sections)."""
 
     task: str = "reach-v3"
     """Task name (see ndp.envs.TASKS) or 'point-mass' (the toy task)."""
@@ -307,14 +231,9 @@ class TrainConfig:
     """PPO hyperparameters."""
     policy: PolicyConfig = field(default_factory=PolicyConfig)
     """Actor-critic and action-head settings (head follows algo)."""
-    dyne: DyneConfig = field(default_factory=DyneConfig)
-    """Dyn-E settings (``--algo dyne`` only)."""
-    sac: SACConfig = field(default_factory=SACConfig)
-    """SAC, chunked SAC and NDP-SAC settings (``--algo sac / sac-chunk / ndp-sac`` only)."""
 
     def __post_init__(self) -> None:
         plain_numbers(self)
-        from ndp.rl.methods import METHODS
 
         if self.algo not in METHODS:
             raise ValueError(f"algo: expected one of {', '.join(METHODS)}, got {self.algo!r}")
@@ -385,7 +304,8 @@ class TrainConfig:
     def k(self) -> int:
         """Sub-steps per decision (1 for PPO; an unresolved config's k is the method's)."""
         if self.policy.k is None:
-            return resolve_config(self).k
+            # every instance is a TrainConfig (RunConfig is only ever built as its base)
+            return resolve_config(cast("TrainConfig", self)).k
         return self.policy.k
 
     @property
@@ -434,7 +354,7 @@ class TrainConfig:
         return {"stale_world": self.stale_world, "execution": self.execution}
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (nested for ``ppo``, ``policy``, ``dyne`` and ``sac``)."""
+        """JSON-ready dict (nested for ``ppo``, ``policy`` and each learner's section)."""
         return dataclasses.asdict(self)
 
     @staticmethod
@@ -450,11 +370,46 @@ class TrainConfig:
         policy = PolicyConfig.from_dict(pol)  # flat (before NDPHeadConfig) or nested
         try:
             ppo = PPOConfig(**d.pop("ppo", {}))
-            dyne = DyneConfig(**d.pop("dyne", {}))  # configs written before Dyn-E: defaults
-            sac = SACConfig(**d.pop("sac", {}))  # configs written before SAC: defaults
-            return TrainConfig(ppo=ppo, policy=policy, dyne=dyne, sac=sac, **d)
+            # a section missing (a config written before its learner): its defaults
+            sections = {s.name: s.cls(**d.pop(s.name, {})) for s in SETTINGS.values()}
+            return TrainConfig(ppo=ppo, policy=policy, **sections, **d)
         except TypeError as exc:
             raise ValueError(f"config: {exc}") from None
+
+
+def _train_config() -> type[RunConfig]:
+    """:class:`RunConfig` plus one field per registered settings section (``name:
+    cls = cls()``, its help the section's line), frozen; built once."""
+    fields = [
+        (s.name, Annotated[s.cls, cli(help=s.doc)], field(default_factory=s.cls))
+        for s in settings_sections()
+    ]
+    # built in this module's namespace: pickled as ndp.rl.config.TrainConfig, and the
+    # generated __init__ resolves RunConfig's string annotations here
+    here = {"__module__": __name__, "__qualname__": "TrainConfig"}
+    cls = dataclasses.make_dataclass(
+        "TrainConfig", fields, bases=(RunConfig,), frozen=True, namespace=here
+    )
+    for s in SETTINGS.values():  # the class attribute: the section's defaults (as a plain
+        setattr(cls, s.name, s.cls())  # dataclass field with a default has; docs tools read it)
+    cls.__doc__ = (
+        "One training run: task, method, budget, envs, logging; plus PPO and policy settings, "
+        f"and the learners' sections ({', '.join(SETTINGS)})."
+    )
+    return cls
+
+
+if TYPE_CHECKING:
+
+    class TrainConfig(RunConfig):
+        """:class:`RunConfig` plus the registered learners' sections (for the type checker:
+        the sections are read typed with ``ndp.rl.methods.section(cfg, SACConfig)`` and
+        replaced with ``ndp.rl.methods.with_section``; the constructor takes every field)."""
+
+        def __init__(self, **fields: Any) -> None: ...
+
+else:
+    TrainConfig = _train_config()
 
 
 def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
@@ -502,7 +457,6 @@ def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
     check_device_available(cfg.device)  # before any env is built or run folder made
     from ndp.policies.config import DEFAULT_K
     from ndp.policies.heads import SINGLE_STEP_HEADS
-    from ndp.rl.methods import METHODS
 
     method = METHODS[cfg.algo]
     if method.task_variant is not None:
@@ -578,7 +532,6 @@ def unused_head_options(cfg: TrainConfig) -> list[str]:
     the NDP head. Such options are accepted and not used (a sweep's ``-o`` overrides span every
     arm); ``ndp rl train`` names them in a note so that they are not dropped silently."""
     from ndp.policies.config import BASIS_HEADS, DMP_HEADS, NDPHeadConfig
-    from ndp.rl.methods import METHODS
 
     method = METHODS.get(cfg.algo)
     if method is None or method.head in DMP_HEADS:
@@ -611,7 +564,6 @@ def unused_basis_options(cfg: TrainConfig) -> list[str]:
     (``--algo ndp --chunk-basis dct``): ``["chunk_basis='dct'", ...]``; empty when none.
     Accepted and cleared by :func:`resolve_config`; ``ndp rl train`` names them in a note."""
     from ndp.policies.config import BASIS_HEADS
-    from ndp.rl.methods import METHODS
 
     method = METHODS.get(cfg.algo)
     if method is None or method.head in BASIS_HEADS:
@@ -624,8 +576,9 @@ def unused_basis_options(cfg: TrainConfig) -> list[str]:
     ]
 
 
-LEARNER_SECTIONS = ("ppo", "sac", "dyne")
-"""The sections of :class:`TrainConfig` that belong to one learner (``Method.reads``)."""
+LEARNER_SECTIONS = ("ppo", *SETTINGS)
+"""The sections of :class:`TrainConfig` that belong to one learner (``Method.reads``): the
+shared on-policy trainer's ``ppo`` and every registered learner's."""
 
 
 def unused_method_options(cfg: TrainConfig) -> list[str]:
@@ -633,8 +586,6 @@ def unused_method_options(cfg: TrainConfig) -> list[str]:
     (``--algo ppo --sac-lr 1e-3``, ``--algo sac --clip 0.1``): ``["sac.lr=0.001", ...]``; empty
     when none. Accepted and not used, like :func:`unused_head_options` (a sweep's overrides
     span every arm); ``ndp rl train`` names them in a note."""
-    from ndp.rl.methods import METHODS
-
     method = METHODS.get(cfg.algo)
     if method is None:
         return []

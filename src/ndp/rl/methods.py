@@ -13,22 +13,32 @@ opens, seeds, restores, drives and checkpoints it, and its ``state_dict`` holds 
 ``ndp rl eval / render / export`` and ``ndp.load_policy`` then work on its runs unchanged
 (``tests/rl/test_rl_methods.py`` registers a toy random-search learner and evaluates it).
 
-Every built-in method is registered below (``ppo``, ``ppo-multi``, ``ppo-repeat``, ``ndp``,
-``dyne``, ``sac``, ``sac-chunk``, ``ndp-sac``, ``vices``, ``vices-pos``, ``vices-low-freq``).
-The registry imports no learner and no trainer: Dyn-E's and SAC's learners are named by their
-entry points, so the learners and the config may import the registry without an import circle
-(``tests/test_import_graph.py``).
+A learner with its own settings is one package that calls :func:`register_learner` once: its
+settings section (:class:`Settings`: the ``TrainConfig`` field, the frozen dataclass, the
+``--prefix-`` of its options) and its methods. :mod:`ndp.rl.config` builds ``TrainConfig``
+from the registered sections (nothing there names a learner); ``config.json``, ``--help``,
+resume and the note on options a method does not read (``Method.reads``) follow.
+
+The on-policy methods (``ppo``, ``ppo-multi``, ``ppo-repeat``, ``ndp``, ``vices``,
+``vices-pos``, ``vices-low-freq``) are registered below; the learner packages of
+:data:`BUILTIN_LEARNERS` (Dyn-E, the SAC family, TD3) register themselves and are imported here
+by name. Registering imports no torch (a built-in head is taken on its name) and the registry
+imports no learner module: learners are named by entry point, so the learners and the config
+may import the registry without an import circle (``tests/test_import_graph.py``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from ndp.policies import chunk_basis
 from ndp.policies.config import FILE_BASES, PRESET_FIELDS
+from ndp.runs.cli import HIDDEN
 
 OFF_POLICY_PPO_READS = ("ppo.gamma", "ppo.clip_obs", "ppo.steps_per_update")
 """The ``ppo`` fields the off-policy learners share with PPO: the discount, the observation
@@ -178,18 +188,161 @@ METHODS: dict[str, Method] = {}
 """Method name -> :class:`Method`."""
 
 
-def register_method(method: Method) -> Method:
-    """Add a method (its head must be registered); returns it."""
-    from ndp.policies.heads import HEAD_BUILDERS
+BUILTIN_HEADS = ("step", "multi", "hold", "ndp", "dyne", "squashed", "ndp-squashed")
+"""The heads ``ndp.policies`` registers (when ``ndp.policies.heads`` is imported): a method on
+one of them registers without importing torch (``tests/rl/test_rl_methods.py`` checks the
+list against ``HEAD_BUILDERS``)."""
 
+
+def register_method(method: Method) -> Method:
+    """Add a method (its head must be registered); returns it. A built-in head
+    (:data:`BUILTIN_HEADS`) is taken on its name, so registering imports no torch; any other
+    head is looked up in ``ndp.policies.heads.HEAD_BUILDERS``."""
     if method.name in METHODS:
         raise ValueError(f"name: method {method.name!r} is already registered")
-    if method.head not in HEAD_BUILDERS:
-        raise ValueError(
-            f"head: {method.head!r} is not a registered head ({', '.join(HEAD_BUILDERS)})"
-        )
+    if method.head not in BUILTIN_HEADS:
+        from ndp.policies.heads import HEAD_BUILDERS  # torch: only for a head of one's own
+
+        if method.head not in HEAD_BUILDERS:
+            raise ValueError(
+                f"head: {method.head!r} is not a registered head ({', '.join(HEAD_BUILDERS)})"
+            )
     METHODS[method.name] = method
     return method
+
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """One learner's settings: a section of :class:`ndp.rl.config.TrainConfig` (its field
+    ``name``, nested under that key in ``config.json``), a frozen dataclass whose every field
+    has a default and a docstring (its ``--help`` text)."""
+
+    name: str
+    """The section's name: the ``TrainConfig`` field, the ``config.json`` key, the prefix of
+    the dotted names in ``Method.reads`` and in notes (``"sac"``: ``sac.lr``)."""
+    cls: type
+    """The settings dataclass (frozen; ``cls()`` gives the defaults; ``cls(**dict)`` reads a
+    saved section; its ``__post_init__`` refuses a bad value with a one-line ValueError naming
+    the field)."""
+    flag_prefix: str
+    """The prefix of the section's command-line options (``"sac"``: ``--sac-lr``; the fields
+    spell it with ``ndp.runs.cli.cli(name="sac-lr")``, checked at registration); ``""``: plain
+    ``--field-name`` options (Dyn-E's, older than the convention)."""
+    doc: str
+    """One line: what the section holds and which methods read it (the section's help)."""
+
+    def __post_init__(self) -> None:
+        if not self.name.isidentifier() or self.name in RESERVED_SECTIONS:
+            raise ValueError(f"name: expected an identifier not in {RESERVED_SECTIONS}, "
+                             f"got {self.name!r}")  # fmt: skip
+        if not (dataclasses.is_dataclass(self.cls) and isinstance(self.cls, type)):
+            raise ValueError(f"cls: expected a dataclass, got {self.cls!r}")
+        if not self.cls.__dataclass_params__.frozen:  # type: ignore[attr-defined]
+            raise ValueError(f"cls: expected a frozen dataclass, got {self.cls.__name__}")
+        for f in dataclasses.fields(self.cls) if TYPED_CLI else ():  # (no tyro: no options)
+            flag = _flag_of(self.cls, f.name)
+            if self.flag_prefix and not flag.startswith(self.flag_prefix + "-"):
+                raise ValueError(
+                    f"flag_prefix: {self.cls.__name__}.{f.name}'s option --{flag} does not "
+                    f"start with --{self.flag_prefix}- (annotate it with "
+                    f'ndp.runs.cli.cli(name="{self.flag_prefix}-..."))'
+                )
+
+
+RESERVED_SECTIONS = ("ppo", "policy")
+"""``TrainConfig`` sections that belong to no registered learner: the shared on-policy
+trainer's PPO settings and the policy (every method's)."""
+
+SETTINGS: dict[str, Settings] = {}
+"""Section name -> :class:`Settings`, in registration order (the order of ``TrainConfig``'s
+sections after ``ppo`` and ``policy``, and of ``--help``)."""
+
+_SETTINGS_FROZEN: list[bool] = [False]
+
+
+TYPED_CLI = HIDDEN is not None
+"""Whether tyro (the command lines' parser, an extra) is installed; without it the options'
+annotations are empty and :class:`Settings` checks no prefix."""
+
+
+def _flag_of(cls: type, name: str) -> str:
+    """The command-line option (without ``--``) of field ``name`` of ``cls``: its
+    ``cli(name=...)`` annotation, else the field name with dashes."""
+    hint = typing.get_type_hints(cls, include_extras=True).get(name)
+    for meta in getattr(hint, "__metadata__", ()):
+        given = getattr(meta, "name", None)
+        if isinstance(given, str):
+            return given
+    return name.replace("_", "-")
+
+
+def register_learner(settings: Settings | None, *methods: Method) -> None:
+    """A learner's one registration call: its settings section (None: it has none) and its
+    methods (each reads its section: list it in ``Method.reads``). A learner registers when its
+    package is imported; the built-in ones are listed in :data:`BUILTIN_LEARNERS`. Settings
+    must be registered before :mod:`ndp.rl.config` builds ``TrainConfig`` (a learner package
+    that ``ndp.rl.methods`` imports, or one imported before ``ndp.rl.config``).
+
+    Raises:
+        ValueError: a taken section or method name, a bad settings class or entry point, or
+            settings registered after ``TrainConfig`` was built.
+    """
+    if settings is not None:
+        if settings.name in SETTINGS:
+            raise ValueError(f"name: settings {settings.name!r} are already registered")
+        if _SETTINGS_FROZEN[0]:
+            raise ValueError(
+                f"settings: {settings.name!r} registered after ndp.rl.config built TrainConfig "
+                "(import the learner's package before ndp.rl.config, or list it in "
+                "ndp.rl.methods.BUILTIN_LEARNERS)"
+            )
+    for m in methods:
+        if m.name in METHODS:
+            raise ValueError(f"name: method {m.name!r} is already registered")
+    if settings is not None:
+        SETTINGS[settings.name] = settings
+    for m in methods:
+        register_method(m)
+
+
+def settings_sections() -> tuple[Settings, ...]:
+    """The registered settings, in order; from now on no section may be added (called once,
+    when :mod:`ndp.rl.config` builds ``TrainConfig``)."""
+    _SETTINGS_FROZEN[0] = True
+    return tuple(SETTINGS.values())
+
+
+def section(cfg: Any, cls: type[T]) -> T:
+    """The settings of type ``cls`` of a ``TrainConfig`` (typed: ``section(cfg, SACConfig)``),
+    from the section registered with that class.
+
+    Raises:
+        ValueError: no section was registered with ``cls``.
+    """
+    for s in SETTINGS.values():
+        if s.cls is cls:
+            value = getattr(cfg, s.name)
+            assert isinstance(value, cls)
+            return value
+    raise ValueError(f"cls: no settings section is registered with {cls.__name__}")
+
+
+def with_section(cfg: T, value: Any) -> T:
+    """``cfg`` with its settings section of ``type(value)`` replaced by ``value`` (a new
+    config).
+
+    Raises:
+        ValueError: no section was registered with that class.
+    """
+    for s in SETTINGS.values():
+        if s.cls is type(value):
+            changes: dict[str, Any] = {s.name: value}
+            out: T = dataclasses.replace(cfg, **changes)  # type: ignore[type-var]
+            return out
+    raise ValueError(f"value: no settings section is registered with {type(value).__name__}")
 
 
 register_method(Method("ppo", "step", "PPO: one raw action per env step (k = 1)"))
@@ -221,17 +374,6 @@ register_method(
 )
 
 
-DYNE_METRICS = (
-    "dyne/embed_loss",
-    "dyne/embed_kl",
-    "dyne/decoder_loss",
-    "dyne/q",
-    "dyne/replay",
-    "dyne/gradient_steps",
-)
-"""Extra ``metrics.csv`` columns of Dyn-E runs (docs/metrics.md)."""
-
-
 def networks(policy: Any, hidden: tuple[int, ...], activation: str) -> dict[str, Any]:
     """A method's own networks: ``hidden`` / ``activation`` where the config leaves them at
     None (the method's); a value the user gave is kept."""
@@ -243,77 +385,15 @@ def networks(policy: Any, hidden: tuple[int, ...], activation: str) -> dict[str,
     return out
 
 
-def resolve_dyne(policy: Any, spec: Any) -> dict[str, Any]:
-    """Dyn-E: no DMP; the TD3 actor is 400-300 ReLU (the original's) unless ``hidden`` /
-    ``activation`` are given."""
-    return {**no_dmp(policy, spec), **networks(policy, (400, 300), "relu")}
+BUILTIN_LEARNERS = ("ndp.rl.dyne", "ndp.rl.sac", "ndp.rl.td3")
+"""The packages of the built-in learners with their own settings and methods, imported here
+(each registers itself with one :func:`register_learner` call, as a learner of one's own
+would): by name, as gymnasium imports an env's entry point, so that the registry has no import
+edge to a learner (``tests/test_import_graph.py``); none of them imports torch until it
+trains. Their order is the order of the ``TrainConfig`` sections."""
 
-
-register_method(
-    Method(
-        "dyne",
-        "dyne",
-        "Dyn-E: TD3 in a learned, dynamics-aware embedding of k-action sequences",
-        resolve=resolve_dyne,
-        metrics=DYNE_METRICS,
-        learner="ndp.rl.dyne:DyneLearner",  # torch and the simulators only once it trains
-        hint="Try smaller --actor-lr / --critic-lr or check the task's reward.",
-        reads=("dyne", *OFF_POLICY_PPO_READS, "ppo.norm_obs"),
-    )
-)
-
-
-SAC_METRICS = (
-    "sac/alpha",
-    "sac/alpha_loss",
-    "sac/q",
-    "sac/replay",
-    "sac/gradient_steps",
-)
-"""Extra ``metrics.csv`` columns of the SAC family's runs (docs/metrics.md)."""
-
-
-def _sac_networks(policy: Any) -> dict[str, Any]:
-    """SAC's networks: 256-256 ReLU (actor and each critic) unless ``hidden`` / ``activation``
-    are given."""
-    return networks(policy, (256, 256), "relu")
-
-
-def resolve_sac(policy: Any, spec: Any) -> dict[str, Any]:
-    """SAC: one action per decision (k = 1), no DMP, 256-256 ReLU."""
-    return {**no_dmp(policy, spec), **_sac_networks(policy), "k": 1}
-
-
-def resolve_sac_chunk(policy: Any, spec: Any) -> dict[str, Any]:
-    """Chunked SAC: k actions per decision (``--k``), no DMP, 256-256 ReLU."""
-    return {**no_dmp(policy, spec), **_sac_networks(policy)}
-
-
-def resolve_ndp_sac(policy: Any, spec: Any) -> dict[str, Any]:
-    """NDP-SAC: the NDP head's task presets (:func:`resolve_ndp`), 256-256 ReLU."""
-    return {**resolve_ndp(policy, spec), **_sac_networks(policy)}
-
-
-_SAC = "ndp.rl.sac.learner:SACLearner"
-_SAC_HINT = "Try a smaller --sac-lr or check the task's reward."
-_SAC_READS = ("sac", *OFF_POLICY_PPO_READS)
-register_method(
-    Method("sac", "squashed", "SAC: twin critics, automatic temperature, tanh-squashed "
-           "Gaussian, one action per env step", resolve=resolve_sac, metrics=SAC_METRICS,
-           learner=_SAC, hint=_SAC_HINT, reads=_SAC_READS)
-)  # fmt: skip
-register_method(
-    Method("sac-chunk", "squashed", "Chunked SAC: k actions per decision executed open-loop, "
-           "a critic of the whole chunk on the k-step return (Q-chunking)",
-           resolve=resolve_sac_chunk, metrics=SAC_METRICS, learner=_SAC, hint=_SAC_HINT,
-           reads=_SAC_READS)
-)  # fmt: skip
-register_method(
-    Method("ndp-sac", "ndp-squashed", "NDP-SAC: SAC over the DMP's goal and forcing weights "
-           "(entropy over the parameters), the NDP head turning them into k actions",
-           resolve=resolve_ndp_sac, metrics=(*SAC_METRICS, "dmp/goal_norm", "dmp/weight_norm"),
-           learner=_SAC, hint=_SAC_HINT, reads=_SAC_READS)
-)  # fmt: skip
+for _package in BUILTIN_LEARNERS:
+    importlib.import_module(_package)
 
 
 # --------------------------------------------------------------------------------------------

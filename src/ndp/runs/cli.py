@@ -25,14 +25,15 @@ try:  # tyro is needed only to parse command lines
     HIDDEN: Any = _conf.Suppress
     """Annotation: a derived field that is not an option (e.g. the head, which follows algo)."""
 
-    def cli(name: str | None = None, aliases: Sequence[str] = ()) -> Any:
-        """Annotation: the option's name (without ``--``) and extra spellings (with ``--``)."""
-        return _conf.arg(name=name, aliases=tuple(aliases) or None)
+    def cli(name: str | None = None, aliases: Sequence[str] = (), help: str | None = None) -> Any:
+        """Annotation: the option's name (without ``--``), extra spellings (with ``--``) and
+        help text (None: the field's docstring)."""
+        return _conf.arg(name=name, aliases=tuple(aliases) or None, help=help)
 
 except ImportError:  # pragma: no cover - the layer-only install
     HIDDEN = None
 
-    def cli(name: str | None = None, aliases: Sequence[str] = ()) -> Any:
+    def cli(name: str | None = None, aliases: Sequence[str] = (), help: str | None = None) -> Any:
         return None
 
 

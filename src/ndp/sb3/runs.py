@@ -1,4 +1,4 @@
-"""Stable-Baselines3 PPO on this package's tasks, logged like ``ndp rl train``: three methods.
+"""Stable-Baselines3 references on this package's tasks, logged like ``ndp rl train``.
 
 - ``sb3-ppo``: the reference trainer of ``benchmarks/ppo_vs_sb3.py`` (study ``ppo-vs-sb3``):
   SB3's PPO with the supplement's hyperparameters (those of ``ndp.rl.config.PPOConfig``'s
@@ -15,6 +15,9 @@
   weights, the DMP and the inverse controller the k sub-actions), ``sb3-multi`` SB3's
   ``MlpPolicy`` giving the k * A sub-actions directly (SB3's PPO-multi). Env steps are counted
   as decisions x k (sub-step slots, as ``ndp rl train`` counts them).
+- ``sb3-sac`` and ``sb3-td3`` (studies ``sac-vs-sb3``, ``td3-vs-sb3``): SB3's SAC / TD3 with
+  the settings of this package's ``--algo sac`` / ``--algo td3`` defaults on the per-step env,
+  no normalisation (:data:`OFF_POLICY_REFERENCES`, one row per reference).
 
 All three run one torch thread. Success is counted per env and per episode: a per-env flag is
 set when the step's success (``info["success"]``; ``info["success_decision"]``, success at any
@@ -57,11 +60,12 @@ import numpy as np
 from ndp.io import atomic_write_text
 from ndp.rl.config import EVAL_SEED, PPOConfig
 from ndp.rl.sac.config import SACConfig
+from ndp.rl.td3.config import TD3Config
 from ndp.runs import MetricsLogger
 from ndp.runs.driver import RunPlan, run
 from ndp.runs.session import LearnerDefaults, Manifest, RunSession
 
-SB3_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac")
+SB3_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac", "sb3-td3")
 """The methods this module trains (the ``sb3`` run kind's arms)."""
 SB3_K = 5
 """Env steps per decision of ``sb3-ndp`` and ``sb3-multi`` unless ``--k`` says otherwise."""
@@ -172,7 +176,7 @@ class SB3RunConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
-        if self.method in ("sb3-ppo", "sb3-sac") and self.k != 1:
+        if self.method in PER_STEP_METHODS and self.k != 1:
             raise ValueError(f"k: {self.method} runs one env step per decision, got k={self.k}")
 
     @classmethod
@@ -181,7 +185,8 @@ class SB3RunConfig:
 
 
 SB3_SAC_ROLLOUT = 2048
-"""Env steps per :meth:`SB3Learner.iterate` of ``sb3-sac`` (one metrics row; SB3's SAC itself
+"""Env steps per :meth:`SB3Learner.iterate` of ``sb3-sac`` and ``sb3-td3`` (one metrics row;
+SB3's SAC / TD3 itself
 steps the envs once and takes its gradient steps between)."""
 
 
@@ -212,6 +217,54 @@ def make_sb3_sac(venv: Any, seed: int, num_envs: int) -> Any:
     )
 
 
+def make_sb3_td3(venv: Any, seed: int, num_envs: int) -> Any:
+    """SB3's TD3 with the settings of ``ndp.rl.td3.config.TD3Config``'s defaults (SB3's own
+    defaults, but two): lr 1e-3, buffer 1M, batch 256, tau 0.005, gamma 0.99, policy delay 2,
+    target policy noise 0.2 clipped at 0.5, 400-300 ReLU (SB3's default ``net_arch`` for TD3),
+    and, as ours, Gaussian exploration noise N(0, 0.1^2) on the [-1, 1]-scaled action (SB3's
+    default: none) and 5,000 random env steps first (SB3's default ``learning_starts``: 100);
+    one gradient step per env step (``gradient_steps`` = ``num_envs`` after each vector
+    step)."""
+    from stable_baselines3 import TD3
+    from stable_baselines3.common.noise import NormalActionNoise
+
+    c = TD3Config()
+    n_act = int(np.prod(venv.action_space.shape))
+    noise = NormalActionNoise(np.zeros(n_act), np.full(n_act, c.expl_noise))
+    return TD3(
+        "MlpPolicy",
+        venv,
+        learning_rate=c.lr,
+        buffer_size=c.buffer_size,
+        learning_starts=c.random_steps,  # SB3 counts env steps (num_envs per vector step)
+        batch_size=c.batch_size,
+        tau=c.tau,
+        gamma=0.99,
+        train_freq=1,
+        gradient_steps=num_envs,
+        action_noise=noise,
+        policy_delay=c.policy_delay,
+        target_policy_noise=c.target_noise,
+        target_noise_clip=c.target_noise_clip,
+        seed=seed,
+        device="cpu",
+        verbose=0,
+        policy_kwargs={"net_arch": [400, 300]},
+    )
+
+
+OFF_POLICY_REFERENCES: dict[str, Callable[[Any, int, int], Any]] = {
+    "sb3-sac": make_sb3_sac,
+    "sb3-td3": make_sb3_td3,
+}
+"""SB3's off-policy references, one row each: method -> ``make(venv, seed, num_envs)``. They
+run on the per-step env without normalisation, one metrics row per :data:`SB3_SAC_ROLLOUT`
+env steps, with one gradient step per env step (studies ``sac-vs-sb3``, ``td3-vs-sb3``)."""
+
+PER_STEP_METHODS = ("sb3-ppo", *OFF_POLICY_REFERENCES)
+"""The methods on the per-step env (k = 1); the others run the chunked env."""
+
+
 def make_sb3_chunked(venv: Any, method: str, seed: int, k: int) -> Any:
     """SB3 PPO for ``sb3-ndp`` / ``sb3-multi``: SB3's defaults but ``n_steps`` 128 and
     ``gamma`` 0.99 ** k (the same for both; they differ in the policy only)."""
@@ -225,7 +278,7 @@ def make_sb3_chunked(venv: Any, method: str, seed: int, k: int) -> Any:
 
 def _env_maker(cfg: SB3RunConfig) -> Callable[[], Any]:
     """A function building one env of the run (per-step env, or chunked one for k > 1)."""
-    if cfg.method in ("sb3-ppo", "sb3-sac"):
+    if cfg.method in PER_STEP_METHODS:
         from ndp.rl.envs import resolve_task
 
         h = resolve_task(cfg.task)
@@ -244,8 +297,8 @@ def _env_maker(cfg: SB3RunConfig) -> Callable[[], Any]:
 def evaluate_sb3(model: Any, venv: Any, make: Callable[[], Any], episodes: int) -> dict[str, Any]:
     """The deterministic policy over ``episodes`` fresh episodes (reset seeds from
     :data:`ndp.rl.config.EVAL_SEED`), observations normalised by ``venv``'s frozen statistics
-    (as they are where ``venv`` does not normalise: ``sb3-sac``): success at any step (the mean
-    of the per-episode flags) and the mean raw return."""
+    (as they are where ``venv`` does not normalise: ``sb3-sac``, ``sb3-td3``): success at any
+    step (the mean of the per-episode flags) and the mean raw return."""
     from stable_baselines3.common.vec_env import VecNormalize
 
     norm = venv.normalize_obs if isinstance(venv, VecNormalize) else (lambda o: o)
@@ -301,7 +354,7 @@ def train_sb3(
         k: env steps per decision (None: 1 for sb3-ppo, :data:`SB3_K` otherwise).
         eval_episodes: deterministic evaluation episodes after training (0: none).
     """
-    per_step = method in ("sb3-ppo", "sb3-sac")
+    per_step = method in PER_STEP_METHODS
     cfg = SB3RunConfig(task, int(steps), int(seed), int(num_envs), horizon, str(run_dir), method,
                        (1 if per_step else SB3_K) if k is None else int(k),
                        int(eval_episodes))  # fmt: skip
@@ -311,7 +364,7 @@ def train_sb3(
 
 def rollout_decisions(cfg: SB3RunConfig) -> int:
     """Decisions (SB3 steps, over all envs) per rollout of the method's PPO."""
-    if cfg.method == "sb3-sac":
+    if cfg.method in OFF_POLICY_REFERENCES:
         return SB3_SAC_ROLLOUT
     per_env = PPOConfig().steps_per_update // cfg.num_envs if cfg.method == "sb3-ppo" else 128
     return per_env * cfg.num_envs
@@ -341,9 +394,9 @@ class SB3Learner(LearnerDefaults):
         raw_venv = DummyVecEnv([make for _ in range(cfg.num_envs)])
         raw_venv.seed(cfg.seed)
         self.venv: Any
-        if cfg.method == "sb3-sac":  # SAC's usual setting: no normalisation
+        if cfg.method in OFF_POLICY_REFERENCES:  # off-policy's usual setting: no normalisation
             self.venv = raw_venv
-            self.model = make_sb3_sac(self.venv, cfg.seed, cfg.num_envs)
+            self.model = OFF_POLICY_REFERENCES[cfg.method](self.venv, cfg.seed, cfg.num_envs)
         elif cfg.method == "sb3-ppo":
             p = PPOConfig()
             self.venv = VecNormalize(

@@ -10,6 +10,75 @@ emits the DMP's goal and forcing weights; the NDP head turns them into the k-ste
 - :mod:`ndp.rl.sac.learner`: :class:`ndp.rl.sac.learner.SACLearner`, an
   :class:`ndp.rl.run.RLLearner` that the run driver opens, seeds, drives and checkpoints.
 
-The methods are registered in :mod:`ndp.rl.methods` (``sac``, ``sac-chunk``, ``ndp-sac``) with
-the heads of :mod:`ndp.policies.squashed`; docs/offpolicy.md has the maths and the defaults.
+This module registers the settings section ``sac`` (``TrainConfig.sac``, options ``--sac-*``)
+and the methods ``sac``, ``sac-chunk``, ``ndp-sac`` (with the heads of
+:mod:`ndp.policies.squashed`) in one :func:`ndp.rl.methods.register_learner` call; importing it
+imports no torch (the learner is named by entry point). docs/offpolicy.md has the maths and the
+defaults.
 """
+
+from __future__ import annotations
+
+from typing import Any
+
+from ndp.rl.methods import (
+    OFF_POLICY_PPO_READS,
+    Method,
+    Settings,
+    networks,
+    no_dmp,
+    register_learner,
+    resolve_ndp,
+)
+from ndp.rl.sac.config import SACConfig
+
+SAC_METRICS = (
+    "sac/alpha",
+    "sac/alpha_loss",
+    "sac/q",
+    "sac/replay",
+    "sac/gradient_steps",
+)
+"""Extra ``metrics.csv`` columns of the SAC family's runs (docs/metrics.md)."""
+
+
+def _sac_networks(policy: Any) -> dict[str, Any]:
+    """SAC's networks: 256-256 ReLU (actor and each critic) unless ``hidden`` / ``activation``
+    are given."""
+    return networks(policy, (256, 256), "relu")
+
+
+def resolve_sac(policy: Any, spec: Any) -> dict[str, Any]:
+    """SAC: one action per decision (k = 1), no DMP, 256-256 ReLU."""
+    return {**no_dmp(policy, spec), **_sac_networks(policy), "k": 1}
+
+
+def resolve_sac_chunk(policy: Any, spec: Any) -> dict[str, Any]:
+    """Chunked SAC: k actions per decision (``--k``), no DMP, 256-256 ReLU."""
+    return {**no_dmp(policy, spec), **_sac_networks(policy)}
+
+
+def resolve_ndp_sac(policy: Any, spec: Any) -> dict[str, Any]:
+    """NDP-SAC: the NDP head's task presets (:func:`ndp.rl.methods.resolve_ndp`), 256-256
+    ReLU."""
+    return {**resolve_ndp(policy, spec), **_sac_networks(policy)}
+
+
+_SAC = "ndp.rl.sac.learner:SACLearner"
+_SAC_HINT = "Try a smaller --sac-lr or check the task's reward."
+_SAC_READS = ("sac", *OFF_POLICY_PPO_READS)
+register_learner(
+    Settings("sac", SACConfig, "sac", "SAC, chunked SAC and NDP-SAC settings (--algo sac / "
+             "sac-chunk / ndp-sac only)."),
+    Method("sac", "squashed", "SAC: twin critics, automatic temperature, tanh-squashed "
+           "Gaussian, one action per env step", resolve=resolve_sac, metrics=SAC_METRICS,
+           learner=_SAC, hint=_SAC_HINT, reads=_SAC_READS),
+    Method("sac-chunk", "squashed", "Chunked SAC: k actions per decision executed open-loop, "
+           "a critic of the whole chunk on the k-step return (Q-chunking)",
+           resolve=resolve_sac_chunk, metrics=SAC_METRICS, learner=_SAC, hint=_SAC_HINT,
+           reads=_SAC_READS),
+    Method("ndp-sac", "ndp-squashed", "NDP-SAC: SAC over the DMP's goal and forcing weights "
+           "(entropy over the parameters), the NDP head turning them into k actions",
+           resolve=resolve_ndp_sac, metrics=(*SAC_METRICS, "dmp/goal_norm", "dmp/weight_norm"),
+           learner=_SAC, hint=_SAC_HINT, reads=_SAC_READS),
+)  # fmt: skip

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import copy
 import math
-import time
 import warnings
 from typing import Any
 
@@ -29,29 +28,24 @@ import numpy as np
 import torch
 from torch import nn
 
-from ndp.chunk_info import dmp_start_keys
-from ndp.nets.mlp import MLP
 from ndp.policies import build_actor_critic
 from ndp.policies.squashed import SquashedGaussian, SquashedNDPHead
-from ndp.rl import envs as rl_envs
 from ndp.rl.config import TrainConfig
 from ndp.rl.logger import METRICS
-from ndp.rl.methods import SAC_METRICS
-from ndp.rl.normalize import ObsNormalizer
-from ndp.rl.periodic_eval import PeriodicEvaluator
-from ndp.rl.progress import episode_charts
+from ndp.rl.methods import section
+from ndp.rl.offpolicy.critics import TwinQ as TwinQ  # re-exported (its old home)
+from ndp.rl.offpolicy.loop import OffPolicyLearner, first_learning_decision, mean_of
+from ndp.rl.sac import SAC_METRICS
+from ndp.rl.sac.config import SACConfig
 from ndp.rl.sac.health import Q_RUNAWAY, q_runaway
 from ndp.rl.sac.losses import (
     actor_loss,
     alpha_loss,
-    bootstrap_discount,
-    chunk_return,
     critic_loss,
     critic_target,
     soft_update,
 )
-from ndp.rl.sac.replay import DecisionReplay
-from ndp.runs.session import CountsUpdates, RunSession, TrainingDivergedError, nonfinite_parameter
+from ndp.runs.session import RunSession, nonfinite_parameter
 
 COLUMNS = (*METRICS, *SAC_METRICS)
 """Columns of a SAC-family run's ``metrics.csv``."""
@@ -78,27 +72,11 @@ def critic_input(
     return torch.maximum(torch.minimum(dist.decode(u), high), low).flatten(1)
 
 
-def first_learning_decision(
-    random_steps: int, batch_size: int, capacity: int, k: int, num_envs: int
-) -> int | None:
-    """The decision round (0-based: round j is the (j+1)-th step of every env together) of the
-    first gradient step, counting every decision as k executed env steps; None when the replay
-    (``capacity`` decisions) can never hold a batch. Gradient steps start once the run has
-    executed ``random_steps`` env steps and the replay holds ``batch_size`` decisions; a round
-    adds ``num_envs`` decisions of up to ``k`` env steps each. Episodes that end inside a
-    decision execute fewer env steps, so the true first round can come later, never earlier."""
-    if capacity < batch_size:
-        return None
-    by_steps = -(-random_steps // (num_envs * k))  # rounds until random_steps have run
-    by_batch = -(-batch_size // num_envs)  # rounds until the replay holds one batch
-    return max(by_steps, by_batch, 1) - 1
-
-
 def check_budget(cfg: TrainConfig) -> None:
     """Refuse (ValueError naming the argument) a SAC-family run that can take no gradient step:
     a replay smaller than one batch, or a budget that ends before the random steps and the
     first batch are in (or before ``updates_per_step`` adds up to one gradient step)."""
-    s, k, E = cfg.sac, cfg.k, cfg.num_envs
+    s, k, E = section(cfg, SACConfig), cfg.k, cfg.num_envs
     capacity = -(-s.buffer_size // k)
     first = first_learning_decision(s.random_steps, s.batch_size, capacity, k, E)
     if first is None:
@@ -126,29 +104,9 @@ def check_budget(cfg: TrainConfig) -> None:
         )
 
 
-class TwinQ(nn.Module):
-    """Two critics ``Q_i(s, c)`` [B] of a state [B, O] and its action input [B, C]
-    (``layer_norm``: LayerNorm after each hidden linear map, :class:`ndp.nets.mlp.MLP`)."""
-
-    def __init__(
-        self,
-        obs_dim: int,
-        in_dim: int,
-        hidden: tuple[int, ...],
-        activation: str,
-        layer_norm: bool = False,
-    ) -> None:
-        super().__init__()
-        self.q1 = MLP(obs_dim + in_dim, hidden, 1, activation, layer_norm=layer_norm)
-        self.q2 = MLP(obs_dim + in_dim, hidden, 1, activation, layer_norm=layer_norm)
-
-    def forward(self, obs: torch.Tensor, c: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        x = torch.cat([obs, c], dim=-1)
-        return self.q1(x)[:, 0], self.q2(x)[:, 0]
-
-
-class SACLearner(CountsUpdates):
-    """SAC over decisions of k env steps (see the module docstring).
+class SACLearner(OffPolicyLearner):
+    """SAC over decisions of k env steps (see the module docstring), on the shared
+    off-policy loop (:class:`ndp.rl.offpolicy.loop.OffPolicyLearner`).
 
     Args:
         cfg: the resolved config (``cfg.sac``: :class:`ndp.rl.sac.config.SACConfig`).
@@ -157,13 +115,9 @@ class SACLearner(CountsUpdates):
 
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         check_budget(cfg)  # before any env is built
-        task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
-        self.cfg, self.spec, self.session = cfg, task.spec, session
-        self.run = session.run
-        s = cfg.sac
-        self.k, self.E, self.T = cfg.k, cfg.num_envs, cfg.decisions_per_env
-        self.gamma = float(cfg.ppo.gamma)
-        self.envs, self.obs_dim = rl_envs.run_envs(cfg, task)
+        s = self.settings = section(cfg, SACConfig)
+        self._open_loop(cfg, session, random_steps=s.random_steps, batch_size=s.batch_size,
+                        updates_per_step=s.updates_per_step)  # fmt: skip
         self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         self.P = self.model.head.n_params // 2
         self.is_ndp = isinstance(self.model.head, SquashedNDPHead)
@@ -183,24 +137,7 @@ class SACLearner(CountsUpdates):
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=s.lr)
         self._critic_params = list(self.critic.parameters())
         self.target_entropy = float(-self.P if s.target_entropy is None else s.target_entropy)
-        D = int(self.spec.dmp_dofs)
-        dims = {"obs": self.obs_dim, "next_obs": self.obs_dim, "u": self.P, "critic_in": c_dim,
-                "y0": D, "dy0": D, "next_y0": D, "next_dy0": D}  # fmt: skip
-        self.replay = DecisionReplay(-(-s.buffer_size // self.k), dims)
-        self.obs_norm = ObsNormalizer(self.obs_dim, cfg.ppo.clip_obs, enabled=False)
-        self.evaluator = PeriodicEvaluator(cfg, self.spec)
-        self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
-        self.high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
-        self.rng = np.random.default_rng(cfg.seed)
-        frame = cfg.policy.dmp_state
-        assert frame is not None  # resolve_config fills it from the task's preset
-        self.frame: str = frame
-        self.update = 0
-        self.global_step = 0
-        self.grad_steps = 0
-        self.update_debt = 0.0
-        self._tracker = rl_envs.EpisodeTracker(self.E)
-        self._started = False  # the envs are reset at the first iteration, after any restore
+        self._open_replay(-(-s.buffer_size // self.k), {"u": self.P, "critic_in": c_dim})
         self.return_peak: float | None = None
         """The largest |mean training-episode return| of any update so far (None: no episode
         has ended yet); saved with the checkpoint (critic health, :mod:`ndp.rl.sac.health`)."""
@@ -234,10 +171,7 @@ class SACLearner(CountsUpdates):
                 "critic_opt": self.critic_opt.state_dict(),
                 "alpha_opt": self.alpha_opt.state_dict(),
                 "log_alpha": self.log_alpha.detach().clone(),
-                "replay": self.replay.state_dict(),
-                "rng": self.rng.bit_generator.state,
-                "grad_steps": self.grad_steps,
-                "update_debt": self.update_debt,
+                **self.loop_state(),
                 "return_peak": self.return_peak,
             },
         }
@@ -255,24 +189,10 @@ class SACLearner(CountsUpdates):
         self.alpha_opt.load_state_dict(s["alpha_opt"])
         with torch.no_grad():
             self.log_alpha.copy_(s["log_alpha"])
-        self.replay.load_state_dict(s["replay"])
-        self.rng.bit_generator.state = s["rng"]
-        self.grad_steps, self.update_debt = int(s["grad_steps"]), float(s["update_debt"])
+        self.load_loop_state(s)
         self.return_peak = s.get("return_peak")  # checkpoints before 2026-12-05 lack it
 
-    def close(self) -> None:
-        """Close the environments (training and evaluation)."""
-        self.envs.close()
-        self.evaluator.close()
-
     # ----------------------------------------------------------------------- acting
-    def _start(self) -> None:
-        seeds = rl_envs.env_seeds(self.cfg.seed, self.E, epoch=self.update)
-        obs, info = self.envs.reset(seed=seeds)  # type: ignore[arg-type]
-        self._obs = np.asarray(obs, dtype=np.float64).reshape(self.E, self.obs_dim)
-        self._y0, self._dy0 = rl_envs.decision_start(info, self.E, self.frame)
-        self._started = True
-
     def _dist(self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor) -> SquashedGaussian:
         dist, _ = self.model.distribution(obs, y0, dy0)
         assert isinstance(dist, SquashedGaussian)  # the squashed heads
@@ -287,77 +207,26 @@ class SACLearner(CountsUpdates):
         p = self.rng.uniform(-1.0 + 1e-6, 1.0 - 1e-6, size=(self.E, self.P))
         return torch.as_tensor(np.arctanh(p), dtype=torch.float32)
 
-    def _next_start(self, infos: dict[str, Any], done: np.ndarray) -> tuple[np.ndarray, ...]:
-        """The robot state (y0, dy0) [E, D] after the decision: the finished step's where an
-        episode ended (the next state of its last transition), else the env's."""
-        ky, kdy = dmp_start_keys(self.frame)
-        y0, dy0 = rl_envs.decision_start(infos, self.E, self.frame)
-        if done.any() and ky in infos.get("final_info", {}):
-            y0 = rl_envs.step_info(infos, done, ky).reshape(self.E, -1)
-            dy0 = rl_envs.step_info(infos, done, kdy).reshape(self.E, -1)
-        return y0, dy0
+    def act(
+        self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, explore: bool
+    ) -> tuple[torch.Tensor, dict[str, np.ndarray]]:
+        """A draw of the squashed Gaussian (uniform in the bounded space during the random
+        steps): the actions [E, k, A] and the replay's ``u`` [E, P], ``critic_in`` [E, C]."""
+        dist = self._dist(obs, y0, dy0)
+        u = dist.sample() if explore else self._random_u()
+        act = torch.maximum(torch.minimum(dist.actions(u), self.high), self.low)
+        c = self.critic_input(u, dist)
+        return act, {"u": u.numpy(), "critic_in": c.numpy()}
 
     # ----------------------------------------------------------------------- learning
     def iterate(self) -> dict[str, float]:
-        """T decisions per env, with ``updates_per_step`` gradient steps per env step once the
-        random steps are done; returns the iteration's metrics row.
+        """One iteration of the shared loop (:meth:`OffPolicyLearner.iterate`), then the
+        critic's health is checked.
 
         Raises:
             TrainingDivergedError: NaN / Inf in a loss or parameter.
         """
-        if not self._started:
-            self._start()
-        t0 = time.perf_counter()
-        s, E, k = self.cfg.sac, self.E, self.k
-        episodes: list[tuple[float, float, float, float, float]] = []
-        losses: dict[str, list[float]] = {"critic": [], "actor": [], "alpha": [], "q": []}
-        executed, t_update = 0, 0.0
-        for _ in range(self.T):
-            obs = torch.as_tensor(self._obs, dtype=torch.float32)
-            y0 = torch.as_tensor(self._y0, dtype=torch.float32)
-            dy0 = torch.as_tensor(self._dy0, dtype=torch.float32)
-            with torch.no_grad():
-                dist = self._dist(obs, y0, dy0)
-                acting = self.global_step + executed >= s.random_steps
-                u = dist.sample() if acting else self._random_u()
-                act = torch.maximum(torch.minimum(dist.actions(u), self.high), self.low)
-                c = self.critic_input(u, dist)
-            if not bool(torch.isfinite(act).all()):
-                raise self.session.diverged("non-finite actions (check the observations)",
-                                            self.update)  # fmt: skip
-            nxt, _, term, trunc, infos = self.envs.step(act.numpy())
-            term = np.asarray(term, dtype=bool)
-            done = term | np.asarray(trunc, dtype=bool)
-            sub_r, live, mask = rl_envs.decision_rewards(infos, done, E, k)
-            self._tracker.add(infos, done, sub_r, live, mask, episodes)
-            ret, n = chunk_return(torch.as_tensor(sub_r), torch.as_tensor(mask), self.gamma)
-            discount = bootstrap_discount(n, torch.as_tensor(term, dtype=n.dtype), self.gamma)
-            nxt = np.asarray(nxt, dtype=np.float64).reshape(E, self.obs_dim)
-            final = nxt.copy()
-            if done.any() and "final_obs" in infos:
-                for i in np.flatnonzero(done):
-                    final[i] = np.asarray(infos["final_obs"][i], dtype=np.float64).reshape(-1)
-            next_y0, next_dy0 = self._next_start(infos, done)
-            self.replay.add(obs=self._obs, y0=self._y0, dy0=self._dy0, u=u.numpy(),
-                            critic_in=c.numpy(), ret=ret.numpy(), discount=discount.numpy(),
-                            next_obs=final, next_y0=next_y0, next_dy0=next_dy0)  # fmt: skip
-            n_exec = int(mask.sum())
-            executed += n_exec
-            self._obs = nxt
-            self._y0, self._dy0 = rl_envs.decision_start(infos, E, self.frame)
-            if self.global_step + executed >= s.random_steps and self.replay.size >= s.batch_size:
-                self.update_debt += s.updates_per_step * n_exec
-                t1 = time.perf_counter()
-                while self.update_debt >= 1.0:
-                    self._gradient_step(losses)
-                    self.update_debt -= 1.0
-                t_update += time.perf_counter() - t1
-        self.update += 1
-        before, self.global_step = self.global_step, self.global_step + executed
-        wall = time.perf_counter() - t0
-        row = self._metrics(episodes, losses, executed, wall - t_update, t_update)
-        last = self.update >= self.cfg.num_updates
-        row.update(self.evaluator.maybe(before, self.global_step, last, self.model, self.obs_norm))
+        row = super().iterate()
         self._watch_critic(row)
         return row
 
@@ -377,13 +246,12 @@ class SACLearner(CountsUpdates):
             f"so far ({self.return_peak:,.0f}): the critic is running away; numbers of this "
             "run are those of a diverged critic (docs/offpolicy.md, 'Critic health'; said once)",
             RuntimeWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
 
-    def _gradient_step(self, losses: dict[str, list[float]]) -> None:
-        """One step of the critics, the actor and the temperature on a replay batch."""
-        s = self.cfg.sac
-        b = self.replay.sample(s.batch_size, self.rng)
+    def gradient_step(self, b: dict[str, torch.Tensor]) -> dict[str, float]:
+        """One step of the critics, the actor and the temperature on a replay batch ``b``."""
+        s = self.settings
         alpha = self.log_alpha.detach().exp()
         with torch.no_grad():
             dist_n = self._dist(b["next_obs"], b["next_y0"], b["next_dy0"])
@@ -409,11 +277,12 @@ class SACLearner(CountsUpdates):
         lt = alpha_loss(self.log_alpha, logp, self.target_entropy)
         self._step(self.alpha_opt, lt, "temperature")
         soft_update(self.critic_target, self.critic, s.tau)
-        self.grad_steps += 1
-        losses["critic"].append(float(lc.detach()))
-        losses["actor"].append(float(la.detach()))
-        losses["alpha"].append(float(lt.detach()))
-        losses["q"].append(float(torch.minimum(q1, q2).detach().mean()))
+        return {
+            "critic": float(lc.detach()),
+            "actor": float(la.detach()),
+            "alpha": float(lt.detach()),
+            "q": float(torch.minimum(q1, q2).detach().mean()),
+        }
 
     def _step(self, opt: torch.optim.Optimizer, loss: torch.Tensor, what: str) -> None:
         if not bool(torch.isfinite(loss)):
@@ -422,34 +291,15 @@ class SACLearner(CountsUpdates):
         loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
         opt.step()
 
-    def _diverged(self, what: str) -> TrainingDivergedError:
-        return self.session.diverged(what, self.update)
-
-    def _metrics(
-        self,
-        episodes: list[tuple[float, float, float, float, float]],
-        losses: dict[str, list[float]],
-        executed: int,
-        t_roll: float,
-        t_upd: float,
-    ) -> dict[str, float]:
-        def mean(key: str) -> float:
-            v = losses[key]
-            return float(np.mean(v)) if v else math.nan
-
+    def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
+        """SAC's columns of the row: learning rate, losses, temperature, Q, replay, steps."""
         return {
-            "update": self.update,
-            "global_step": self.global_step,
-            **episode_charts(episodes),
-            "charts/env_steps_per_s": executed / max(t_roll + t_upd, 1e-9),
-            "charts/learning_rate": self.cfg.sac.lr,
-            "losses/policy": mean("actor"),
-            "losses/value": mean("critic"),
-            "time/rollout_s": t_roll,
-            "time/update_s": t_upd,
+            "charts/learning_rate": self.settings.lr,
+            "losses/policy": mean_of(losses, "actor"),
+            "losses/value": mean_of(losses, "critic"),
             "sac/alpha": float(self.log_alpha.detach().exp()),
-            "sac/alpha_loss": mean("alpha"),
-            "sac/q": mean("q"),
+            "sac/alpha_loss": mean_of(losses, "alpha"),
+            "sac/q": mean_of(losses, "q"),
             "sac/replay": float(self.replay.size),
             "sac/gradient_steps": float(self.grad_steps),
         }

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import torch
 
+from ndp.rl.offpolicy.returns import bootstrap_discount as bootstrap_discount  # re-exported:
+from ndp.rl.offpolicy.returns import chunk_return as chunk_return  # the shared loop's
 from ndp.rl.optim import soft_update
 
 __all__ = [
@@ -27,29 +29,6 @@ __all__ = [
     "critic_target",
     "soft_update",
 ]
-
-
-def chunk_return(
-    rewards: torch.Tensor, mask: torch.Tensor, gamma: float
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """The discounted return of a decision's executed sub-steps, and their count.
-
-    Args:
-        rewards: [B, k] sub-step rewards.
-        mask: [B, k] 1 for executed sub-steps (the rest after an episode's end).
-        gamma: discount per env step.
-
-    Returns:
-        ``R`` [B] = sum_j gamma^j r_j m_j, and ``n`` [B] = sum_j m_j.
-    """
-    k = rewards.shape[1]
-    powers = gamma ** torch.arange(k, dtype=rewards.dtype, device=rewards.device)
-    return (rewards * mask * powers).sum(1), mask.sum(1)
-
-
-def bootstrap_discount(n: torch.Tensor, terminal: torch.Tensor, gamma: float) -> torch.Tensor:
-    """``gamma^n (1 - terminal)`` [B]: the weight of the next state's value in the target."""
-    return gamma**n * (1.0 - terminal)
 
 
 def critic_target(

@@ -53,9 +53,11 @@ from ndp.nets.mlp import MLP
 from ndp.policies import build_actor_critic
 from ndp.policies.dyne import ActionDecoder, DyneHead, SequenceEmbedding
 from ndp.rl import envs as rl_envs
-from ndp.rl.config import DyneConfig, TrainConfig
+from ndp.rl.config import TrainConfig
+from ndp.rl.dyne import DYNE_METRICS
+from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.logger import METRICS
-from ndp.rl.methods import DYNE_METRICS
+from ndp.rl.methods import section, with_section
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.optim import soft_update
 from ndp.rl.periodic_eval import PeriodicEvaluator
@@ -80,19 +82,25 @@ COLUMNS = (*METRICS, *DYNE_METRICS)
 """Columns of a Dyn-E run's ``metrics.csv``."""
 
 
+def _dyne(cfg: TrainConfig) -> DyneConfig:
+    """The run's Dyn-E settings (``cfg.dyne``, typed)."""
+    return section(cfg, DyneConfig)
+
+
 def resolve_dyne_config(cfg: TrainConfig) -> TrainConfig:
     """Fill ``dyne.explore_steps`` where None: the task's preset, at most a sixth of the budget
     (the preset's share of the 300k study budget), so that short budgets keep TD3 iterations."""
-    if cfg.dyne.explore_steps is not None:
+    if _dyne(cfg).explore_steps is not None:
         return cfg
     n = min(DYNE_EXPLORE_STEPS.get(cfg.task, DEFAULT_EXPLORE_STEPS), max(cfg.steps // 6, 1))
-    return dataclasses.replace(cfg, dyne=dataclasses.replace(cfg.dyne, explore_steps=n))
+    return with_section(cfg, dataclasses.replace(_dyne(cfg), explore_steps=n))
 
 
 def explore_iterations(cfg: TrainConfig) -> int:
     """Iterations (rows) of the exploration phase: ceil(explore_steps / env steps per row)."""
-    assert cfg.dyne.explore_steps is not None
-    return math.ceil(cfg.dyne.explore_steps / cfg.env_steps_per_update)
+    n = _dyne(cfg).explore_steps
+    assert n is not None
+    return math.ceil(n / cfg.env_steps_per_update)
 
 
 def check_budget(cfg: TrainConfig) -> None:
@@ -103,11 +111,11 @@ def check_budget(cfg: TrainConfig) -> None:
     if cfg.num_updates <= n:
         raise ValueError(
             f"steps: Dyn-E spends its first {n * cfg.env_steps_per_update} env steps "
-            f"(explore_steps={cfg.dyne.explore_steps}, in iterations of "
+            f"(explore_steps={_dyne(cfg).explore_steps}, in iterations of "
             f"{cfg.env_steps_per_update}) on exploration data for the embedding; --steps "
             f"{cfg.steps} leaves no TD3 iteration (use more --steps or fewer --explore-steps)"
         )
-    d = cfg.dyne
+    d = _dyne(cfg)
     decisions = (cfg.num_updates - n) * cfg.decisions_per_env * cfg.num_envs
     if decisions < d.batch_size:
         raise ValueError(
@@ -293,7 +301,7 @@ class DyneLearner(CountsUpdates):
         self.actor_target = copy.deepcopy(self.model.actor)
         for net in (self.critic_target, self.actor_target):
             net.requires_grad_(False)
-        d = cfg.dyne
+        d = _dyne(cfg)
         self.actor_opt = torch.optim.Adam(self.model.actor.parameters(), lr=d.actor_lr, fused=True)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=d.critic_lr, fused=True)
         self.replay = dyne_replay(d.replay_size, self.obs_dim, self.L, self.k)
@@ -449,7 +457,7 @@ class DyneLearner(CountsUpdates):
             for x in zip(*self._explore_data, strict=True)
         )
         stats = train_embedding(
-            self.embedding, self.head.decoder, s0, act, delta, self.cfg.dyne, self.gen
+            self.embedding, self.head.decoder, s0, act, delta, _dyne(self.cfg), self.gen
         )
         with torch.no_grad():
             self.head.max_latent.fill_(stats["max_latent"])
@@ -463,11 +471,11 @@ class DyneLearner(CountsUpdates):
         """Latents [E, L] for the next decision (random during start_steps, else actor +
         exploration noise, clipped to the latent range)."""
         m = float(self.head.max_latent)
-        if self.rl_steps < self.cfg.dyne.start_steps:
+        if self.rl_steps < _dyne(self.cfg).start_steps:
             return self.rng.uniform(-m, m, size=(self.E, self.L)).astype(np.float32)
         with torch.no_grad():
             z = self.head.latent(self.model.actor(torch.from_numpy(obs_n))).numpy()
-        noise = self.rng.normal(0.0, self.cfg.dyne.expl_noise * m, size=z.shape)
+        noise = self.rng.normal(0.0, _dyne(self.cfg).expl_noise * m, size=z.shape)
         return np.clip(z + noise, -m, m).astype(np.float32)
 
     def _rl_iteration(self) -> dict[str, Any]:
@@ -477,7 +485,7 @@ class DyneLearner(CountsUpdates):
         executed = 0
         losses: dict[str, list[float]] = {"critic": [], "actor": [], "q": []}
         t_update = 0.0
-        d = self.cfg.dyne
+        d = _dyne(self.cfg)
         for _ in range(self.T):
             obs_n = self.obs_norm(self._obs)
             z = self._act(obs_n)
@@ -510,7 +518,7 @@ class DyneLearner(CountsUpdates):
 
     # ----------------------------------------------------------------------- TD3
     def _td3_step(self, losses: dict[str, list[float]]) -> None:
-        d, k = self.cfg.dyne, self.k
+        d, k = _dyne(self.cfg), self.k
         gamma = self.cfg.ppo.gamma
         m = self.head.max_latent
         b = self.replay.sample(d.batch_size, self.rng)
@@ -596,10 +604,10 @@ class DyneLearner(CountsUpdates):
             "global_step": self.global_step,
             **episode_charts(batch["episodes"]),
             "charts/env_steps_per_s": batch["executed"] / max(t_roll + t_upd, 1e-9),
-            "charts/learning_rate": self.cfg.dyne.critic_lr if in_rl else math.nan,
+            "charts/learning_rate": _dyne(self.cfg).critic_lr if in_rl else math.nan,
             "losses/policy": _mean("actor"),
             "losses/value": _mean("critic"),
-            "policy/std": self.cfg.dyne.expl_noise * m if in_rl else math.nan,
+            "policy/std": _dyne(self.cfg).expl_noise * m if in_rl else math.nan,
             "time/rollout_s": t_roll,
             "time/update_s": t_upd,
             "dyne/embed_loss": embed.get("embed_loss", math.nan),

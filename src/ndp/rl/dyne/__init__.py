@@ -1,0 +1,69 @@
+"""Dyn-E (Whitney et al., ICLR 2020), one package: TD3 acting in a learned, dynamics-aware
+embedding of k-action sequences.
+
+- :mod:`ndp.rl.dyne.config`: :class:`ndp.rl.dyne.config.DyneConfig`, the settings;
+- :mod:`ndp.rl.dyne.learner`: :class:`ndp.rl.dyne.learner.DyneLearner` and the embedding's
+  training (torch; its names are also reachable here, ``ndp.rl.dyne.DyneLearner``, imported on
+  first use).
+
+This module registers the settings section ``dyne`` and the method ``dyne`` in one
+:func:`ndp.rl.methods.register_learner` call and imports no torch. docs/dyne.md has the maths,
+the defaults and the deviations.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ndp.rl.dyne.config import DyneConfig
+from ndp.rl.methods import (
+    OFF_POLICY_PPO_READS,
+    Method,
+    Settings,
+    networks,
+    no_dmp,
+    register_learner,
+)
+
+DYNE_METRICS = (
+    "dyne/embed_loss",
+    "dyne/embed_kl",
+    "dyne/decoder_loss",
+    "dyne/q",
+    "dyne/replay",
+    "dyne/gradient_steps",
+)
+"""Extra ``metrics.csv`` columns of Dyn-E runs (docs/metrics.md)."""
+
+
+def resolve_dyne(policy: Any, spec: Any) -> dict[str, Any]:
+    """Dyn-E: no DMP; the TD3 actor is 400-300 ReLU (the original's) unless ``hidden`` /
+    ``activation`` are given."""
+    return {**no_dmp(policy, spec), **networks(policy, (400, 300), "relu")}
+
+
+register_learner(
+    Settings("dyne", DyneConfig, "", "Dyn-E settings (--algo dyne only)."),
+    Method(
+        "dyne",
+        "dyne",
+        "Dyn-E: TD3 in a learned, dynamics-aware embedding of k-action sequences",
+        resolve=resolve_dyne,
+        metrics=DYNE_METRICS,
+        learner="ndp.rl.dyne:DyneLearner",  # torch and the simulators only once it trains
+        hint="Try smaller --actor-lr / --critic-lr or check the task's reward.",
+        reads=("dyne", *OFF_POLICY_PPO_READS, "ppo.norm_obs"),
+    ),
+)
+
+
+def __getattr__(name: str) -> Any:
+    """The learner module's names (``DyneLearner``, ``resolve_dyne_config``, ...), imported on
+    first use so that registering Dyn-E imports no torch."""
+    import importlib
+
+    learner = importlib.import_module("ndp.rl.dyne.learner")
+    try:
+        return getattr(learner, name)
+    except AttributeError:
+        raise AttributeError(f"module 'ndp.rl.dyne' has no attribute {name!r}") from None

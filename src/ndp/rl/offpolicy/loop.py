@@ -1,0 +1,279 @@
+"""The off-policy collection loop shared by the SAC family (:mod:`ndp.rl.sac`) and TD3
+(:mod:`ndp.rl.td3`): env stepping over decisions of k env steps, the chunk return and its
+bootstrap weight, replay insertion, the random steps before learning, the gradient-step budget,
+the periodic evaluation and the metrics row.
+
+One iteration (E envs, T decisions per env, k sub-steps, A actions, O observations)::
+
+    obs [E, O], robot state y0, dy0 [E, D] --algorithm.act--> actions [E, k, A] + the
+    algorithm's replay columns --ChunkedEnv x E--> sub-rewards [E, k], mask [E, k] -->
+    chunk return, bootstrap weight --> replay (one row per decision) --> once random_steps env
+    steps have run and the replay holds a batch: updates_per_step x (executed env steps)
+    gradient steps (algorithm.gradient_step on a replay batch)
+
+A learner subclasses :class:`OffPolicyLearner` and supplies only the algorithm's part
+(:class:`OffPolicyAlgorithm`: acting, one gradient step, its metrics and its state); the run
+driver (:mod:`ndp.runs.driver`) opens, seeds, restores, drives and checkpoints it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Protocol
+
+import numpy as np
+import torch
+
+from ndp.chunk_info import dmp_start_keys
+from ndp.rl import envs as rl_envs
+from ndp.rl.config import TrainConfig
+from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.offpolicy.replay import DecisionReplay
+from ndp.rl.offpolicy.returns import bootstrap_discount, chunk_return
+from ndp.rl.periodic_eval import PeriodicEvaluator
+from ndp.rl.progress import episode_charts
+from ndp.runs.session import CountsUpdates, RunSession, TrainingDivergedError
+
+REPLAY_COLUMNS = ("obs", "y0", "dy0", "ret", "discount", "next_obs", "next_y0", "next_dy0")
+"""Replay columns the loop fills itself (a batch holds them as [B, width] tensors; ``ret``
+and ``discount`` are [B, 1]); an algorithm adds its own (``act``'s second value)."""
+
+
+class OffPolicyAlgorithm(Protocol):
+    """The algorithm-specific part of an off-policy learner (what :class:`OffPolicyLearner`
+    calls)."""
+
+    def act(
+        self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, explore: bool
+    ) -> tuple[torch.Tensor, dict[str, np.ndarray]]:
+        """One decision of every env from obs [E, O], y0 / dy0 [E, D] (no gradient):
+        ``explore`` False means the random steps (act uniformly at random). Returns the actions
+        [E, k, A] inside the task's bounds and the algorithm's replay columns ({name: [E, w]})."""
+        ...
+
+    def gradient_step(self, batch: dict[str, torch.Tensor]) -> dict[str, float]:
+        """One gradient step on a replay batch; returns the values to average into the row
+        ({name: value}; a name missing from a step is not averaged for it)."""
+        ...
+
+    def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
+        """The row's algorithm columns (``losses/*``, ``charts/learning_rate``, its own) from
+        the iteration's gradient-step values."""
+        ...
+
+
+class OffPolicyLearner(CountsUpdates):
+    """The collection loop of an off-policy learner over decisions of k env steps (see the
+    module docstring). A subclass calls :meth:`_open_loop` (envs) before building its
+    networks, then :meth:`_open_replay` (replay, evaluator, generator), and implements
+    :class:`OffPolicyAlgorithm`.
+
+    Attributes set by the loop: ``cfg``, ``spec``, ``session``, ``run``, ``k``, ``E``, ``T``,
+    ``gamma``, ``envs``, ``obs_dim``, ``replay``, ``obs_norm`` (identity statistics: the
+    observations enter unnormalised), ``evaluator``, ``low`` / ``high`` [A] (action bounds),
+    ``rng`` (numpy, seeded with the run's seed: random actions and replay batches), ``frame``,
+    ``update``, ``global_step``, ``grad_steps``, ``update_debt``.
+    """
+
+    model: Any
+    random_steps: int
+    batch_size: int
+    updates_per_step: float
+
+    def _open_loop(
+        self,
+        cfg: TrainConfig,
+        session: RunSession,
+        *,
+        random_steps: int,
+        batch_size: int,
+        updates_per_step: float,
+    ) -> None:
+        """Resolve the task and build the training envs (before any network: the order of
+        the global RNG's draws is the learner's)."""
+        task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
+        self.cfg, self.spec, self.session = cfg, task.spec, session
+        self.run = session.run
+        self.random_steps, self.batch_size = random_steps, batch_size
+        self.updates_per_step = updates_per_step
+        self.k, self.E, self.T = cfg.k, cfg.num_envs, cfg.decisions_per_env
+        self.gamma = float(cfg.ppo.gamma)
+        self.envs, self.obs_dim = rl_envs.run_envs(cfg, task)
+
+    def _open_replay(self, capacity: int, dims: dict[str, int]) -> None:
+        """The replay (``capacity`` decisions; the loop's columns plus the algorithm's
+        ``dims``), the identity observation statistics, the periodic evaluator, the action
+        bounds, the generator and the counters."""
+        D = int(self.spec.dmp_dofs)
+        cols = {"obs": self.obs_dim, "next_obs": self.obs_dim, **dims,
+                "y0": D, "dy0": D, "next_y0": D, "next_dy0": D}  # fmt: skip
+        self.replay = DecisionReplay(capacity, cols)
+        self.obs_norm = ObsNormalizer(self.obs_dim, self.cfg.ppo.clip_obs, enabled=False)
+        self.evaluator = PeriodicEvaluator(self.cfg, self.spec)
+        self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
+        self.high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
+        self.rng = np.random.default_rng(self.cfg.seed)
+        frame = self.cfg.policy.dmp_state
+        assert frame is not None  # resolve_config fills it from the task's preset
+        self.frame: str = frame
+        self.update = 0
+        self.global_step = 0
+        self.grad_steps = 0
+        self.update_debt = 0.0
+        self._tracker = rl_envs.EpisodeTracker(self.E)
+        self._started = False  # the envs are reset at the first iteration, after any restore
+
+    # ----------------------------------------------------------------------- the algorithm
+    def act(
+        self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, explore: bool
+    ) -> tuple[torch.Tensor, dict[str, np.ndarray]]:
+        """:meth:`OffPolicyAlgorithm.act`."""
+        raise NotImplementedError
+
+    def gradient_step(self, batch: dict[str, torch.Tensor]) -> dict[str, float]:
+        """:meth:`OffPolicyAlgorithm.gradient_step`."""
+        raise NotImplementedError
+
+    def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
+        """:meth:`OffPolicyAlgorithm.algorithm_metrics`."""
+        raise NotImplementedError
+
+    # ----------------------------------------------------------------------- the loop's state
+    def loop_state(self) -> dict[str, Any]:
+        """The loop's part of the checkpoint: replay, generator, gradient steps, update debt."""
+        return {
+            "replay": self.replay.state_dict(),
+            "rng": self.rng.bit_generator.state,
+            "grad_steps": self.grad_steps,
+            "update_debt": self.update_debt,
+        }
+
+    def load_loop_state(self, state: dict[str, Any]) -> None:
+        """Continue from :meth:`loop_state`'s output."""
+        self.replay.load_state_dict(state["replay"])
+        self.rng.bit_generator.state = state["rng"]
+        self.grad_steps, self.update_debt = int(state["grad_steps"]), float(state["update_debt"])
+
+    def close(self) -> None:
+        """Close the environments (training and evaluation)."""
+        self.envs.close()
+        self.evaluator.close()
+
+    # ----------------------------------------------------------------------- acting
+    def _start(self) -> None:
+        seeds = rl_envs.env_seeds(self.cfg.seed, self.E, epoch=self.update)
+        obs, info = self.envs.reset(seed=seeds)  # type: ignore[arg-type]
+        self._obs = np.asarray(obs, dtype=np.float64).reshape(self.E, self.obs_dim)
+        self._y0, self._dy0 = rl_envs.decision_start(info, self.E, self.frame)
+        self._started = True
+
+    def _next_start(self, infos: dict[str, Any], done: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The robot state (y0, dy0) [E, D] after the decision: the finished step's where an
+        episode ended (the next state of its last transition), else the env's."""
+        ky, kdy = dmp_start_keys(self.frame)
+        y0, dy0 = rl_envs.decision_start(infos, self.E, self.frame)
+        if done.any() and ky in infos.get("final_info", {}):
+            y0 = rl_envs.step_info(infos, done, ky).reshape(self.E, -1)
+            dy0 = rl_envs.step_info(infos, done, kdy).reshape(self.E, -1)
+        return y0, dy0
+
+    # ----------------------------------------------------------------------- learning
+    def iterate(self) -> dict[str, float]:
+        """T decisions per env, with ``updates_per_step`` gradient steps per env step once the
+        random steps are done; returns the iteration's metrics row.
+
+        Raises:
+            TrainingDivergedError: NaN / Inf in an action, a loss or a parameter.
+        """
+        if not self._started:
+            self._start()
+        t0 = time.perf_counter()
+        E, k = self.E, self.k
+        episodes: list[tuple[float, float, float, float, float]] = []
+        losses: dict[str, list[float]] = {}
+        executed, t_update = 0, 0.0
+        for _ in range(self.T):
+            obs = torch.as_tensor(self._obs, dtype=torch.float32)
+            y0 = torch.as_tensor(self._y0, dtype=torch.float32)
+            dy0 = torch.as_tensor(self._dy0, dtype=torch.float32)
+            with torch.no_grad():
+                acting = self.global_step + executed >= self.random_steps
+                act, columns = self.act(obs, y0, dy0, acting)
+            if not bool(torch.isfinite(act).all()):
+                raise self.session.diverged("non-finite actions (check the observations)",
+                                            self.update)  # fmt: skip
+            nxt, _, term, trunc, infos = self.envs.step(act.numpy())
+            term = np.asarray(term, dtype=bool)
+            done = term | np.asarray(trunc, dtype=bool)
+            sub_r, live, mask = rl_envs.decision_rewards(infos, done, E, k)
+            self._tracker.add(infos, done, sub_r, live, mask, episodes)
+            ret, n = chunk_return(torch.as_tensor(sub_r), torch.as_tensor(mask), self.gamma)
+            discount = bootstrap_discount(n, torch.as_tensor(term, dtype=n.dtype), self.gamma)
+            nxt = np.asarray(nxt, dtype=np.float64).reshape(E, self.obs_dim)
+            final = nxt.copy()
+            if done.any() and "final_obs" in infos:
+                for i in np.flatnonzero(done):
+                    final[i] = np.asarray(infos["final_obs"][i], dtype=np.float64).reshape(-1)
+            next_y0, next_dy0 = self._next_start(infos, done)
+            self.replay.add(obs=self._obs, y0=self._y0, dy0=self._dy0, **columns,
+                            ret=ret.numpy(), discount=discount.numpy(), next_obs=final,
+                            next_y0=next_y0, next_dy0=next_dy0)  # fmt: skip
+            n_exec = int(mask.sum())
+            executed += n_exec
+            self._obs = nxt
+            self._y0, self._dy0 = rl_envs.decision_start(infos, E, self.frame)
+            if (
+                self.global_step + executed >= self.random_steps
+                and self.replay.size >= self.batch_size
+            ):
+                self.update_debt += self.updates_per_step * n_exec
+                t1 = time.perf_counter()
+                while self.update_debt >= 1.0:
+                    batch = self.replay.sample(self.batch_size, self.rng)
+                    for name, value in self.gradient_step(batch).items():
+                        losses.setdefault(name, []).append(value)
+                    self.grad_steps += 1
+                    self.update_debt -= 1.0
+                t_update += time.perf_counter() - t1
+        self.update += 1
+        before, self.global_step = self.global_step, self.global_step + executed
+        wall = time.perf_counter() - t0
+        t_roll = wall - t_update
+        row = {
+            "update": self.update,
+            "global_step": self.global_step,
+            **episode_charts(episodes),
+            "charts/env_steps_per_s": executed / max(t_roll + t_update, 1e-9),
+            "time/rollout_s": t_roll,
+            "time/update_s": t_update,
+            **self.algorithm_metrics(losses),
+        }
+        last = self.update >= self.cfg.num_updates
+        row.update(self.evaluator.maybe(before, self.global_step, last, self.model, self.obs_norm))
+        return row
+
+    def _diverged(self, what: str) -> TrainingDivergedError:
+        return self.session.diverged(what, self.update)
+
+
+def first_learning_decision(
+    random_steps: int, batch_size: int, capacity: int, k: int, num_envs: int
+) -> int | None:
+    """The decision round (0-based: round j is the (j+1)-th step of every env together) of the
+    first gradient step, counting every decision as k executed env steps; None when the replay
+    (``capacity`` decisions) can never hold a batch. Gradient steps start once the run has
+    executed ``random_steps`` env steps and the replay holds ``batch_size`` decisions; a round
+    adds ``num_envs`` decisions of up to ``k`` env steps each. Episodes that end inside a
+    decision execute fewer env steps, so the true first round can come later, never earlier."""
+    if capacity < batch_size:
+        return None
+    by_steps = -(-random_steps // (num_envs * k))  # rounds until random_steps have run
+    by_batch = -(-batch_size // num_envs)  # rounds until the replay holds one batch
+    return max(by_steps, by_batch, 1) - 1
+
+
+def mean_of(losses: dict[str, list[float]], key: str) -> float:
+    """The mean of an iteration's values of ``key`` (NaN when no gradient step gave one)."""
+    v = losses.get(key, [])
+    return float(np.mean(v)) if v else math.nan

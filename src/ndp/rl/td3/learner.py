@@ -1,0 +1,234 @@
+"""TD3 (Fujimoto et al. 2018) on the shared off-policy loop (:mod:`ndp.rl.offpolicy.loop`).
+
+Data flow of one decision (E envs, P = k A bounded action values, k = 1 for ``--algo td3``)::
+
+    obs [E, O] --actor--> p = tanh(mean) [E, P] --+ N(0, expl_noise^2), clip [-1, 1]--> p
+    (uniform in [-1, 1]^P for the first random_steps) --affine to the bounds--> actions
+    [E, k, A] --env--> reward, next obs --> replay (one row per decision)
+
+and of one gradient step on a batch of B decisions::
+
+    a~ = clip(p'(s') + clip(N(0, target_noise^2), +-target_noise_clip), -1, 1)      [B, P]
+    y = R + w min(Q1'(s', a~), Q2'(s', a~))                                          [B]
+    critics: mse(Q1(s, p), y) + mse(Q2(s, p), y)
+    every policy_delay-th critic step: actor on -mean Q1(s, pi(s)), then the target actor and
+    the target critics move tau of the way (soft update)
+
+The actor is the run's :class:`ndp.policies.ActorCritic` with the ``squashed`` head, used
+deterministically: its action is the head's mean through tanh (the head's log std is unused),
+which is also the head's mode, so ``ndp rl eval / render / export`` and ``ndp.load_policy`` act
+as TD3 does without noise. The critics score the bounded action p in [-1, 1]^P (SB3's
+normalised action). Observations are not normalised (identity statistics are saved as every RL
+run's). The twin critics, the targets, the optimisers and the replay are saved under the
+checkpoint's ``td3`` key.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+import torch
+
+from ndp.policies import build_actor_critic
+from ndp.policies.squashed import SquashedGaussian
+from ndp.rl.config import TrainConfig
+from ndp.rl.logger import METRICS
+from ndp.rl.methods import section
+from ndp.rl.offpolicy.critics import TwinQ
+from ndp.rl.offpolicy.loop import OffPolicyLearner, first_learning_decision, mean_of
+from ndp.rl.optim import soft_update
+from ndp.rl.td3 import TD3_METRICS
+from ndp.rl.td3.config import TD3Config
+from ndp.rl.td3.losses import (
+    actor_loss,
+    actor_update_due,
+    critic_loss,
+    exploration_action,
+    smoothed_target_action,
+    td3_target,
+)
+from ndp.runs.session import RunSession, nonfinite_parameter
+
+COLUMNS = (*METRICS, *TD3_METRICS)
+"""Columns of a TD3 run's ``metrics.csv``."""
+
+
+def check_budget(cfg: TrainConfig) -> None:
+    """Refuse (ValueError naming the argument) a TD3 run that can take no gradient step: a
+    replay smaller than one batch, or a budget that ends before the random steps and the first
+    batch are in."""
+    s, k, E = section(cfg, TD3Config), cfg.k, cfg.num_envs
+    capacity = -(-s.buffer_size // k)
+    first = first_learning_decision(s.random_steps, s.batch_size, capacity, k, E)
+    if first is None:
+        raise ValueError(
+            f"td3.buffer_size: expected at least batch_size x k = {s.batch_size * k} env steps, "
+            f"got {s.buffer_size} (use a larger --td3-buffer-size or a smaller --td3-batch-size)"
+        )
+    rounds = cfg.num_updates * cfg.decisions_per_env
+    if first >= rounds:
+        need = (first + 1) * E * k
+        raise ValueError(
+            f"steps: --algo td3 takes its first gradient step after {need:,} env steps "
+            f"(td3.random_steps={s.random_steps:,}, then a batch of td3.batch_size="
+            f"{s.batch_size} decisions from num_envs={E} envs), but the run trains "
+            f"{rounds * E * k:,} (use more --steps, or fewer --td3-random-steps / a smaller "
+            f"--td3-batch-size)"
+        )
+
+
+class TD3Learner(OffPolicyLearner):
+    """TD3 (see the module docstring).
+
+    Args:
+        cfg: the resolved config (``cfg.td3``: :class:`ndp.rl.td3.config.TD3Config`).
+        session: the run's session (paths, the divergence message).
+    """
+
+    def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
+        check_budget(cfg)  # before any env is built
+        s = self.settings = section(cfg, TD3Config)
+        self._open_loop(cfg, session, random_steps=s.random_steps, batch_size=s.batch_size,
+                        updates_per_step=s.updates_per_step)  # fmt: skip
+        self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
+        self.P = self.model.head.n_params // 2
+        pol = cfg.policy
+        assert pol.hidden is not None and pol.activation is not None  # resolve_config fills them
+        self.critic = TwinQ(self.obs_dim, self.P, tuple(pol.hidden), pol.activation)
+        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        self.actor_target = copy.deepcopy(self.model).requires_grad_(False)
+        self.actor_opt = torch.optim.Adam(self.model.actor.parameters(), lr=s.lr)
+        self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=s.lr)
+        self._critic_params = list(self.critic.parameters())
+        self._open_replay(-(-s.buffer_size // self.k), {"u": self.P, "critic_in": self.P})
+        self.actor_updates = 0
+
+    # ----------------------------------------------------------------------- protocol
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """``metrics.csv``'s columns (docs/metrics.md)."""
+        return COLUMNS
+
+    def nonfinite(self) -> str | None:
+        """The first actor or critic parameter holding NaN / Inf."""
+        return nonfinite_parameter(
+            [*self.model.actor.named_parameters(), *self.critic.named_parameters()]
+        )
+
+    def state_dict(self) -> dict[str, Any]:
+        """The policy checkpoint keys (``ndp.rl.methods.POLICY_CHECKPOINT_KEYS``) plus ``td3``:
+        critics, targets, optimisers, replay, generator, counters."""
+        return {
+            "model": self.model.state_dict(),
+            "obs_norm": self.obs_norm.state_dict(),
+            "obs_dim": self.obs_dim,
+            "update": self.update,
+            "global_step": self.global_step,
+            "td3": {
+                "critic": self.critic.state_dict(),
+                "critic_target": self.critic_target.state_dict(),
+                "actor_target": self.actor_target.state_dict(),
+                "actor_opt": self.actor_opt.state_dict(),
+                "critic_opt": self.critic_opt.state_dict(),
+                "actor_updates": self.actor_updates,
+                **self.loop_state(),
+            },
+        }
+
+    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
+        """Continue from :meth:`state_dict`'s output (the session restores the global RNGs)."""
+        self.model.load_state_dict(ckpt["model"])
+        self.obs_norm.load_state_dict(ckpt["obs_norm"])
+        self.update, self.global_step = int(ckpt["update"]), int(ckpt["global_step"])
+        s = ckpt["td3"]
+        self.critic.load_state_dict(s["critic"])
+        self.critic_target.load_state_dict(s["critic_target"])
+        self.actor_target.load_state_dict(s["actor_target"])
+        self.actor_opt.load_state_dict(s["actor_opt"])
+        self.critic_opt.load_state_dict(s["critic_opt"])
+        self.actor_updates = int(s["actor_updates"])
+        self.load_loop_state(s)
+
+    # ----------------------------------------------------------------------- acting
+    def policy_action(
+        self, model: Any, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+    ) -> torch.Tensor:
+        """The deterministic bounded action ``tanh(mean)`` [B, P] of ``model`` (the actor or
+        its target), with the gradient."""
+        dist, _ = model.distribution(obs, y0, dy0)
+        assert isinstance(dist, SquashedGaussian)  # the squashed head
+        return torch.tanh(dist.mean)
+
+    def to_actions(self, p: torch.Tensor) -> torch.Tensor:
+        """Bounded actions p [B, P] in [-1, 1] -> env actions [B, k, A] in the task's bounds
+        (the squashed head's affine map)."""
+        a = p.reshape(p.shape[0], self.k, -1)
+        return self.low + (a + 1.0) * 0.5 * (self.high - self.low)
+
+    def act(
+        self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, explore: bool
+    ) -> tuple[torch.Tensor, dict[str, np.ndarray]]:
+        """The actor's action plus Gaussian noise, clipped (uniform in [-1, 1]^P during the
+        random steps): the env actions [E, k, A] and the replay's ``u`` = ``critic_in`` = the
+        bounded action [E, P]."""
+        if explore:
+            p = self.policy_action(self.model, obs, y0, dy0)
+            noise = self.rng.normal(0.0, self.settings.expl_noise, size=(self.E, self.P))
+            p = exploration_action(p, torch.as_tensor(noise, dtype=torch.float32))
+        else:
+            p = torch.as_tensor(self.rng.uniform(-1.0, 1.0, size=(self.E, self.P)),
+                                dtype=torch.float32)  # fmt: skip
+        return self.to_actions(p), {"u": p.numpy(), "critic_in": p.numpy()}
+
+    # ----------------------------------------------------------------------- learning
+    def gradient_step(self, b: dict[str, torch.Tensor]) -> dict[str, float]:
+        """One critic step; the actor and the targets every ``policy_delay``-th one."""
+        s = self.settings
+        with torch.no_grad():
+            p_next = self.policy_action(self.actor_target, b["next_obs"], b["next_y0"],
+                                        b["next_dy0"])  # fmt: skip
+            noise = torch.randn_like(p_next) * s.target_noise
+            a_next = smoothed_target_action(p_next, noise, s.target_noise_clip)
+            q1_t, q2_t = self.critic_target(b["next_obs"], a_next)
+            y = td3_target(b["ret"][:, 0], b["discount"][:, 0], q1_t, q2_t)
+        q1, q2 = self.critic(b["obs"], b["critic_in"])
+        lc = critic_loss(q1, q2, y)
+        self._step(self.critic_opt, lc, "critic")
+        out = {"critic": float(lc.detach()), "q": float(torch.minimum(q1, q2).detach().mean())}
+        if actor_update_due(self.grad_steps + 1, s.policy_delay):  # the loop counts after
+            for p in self._critic_params:  # the actor's loss does not train the critics
+                p.requires_grad_(False)
+            try:
+                q1_pi, _ = self.critic(b["obs"], self.policy_action(self.model, b["obs"], b["y0"],
+                                                                    b["dy0"]))  # fmt: skip
+            finally:
+                for p in self._critic_params:
+                    p.requires_grad_(True)
+            la = actor_loss(q1_pi)
+            self._step(self.actor_opt, la, "actor")
+            soft_update(self.critic_target, self.critic, s.tau)
+            soft_update(self.actor_target, self.model, s.tau)
+            self.actor_updates += 1
+            out["actor"] = float(la.detach())
+        return out
+
+    def _step(self, opt: torch.optim.Optimizer, loss: torch.Tensor, what: str) -> None:
+        if not bool(torch.isfinite(loss)):
+            raise self._diverged(f"the {what} loss became {float(loss)}")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
+        opt.step()
+
+    def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
+        """TD3's columns of the row: learning rate, losses, Q, replay, step counts."""
+        return {
+            "charts/learning_rate": self.settings.lr,
+            "losses/policy": mean_of(losses, "actor"),
+            "losses/value": mean_of(losses, "critic"),
+            "td3/q": mean_of(losses, "q"),
+            "td3/replay": float(self.replay.size),
+            "td3/gradient_steps": float(self.grad_steps),
+            "td3/actor_updates": float(self.actor_updates),
+        }

@@ -16,7 +16,8 @@ import pytest
 pytest.importorskip("huggingface_hub")
 
 from ndp.cli import main
-from ndp.hub import download, parse_hub_ref, push
+from ndp.hub import download, parse_hub_ref
+from ndp.rl.hub import push_policy as push
 
 COMMIT = "0123456789abcdef0123456789abcdef01234567"
 

@@ -140,6 +140,7 @@ LAYERS = {
     "act_inputs": 0,
     "gym_ids": 0,
     "zoo": 0,
+    "hub": 1,
     # numerical core and run infrastructure
     "dmp": 1,
     "nets": 1,

@@ -4,8 +4,9 @@ A policy on the Hub is an export folder (``ndp rl export``: ``policy.safetensors
 ``policy.json`` + ``README.md``, or ``policy.onnx`` + its card) as a model repository, the way
 rl-zoo's ``load_from_hub`` and LeRobot's ``from_pretrained`` keep theirs. Loading downloads the
 export's files into the Hub's cache (``huggingface_hub.snapshot_download``; offline with
-``HF_HUB_OFFLINE=1``, from the cache alone) and loads that folder; pushing exports a run (or
-takes an export folder as it is) and uploads it (``HfApi.create_repo`` + ``upload_folder``).
+``HF_HUB_OFFLINE=1``, from the cache alone) and loads that folder; pushing uploads an export
+folder (``HfApi.create_repo`` + ``upload_folder``; ``ndp.rl.hub.push_policy`` exports a run
+first). A foundation module: it imports nothing of the package but ``ndp.checks``.
 
 Addresses: ``hf://ORG/NAME`` or ``hf://ORG/NAME@REVISION`` (a branch, tag or commit).
 Needs the [hub] extra (``huggingface_hub``); nothing else of the package imports it.
@@ -14,10 +15,11 @@ Needs the [hub] extra (``huggingface_hub``); nothing else of the package imports
 from __future__ import annotations
 
 import re
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from ndp.checks import install_hint
 
 __all__ = [
     "EXPORT_PATTERNS",
@@ -26,7 +28,7 @@ __all__ = [
     "download",
     "is_hub_ref",
     "parse_hub_ref",
-    "push",
+    "push_folder",
 ]
 
 HUB_PREFIX = "hf://"
@@ -81,8 +83,6 @@ def _hub() -> Any:
     try:
         import huggingface_hub
     except ImportError:
-        from ndp.checks import install_hint
-
         raise ValueError(
             "path: a Hub address needs huggingface_hub; " + install_hint("hub")
         ) from None
@@ -121,21 +121,22 @@ def download(address: str, cache_dir: str | Path | None = None) -> Path:
     return out
 
 
-def push(
-    source: str | Path,
+def push_folder(
+    folder: str | Path,
     repo_id: str,
     private: bool = False,
     message: str | None = None,
     api: Any = None,
 ) -> dict[str, Any]:
-    """Upload a policy to the Hub as model repository ``repo_id``.
+    """Upload an export folder to the Hub as model repository ``repo_id`` (created if
+    missing); only the export's files (:data:`EXPORT_PATTERNS`). ``ndp.rl.hub.push_policy``
+    exports a run or ``zoo:NAME`` first and calls this.
 
     Args:
-        source: a training run (exported first, with its card: ``Policy.export``), an export
-            folder (uploaded as it is), or ``zoo:NAME``.
-        repo_id: ``ORG/NAME``; created if missing.
+        folder: an export folder (``policy.json`` + weights, or ``policy.onnx``).
+        repo_id: ``ORG/NAME``.
         private: create the repository private.
-        message: the commit message (default names the source).
+        message: the commit message (default names the folder).
         api: a ``huggingface_hub.HfApi`` (tests pass a stand-in); None: a new one (the token of
             ``huggingface-cli login`` or ``HF_TOKEN``).
 
@@ -143,30 +144,34 @@ def push(
         ``{"repo_id", "files", "commit"}``: the files uploaded and the Hub's commit info.
 
     Raises:
-        ValueError: a malformed ``repo_id``, a source that is no policy, or the Hub refusing
+        ValueError: a malformed ``repo_id``, a folder that holds no export, or the Hub refusing
             (one line).
     """
     if not _REPO.match(str(repo_id)):
         raise ValueError(f"repo_id: expected 'ORG/NAME', got {repo_id!r}")
+    folder = Path(folder)
+    if not ((folder / "policy.json").is_file() or (folder / "policy.onnx").is_file()):
+        raise ValueError(f"source: {folder} is not an export folder (ndp rl export writes one)")
     if api is None:
         api = _hub().HfApi()
-    src = str(source)
-    with tempfile.TemporaryDirectory(prefix="ndp-push-") as tmp:
-        folder = _export_folder(src, Path(tmp))
-        files = sorted(p.name for p in folder.iterdir() if p.is_file() and _is_export_file(p.name))
-        try:
-            api.create_repo(repo_id, private=private, exist_ok=True)
-            info = api.upload_folder(
-                repo_id=repo_id,
-                folder_path=str(folder),
-                commit_message=message or f"ndp rl push {src}",
-                allow_patterns=list(EXPORT_PATTERNS),
-            )
-        except Exception as exc:  # the Hub's own error kinds
-            first = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else ""
-            raise ValueError(
-                f"repo_id: the Hub refused the upload to {repo_id} ({type(exc).__name__}: {first})"
-            ) from None
+    files = sorted(
+        rel
+        for p in folder.rglob("*")
+        if p.is_file() and _is_export_file(rel := p.relative_to(folder).as_posix())
+    )
+    try:
+        api.create_repo(repo_id, private=private, exist_ok=True)
+        info = api.upload_folder(
+            repo_id=repo_id,
+            folder_path=str(folder),
+            commit_message=message or f"ndp rl push {folder}",
+            allow_patterns=list(EXPORT_PATTERNS),
+        )
+    except Exception as exc:  # the Hub's own error kinds
+        first = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else ""
+        raise ValueError(
+            f"repo_id: the Hub refused the upload to {repo_id} ({type(exc).__name__}: {first})"
+        ) from None
     return {"repo_id": repo_id, "files": files, "commit": str(info)}
 
 
@@ -174,20 +179,3 @@ def _is_export_file(name: str) -> bool:
     import fnmatch
 
     return any(fnmatch.fnmatch(name, pat) for pat in EXPORT_PATTERNS)
-
-
-def _export_folder(source: str, tmp: Path) -> Path:
-    """The folder to upload: an export folder as it is; a run or ``zoo:NAME`` exported into
-    ``tmp`` (safetensors, with its card)."""
-    if not source.startswith("zoo:"):
-        here = Path(source)
-        if (here / "policy.json").is_file() or (here / "policy.onnx").is_file():
-            return here
-        if not here.is_dir():
-            raise ValueError(f"source: no such run or export folder {source}")
-    import ndp
-
-    policy = ndp.load_policy(source)
-    out = tmp / "export"
-    policy.export(out)
-    return out

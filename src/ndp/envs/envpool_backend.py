@@ -37,6 +37,8 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from ndp.checks import install_hint
+from ndp.envs import envpool_tasks
 from ndp.envs.base import NDPEnv
 
 BACKENDS = ("metaworld", "envpool")
@@ -84,8 +86,6 @@ def import_envpool() -> Any:
     try:
         import envpool
     except ImportError:
-        from ndp.checks import install_hint
-
         raise ImportError(
             f"backend: 'envpool' needs EnvPool {ENVPOOL_VERSION} ({install_hint('envpool')})"
         ) from None
@@ -133,7 +133,6 @@ def check_backend(
     name_ok: str = check_backend_name(backend)
     if name_ok == "metaworld":
         return name_ok
-    from ndp.envs.envpool_tasks import ENVPOOL_DIFFERING
 
     name = spec.metaworld_name or spec.name
     if spec.family != "metaworld" or getattr(spec, "actuation", "position") != "position":
@@ -141,7 +140,7 @@ def check_backend(
             f"backend: 'envpool' serves the position-actuated Meta-World v3 tasks, got task "
             f"{spec.name!r}; use --backend metaworld"
         )
-    if name in ENVPOOL_DIFFERING:
+    if name in envpool_tasks.ENVPOOL_DIFFERING:  # the module attribute: the generated list
         raise ValueError(
             f"backend: 'envpool' differs from metaworld on {name} beyond the stated tolerances "
             "(docs/results/envpool_equivalence/); use --backend metaworld"

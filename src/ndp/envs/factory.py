@@ -25,6 +25,7 @@ import numpy as np
 from ndp.checks import check_int
 from ndp.envs.base import check_fixed_goal, defer_seed
 from ndp.envs.chunked import ChunkedEnv
+from ndp.envs.envpool_backend import EnvPoolMetaWorldEnv, check_backend
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import (
     V1_REWARD_BROKEN,
@@ -38,6 +39,7 @@ from ndp.envs.rewards import RewardVariant, check_reward, check_smooth_lambda
 from ndp.envs.spec import (
     TASKS,
     TORQUE_TASKS,
+    TaskSpec,
     add_tasks,
     check_free,
     finer_spec,
@@ -50,6 +52,7 @@ from ndp.envs.spec import (
 from ndp.envs.torque import JacoTorqueEnv, MetaWorldTorqueEnv
 from ndp.gym_ids import TABLE, expand, register
 from ndp.io import atomic_write_text
+from ndp.schema import check_record, spec_record
 
 
 def _make_metaworld(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
@@ -158,7 +161,6 @@ def make_env(
     release9 = check_observation(spec, observation) == "release9"
     reward = check_reward(reward)
     check_smooth_lambda(smooth_lambda, reward)  # before the env is built
-    from ndp.envs.envpool_backend import EnvPoolMetaWorldEnv, check_backend
 
     check_backend(backend, spec, reward_version=reward_version, fixed_goal=fixed_goal,
                   substeps=substeps, render_mode=render_mode)  # fmt: skip
@@ -404,9 +406,6 @@ def check_task_spec(spec: Any) -> None:
         ValueError: one line naming ``spec.<field>``, the value and what was expected.
     """
     from gymnasium.envs.registration import parse_env_id
-
-    from ndp.envs.spec import TaskSpec
-    from ndp.schema import check_record, spec_record
 
     if not isinstance(spec, TaskSpec):
         raise ValueError(f"spec: expected an ndp.envs.spec.TaskSpec row, got {type(spec).__name__}")

@@ -446,9 +446,9 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_push(args: argparse.Namespace) -> int:
-    from ndp.hub import push
+    from ndp.rl.hub import push_policy
 
-    res = push(args.source, args.repo_id, private=args.private, message=args.message)
+    res = push_policy(args.source, args.repo_id, private=args.private, message=args.message)
     print(json.dumps(res))
     return 0
 

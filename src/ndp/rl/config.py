@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, cast
 
-from ndp.checks import plain_numbers
+from ndp.checks import check_int, check_positive, plain_numbers
 from ndp.policies.config import PolicyConfig
 from ndp.rl.methods import METHODS, SETTINGS, settings_sections
 from ndp.runs.cli import cli
@@ -126,7 +126,7 @@ class PPOConfig:
             "clip_obs",
             "clip_reward",
         ):
-            _check_positive(name, getattr(self, name))
+            check_positive(name, getattr(self, name))
         for name in ("gamma", "gae_lambda"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
@@ -134,7 +134,7 @@ class PPOConfig:
         if not (isinstance(self.ent_coef, (int, float)) and self.ent_coef >= 0):
             raise ValueError(f"ent_coef: expected a number >= 0, got {self.ent_coef!r}")
         for name in ("epochs", "minibatches", "steps_per_update"):
-            _check_int(name, getattr(self, name), 1)
+            check_int(name, getattr(self, name), 1)
         if self.adv_norm_scope not in ("rollout", "minibatch"):
             raise ValueError(
                 f"adv_norm_scope: expected 'rollout' or 'minibatch', got {self.adv_norm_scope!r}"
@@ -239,15 +239,15 @@ class RunConfig:
             raise ValueError(f"algo: expected one of {', '.join(METHODS)}, got {self.algo!r}")
         if not isinstance(self.task, str) or not self.task:
             raise ValueError(f"task: expected a task name, got {self.task!r}")
-        _check_int("steps", self.steps, 1)
-        _check_int("seed", self.seed, 0)
-        _check_int("num_envs", self.num_envs, 1)
-        _check_int("checkpoint_every", self.checkpoint_every, 1)
-        _check_int("eval_every", self.eval_every, 0)
-        _check_int("eval_episodes", self.eval_episodes, 0)
-        _check_int("torch_threads", self.torch_threads, 1)
+        check_int("steps", self.steps, 1)
+        check_int("seed", self.seed, 0)
+        check_int("num_envs", self.num_envs, 1)
+        check_int("checkpoint_every", self.checkpoint_every, 1)
+        check_int("eval_every", self.eval_every, 0)
+        check_int("eval_episodes", self.eval_episodes, 0)
+        check_int("torch_threads", self.torch_threads, 1)
         if self.horizon is not None:
-            _check_int("horizon", self.horizon, 1)
+            check_int("horizon", self.horizon, 1)
         if self.reward_version not in ("v1", "v2"):
             raise ValueError(f"reward_version: expected 'v1' or 'v2', got {self.reward_version!r}")
         if self.goals == "fixed":  # the old name of 'per-seed' (configs and arms written before)
@@ -292,7 +292,7 @@ class RunConfig:
                 f"vector: expected 'auto', 'sync', 'workers' or 'async', got {self.vector!r}"
             )
         if self.env_workers is not None:
-            _check_int("env_workers", self.env_workers, 1)
+            check_int("env_workers", self.env_workers, 1)
             if self.env_workers > self.num_envs:
                 raise ValueError(
                     f"env_workers: expected at most num_envs={self.num_envs}, "
@@ -634,18 +634,3 @@ def _check_device(device: object) -> None:
         raise ValueError(
             f"device: expected a torch device such as 'cpu' or 'cuda', got {device!r}"
         ) from None
-
-
-def _check_int(name: str, value: object, low: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
-
-
-def _check_positive(name: str, value: object) -> None:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float))
-        or not math.isfinite(value)
-        or value <= 0
-    ):
-        raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")

@@ -32,6 +32,7 @@ from gymnasium.vector import AutoresetMode
 from ndp.chunk_info import dmp_start, dmp_start_keys
 from ndp.envs import get_task_spec, make_env, task_options
 from ndp.envs.chunked import ChunkedEnv
+from ndp.envs.envpool_backend import check_backend
 from ndp.envs.factory import RELEASE9, check_observation
 from ndp.envs.rewards import check_reward, check_smooth_lambda
 from ndp.envs.vector import (
@@ -71,8 +72,6 @@ def resolve_task(name: str, **options: Any) -> TaskHandle:
     check_smooth_lambda(price, reward)
     kw = task_options(spec, **options)
     if backend != "metaworld":
-        from ndp.envs.envpool_backend import check_backend
-
         # the run's k and stale-world rule are checked by resolve_config / make_vector_env
         check_backend(backend, spec, reward_version=kw.get("reward_version", "v2"),
                       fixed_goal=kw.get("fixed_goal"))  # fmt: skip

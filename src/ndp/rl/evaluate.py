@@ -15,6 +15,7 @@ from ndp import zoo
 from ndp.checks import check_int
 from ndp.envs.base import check_render_size
 from ndp.envs.render import check_video_size, write_mp4
+from ndp.hub import is_hub_ref, parse_hub_ref
 from ndp.io import atomic_write_text, check_output_path
 from ndp.provenance import git_commit
 from ndp.rl.card import wilson_interval
@@ -51,7 +52,6 @@ def default_output_dir(run_dir: str | Path) -> Path:
     text = str(run_dir)
     if text.startswith(zoo.PREFIX):
         return Path(text[len(zoo.PREFIX) :])
-    from ndp.hub import is_hub_ref, parse_hub_ref
 
     if is_hub_ref(text):
         return Path(parse_hub_ref(text).repo_id.split("/")[1])

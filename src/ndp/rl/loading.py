@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from ndp.hub import download, is_hub_ref
 from ndp.rl.onnx_policy import OnnxPolicy, is_onnx_export
 
 
@@ -15,8 +16,6 @@ def load_any(path: str | Path) -> Any:
     """``ndp.load_policy``: an ONNX export as an :class:`OnnxPolicy` without importing torch;
     anything else (a run, a safetensors export, ``zoo:NAME``) through
     :func:`ndp.rl.policy.load_any_policy`."""
-    from ndp.hub import download, is_hub_ref
-
     if is_hub_ref(path):  # hf://ORG/NAME: the export's files from the Hub (or its cache)
         path = download(str(path))
     if isinstance(path, (str, Path)) and not str(path).startswith("zoo:") and is_onnx_export(path):

@@ -57,6 +57,7 @@ from ndp import zoo
 from ndp.act_inputs import ObsRange, RobotState, check_act_inputs, obs_range_of
 from ndp.checks import check_flag, check_int, install_hint
 from ndp.chunk_info import dmp_start_keys
+from ndp.hub import download, is_hub_ref
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
 from ndp.provenance import git_commit, installed_versions, portable_command, portable_path
@@ -381,7 +382,6 @@ def load_policy(path: str | Path) -> Policy:
         )
     if isinstance(path, str) and path.startswith("zoo:"):
         path = zoo.path(path)
-    from ndp.hub import download, is_hub_ref
 
     if is_hub_ref(path):
         path = download(str(path))

@@ -60,7 +60,8 @@ except ModuleNotFoundError as _exc:  # name the extra that installs what is miss
 
 import ndp
 from ndp.chunk_info import DMP_START_KEYS
-from ndp.policies import PolicyConfig, build_head
+from ndp.policies import PolicyConfig, build_actor_critic, build_head
+from ndp.rl.normalize import ObsNormalizer
 
 __all__ = [
     "NDPPolicy",
@@ -341,7 +342,7 @@ class NDPPolicy(ActorCriticPolicy):
         flat = actions.reshape(actions.shape[0], -1)
         return self.value_net(latent_vf), dist.log_prob(flat), dist.entropy()
 
-    def predict(  # type: ignore[override]
+    def predict(
         self,
         observation: Any,
         state: Any = None,
@@ -395,7 +396,6 @@ def to_policy(model: Any, vec_normalize: Any = None) -> Any:
     """
     from ndp.rl.config import PPOConfig, TrainConfig, resolve_config
     from ndp.rl.envs import resolve_task
-    from ndp.rl.normalize import ObsNormalizer
     from ndp.rl.policy import Policy
 
     pol = getattr(model, "policy", model)
@@ -429,7 +429,6 @@ def to_policy(model: Any, vec_normalize: Any = None) -> Any:
         )
     )
     spec = resolve_task(cfg.task).spec
-    from ndp.policies import build_actor_critic
 
     net = build_actor_critic(obs_dim, spec, cfg.policy)
     state = _state_from_sb3(pol, net.k)
@@ -480,6 +479,7 @@ def _state_from_sb3(pol: NDPPolicy, k: int) -> dict[str, torch.Tensor]:
     value layer's row repeated for the k value heads)."""
     out: dict[str, torch.Tensor] = {}
     lin = [m for m in pol.mlp_extractor.policy_net if isinstance(m, nn.Linear)]
+    assert isinstance(pol.action_net, nn.Linear)  # NDPPolicy._build makes it one
     for i, m in enumerate([*lin, pol.action_net]):
         out[f"actor.net.{2 * i}.weight"] = m.weight.detach().clone()
         out[f"actor.net.{2 * i}.bias"] = m.bias.detach().clone()

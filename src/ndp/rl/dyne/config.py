@@ -7,22 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ndp.checks import plain_numbers
-
-
-def _check_int(name: str, value: object, low: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
-
-
-def _check_positive(name: str, value: object) -> None:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float))
-        or not math.isfinite(value)
-        or value <= 0
-    ):
-        raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
+from ndp.checks import check_int, check_positive, plain_numbers
 
 
 @dataclass(frozen=True)
@@ -81,13 +66,13 @@ class DyneConfig:
     def __post_init__(self) -> None:
         plain_numbers(self)
         if self.explore_steps is not None:
-            _check_int("explore_steps", self.explore_steps, 1)
+            check_int("explore_steps", self.explore_steps, 1)
         for name in ("embed_updates", "decoder_updates", "start_steps"):
-            _check_int(name, getattr(self, name), 0)
+            check_int(name, getattr(self, name), 0)
         for name in ("embed_batch", "replay_size", "batch_size", "policy_delay"):
-            _check_int(name, getattr(self, name), 1)
+            check_int(name, getattr(self, name), 1)
         for name in ("embed_lr", "actor_lr", "critic_lr", "updates_per_step"):
-            _check_positive(name, getattr(self, name))
+            check_positive(name, getattr(self, name))
         for name in ("kl_weight", "norm_weight", "expl_noise", "target_noise", "target_noise_clip"):
             v = getattr(self, name)
             if (

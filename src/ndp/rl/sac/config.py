@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 from typing import Annotated
 
-from ndp.checks import plain_numbers
+from ndp.checks import check_int, check_positive, plain_numbers
 from ndp.runs.cli import cli
 
 CRITIC_INPUTS = ("params", "actions")
@@ -52,13 +52,9 @@ class SACConfig:
     def __post_init__(self) -> None:
         plain_numbers(self)  # numpy scalars -> Python numbers; NaN, a non-bool flag refused
         for name, low in (("buffer_size", 1), ("batch_size", 1), ("random_steps", 0)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
+            check_int(name, getattr(self, name), low)
         for name in ("lr", "init_alpha", "updates_per_step"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name}: expected a finite number > 0, got {v!r}")
+            check_positive(name, getattr(self, name))
         if not (isinstance(self.tau, (int, float)) and 0 < self.tau <= 1):
             raise ValueError(f"tau: expected a number in (0, 1], got {self.tau!r}")
         te = self.target_entropy

@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass
 from typing import Annotated
 
-from ndp.checks import plain_numbers
+from ndp.checks import check_int, check_positive, plain_numbers
 from ndp.runs.cli import cli
 
 
@@ -60,13 +60,9 @@ class TD3Config:
         plain_numbers(self)  # numpy scalars -> Python numbers; NaN, a non-bool flag refused
         for name, low in (("buffer_size", 1), ("batch_size", 1), ("random_steps", 0),
                           ("policy_delay", 1)):  # fmt: skip
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
+            check_int(name, getattr(self, name), low)
         for name in ("lr", "updates_per_step"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name}: expected a finite number > 0, got {v!r}")
+            check_positive(name, getattr(self, name))
         for name in ("expl_noise", "target_noise", "target_noise_clip"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):

@@ -216,7 +216,7 @@ class TD3Learner(OffPolicyLearner):
 
     def _step(self, opt: torch.optim.Optimizer, loss: torch.Tensor, what: str) -> None:
         if not bool(torch.isfinite(loss)):
-            raise self._diverged(f"the {what} loss became {float(loss)}")
+            raise self._diverged(f"the {what} loss became {float(loss.detach())}")
         opt.zero_grad(set_to_none=True)
         loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
         opt.step()

@@ -356,10 +356,10 @@ def _cases() -> list[Case]:
              "--algo", "ppo", *RL[4:], "--n-basis", "3", "--steps", "256", "--run-dir",
              str(r / "ppo-nb")]), "ok",
              lambda res: "n_basis=3: options of the NDP head" in res[1]),
-        Case("rl train --algo ppo --sac-lr 1e-3 (named)", lambda r: _cli(["rl", "train",
+        Case("rl train --algo ppo --sac-lr 1e-3 (refused)", lambda r: _cli(["rl", "train",
              *RL[:2], "--algo", "ppo", *RL[4:], "--sac-lr", "1e-3", "--steps", "256",
-             "--run-dir", str(r / "ppo-saclr")]), "ok",
-             lambda res: "sac.lr=0.001: options of another learner" in res[1]),
+             "--run-dir", str(r / "ppo-saclr")]), "error",
+             lambda res: "does not read sac.lr=0.001 (read by --algo sac / sac-chunk" in res[1]),
         # relocation and resume
         Case("resume from the absolute path", lambda r: _cli(["rl", "train", "--resume",
              str((r / "rl").resolve()), "--steps", "512"]), "ok",

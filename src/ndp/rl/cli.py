@@ -28,7 +28,10 @@ TRAIN_NOTES = (
     "--resume RUN_DIR continues a killed run: the other options are then taken from its "
     "config.json, and only --steps (extends the budget), --progress, --tensorboard, --vector, "
     "--env-workers and --device may change. A directory that holds a run is refused unless "
-    "--overwrite (which names the files it removes)."
+    "--overwrite (which names the files it removes). --config FILE starts from a run's "
+    "config.json or a hyperparameter file (JSON / YAML, sections nested; configs/ has the "
+    "headline's), the options given overriding it. With --algo X, --help shows only the "
+    "options X reads; a learner's option that X does not read is refused."
 )
 
 
@@ -346,9 +349,14 @@ def train_command(argv: list[str]) -> int:
 
     resume_dir, rest = pop_option(argv, "--resume")
     overwrite, rest = pop_flag(rest, "--overwrite")
+    config_file, rest = pop_option(rest, "--config")
     if overwrite and resume_dir is not None:
         raise ValueError("--overwrite: cannot be combined with --resume (replace or continue)")
+    if config_file is not None and resume_dir is not None:
+        raise ValueError("--config: a resumed run keeps its own config (give options to change)")
     prog = "ndp rl train"
+    if "-h" in rest or "--help" in rest:
+        _help(rest, prog, config_file)  # exits
     run_name = resume_dir or "RUN_DIR"
     try:
         with stop_on_sigterm():
@@ -374,10 +382,15 @@ def train_command(argv: list[str]) -> int:
                     )
                     return 0
             else:
-                cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description())
+                base = config_from_file(config_file) if config_file is not None else None
+                cfg = parse_config(
+                    TrainConfig, rest, prog=prog, description=train_description(), default=base
+                )
                 unused = unused_head_options(cfg)  # before resolving, which clears them
                 unused_basis = unused_basis_options(cfg)
                 other = unused_method_options(cfg)
+                if other:  # a learner's option that this method does not read: refused
+                    raise ValueError(unread_learner_message(cfg.algo, other))
                 # resolved once, here: the run directory every message names is the one the
                 # run writes (an alias task or VICES's task variant gives the canonical row)
                 cfg = resolve_config(cfg)
@@ -389,10 +402,6 @@ def train_command(argv: list[str]) -> int:
                     print(f"ndp: note: {', '.join(unused_basis)}: options of PPO-multi's "
                           f"chunk basis, which --algo {cfg.algo} does not run; not used",
                           file=sys.stderr)  # fmt: skip
-                if other:
-                    print(f"ndp: note: {', '.join(other)}: options of another learner, which "
-                          f"--algo {cfg.algo} does not read; not used",
-                          file=sys.stderr)  # fmt: skip
                 metrics = trainer().train(cfg, overwrite=overwrite, resolved=True)
     except FloatingPointError as exc:  # ndp.rl.onpolicy.trainer.TrainingDivergedError
         print(f"ndp: error: {exc}", file=sys.stderr)
@@ -402,6 +411,54 @@ def train_command(argv: list[str]) -> int:
     keys = ("update", "global_step", "charts/success_any", "charts/episode_return")
     print(json.dumps({k: metrics.get(k) for k in keys}))
     return 0
+
+
+def config_from_file(path: str) -> TrainConfig:
+    """``--config FILE``: a run's ``config.json`` or a hyperparameter file (JSON / YAML, some
+    fields, sections nested) over the defaults; the command line's options then override it.
+    A file's ``run_dir`` is dropped (said on stderr): a config re-run writes a new run.
+
+    Raises:
+        ValueError: an unreadable file or an unknown field (one line naming ``config``).
+    """
+    from ndp.runs.cli import merge_config_dict, read_config_file
+
+    data = read_config_file(path)
+    if data.pop("run_dir", None) is not None:
+        print(f"ndp: note: --config {path}: its run_dir is not reused (a new run directory)",
+              file=sys.stderr)  # fmt: skip
+    merged = merge_config_dict(TrainConfig().to_dict(), data)
+    merged["run_dir"] = None
+    return TrainConfig.from_dict(merged)
+
+
+def unread_learner_message(algo: str, options: list[str]) -> str:
+    """The refusal of learner options that ``--algo`` does not read, naming the methods that
+    read each section."""
+    from ndp.rl.methods import METHODS
+
+    parts = []
+    for opt in options:
+        section = opt.split(".", 1)[0]
+        readers = [m.name for m in METHODS.values() if section in m.reads]
+        parts.append(f"{opt} (read by --algo {' / '.join(readers) or 'none'})")
+    return (
+        f"options: --algo {algo} does not read {'; '.join(parts)}; drop them or choose a "
+        "method that reads them"
+    )
+
+
+def _help(rest: list[str], prog: str, config_file: str | None) -> None:
+    """``ndp rl train [--algo X] --help``: with ``--algo``, only the options X reads (the run's,
+    PPO's, the policy's and X's learner section); without, every option. Exits."""
+    from ndp.rl.config import help_config_class
+    from ndp.runs.cli import parse_config, pop_option
+
+    algo, _ = pop_option(rest, "--algo")
+    cls = help_config_class(algo) if algo is not None else TrainConfig
+    what = f"the options --algo {algo} reads" if algo is not None else "every option"
+    parse_config(cls, rest, prog=prog, description=f"{train_description()} Shown: {what}.")
+    raise SystemExit(0)
 
 
 CONFIG_COMMANDS = {"rl train": train_command}

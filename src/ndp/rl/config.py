@@ -399,6 +399,28 @@ def _train_config() -> type[RunConfig]:
     return cls
 
 
+def help_config_class(algo: str) -> type[RunConfig]:
+    """The config class ``ndp rl train --algo ALGO --help`` shows: :class:`RunConfig` plus the
+    learner sections ``ALGO`` reads (``Method.reads``), the others left out.
+
+    Raises:
+        ValueError: an unknown ``algo`` (naming the registered ones).
+    """
+    method = METHODS.get(algo)
+    if method is None:
+        raise ValueError(f"algo: expected one of {', '.join(METHODS)}, got {algo!r}")
+    sections = {r.split(".", 1)[0] for r in method.reads}
+    fields = [
+        (s.name, Annotated[s.cls, cli(help=s.doc)], field(default_factory=s.cls))
+        for s in settings_sections()
+        if s.name in sections
+    ]
+    here = {"__module__": __name__, "__qualname__": "TrainConfig"}
+    return dataclasses.make_dataclass(
+        "TrainConfig", fields, bases=(RunConfig,), frozen=True, namespace=here
+    )
+
+
 if TYPE_CHECKING:
 
     class TrainConfig(RunConfig):

@@ -14,7 +14,9 @@ refuse the ones that would change the run.
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any, TypeVar
 
 T = TypeVar("T")
@@ -62,6 +64,59 @@ def parse_config(
     )
     assert parsed is not None  # tyro returns the parsed instance (or exits)
     return parsed
+
+
+def read_config_file(path: str | Path) -> dict[str, Any]:
+    """A config file as a dict: JSON (``.json``, e.g. a run's ``config.json``) or YAML
+    (``.yaml`` / ``.yml``, rl-zoo's habit), either a whole config or some of its fields
+    (sections nested: ``{"ppo": {"lr": 1e-4}, "policy": {"k": 5}}``).
+
+    Raises:
+        ValueError: a missing or unreadable file, another suffix, or a top level that is not
+            a mapping (one line naming ``config`` and the file).
+    """
+    p = Path(path)
+    if p.suffix.lower() not in (".json", ".yaml", ".yml"):
+        raise ValueError(f"config: expected a .json, .yaml or .yml file, got {str(p)!r}")
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise ValueError(f"config: cannot read {p} ({exc.strerror or exc})") from None
+    try:
+        if p.suffix.lower() == ".json":
+            data = json.loads(text)
+        else:
+            import yaml
+
+            data = yaml.safe_load(text)
+    except ImportError:
+        raise ValueError("config: a YAML file needs PyYAML (the [rl] extra)") from None
+    except Exception as exc:  # json / yaml parser errors, one line
+        first = str(exc).splitlines()[0][:160] if str(exc) else type(exc).__name__
+        raise ValueError(f"config: {p} is not valid {p.suffix[1:].upper()} ({first})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"config: {p}: expected a mapping of fields, got {type(data).__name__}")
+    return data
+
+
+def merge_config_dict(
+    base: dict[str, Any], over: dict[str, Any], where: str = ""
+) -> dict[str, Any]:
+    """``base`` with ``over``'s values (nested dicts merged key by key).
+
+    Raises:
+        ValueError: a key of ``over`` that ``base`` does not have (naming its dotted path).
+    """
+    out = dict(base)
+    for k, v in over.items():
+        if k not in base:
+            known = ", ".join(sorted(base))
+            raise ValueError(f"config: unknown field {where + k!r} (known here: {known})")
+        if isinstance(base[k], dict) and isinstance(v, dict):
+            out[k] = merge_config_dict(base[k], v, f"{where}{k}.")
+        else:
+            out[k] = v
+    return out
 
 
 def changed_fields(old: Any, new: Any, prefix: str = "") -> list[str]:

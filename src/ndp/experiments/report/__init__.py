@@ -516,7 +516,7 @@ def _scope(
     if study is not None:
         st = get_study(study)
         conditions, selection = st.conditions, st.selection
-        readings = st.readings if methods is None else None  # they need the study's arms
+        readings = st.readings_fn() if methods is None else None  # need the study's arms
         arm_tasks = {a.label: tuple(a.tasks) for a in st.arm_specs() if a.tasks}
         if methods is None and (conditions or selection):
             # the study's arms, then the arms its conditions take from other studies' runs

@@ -129,9 +129,37 @@ def conditions_section(
     by = {(c.task, c.label): c for c in cells}
     tasks = list(dict.fromkeys(c.task for c in cells))
     conditions = [_with_overrides(cond, by, tasks) for cond in conditions]
-    methods = list(dict.fromkeys(m for cond in conditions for m, _ in cond.methods))
     metrics, head = metrics_of(cells)
-    head_name = dict(metrics)[head]
+    md = _intro(conditions, dict(metrics)[head])
+    rows: list[dict[str, Any]] = []
+    waiting: dict[str, list[str]] = {}
+    for task in tasks:
+        tmd, trows = _task_section(task, by, conditions, seeds, metrics, head, waiting)
+        md += tmd
+        rows += trows
+    if waiting:
+        md += [
+            "Conditions left out where some of their arms have no runs in this report: "
+            + "; ".join(f"{c} ({', '.join(ts)})" for c, ts in waiting.items())
+            + ".",
+            "",
+        ]
+    groups = _full_groups(by, conditions, tasks, seeds, head)
+    omd, over_rows = _over_groups(by, groups, conditions, seeds, metrics, head)
+    md += omd
+    rows += over_rows
+    pngs = []
+    iq = [r for r in over_rows if r["task"] == "IQM over tasks"]
+    if plots and iq:
+        pngs.append(_plot(iq, conditions, out, foot, metrics))
+        pngs.append(_profiles(by, groups, seeds, head, dict(metrics)[head], out, foot))
+    md += [f"![{p.stem}]({p.name})" for p in pngs]
+    md.append("")
+    return md, rows, pngs
+
+
+def _intro(conditions: Sequence[Any], head_name: str) -> list[str]:
+    """The section's title, what a condition is, and each condition with its arms."""
     md = [
         "## Conditions",
         "",
@@ -146,51 +174,73 @@ def conditions_section(
         md.append(f"- **{_name(cond)}**: {cond.note}; arms: "
                   + ", ".join(f"{m} = `{lb}`" for m, lb in cond.methods))  # fmt: skip
     md.append("")
+    return md
+
+
+def _task_section(
+    task: str, by: dict[tuple[str, str], Any], conditions: Sequence[Any], seeds: Sequence[int],
+    metrics: Sequence[tuple[str, str]], head: str, waiting: dict[str, list[str]],
+) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+    """One task's condition x method table and its permutation tests (conditions with every
+    arm on the task); the conditions with only some arms there are added to ``waiting``."""
+    present = [cond for cond in conditions if all((task, lb) in by for _, lb in cond.methods)]
+    for cond in conditions:  # some of its arms have runs on the task, not all of them yet
+        if cond not in present and any((task, lb) in by for _, lb in cond.methods):
+            waiting.setdefault(_name(cond), []).append(task)
+    if not present:
+        return [], []
+    head_name = dict(metrics)[head]
+    md = [
+        f"### {task}",
+        "",
+        "| condition | method | arm | n | "
+        + " | ".join(h for _, h in metrics)
+        + f" | {head_name}: t-interval |",
+        "|---" * (5 + len(metrics)) + "|",
+    ]
     rows: list[dict[str, Any]] = []
-    waiting: dict[str, list[str]] = {}
-    for task in tasks:
-        present = [cond for cond in conditions if all((task, lb) in by for _, lb in cond.methods)]
-        for cond in conditions:  # some of its arms have runs on the task, not all of them yet
-            if cond not in present and any((task, lb) in by for _, lb in cond.methods):
-                waiting.setdefault(_name(cond), []).append(task)
-        if not present:
-            continue
-        md += [
-            f"### {task}",
-            "",
-            "| condition | method | arm | n | "
-            + " | ".join(h for _, h in metrics)
-            + f" | {head_name}: t-interval |",
-            "|---" * (5 + len(metrics)) + "|",
-        ]
-        for cond in present:
-            for m, lb in cond.methods:
-                cell = by.get((task, lb))
-                vals = []
-                row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
-                                       "task": task, "method": m, "arm": lb}  # fmt: skip
-                n = 0
-                for key, _ in metrics:
-                    v = _values(cell, key, seeds)
-                    n = max(n, len(v))
-                    lo, hi = stats.bootstrap_ci(v) if v else (math.nan, math.nan)
-                    vals.append(_ci(v, lo, hi))
-                    row.update({f"{key}_mean": np.mean(v) if v else math.nan,
-                                f"{key}_ci_low": lo, f"{key}_ci_high": hi})  # fmt: skip
-                v = _values(cell, head, seeds)
-                tlo, thi = stats.t_interval(v) if v else (math.nan, math.nan)
-                vals.append("-" if not v else f"[{tlo:.2f}, {thi:.2f}]")
-                row.update({f"{head}_t_low": tlo, f"{head}_t_high": thi})
-                row["n_seeds"] = n
-                rows.append(row)
-                md.append(f"| {_name(cond)} | {m} | `{lb}` | {n} | " + " | ".join(vals) + " |")
-        md.append("")
-        prows = _pairwise(by, present, [task], seeds, head)
-        md += _pairwise_md(prows, f"{task}: permutation tests of {head_name}")
-        rows += prows
-    # over tasks: the conditions whose every arm has every seed on the same tasks (two or
-    # more), each over its own full tasks
-    over_rows: list[dict[str, Any]] = []
+    for cond in present:
+        for m, lb in cond.methods:
+            line, row = _task_row(task, cond, m, lb, by.get((task, lb)), seeds, metrics, head)
+            md.append(line)
+            rows.append(row)
+    md.append("")
+    prows = _pairwise(by, present, [task], seeds, head)
+    md += _pairwise_md(prows, f"{task}: permutation tests of {head_name}")
+    return md, rows + prows
+
+
+def _task_row(
+    task: str, cond: Any, m: str, lb: str, cell: Any, seeds: Sequence[int],
+    metrics: Sequence[tuple[str, str]], head: str,
+) -> tuple[str, dict[str, Any]]:  # fmt: skip
+    """One method's row of a task table (Markdown line, CSV row): each metric's mean and
+    bootstrap interval, and the headline's t-interval."""
+    vals = []
+    row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
+                           "task": task, "method": m, "arm": lb}  # fmt: skip
+    n = 0
+    for key, _ in metrics:
+        v = _values(cell, key, seeds)
+        n = max(n, len(v))
+        lo, hi = stats.bootstrap_ci(v) if v else (math.nan, math.nan)
+        vals.append(_ci(v, lo, hi))
+        row.update({f"{key}_mean": np.mean(v) if v else math.nan,
+                    f"{key}_ci_low": lo, f"{key}_ci_high": hi})  # fmt: skip
+    v = _values(cell, head, seeds)
+    tlo, thi = stats.t_interval(v) if v else (math.nan, math.nan)
+    vals.append("-" if not v else f"[{tlo:.2f}, {thi:.2f}]")
+    row.update({f"{head}_t_low": tlo, f"{head}_t_high": thi})
+    row["n_seeds"] = n
+    return f"| {_name(cond)} | {m} | `{lb}` | {n} | " + " | ".join(vals) + " |", row
+
+
+def _full_groups(
+    by: dict[tuple[str, str], Any], conditions: Sequence[Any], tasks: Sequence[str],
+    seeds: Sequence[int], head: str,
+) -> dict[tuple[str, ...], list[Any]]:  # fmt: skip
+    """The conditions whose every arm has every seed on the same tasks (two or more), grouped
+    by those tasks (each group is read over its own full tasks)."""
     groups: dict[tuple[str, ...], list[Any]] = {}
     for cond in conditions:
         full = tuple(
@@ -202,31 +252,30 @@ def conditions_section(
         )
         if len(full) >= 2:
             groups.setdefault(full, []).append(cond)
-    if waiting:
-        md += [
-            "Conditions left out where some of their arms have no runs in this report: "
-            + "; ".join(f"{c} ({', '.join(ts)})" for c, ts in waiting.items())
-            + ".",
-            "",
-        ]
+    return groups
+
+
+def _over_groups(
+    by: dict[tuple[str, str], Any], groups: dict[tuple[str, ...], list[Any]],
+    conditions: Sequence[Any], seeds: Sequence[int], metrics: Sequence[tuple[str, str]],
+    head: str,
+) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+    """Per group of :func:`_full_groups`: the summary over its tasks and the stratified
+    permutation tests (Markdown lines, CSV rows)."""
     if not groups:
-        md += ["Over tasks: no condition has every seed of every arm on two tasks yet.", ""]
+        return ["Over tasks: no condition has every seed of every arm on two tasks yet.", ""], []
+    methods = list(dict.fromkeys(m for cond in conditions for m, _ in cond.methods))
+    head_name = dict(metrics)[head]
+    md: list[str] = []
+    rows: list[dict[str, Any]] = []
     for full, conds in groups.items():
         over, rows_g = _over_tasks(by, conds, methods, list(full), seeds, metrics, head)
         md += over
         prows = _pairwise(by, conds, list(full), seeds, head)
         md += _pairwise_md(prows, f"over {', '.join(full)}: stratified permutation tests "
                            f"of {head_name}")  # fmt: skip
-        over_rows += rows_g + prows
-    rows += over_rows
-    pngs = []
-    iq = [r for r in over_rows if r["task"] == "IQM over tasks"]
-    if plots and iq:
-        pngs.append(_plot(iq, conditions, out, foot, metrics))
-        pngs.append(_profiles(by, groups, seeds, head, head_name, out, foot))
-    md += [f"![{p.stem}]({p.name})" for p in pngs]
-    md.append("")
-    return md, rows, pngs
+        rows += rows_g + prows
+    return md, rows
 
 
 def _matrix(

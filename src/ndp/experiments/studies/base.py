@@ -24,7 +24,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 
 @dataclass(frozen=True)
@@ -67,12 +67,12 @@ def resolve(entry: str | Callable[..., Any]) -> Callable[..., Any]:
     if not sep or not module or not name:
         raise ValueError(f"entry: {entry!r} is not 'package.module:function'")
     try:
-        fn = getattr(importlib.import_module(module), name)
+        fn: Any = getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError) as e:
         raise ValueError(f"entry: {entry!r} does not name a function ({e})") from None
     if not callable(fn):
         raise ValueError(f"entry: {entry!r} names {type(fn).__name__}, not a function")
-    return fn
+    return cast("Callable[..., Any]", fn)
 
 
 @dataclass(frozen=True)

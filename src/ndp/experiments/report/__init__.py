@@ -63,7 +63,7 @@ from ndp.experiments.report.paths import check_report_stem, report_stem, with_ex
 from ndp.experiments.report.plots import plot_all
 from ndp.experiments.report.provenance import LOST, provenance
 from ndp.experiments.report.runs import find_run_dirs, run_info
-from ndp.experiments.report.scope import check_args, report_budgets, scope, study_sections
+from ndp.experiments.report.scope import Scope, check_args, report_budgets, scope, study_sections
 from ndp.experiments.rows import (
     DET_EVAL_FILE,
     DET_KEYS,
@@ -100,6 +100,7 @@ __all__ = [
     "report_stem",
     "rl_numbers",
     "run_info",
+    "split_tables",
     "success_at",
 ]
 
@@ -172,6 +173,16 @@ def report(
     family.check_pairs(pairs, [c.label for c in cells])
     if any(c.missing for c in cells) and not allow_missing:
         raise MissingSeedsError(missing_message(cells, expected))
+    return _write(cells, expected, sc, out, command, title, plots, eval_episodes, budgets,
+                  pairs, compare_pooled)  # fmt: skip
+
+
+def _write(
+    cells: list[Cell], expected: list[int], sc: Scope, out: Path, command: str, title: str,
+    plots: bool, eval_episodes: int, budgets: Sequence[float] | None,
+    pairs: Sequence[tuple[str, str]], pooled: bool,
+) -> dict[str, Any]:  # fmt: skip
+    """The numbers of the cells, then every output of :func:`report` (its return value)."""
     tables = split_tables(cells)
     rl_cells, il_cells, bc_cells = tables["success"], tables["imitation"], tables["cloning"]
     at_steps = report_budgets(budgets, rl_cells, eval_episodes)
@@ -184,7 +195,7 @@ def report(
     md = markdown(title, rl_cells, il_cells, at_steps, expected, prov, pngs, out, eval_episodes)
     with_bc_table(md, bc_cells)
     pngs, extra_csv = study_sections(md, pngs, tables, sc, expected, out, prov, plots)
-    extra_csv += _family_section(md, rl_cells, expected, pairs, compare_pooled, out, prov)
+    extra_csv += _family_section(md, rl_cells, expected, pairs, pooled, out, prov)
     atomic_write_text(with_ext(out, ".md"), "\n".join(md) + "\n")
     return {
         **prov,

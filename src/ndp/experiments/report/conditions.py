@@ -289,6 +289,9 @@ def _over_tasks(
     full: Sequence[str], seeds: Sequence[int], metrics: Sequence[tuple[str, str]] = METRICS,
     head: str = "area",
 ) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+    """The summary of ``conditions`` over the tasks ``full``: per condition and method the IQM
+    of each metric and the optimality gap, then the probability of improvement of NDP over
+    each other method and whether the paper's ordering holds (Markdown lines, CSV rows)."""
     head_name = dict(metrics)[head]
     md = [
         f"### Over tasks ({len(full)} tasks: {', '.join(full)}; {len(seeds)} seeds each)",
@@ -302,79 +305,106 @@ def _over_tasks(
         "|---" * (3 + len(metrics)) + "|",
     ]
     rows: list[dict[str, Any]] = []
-    iqm_area: dict[tuple[str, str], float] = {}
+    iqm_head: dict[tuple[str, str], float] = {}
     for cond in conditions:
         for m, lb in cond.methods:
-            vals = []
-            row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
-                                   "task": "IQM over tasks", "method": m, "arm": lb,
-                                   "n_seeds": len(seeds)}  # fmt: skip
-            for key, _ in metrics:
-                x = _matrix(by, lb, key, full, seeds)
-                if not np.isfinite(x).all():  # a number some runs lack (trained without it)
-                    vals.append("-")
-                    row.update({f"{key}_mean": math.nan, f"{key}_ci_low": math.nan,
-                                f"{key}_ci_high": math.nan})  # fmt: skip
-                    continue
-                point = stats.iqm(x)
-                lo, hi = stats.stratified_bootstrap_ci(x, stats.iqm)
-                vals.append(f"{point:.2f} [{lo:.2f}, {hi:.2f}]")
-                row.update({f"{key}_mean": point, f"{key}_ci_low": lo, f"{key}_ci_high": hi})
-                if key == head:
-                    iqm_area[(cond.name, m)] = point
-            x = _matrix(by, lb, head, full, seeds)
-            gap = stats.optimality_gap(x)
-            glo, ghi = stats.stratified_bootstrap_ci(x, stats.optimality_gap, reps=1000)
-            vals.append(f"{gap:.2f} [{glo:.2f}, {ghi:.2f}]")
-            row.update({"gap_mean": gap, "gap_ci_low": glo, "gap_ci_high": ghi})
+            line, row = _iqm_row(by, cond, m, lb, full, seeds, metrics, head, iqm_head)
+            md.append(line)
             rows.append(row)
-            md.append(f"| {_name(cond)} | {m} | " + " | ".join(vals) + " |")
     md.append("")
     # the methods some condition puts beside NDP (a method only in conditions without NDP, e.g.
     # the off-policy study's critic-input arms, would be a column of '-' in every row)
     with_ndp = [dict(c.methods) for c in conditions if "ndp" in dict(c.methods)]
     others = [m for m in methods if m != "ndp" and any(m in lab for lab in with_ndp)]
     if "ndp" in methods and others:
-        shown = [(k, h) for k, h in metrics if k in (head, "area", "final", "det_final")]
-        heads = [f"P(NDP > {o}), {h}" for o in others for _, h in shown]
-        md += [
-            "Probability that an NDP run beats a run of the other method on the same task "
-            "(ties count half; averaged over tasks) [95% stratified-bootstrap interval]; "
-            "0.5 = neither is better. Paper's ordering: NDP > PPO-multi > PPO in the IQM of "
-            f"the {head_name}.",
-            "",
-            "| condition | " + " | ".join(heads) + " | paper's ordering |",
-            "|---" * (2 + len(heads)) + "|",
-        ]
-        for cond in conditions:
-            lab = dict(cond.methods)
-            if "ndp" not in lab:
+        pmd, prows = _improvement(by, conditions, others, full, seeds, metrics, head, iqm_head)
+        md += pmd
+        rows += prows
+    return md, rows
+
+
+def _iqm_row(
+    by: dict[tuple[str, str], Any], cond: Any, m: str, lb: str, full: Sequence[str],
+    seeds: Sequence[int], metrics: Sequence[tuple[str, str]], head: str,
+    iqm_head: dict[tuple[str, str], float],
+) -> tuple[str, dict[str, Any]]:  # fmt: skip
+    """One method's row over tasks (Markdown line, CSV row): each metric's IQM with its
+    stratified-bootstrap interval and the headline's optimality gap; the headline's IQM is
+    recorded in ``iqm_head``."""
+    vals = []
+    row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
+                           "task": "IQM over tasks", "method": m, "arm": lb,
+                           "n_seeds": len(seeds)}  # fmt: skip
+    for key, _ in metrics:
+        x = _matrix(by, lb, key, full, seeds)
+        if not np.isfinite(x).all():  # a number some runs lack (trained without it)
+            vals.append("-")
+            row.update({f"{key}_mean": math.nan, f"{key}_ci_low": math.nan,
+                        f"{key}_ci_high": math.nan})  # fmt: skip
+            continue
+        point = stats.iqm(x)
+        lo, hi = stats.stratified_bootstrap_ci(x, stats.iqm)
+        vals.append(f"{point:.2f} [{lo:.2f}, {hi:.2f}]")
+        row.update({f"{key}_mean": point, f"{key}_ci_low": lo, f"{key}_ci_high": hi})
+        if key == head:
+            iqm_head[(cond.name, m)] = point
+    x = _matrix(by, lb, head, full, seeds)
+    gap = stats.optimality_gap(x)
+    glo, ghi = stats.stratified_bootstrap_ci(x, stats.optimality_gap, reps=1000)
+    vals.append(f"{gap:.2f} [{glo:.2f}, {ghi:.2f}]")
+    row.update({"gap_mean": gap, "gap_ci_low": glo, "gap_ci_high": ghi})
+    return f"| {_name(cond)} | {m} | " + " | ".join(vals) + " |", row
+
+
+def _improvement(
+    by: dict[tuple[str, str], Any], conditions: Sequence[Any], others: Sequence[str],
+    full: Sequence[str], seeds: Sequence[int], metrics: Sequence[tuple[str, str]], head: str,
+    iqm_head: dict[tuple[str, str], float],
+) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+    """P(NDP > other) per condition and shown metric, and whether the paper's ordering holds
+    in the headline's IQM (Markdown lines, CSV rows)."""
+    head_name = dict(metrics)[head]
+    shown = [(k, h) for k, h in metrics if k in (head, "area", "final", "det_final")]
+    heads = [f"P(NDP > {o}), {h}" for o in others for _, h in shown]
+    md = [
+        "Probability that an NDP run beats a run of the other method on the same task "
+        "(ties count half; averaged over tasks) [95% stratified-bootstrap interval]; "
+        "0.5 = neither is better. Paper's ordering: NDP > PPO-multi > PPO in the IQM of "
+        f"the {head_name}.",
+        "",
+        "| condition | " + " | ".join(heads) + " | paper's ordering |",
+        "|---" * (2 + len(heads)) + "|",
+    ]
+    rows: list[dict[str, Any]] = []
+    for cond in conditions:
+        lab = dict(cond.methods)
+        if "ndp" not in lab:
+            continue
+        vals = []
+        for o in others:
+            if o not in lab:
+                vals += ["-"] * len(shown)
                 continue
-            vals = []
-            for o in others:
-                if o not in lab:
-                    vals += ["-"] * len(shown)
+            for key, _ in shown:
+                x = _matrix(by, lab["ndp"], key, full, seeds)
+                y = _matrix(by, lab[o], key, full, seeds)
+                if not (np.isfinite(x).all() and np.isfinite(y).all()):
+                    vals.append("-")  # a number some of the runs lack
                     continue
-                for key, _ in shown:
-                    x = _matrix(by, lab["ndp"], key, full, seeds)
-                    y = _matrix(by, lab[o], key, full, seeds)
-                    if not (np.isfinite(x).all() and np.isfinite(y).all()):
-                        vals.append("-")  # a number some of the runs lack
-                        continue
-                    p = stats.probability_of_improvement(x, y)
-                    lo, hi = stats.probability_of_improvement_ci(x, y)
-                    vals.append(f"{p:.2f} [{lo:.2f}, {hi:.2f}]")
-                    rows.append({"condition": cond.name, "unequal": cond.unequal,
-                                 "task": "P(NDP > other)", "method": f"ndp > {o}",
-                                 "arm": f"{lab['ndp']} > {lab[o]}", "metric": key,
-                                 "p_mean": p, "p_ci_low": lo, "p_ci_high": hi})  # fmt: skip
-            ordered = [m for m in ORDER if m in lab]
-            holds = all(
-                iqm_area[(cond.name, a)] > iqm_area[(cond.name, b)]
-                for a, b in itertools.pairwise(ordered)
-            )
-            md.append(f"| {_name(cond)} | " + " | ".join(vals) + f" | {'yes' if holds else 'no'} |")
-        md.append("")
+                p = stats.probability_of_improvement(x, y)
+                lo, hi = stats.probability_of_improvement_ci(x, y)
+                vals.append(f"{p:.2f} [{lo:.2f}, {hi:.2f}]")
+                rows.append({"condition": cond.name, "unequal": cond.unequal,
+                             "task": "P(NDP > other)", "method": f"ndp > {o}",
+                             "arm": f"{lab['ndp']} > {lab[o]}", "metric": key,
+                             "p_mean": p, "p_ci_low": lo, "p_ci_high": hi})  # fmt: skip
+        ordered = [m for m in ORDER if m in lab]
+        holds = all(
+            iqm_head[(cond.name, a)] > iqm_head[(cond.name, b)]
+            for a, b in itertools.pairwise(ordered)
+        )
+        md.append(f"| {_name(cond)} | " + " | ".join(vals) + f" | {'yes' if holds else 'no'} |")
+    md.append("")
     return md, rows
 
 
@@ -633,10 +663,21 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
     )  # fmt: skip
     if not rows:
         return left_out, []
+    md = [*left_out, *_pairwise_head()]
+    for r in rows:
+        md.append(
+            f"| {r['task']} | {names.get(r['metric'], r['metric'])} | {r['method']} "
+            f"| {r['n_a']} + {r['n_b']} | {r['diff_mean']:+.3f} "
+            f"| {interval(r['diff_t_low'], r['diff_t_high'])} | {pvalue_cells(r)} |"
+        )
+    return [*md, ""], rows
+
+
+def _pairwise_head() -> list[str]:
+    """The legend and table head of :func:`pairwise_section`."""
     floor = ("With 3 + 3 runs the smallest one-sided p is 0.05 (two-sided 0.1), with 10 + 10 "
              "about 5e-6.")  # fmt: skip
-    md = [
-        *left_out,
+    return [
         "Pairwise: permutation tests over runs, per task (labels exchanged between the two "
         "methods' runs; A - B: the difference of the means, with its Welch 95% t-interval). "
         "'All tasks': the mean over tasks of the per-task difference, labels exchanged within "
@@ -650,13 +691,6 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
         f"| task | number | A vs B | runs | A - B | 95% t-interval | {P_HEADS} |",
         "|---" * (6 + P_HEADS.count("|") + 1) + "|",
     ]
-    for r in rows:
-        md.append(
-            f"| {r['task']} | {names.get(r['metric'], r['metric'])} | {r['method']} "
-            f"| {r['n_a']} + {r['n_b']} | {r['diff_mean']:+.3f} "
-            f"| {interval(r['diff_t_low'], r['diff_t_high'])} | {pvalue_cells(r)} |"
-        )
-    return [*md, ""], rows
 
 
 def _pooled_pairs(

@@ -59,7 +59,9 @@ def _p(stat: np.ndarray, observed: float) -> float:
     return float(np.mean(np.abs(stat) >= abs(observed) - 1e-12))
 
 
-def paired_sign_flip(a: Sequence[float], b: Sequence[float], seed: int = 0) -> PairedResult:
+def paired_sign_flip(
+    a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray, seed: int = 0
+) -> PairedResult:
     """Two-sided paired sign-flip test of mean(a - b).
 
     Args:
@@ -85,7 +87,8 @@ def paired_sign_flip(a: Sequence[float], b: Sequence[float], seed: int = 0) -> P
 
 
 def paired_pooled(
-    pairs: Mapping[str, tuple[Sequence[float], Sequence[float]]], seed: int = 0
+    pairs: Mapping[str, tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]],
+    seed: int = 0,
 ) -> PairedResult:
     """The paired test pooled over tasks: statistic = mean over tasks of the task's mean
     difference; signs flipped independently for every (task, seed) pair.

@@ -26,22 +26,36 @@ def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
     import matplotlib
     import torch
 
-    from ndp.dmp import RBF_KINDS, DMPConfig, dmp_rollout, fit_dmp
-
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     out_dir.mkdir(parents=True, exist_ok=True)
     gen = torch.Generator().manual_seed(0)
-    cfg = DMPConfig(n_basis=10, a_z=25.0, steps=300)
     y0 = torch.zeros(6, 2)
     goal = torch.tensor([[1.0, 1.0]]).expand(6, 2)
+    fig, axes = plt.subplots(1, 4, figsize=(18, 4.4))
+    t = _random_weights(axes[0], gen, goal, y0)
+    _only_g(axes[1], goal, y0, t)
+    _rbf_kinds(axes[2], gen, goal, y0, t)
+    mse = _fit(axes[3], t)
+    fig.tight_layout()
+    path = out_dir / "dmp_rollouts.png"
+    atomic_savefig(fig, path, dpi=110)
+    plt.close(fig)
+    return {"figure": str(path), "fit_mse_px2": mse}
+
+
+def _random_weights(ax: Any, gen: Any, goal: Any, y0: Any) -> Any:
+    """Panel 1: six rollouts with random forcing weights (the first with none); returns the
+    DMP's time axis for the other panels."""
+    import torch
+
+    from ndp.dmp import DMPConfig, dmp_rollout
+
+    cfg = DMPConfig(n_basis=10, a_z=25.0, steps=300)
     weights = torch.randn(6, 2, 10, generator=gen) * 150.0
     weights[0] = 0.0
     traj = dmp_rollout(goal, weights, y0, None, cfg)
-
-    fig, axes = plt.subplots(1, 4, figsize=(18, 4.4))
-    ax = axes[0]
     for i in range(6):
         label = "w = 0 (spring to g)" if i == 0 else None
         ax.plot(traj.pos[i, :, 0], traj.pos[i, :, 1], lw=2 if i == 0 else 1, label=label)
@@ -50,9 +64,13 @@ def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
     ax.set_title("Random forcing weights, N = 10")
     ax.legend(loc="lower right", fontsize=8)
     ax.set_aspect("equal")
+    return torch.linspace(0, 1, cfg.n_out)
 
-    ax = axes[1]
-    t = torch.linspace(0, 1, cfg.n_out)
+
+def _only_g(ax: Any, goal: Any, y0: Any, t: Any) -> None:
+    """Panel 2: the goal-only DMP (a critically damped spring) at four a_z."""
+    from ndp.dmp import DMPConfig, dmp_rollout
+
     for a_z in (5.0, 10.0, 25.0, 50.0):
         c = DMPConfig(n_basis=10, a_z=a_z, steps=300, only_g=True)
         p = dmp_rollout(goal[:1, :1], None, y0[:1, :1], None, c).pos[0, :, 0]
@@ -61,7 +79,13 @@ def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
     ax.set_xlabel("DMP time")
     ax.legend(fontsize=8)
 
-    ax = axes[2]
+
+def _rbf_kinds(ax: Any, gen: Any, goal: Any, y0: Any, t: Any) -> None:
+    """Panel 3: the same weights under every RBF kind."""
+    import torch
+
+    from ndp.dmp import RBF_KINDS, DMPConfig, dmp_rollout
+
     w1 = torch.randn(1, 1, 10, generator=gen) * 40.0
     for kind in RBF_KINDS:
         c = DMPConfig(n_basis=10, a_z=25.0, steps=300, rbf=kind)
@@ -71,7 +95,13 @@ def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
     ax.set_xlabel("DMP time")
     ax.legend(fontsize=8)
 
-    ax = axes[3]
+
+def _fit(ax: Any, t: Any) -> float:
+    """Panel 4: a least-squares fit of (g, w) to a drawn demonstration; returns its MSE."""
+    import torch
+
+    from ndp.dmp import DMPConfig, dmp_rollout, fit_dmp
+
     cfg30 = DMPConfig(n_basis=30, a_z=25.0, steps=300)
     s = t.double()
     s = 10 * s**3 - 15 * s**4 + 6 * s**5
@@ -88,12 +118,7 @@ def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
     ax.set_title("Least-squares fit of (g, w)")
     ax.legend(fontsize=8)
     ax.set_aspect("equal")
-
-    fig.tight_layout()
-    path = out_dir / "dmp_rollouts.png"
-    atomic_savefig(fig, path, dpi=110)
-    plt.close(fig)
-    return {"figure": str(path), "fit_mse_px2": mse}
+    return mse
 
 
 _PARTS = (

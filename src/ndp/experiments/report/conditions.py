@@ -129,9 +129,37 @@ def conditions_section(
     by = {(c.task, c.label): c for c in cells}
     tasks = list(dict.fromkeys(c.task for c in cells))
     conditions = [_with_overrides(cond, by, tasks) for cond in conditions]
-    methods = list(dict.fromkeys(m for cond in conditions for m, _ in cond.methods))
     metrics, head = metrics_of(cells)
-    head_name = dict(metrics)[head]
+    md = _intro(conditions, dict(metrics)[head])
+    rows: list[dict[str, Any]] = []
+    waiting: dict[str, list[str]] = {}
+    for task in tasks:
+        tmd, trows = _task_section(task, by, conditions, seeds, metrics, head, waiting)
+        md += tmd
+        rows += trows
+    if waiting:
+        md += [
+            "Conditions left out where some of their arms have no runs in this report: "
+            + "; ".join(f"{c} ({', '.join(ts)})" for c, ts in waiting.items())
+            + ".",
+            "",
+        ]
+    groups = _full_groups(by, conditions, tasks, seeds, head)
+    omd, over_rows = _over_groups(by, groups, conditions, seeds, metrics, head)
+    md += omd
+    rows += over_rows
+    pngs = []
+    iq = [r for r in over_rows if r["task"] == "IQM over tasks"]
+    if plots and iq:
+        pngs.append(_plot(iq, conditions, out, foot, metrics))
+        pngs.append(_profiles(by, groups, seeds, head, dict(metrics)[head], out, foot))
+    md += [f"![{p.stem}]({p.name})" for p in pngs]
+    md.append("")
+    return md, rows, pngs
+
+
+def _intro(conditions: Sequence[Any], head_name: str) -> list[str]:
+    """The section's title, what a condition is, and each condition with its arms."""
     md = [
         "## Conditions",
         "",
@@ -146,51 +174,73 @@ def conditions_section(
         md.append(f"- **{_name(cond)}**: {cond.note}; arms: "
                   + ", ".join(f"{m} = `{lb}`" for m, lb in cond.methods))  # fmt: skip
     md.append("")
+    return md
+
+
+def _task_section(
+    task: str, by: dict[tuple[str, str], Any], conditions: Sequence[Any], seeds: Sequence[int],
+    metrics: Sequence[tuple[str, str]], head: str, waiting: dict[str, list[str]],
+) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+    """One task's condition x method table and its permutation tests (conditions with every
+    arm on the task); the conditions with only some arms there are added to ``waiting``."""
+    present = [cond for cond in conditions if all((task, lb) in by for _, lb in cond.methods)]
+    for cond in conditions:  # some of its arms have runs on the task, not all of them yet
+        if cond not in present and any((task, lb) in by for _, lb in cond.methods):
+            waiting.setdefault(_name(cond), []).append(task)
+    if not present:
+        return [], []
+    head_name = dict(metrics)[head]
+    md = [
+        f"### {task}",
+        "",
+        "| condition | method | arm | n | "
+        + " | ".join(h for _, h in metrics)
+        + f" | {head_name}: t-interval |",
+        "|---" * (5 + len(metrics)) + "|",
+    ]
     rows: list[dict[str, Any]] = []
-    waiting: dict[str, list[str]] = {}
-    for task in tasks:
-        present = [cond for cond in conditions if all((task, lb) in by for _, lb in cond.methods)]
-        for cond in conditions:  # some of its arms have runs on the task, not all of them yet
-            if cond not in present and any((task, lb) in by for _, lb in cond.methods):
-                waiting.setdefault(_name(cond), []).append(task)
-        if not present:
-            continue
-        md += [
-            f"### {task}",
-            "",
-            "| condition | method | arm | n | "
-            + " | ".join(h for _, h in metrics)
-            + f" | {head_name}: t-interval |",
-            "|---" * (5 + len(metrics)) + "|",
-        ]
-        for cond in present:
-            for m, lb in cond.methods:
-                cell = by.get((task, lb))
-                vals = []
-                row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
-                                       "task": task, "method": m, "arm": lb}  # fmt: skip
-                n = 0
-                for key, _ in metrics:
-                    v = _values(cell, key, seeds)
-                    n = max(n, len(v))
-                    lo, hi = stats.bootstrap_ci(v) if v else (math.nan, math.nan)
-                    vals.append(_ci(v, lo, hi))
-                    row.update({f"{key}_mean": np.mean(v) if v else math.nan,
-                                f"{key}_ci_low": lo, f"{key}_ci_high": hi})  # fmt: skip
-                v = _values(cell, head, seeds)
-                tlo, thi = stats.t_interval(v) if v else (math.nan, math.nan)
-                vals.append("-" if not v else f"[{tlo:.2f}, {thi:.2f}]")
-                row.update({f"{head}_t_low": tlo, f"{head}_t_high": thi})
-                row["n_seeds"] = n
-                rows.append(row)
-                md.append(f"| {_name(cond)} | {m} | `{lb}` | {n} | " + " | ".join(vals) + " |")
-        md.append("")
-        prows = _pairwise(by, present, [task], seeds, head)
-        md += _pairwise_md(prows, f"{task}: permutation tests of {head_name}")
-        rows += prows
-    # over tasks: the conditions whose every arm has every seed on the same tasks (two or
-    # more), each over its own full tasks
-    over_rows: list[dict[str, Any]] = []
+    for cond in present:
+        for m, lb in cond.methods:
+            line, row = _task_row(task, cond, m, lb, by.get((task, lb)), seeds, metrics, head)
+            md.append(line)
+            rows.append(row)
+    md.append("")
+    prows = _pairwise(by, present, [task], seeds, head)
+    md += _pairwise_md(prows, f"{task}: permutation tests of {head_name}")
+    return md, rows + prows
+
+
+def _task_row(
+    task: str, cond: Any, m: str, lb: str, cell: Any, seeds: Sequence[int],
+    metrics: Sequence[tuple[str, str]], head: str,
+) -> tuple[str, dict[str, Any]]:  # fmt: skip
+    """One method's row of a task table (Markdown line, CSV row): each metric's mean and
+    bootstrap interval, and the headline's t-interval."""
+    vals = []
+    row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
+                           "task": task, "method": m, "arm": lb}  # fmt: skip
+    n = 0
+    for key, _ in metrics:
+        v = _values(cell, key, seeds)
+        n = max(n, len(v))
+        lo, hi = stats.bootstrap_ci(v) if v else (math.nan, math.nan)
+        vals.append(_ci(v, lo, hi))
+        row.update({f"{key}_mean": np.mean(v) if v else math.nan,
+                    f"{key}_ci_low": lo, f"{key}_ci_high": hi})  # fmt: skip
+    v = _values(cell, head, seeds)
+    tlo, thi = stats.t_interval(v) if v else (math.nan, math.nan)
+    vals.append("-" if not v else f"[{tlo:.2f}, {thi:.2f}]")
+    row.update({f"{head}_t_low": tlo, f"{head}_t_high": thi})
+    row["n_seeds"] = n
+    return f"| {_name(cond)} | {m} | `{lb}` | {n} | " + " | ".join(vals) + " |", row
+
+
+def _full_groups(
+    by: dict[tuple[str, str], Any], conditions: Sequence[Any], tasks: Sequence[str],
+    seeds: Sequence[int], head: str,
+) -> dict[tuple[str, ...], list[Any]]:  # fmt: skip
+    """The conditions whose every arm has every seed on the same tasks (two or more), grouped
+    by those tasks (each group is read over its own full tasks)."""
     groups: dict[tuple[str, ...], list[Any]] = {}
     for cond in conditions:
         full = tuple(
@@ -202,31 +252,30 @@ def conditions_section(
         )
         if len(full) >= 2:
             groups.setdefault(full, []).append(cond)
-    if waiting:
-        md += [
-            "Conditions left out where some of their arms have no runs in this report: "
-            + "; ".join(f"{c} ({', '.join(ts)})" for c, ts in waiting.items())
-            + ".",
-            "",
-        ]
+    return groups
+
+
+def _over_groups(
+    by: dict[tuple[str, str], Any], groups: dict[tuple[str, ...], list[Any]],
+    conditions: Sequence[Any], seeds: Sequence[int], metrics: Sequence[tuple[str, str]],
+    head: str,
+) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+    """Per group of :func:`_full_groups`: the summary over its tasks and the stratified
+    permutation tests (Markdown lines, CSV rows)."""
     if not groups:
-        md += ["Over tasks: no condition has every seed of every arm on two tasks yet.", ""]
+        return ["Over tasks: no condition has every seed of every arm on two tasks yet.", ""], []
+    methods = list(dict.fromkeys(m for cond in conditions for m, _ in cond.methods))
+    head_name = dict(metrics)[head]
+    md: list[str] = []
+    rows: list[dict[str, Any]] = []
     for full, conds in groups.items():
         over, rows_g = _over_tasks(by, conds, methods, list(full), seeds, metrics, head)
         md += over
         prows = _pairwise(by, conds, list(full), seeds, head)
         md += _pairwise_md(prows, f"over {', '.join(full)}: stratified permutation tests "
                            f"of {head_name}")  # fmt: skip
-        over_rows += rows_g + prows
-    rows += over_rows
-    pngs = []
-    iq = [r for r in over_rows if r["task"] == "IQM over tasks"]
-    if plots and iq:
-        pngs.append(_plot(iq, conditions, out, foot, metrics))
-        pngs.append(_profiles(by, groups, seeds, head, head_name, out, foot))
-    md += [f"![{p.stem}]({p.name})" for p in pngs]
-    md.append("")
-    return md, rows, pngs
+        rows += rows_g + prows
+    return md, rows
 
 
 def _matrix(
@@ -240,6 +289,9 @@ def _over_tasks(
     full: Sequence[str], seeds: Sequence[int], metrics: Sequence[tuple[str, str]] = METRICS,
     head: str = "area",
 ) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+    """The summary of ``conditions`` over the tasks ``full``: per condition and method the IQM
+    of each metric and the optimality gap, then the probability of improvement of NDP over
+    each other method and whether the paper's ordering holds (Markdown lines, CSV rows)."""
     head_name = dict(metrics)[head]
     md = [
         f"### Over tasks ({len(full)} tasks: {', '.join(full)}; {len(seeds)} seeds each)",
@@ -253,79 +305,106 @@ def _over_tasks(
         "|---" * (3 + len(metrics)) + "|",
     ]
     rows: list[dict[str, Any]] = []
-    iqm_area: dict[tuple[str, str], float] = {}
+    iqm_head: dict[tuple[str, str], float] = {}
     for cond in conditions:
         for m, lb in cond.methods:
-            vals = []
-            row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
-                                   "task": "IQM over tasks", "method": m, "arm": lb,
-                                   "n_seeds": len(seeds)}  # fmt: skip
-            for key, _ in metrics:
-                x = _matrix(by, lb, key, full, seeds)
-                if not np.isfinite(x).all():  # a number some runs lack (trained without it)
-                    vals.append("-")
-                    row.update({f"{key}_mean": math.nan, f"{key}_ci_low": math.nan,
-                                f"{key}_ci_high": math.nan})  # fmt: skip
-                    continue
-                point = stats.iqm(x)
-                lo, hi = stats.stratified_bootstrap_ci(x, stats.iqm)
-                vals.append(f"{point:.2f} [{lo:.2f}, {hi:.2f}]")
-                row.update({f"{key}_mean": point, f"{key}_ci_low": lo, f"{key}_ci_high": hi})
-                if key == head:
-                    iqm_area[(cond.name, m)] = point
-            x = _matrix(by, lb, head, full, seeds)
-            gap = stats.optimality_gap(x)
-            glo, ghi = stats.stratified_bootstrap_ci(x, stats.optimality_gap, reps=1000)
-            vals.append(f"{gap:.2f} [{glo:.2f}, {ghi:.2f}]")
-            row.update({"gap_mean": gap, "gap_ci_low": glo, "gap_ci_high": ghi})
+            line, row = _iqm_row(by, cond, m, lb, full, seeds, metrics, head, iqm_head)
+            md.append(line)
             rows.append(row)
-            md.append(f"| {_name(cond)} | {m} | " + " | ".join(vals) + " |")
     md.append("")
     # the methods some condition puts beside NDP (a method only in conditions without NDP, e.g.
     # the off-policy study's critic-input arms, would be a column of '-' in every row)
     with_ndp = [dict(c.methods) for c in conditions if "ndp" in dict(c.methods)]
     others = [m for m in methods if m != "ndp" and any(m in lab for lab in with_ndp)]
     if "ndp" in methods and others:
-        shown = [(k, h) for k, h in metrics if k in (head, "area", "final", "det_final")]
-        heads = [f"P(NDP > {o}), {h}" for o in others for _, h in shown]
-        md += [
-            "Probability that an NDP run beats a run of the other method on the same task "
-            "(ties count half; averaged over tasks) [95% stratified-bootstrap interval]; "
-            "0.5 = neither is better. Paper's ordering: NDP > PPO-multi > PPO in the IQM of "
-            f"the {head_name}.",
-            "",
-            "| condition | " + " | ".join(heads) + " | paper's ordering |",
-            "|---" * (2 + len(heads)) + "|",
-        ]
-        for cond in conditions:
-            lab = dict(cond.methods)
-            if "ndp" not in lab:
+        pmd, prows = _improvement(by, conditions, others, full, seeds, metrics, head, iqm_head)
+        md += pmd
+        rows += prows
+    return md, rows
+
+
+def _iqm_row(
+    by: dict[tuple[str, str], Any], cond: Any, m: str, lb: str, full: Sequence[str],
+    seeds: Sequence[int], metrics: Sequence[tuple[str, str]], head: str,
+    iqm_head: dict[tuple[str, str], float],
+) -> tuple[str, dict[str, Any]]:  # fmt: skip
+    """One method's row over tasks (Markdown line, CSV row): each metric's IQM with its
+    stratified-bootstrap interval and the headline's optimality gap; the headline's IQM is
+    recorded in ``iqm_head``."""
+    vals = []
+    row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
+                           "task": "IQM over tasks", "method": m, "arm": lb,
+                           "n_seeds": len(seeds)}  # fmt: skip
+    for key, _ in metrics:
+        x = _matrix(by, lb, key, full, seeds)
+        if not np.isfinite(x).all():  # a number some runs lack (trained without it)
+            vals.append("-")
+            row.update({f"{key}_mean": math.nan, f"{key}_ci_low": math.nan,
+                        f"{key}_ci_high": math.nan})  # fmt: skip
+            continue
+        point = stats.iqm(x)
+        lo, hi = stats.stratified_bootstrap_ci(x, stats.iqm)
+        vals.append(f"{point:.2f} [{lo:.2f}, {hi:.2f}]")
+        row.update({f"{key}_mean": point, f"{key}_ci_low": lo, f"{key}_ci_high": hi})
+        if key == head:
+            iqm_head[(cond.name, m)] = point
+    x = _matrix(by, lb, head, full, seeds)
+    gap = stats.optimality_gap(x)
+    glo, ghi = stats.stratified_bootstrap_ci(x, stats.optimality_gap, reps=1000)
+    vals.append(f"{gap:.2f} [{glo:.2f}, {ghi:.2f}]")
+    row.update({"gap_mean": gap, "gap_ci_low": glo, "gap_ci_high": ghi})
+    return f"| {_name(cond)} | {m} | " + " | ".join(vals) + " |", row
+
+
+def _improvement(
+    by: dict[tuple[str, str], Any], conditions: Sequence[Any], others: Sequence[str],
+    full: Sequence[str], seeds: Sequence[int], metrics: Sequence[tuple[str, str]], head: str,
+    iqm_head: dict[tuple[str, str], float],
+) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+    """P(NDP > other) per condition and shown metric, and whether the paper's ordering holds
+    in the headline's IQM (Markdown lines, CSV rows)."""
+    head_name = dict(metrics)[head]
+    shown = [(k, h) for k, h in metrics if k in (head, "area", "final", "det_final")]
+    heads = [f"P(NDP > {o}), {h}" for o in others for _, h in shown]
+    md = [
+        "Probability that an NDP run beats a run of the other method on the same task "
+        "(ties count half; averaged over tasks) [95% stratified-bootstrap interval]; "
+        "0.5 = neither is better. Paper's ordering: NDP > PPO-multi > PPO in the IQM of "
+        f"the {head_name}.",
+        "",
+        "| condition | " + " | ".join(heads) + " | paper's ordering |",
+        "|---" * (2 + len(heads)) + "|",
+    ]
+    rows: list[dict[str, Any]] = []
+    for cond in conditions:
+        lab = dict(cond.methods)
+        if "ndp" not in lab:
+            continue
+        vals = []
+        for o in others:
+            if o not in lab:
+                vals += ["-"] * len(shown)
                 continue
-            vals = []
-            for o in others:
-                if o not in lab:
-                    vals += ["-"] * len(shown)
+            for key, _ in shown:
+                x = _matrix(by, lab["ndp"], key, full, seeds)
+                y = _matrix(by, lab[o], key, full, seeds)
+                if not (np.isfinite(x).all() and np.isfinite(y).all()):
+                    vals.append("-")  # a number some of the runs lack
                     continue
-                for key, _ in shown:
-                    x = _matrix(by, lab["ndp"], key, full, seeds)
-                    y = _matrix(by, lab[o], key, full, seeds)
-                    if not (np.isfinite(x).all() and np.isfinite(y).all()):
-                        vals.append("-")  # a number some of the runs lack
-                        continue
-                    p = stats.probability_of_improvement(x, y)
-                    lo, hi = stats.probability_of_improvement_ci(x, y)
-                    vals.append(f"{p:.2f} [{lo:.2f}, {hi:.2f}]")
-                    rows.append({"condition": cond.name, "unequal": cond.unequal,
-                                 "task": "P(NDP > other)", "method": f"ndp > {o}",
-                                 "arm": f"{lab['ndp']} > {lab[o]}", "metric": key,
-                                 "p_mean": p, "p_ci_low": lo, "p_ci_high": hi})  # fmt: skip
-            ordered = [m for m in ORDER if m in lab]
-            holds = all(
-                iqm_area[(cond.name, a)] > iqm_area[(cond.name, b)]
-                for a, b in itertools.pairwise(ordered)
-            )
-            md.append(f"| {_name(cond)} | " + " | ".join(vals) + f" | {'yes' if holds else 'no'} |")
-        md.append("")
+                p = stats.probability_of_improvement(x, y)
+                lo, hi = stats.probability_of_improvement_ci(x, y)
+                vals.append(f"{p:.2f} [{lo:.2f}, {hi:.2f}]")
+                rows.append({"condition": cond.name, "unequal": cond.unequal,
+                             "task": "P(NDP > other)", "method": f"ndp > {o}",
+                             "arm": f"{lab['ndp']} > {lab[o]}", "metric": key,
+                             "p_mean": p, "p_ci_low": lo, "p_ci_high": hi})  # fmt: skip
+        ordered = [m for m in ORDER if m in lab]
+        holds = all(
+            iqm_head[(cond.name, a)] > iqm_head[(cond.name, b)]
+            for a, b in itertools.pairwise(ordered)
+        )
+        md.append(f"| {_name(cond)} | " + " | ".join(vals) + f" | {'yes' if holds else 'no'} |")
+    md.append("")
     return md, rows
 
 
@@ -584,10 +663,21 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
     )  # fmt: skip
     if not rows:
         return left_out, []
+    md = [*left_out, *_pairwise_head()]
+    for r in rows:
+        md.append(
+            f"| {r['task']} | {names.get(r['metric'], r['metric'])} | {r['method']} "
+            f"| {r['n_a']} + {r['n_b']} | {r['diff_mean']:+.3f} "
+            f"| {interval(r['diff_t_low'], r['diff_t_high'])} | {pvalue_cells(r)} |"
+        )
+    return [*md, ""], rows
+
+
+def _pairwise_head() -> list[str]:
+    """The legend and table head of :func:`pairwise_section`."""
     floor = ("With 3 + 3 runs the smallest one-sided p is 0.05 (two-sided 0.1), with 10 + 10 "
              "about 5e-6.")  # fmt: skip
-    md = [
-        *left_out,
+    return [
         "Pairwise: permutation tests over runs, per task (labels exchanged between the two "
         "methods' runs; A - B: the difference of the means, with its Welch 95% t-interval). "
         "'All tasks': the mean over tasks of the per-task difference, labels exchanged within "
@@ -601,13 +691,6 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
         f"| task | number | A vs B | runs | A - B | 95% t-interval | {P_HEADS} |",
         "|---" * (6 + P_HEADS.count("|") + 1) + "|",
     ]
-    for r in rows:
-        md.append(
-            f"| {r['task']} | {names.get(r['metric'], r['metric'])} | {r['method']} "
-            f"| {r['n_a']} + {r['n_b']} | {r['diff_mean']:+.3f} "
-            f"| {interval(r['diff_t_low'], r['diff_t_high'])} | {pvalue_cells(r)} |"
-        )
-    return [*md, ""], rows
 
 
 def _pooled_pairs(

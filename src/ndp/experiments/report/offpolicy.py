@@ -225,34 +225,47 @@ def critic_health(
     md_rows, rows = [], []
     for c in cells:
         for seed, info in sorted(getattr(c, "runs", {}).items()):
-            try:
-                log = read_metrics(info.path)
-            except (FileNotFoundError, ValueError):
+            r = _critic_row(c, seed, info.path)
+            if r is None:
                 continue
-            q = np.array([r.get("sac/q", math.nan) for r in log], dtype=float)
-            if not np.isfinite(q).any():
-                continue
-            ret = np.array([r.get("charts/episode_return", math.nan) for r in log], dtype=float)
-            alpha = np.array([r.get("sac/alpha", math.nan) for r in log], dtype=float)
-            steps = np.array([r.get("global_step", math.nan) for r in log], dtype=float)
-            i = int(np.nanargmax(q))
-            scale = max(float(np.nanmax(np.abs(ret))) if np.isfinite(ret).any() else 0.0, 1.0)
-            diverged = q_runaway(float(q[i]), scale)
-            a_fin = alpha[np.isfinite(alpha)]
-            rows.append({"reading": "critic", "item": f"{c.label} s{seed}", "task": c.task,
-                         "value": float(q[i]) / scale, "q_peak": float(q[i]),
-                         "q_peak_step": float(steps[i]), "return_peak": scale,
-                         "alpha_peak": float(np.nanmax(alpha)) if a_fin.size else math.nan,
-                         "alpha_final": float(a_fin[-1]) if a_fin.size else math.nan,
-                         "verdict": "diverged" if diverged else "ok"})  # fmt: skip
-            r = rows[-1]
+            rows.append(r)
             md_rows.append(
                 f"| {c.task} | {c.label} | {seed} | {r['q_peak']:,.0f} | {r['q_peak_step']:,.0f} "
-                f"| {scale:,.0f} | {r['alpha_peak']:.3g} | {r['alpha_final']:.3g} "
-                f"| {'**diverged**' if diverged else 'ok'} |"
+                f"| {r['return_peak']:,.0f} | {r['alpha_peak']:.3g} | {r['alpha_final']:.3g} "
+                f"| {'**diverged**' if r['verdict'] == 'diverged' else 'ok'} |"
             )
     if not rows:
         return [], []
+    return _critic_md(rows, md_rows, reading), rows
+
+
+def _critic_row(c: Any, seed: int, path: Any) -> dict[str, Any] | None:
+    """One run's critic numbers (peak Q, its step, the return scale, alpha), or None for a run
+    without a readable log or without ``sac/q``."""
+    try:
+        log = read_metrics(path)
+    except (FileNotFoundError, ValueError):
+        return None
+    q = np.array([r.get("sac/q", math.nan) for r in log], dtype=float)
+    if not np.isfinite(q).any():
+        return None
+    ret = np.array([r.get("charts/episode_return", math.nan) for r in log], dtype=float)
+    alpha = np.array([r.get("sac/alpha", math.nan) for r in log], dtype=float)
+    steps = np.array([r.get("global_step", math.nan) for r in log], dtype=float)
+    i = int(np.nanargmax(q))
+    scale = max(float(np.nanmax(np.abs(ret))) if np.isfinite(ret).any() else 0.0, 1.0)
+    diverged = q_runaway(float(q[i]), scale)
+    a_fin = alpha[np.isfinite(alpha)]
+    return {"reading": "critic", "item": f"{c.label} s{seed}", "task": c.task,
+            "value": float(q[i]) / scale, "q_peak": float(q[i]),
+            "q_peak_step": float(steps[i]), "return_peak": scale,
+            "alpha_peak": float(np.nanmax(alpha)) if a_fin.size else math.nan,
+            "alpha_final": float(a_fin[-1]) if a_fin.size else math.nan,
+            "verdict": "diverged" if diverged else "ok"}  # fmt: skip
+
+
+def _critic_md(rows: list[dict[str, Any]], md_rows: list[str], reading: bool) -> list[str]:
+    """The critic-health section around its table rows."""
     bad = [f"{r['task']} {r['item']}" for r in rows if r["verdict"] == "diverged"]
     why = ("The numbers of the reading above." if reading else
            "Added on 2026-12-05 after seed 0 of `ndp-sac-k5` on push-v3 was seen to diverge; "
@@ -273,7 +286,7 @@ def critic_health(
         "",
         f"Diverged: {len(bad)} of {len(rows)} runs" + (f" ({', '.join(bad)})." if bad else "."),
         "",
-    ], rows
+    ]
 
 
 def off_policy_readings(

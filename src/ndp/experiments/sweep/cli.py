@@ -83,6 +83,13 @@ def sweep_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--runs-dir", type=Path, help="default runs/sweep/<study> (grid: runs/sweep/grid)"
     )
+    _sweep_run_options(p)
+    _sweep_output_options(p)
+    return p
+
+
+def _sweep_run_options(p: argparse.ArgumentParser) -> None:
+    """``ndp sweep``'s options on how the runs are executed (backend, jobs, retries, ...)."""
     p.add_argument("--backend", choices=("local", "ray"), default="local")
     p.add_argument(
         "--address", help="--backend ray: join this cluster (default: start a local Ray)"
@@ -110,6 +117,10 @@ def sweep_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="leave out arms whose trainer options this version lacks",
     )
+
+
+def _sweep_output_options(p: argparse.ArgumentParser) -> None:
+    """``ndp sweep``'s options on what it prints and writes (dry run, list, report, archives)."""
     p.add_argument("--dry-run", action="store_true", help="list the runs and their state; run none")
     p.add_argument(
         "--report",
@@ -138,7 +149,6 @@ def sweep_parser() -> argparse.ArgumentParser:
         help="first restore the runs of ARCHIVE (--pack) into the runs directory (existing run "
         "directories are left as they are)",
     )
-    return p
 
 
 def report_parser() -> argparse.ArgumentParser:
@@ -161,6 +171,12 @@ def report_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="mark cells with missing seeds instead of refusing",
     )
+    _report_output_options(p)
+    return p
+
+
+def _report_output_options(p: argparse.ArgumentParser) -> None:
+    """``ndp report``'s options on what the report shows and writes (title, plots, study, tests)."""
     p.add_argument("--title", default=None, help="the table's title (default: the study's)")
     p.add_argument(
         "--eval-episodes",
@@ -209,7 +225,6 @@ def report_parser() -> argparse.ArgumentParser:
         help="with --compare: the rows the registered family holds (Holm over them); the "
         "others are descriptions: 'pooled' tests the rows over all tasks only (default all)",
     )
-    return p
 
 
 def _split_extra(argv: list[str]) -> tuple[list[str], list[str]]:
@@ -234,58 +249,13 @@ def _pick(kind: str, requested: list[str] | None, known: list[str]) -> list[str]
 
 def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
     """The sweep the options describe, validated (ValueError before anything starts)."""
-    from ndp.experiments.studies import get_study
-    from ndp.experiments.study import Arm
-    from ndp.experiments.sweep import (
-        UnknownOptionError,
-        apply_overrides,
-        check_arms,
-        check_methods,
-        check_tasks,
-        parse_overrides,
-    )
+    from ndp.experiments.sweep import apply_overrides, check_tasks, parse_overrides
 
     notes: list[str] = []
     if args.study:
-        study = get_study(args.study)
-        kind, name = study.kind, study.name
-        keep, pending = study.available()
-        specs = {a.label: a for a in study.arm_specs()}
-        labels = _pick("arms", args.arms, list(specs))
-        if not args.arms:
-            labels = [lb for lb in labels if specs[lb].in_default]
-        for a, why in pending:
-            if args.arms and a.label in args.arms:
-                raise ValueError(f"{name}: arm {a.label!r} is not available: {why}")
-            if a.label in labels:
-                notes.append(f"{name}: arm {a.label!r} left out: {why}")
-        have = {a.label for a in keep}
-        arms = [specs[lb].arm() for lb in labels if lb in have]
-        if args.methods:
-            check_methods(args.methods)
-            arms = [a for a in arms if a.algo in args.methods]
-        tasks = list(args.tasks) if args.tasks else list(study.task_list())
-        seeds = args.seeds if args.seeds is not None else list(study.seeds)
-        steps = args.steps if args.steps is not None else study.steps
-        budgets = [f * steps for f in study.budgets]
+        kind, name, arms, tasks, seeds, steps, budgets = _study_grid(args, notes)
     else:
-        if args.arms:
-            raise ValueError("--arms: only with a STUDY (a grid takes --methods)")
-        if not args.tasks or not args.methods:
-            raise ValueError(
-                "sweep: name a STUDY, or give --tasks and --methods for a grid "
-                "(ndp sweep --list shows the studies)"
-            )
-        methods = check_methods(args.methods)
-        il = [m.startswith("il-") for m in methods]
-        if any(il) and not all(il):
-            raise ValueError("--methods: imitation (il-*) and RL methods cannot share one grid")
-        kind, name = ("il" if all(il) else "rl"), "grid"
-        arms = [Arm(m, m) for m in methods]
-        tasks = list(args.tasks)
-        seeds = args.seeds if args.seeds is not None else [0]
-        steps = args.steps if args.steps is not None else run_kind(kind).default_budget
-        budgets = None
+        kind, name, arms, tasks, seeds, steps, budgets = _plain_grid(args)
     if steps < 1:
         raise ValueError(f"--steps: expected a budget >= 1, got {steps}")
     if any(s < 0 for s in seeds):
@@ -293,21 +263,7 @@ def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
     tasks = check_tasks(tasks, kind)
     overrides = parse_overrides(args.override, kind)
     arms = apply_overrides(arms, overrides, extra)
-    kept = []
-    for arm in arms:
-        try:
-            check_arms([arm], tasks, name)
-        except UnknownOptionError as exc:
-            if not args.skip_unavailable:
-                raise
-            notes.append(
-                f"{name}: arm {arm.label!r} left out: {exc.option} is unknown to the "
-                f"trainer" + (f" (needs {arm.requires})" if arm.requires else "")
-            )
-            continue
-        kept.append(arm)
-    if not kept:
-        raise ValueError(f"{name}: no arms left to run")
+    kept = _trainable(arms, tasks, name, args.skip_unavailable, notes)
     return {
         "name": name,
         "kind": kind,
@@ -318,6 +274,86 @@ def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
         "budgets": budgets,
         "notes": notes,
     }
+
+
+_Grid = tuple[str, str, list[Any], list[str], list[int], int, "list[float] | None"]
+"""(kind, name, arms, tasks, seeds, steps, budgets) of a sweep before its checks."""
+
+
+def _study_grid(args: argparse.Namespace, notes: list[str]) -> _Grid:
+    """The grid of ``args.study`` narrowed by the options; its arms left out are noted in
+    ``notes`` (an arm named with ``--arms`` that is not available: ValueError)."""
+    from ndp.experiments.studies import get_study
+    from ndp.experiments.sweep import check_methods
+
+    study = get_study(args.study)
+    kind, name = study.kind, study.name
+    keep, pending = study.available()
+    specs = {a.label: a for a in study.arm_specs()}
+    labels = _pick("arms", args.arms, list(specs))
+    if not args.arms:
+        labels = [lb for lb in labels if specs[lb].in_default]
+    for a, why in pending:
+        if args.arms and a.label in args.arms:
+            raise ValueError(f"{name}: arm {a.label!r} is not available: {why}")
+        if a.label in labels:
+            notes.append(f"{name}: arm {a.label!r} left out: {why}")
+    have = {a.label for a in keep}
+    arms = [specs[lb].arm() for lb in labels if lb in have]
+    if args.methods:
+        check_methods(args.methods)
+        arms = [a for a in arms if a.algo in args.methods]
+    tasks = list(args.tasks) if args.tasks else list(study.task_list())
+    seeds = args.seeds if args.seeds is not None else list(study.seeds)
+    steps = args.steps if args.steps is not None else study.steps
+    return kind, name, arms, tasks, seeds, steps, [f * steps for f in study.budgets]
+
+
+def _plain_grid(args: argparse.Namespace) -> _Grid:
+    """The grid of ``--tasks`` x ``--methods`` without a study (one arm per method)."""
+    from ndp.experiments.study import Arm
+    from ndp.experiments.sweep import check_methods
+
+    if args.arms:
+        raise ValueError("--arms: only with a STUDY (a grid takes --methods)")
+    if not args.tasks or not args.methods:
+        raise ValueError(
+            "sweep: name a STUDY, or give --tasks and --methods for a grid "
+            "(ndp sweep --list shows the studies)"
+        )
+    methods = check_methods(args.methods)
+    il = [m.startswith("il-") for m in methods]
+    if any(il) and not all(il):
+        raise ValueError("--methods: imitation (il-*) and RL methods cannot share one grid")
+    kind = "il" if all(il) else "rl"
+    seeds = args.seeds if args.seeds is not None else [0]
+    steps = args.steps if args.steps is not None else run_kind(kind).default_budget
+    return kind, "grid", [Arm(m, m) for m in methods], list(args.tasks), seeds, steps, None
+
+
+def _trainable(
+    arms: list[Any], tasks: list[str], name: str, skip: bool, notes: list[str]
+) -> list[Any]:
+    """The arms whose options the trainer knows; with ``skip`` the others are left out (and
+    noted), else the first is refused (UnknownOptionError). ValueError when none is left."""
+    from ndp.experiments.sweep import UnknownOptionError, check_arms
+
+    kept = []
+    for arm in arms:
+        try:
+            check_arms([arm], tasks, name)
+        except UnknownOptionError as exc:
+            if not skip:
+                raise
+            notes.append(
+                f"{name}: arm {arm.label!r} left out: {exc.option} is unknown to the "
+                f"trainer" + (f" (needs {arm.requires})" if arm.requires else "")
+            )
+            continue
+        kept.append(arm)
+    if not kept:
+        raise ValueError(f"{name}: no arms left to run")
+    return kept
 
 
 def _pack(jobs: Any, out: Path, unfinished: bool = False) -> None:
@@ -346,18 +382,10 @@ def sweep_command(argv: list[str]) -> int:
     args = sweep_parser().parse_args(own)
     if args.list:
         return _list_studies()
-    if args.jobs is not None and args.jobs < 1:
-        raise ValueError(f"--jobs: expected an integer >= 1, got {args.jobs}")
-    if args.retries < 0:
-        raise ValueError(f"--retries: expected an integer >= 0, got {args.retries}")
-    if args.pack_unfinished and args.pack is None:
-        raise ValueError("--pack-unfinished: only with --pack ARCHIVE")
-    if args.address and args.backend != "ray":
-        raise ValueError("--address: only with --backend ray")
+    _check_sweep_args(args)
     g = build_grid(args, extra)
     from ndp.experiments.study import default_vector
     from ndp.experiments.sweep import default_workers, make_jobs, plan_lines, run_sweep
-    from ndp.provenance import portable_command
 
     for n in g["notes"]:
         print(n, flush=True)
@@ -381,13 +409,7 @@ def sweep_command(argv: list[str]) -> int:
     from ndp.experiments.sweep import check_plan
 
     if args.unpack is not None:
-        from ndp.experiments.sweep.archive import unpack
-
-        restored, kept = unpack(args.unpack, runs_dir)
-        partial = sum(not (runs_dir / n / "done.json").is_file() for n in restored)
-        print(f"unpack: {len(restored)} runs restored from {args.unpack} into {runs_dir} "
-              f"({partial} unfinished, to resume from their checkpoint); {len(kept)} already "
-              "there, left as they are", flush=True)  # fmt: skip
+        _unpack(args.unpack, Path(runs_dir))
     check_plan(jobs)
     if args.dry_run:
         print(f"{g['name']}: {len(jobs)} runs in {runs_dir} (dry run: nothing started)")
@@ -412,24 +434,53 @@ def sweep_command(argv: list[str]) -> int:
     if args.pack is not None:
         _pack(jobs, args.pack, args.pack_unfinished)
     if args.report is not None and not result.interrupted:
-        from ndp.experiments.report import report
-        from ndp.experiments.studies import get_study
-
-        cmd = "ndp sweep " + shlex.join(portable_command(argv))
-        unit = run_kind(g["kind"]).unit
-        dirs = [j.run_dir for j in jobs if j.run_dir.is_dir()]
-        out = report(
-            dirs,
-            args.report,
-            cmd,
-            seeds=g["seeds"],
-            budgets=g["budgets"],
-            allow_missing=True,
-            title=f"{g['name']} ({g['steps']:,} {unit} per run)",
-            study=args.study if args.study and get_study(args.study).conditions else None,
-        )
-        print(f"report: {out['markdown']}, {out['csv']}, {len(out['png'])} PNG")
+        _sweep_report(args, argv, g, jobs)
     return result.exit_code
+
+
+def _check_sweep_args(args: argparse.Namespace) -> None:
+    """The sweep's own options that need no study (ValueError naming the option)."""
+    if args.jobs is not None and args.jobs < 1:
+        raise ValueError(f"--jobs: expected an integer >= 1, got {args.jobs}")
+    if args.retries < 0:
+        raise ValueError(f"--retries: expected an integer >= 0, got {args.retries}")
+    if args.pack_unfinished and args.pack is None:
+        raise ValueError("--pack-unfinished: only with --pack ARCHIVE")
+    if args.address and args.backend != "ray":
+        raise ValueError("--address: only with --backend ray")
+
+
+def _unpack(archive: Path, runs_dir: Path) -> None:
+    """``--unpack``: restore the archive's runs into ``runs_dir`` (those there are kept)."""
+    from ndp.experiments.sweep.archive import unpack
+
+    restored, kept = unpack(archive, runs_dir)
+    partial = sum(not (runs_dir / n / "done.json").is_file() for n in restored)
+    print(f"unpack: {len(restored)} runs restored from {archive} into {runs_dir} "
+          f"({partial} unfinished, to resume from their checkpoint); {len(kept)} already "
+          "there, left as they are", flush=True)  # fmt: skip
+
+
+def _sweep_report(args: argparse.Namespace, argv: list[str], g: dict[str, Any], jobs: Any) -> None:
+    """``--report OUT``: the report of the sweep's runs (missing seeds marked)."""
+    from ndp.experiments.report import report
+    from ndp.experiments.studies import get_study
+    from ndp.provenance import portable_command
+
+    cmd = "ndp sweep " + shlex.join(portable_command(argv))
+    unit = run_kind(g["kind"]).unit
+    dirs = [j.run_dir for j in jobs if j.run_dir.is_dir()]
+    out = report(
+        dirs,
+        args.report,
+        cmd,
+        seeds=g["seeds"],
+        budgets=g["budgets"],
+        allow_missing=True,
+        title=f"{g['name']} ({g['steps']:,} {unit} per run)",
+        study=args.study if args.study and get_study(args.study).conditions else None,
+    )
+    print(f"report: {out['markdown']}, {out['csv']}, {len(out['png'])} PNG")
 
 
 def _list_studies() -> int:

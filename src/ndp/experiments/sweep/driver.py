@@ -53,75 +53,95 @@ def run_sweep(
 
     be = make_backend(backend, workers, address)
     progress = Progress(jobs, out, progress_every)
-    index = {j.run_dir: i for i, j in enumerate(jobs)}
-    outcomes: list[Outcome | None] = [None] * len(jobs)
-    queue: deque[tuple[Job, int]] = deque((j, 1) for j in jobs)
-    inflight: dict[Any, tuple[Job, int]] = {}
-    aside: dict[Path, tuple[float, Job, int, Outcome]] = {}  # busy elsewhere: next poll time
-    interrupted = False
+    st = _Loop(jobs, retries, wait_busy, progress)
     stop_code = 0
+    try:
+        with stop_on_sigterm():
+            progress.note(f"sweep: {len(jobs)} runs on {be.describe()}; {progress.counts()}")
+            while st.queue or st.inflight or st.aside:
+                st.step(be)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (ndp.runs.signals.Terminated)
+        st.interrupted, stop_code = True, exit_code(exc)
+        st.stop(be)
+    finally:
+        be.close()
+    result = SweepResult(jobs, st.outcomes, st.interrupted, time.time() - t0)
+    result.exit_code = stop_code or (1 if result.failed or result.busy else 0)
+    _print_summary(result, progress)
+    return result
 
-    def settle(h: Any, res: Any) -> None:
-        job, attempt = inflight.pop(h)
+
+class _Loop:
+    """The state of a sweep's loop: the queue, the runs in flight, those busy elsewhere (put
+    aside until their next poll), and each job's outcome."""
+
+    def __init__(self, jobs: list[Job], retries: int, wait_busy: bool, progress: Progress) -> None:
+        self.retries, self.wait_busy, self.progress = retries, wait_busy, progress
+        self.index = {j.run_dir: i for i, j in enumerate(jobs)}
+        self.outcomes: list[Outcome | None] = [None] * len(jobs)
+        self.queue: deque[tuple[Job, int]] = deque((j, 1) for j in jobs)
+        self.inflight: dict[Any, tuple[Job, int]] = {}
+        self.aside: dict[Path, tuple[float, Job, int, Outcome]] = {}  # next poll time
+        self.interrupted = False
+
+    def settle(self, h: Any, res: Any) -> None:
+        """Record what the run of handle ``h`` came to: busy (put aside), failed (retried
+        while attempts are left) or its outcome."""
+        job, attempt = self.inflight.pop(h)
         if isinstance(res, BaseException):
-            cancelled = type(res).__name__ in ("TaskCancelledError",) or interrupted
+            cancelled = type(res).__name__ in ("TaskCancelledError",) or self.interrupted
             res = Outcome(
                 job,
                 "interrupted" if cancelled else "failed",
                 error="" if cancelled else f"{type(res).__name__}: {res}",
             )
         res.job, res.attempts = job, attempt
-        if res.status == "busy" and wait_busy and not interrupted:
-            aside[job.run_dir] = (time.time() + BUSY_POLL_S, job, attempt, res)
-            progress.waiting(res)
+        if res.status == "busy" and self.wait_busy and not self.interrupted:
+            self.aside[job.run_dir] = (time.time() + BUSY_POLL_S, job, attempt, res)
+            self.progress.waiting(res)
             return
-        if res.status == "failed" and attempt <= retries and not interrupted:
-            progress.retry(res, attempt + 1, retries + 1)
-            queue.appendleft((job, attempt + 1))
+        if res.status == "failed" and attempt <= self.retries and not self.interrupted:
+            self.progress.retry(res, attempt + 1, self.retries + 1)
+            self.queue.appendleft((job, attempt + 1))
             return
-        outcomes[index[job.run_dir]] = res
+        self.outcomes[self.index[job.run_dir]] = res
         if res.status == "failed":
             _write_failed(res)
-        progress.finished(res)
+        self.progress.finished(res)
 
-    try:
-        with stop_on_sigterm():
-            progress.note(f"sweep: {len(jobs)} runs on {be.describe()}; {progress.counts()}")
-            while queue or inflight or aside:
-                if not queue:  # this sweep's own work is out: poll the runs others train
-                    now = time.time()
-                    for key, (due, job, attempt, _) in list(aside.items()):
-                        if due <= now:
-                            del aside[key]
-                            queue.append((job, attempt))
-                while queue and len(inflight) < be.slots:
-                    job, attempt = queue.popleft()
-                    h = be.submit(job)
-                    inflight[h] = (job, attempt)
-                    progress.started(job)
-                if inflight:
-                    for h, res in be.wait(list(inflight), progress.timeout()):
-                        settle(h, res)
-                elif aside:
-                    next_due = min(due for due, *_ in aside.values())
-                    time.sleep(max(0.05, min(progress.timeout(), next_due - time.time())))
-                progress.tick()
-    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (ndp.runs.signals.Terminated)
-        interrupted, stop_code = True, exit_code(exc)
-        progress.note(
-            f"interrupted: stopping {len(inflight)} running trainers at their last checkpoint"
+    def step(self, be: Any) -> None:
+        """One turn: requeue the busy runs due for a poll (once the queue is out), submit while
+        slots are free, settle what finished (or sleep until the next poll)."""
+        if not self.queue:  # this sweep's own work is out: poll the runs others train
+            now = time.time()
+            for key, (due, job, attempt, _) in list(self.aside.items()):
+                if due <= now:
+                    del self.aside[key]
+                    self.queue.append((job, attempt))
+        while self.queue and len(self.inflight) < be.slots:
+            job, attempt = self.queue.popleft()
+            h = be.submit(job)
+            self.inflight[h] = (job, attempt)
+            self.progress.started(job)
+        if self.inflight:
+            for h, res in be.wait(list(self.inflight), self.progress.timeout()):
+                self.settle(h, res)
+        elif self.aside:
+            next_due = min(due for due, *_ in self.aside.values())
+            time.sleep(max(0.05, min(self.progress.timeout(), next_due - time.time())))
+        self.progress.tick()
+
+    def stop(self, be: Any) -> None:
+        """Interrupted: stop the running trainers at their last checkpoint; the runs busy
+        elsewhere keep their 'busy' outcome (not ours to stop)."""
+        self.progress.note(
+            f"interrupted: stopping {len(self.inflight)} running trainers at their last checkpoint"
         )
-        for h, res in be.interrupt(list(inflight)):
-            if h in inflight:
-                settle(h, res)
-        for _, job, _attempt, res in aside.values():  # still busy elsewhere: not ours to stop
-            outcomes[index[job.run_dir]] = res
-    finally:
-        be.close()
-    result = SweepResult(jobs, outcomes, interrupted, time.time() - t0)
-    result.exit_code = stop_code or (1 if result.failed or result.busy else 0)
-    _print_summary(result, progress)
-    return result
+        for h, res in be.interrupt(list(self.inflight)):
+            if h in self.inflight:
+                self.settle(h, res)
+        for _, job, _attempt, res in self.aside.values():
+            self.outcomes[self.index[job.run_dir]] = res
 
 
 def _write_failed(outcome: Outcome) -> None:

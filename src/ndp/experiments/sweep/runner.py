@@ -16,7 +16,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from ndp.experiments.study import (
     _check_arm,
@@ -159,57 +159,78 @@ def execute(job: Job) -> Outcome:
         prepare_run(run, job.arm)
         cmd = job.command()
         log = run / "train.log"
-        env = {**os.environ, **RUN_ENV}
         with log.open("ab") as fh:
             fh.seek(0, os.SEEK_END)
             start = fh.tell()
             stamp = time.strftime("%Y-%m-%dT%H:%M:%S")
             fh.write(f"# {stamp} ndp sweep on {socket.gethostname()}: {shlex.join(cmd)}\n".encode())
             fh.flush()
-            with _LIVE_LOCK:
-                if _STOP.is_set():
-                    return Outcome(job, "interrupted", error="not started (interrupted)")
-                proc = subprocess.Popen(
-                    _stoppable(cmd),
-                    stdout=fh,
-                    stderr=subprocess.STDOUT,
-                    stdin=subprocess.DEVNULL,
-                    env=env,
-                    start_new_session=True,
-                    pass_fds=(lock.fileno(),),
-                )
-                _LIVE[proc.pid] = proc
+            proc = _spawn(cmd, fh, lock)
+            if proc is None:
+                return Outcome(job, "interrupted", error="not started (interrupted)")
             lock.note(f"trainer pid {proc.pid}")
-            try:
-                while True:
-                    try:
-                        rc = proc.wait(timeout=0.5)
-                        break
-                    except subprocess.TimeoutExpired:
-                        continue
-            except KeyboardInterrupt:  # Ray's cancel (or Ctrl-C where this runs in the main thread)
-                _stop_child(proc)
+            rc = _wait_trainer(proc)
+            if rc is None:  # Ray's cancel (or Ctrl-C where this runs in the main thread)
                 return Outcome(job, "interrupted", time.time() - t0, returncode=proc.returncode)
-            finally:
-                if proc.poll() is None:  # any other exception: never leave a trainer behind
-                    _stop_child(proc)
-                with _LIVE_LOCK:
-                    _LIVE.pop(proc.pid, None)
-        secs = time.time() - t0
-        if rc == 0 and is_finished(run, job.arm):
-            (run / FAILED_NAME).unlink(missing_ok=True)
-            return Outcome(job, "done", secs, returncode=0)
-        if _STOP.is_set() and rc in (130, 143, -signal.SIGINT, -signal.SIGKILL):
-            return Outcome(job, "interrupted", secs, returncode=rc)
-        if rc == 0:
-            error = "the trainer exited 0 but the run has not finished its budget"
-        else:
-            error = _log_tail(log, start) or f"exit status {rc}"
-        return Outcome(job, "failed", secs, f"exit {rc}: {error}", returncode=rc)
+        return _ended(job, rc, time.time() - t0, log, start)
     except Exception as exc:  # a broken run directory, an unreadable checkpoint, ...
         return Outcome(job, "failed", time.time() - t0, f"{type(exc).__name__}: {exc}")
     finally:
         lock.close()
+
+
+def _spawn(cmd: list[str], fh: Any, lock: Any) -> subprocess.Popen[bytes] | None:
+    """Start the trainer in its own session, its output to ``fh``, holding the run's lock
+    (registered for :func:`_stop_all`); None when the sweep is stopping (nothing started)."""
+    with _LIVE_LOCK:
+        if _STOP.is_set():
+            return None
+        proc = subprocess.Popen(
+            _stoppable(cmd),
+            stdout=fh,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env={**os.environ, **RUN_ENV},
+            start_new_session=True,
+            pass_fds=(lock.fileno(),),
+        )
+        _LIVE[proc.pid] = proc
+    return proc
+
+
+def _wait_trainer(proc: subprocess.Popen[bytes]) -> int | None:
+    """The trainer's exit status; None when a KeyboardInterrupt stopped it here. The trainer is
+    never left behind (any exception stops it)."""
+    try:
+        while True:
+            try:
+                return proc.wait(timeout=0.5)
+            except subprocess.TimeoutExpired:
+                continue
+    except KeyboardInterrupt:  # Ray's cancel (or Ctrl-C where this runs in the main thread)
+        _stop_child(proc)
+        return None
+    finally:
+        if proc.poll() is None:  # any other exception: never leave a trainer behind
+            _stop_child(proc)
+        with _LIVE_LOCK:
+            _LIVE.pop(proc.pid, None)
+
+
+def _ended(job: Job, rc: int, secs: float, log: Path, start: int) -> Outcome:
+    """The outcome of a trainer that exited with ``rc``: done (the run finished), interrupted
+    (the sweep stopped it), or failed with the tail of its log since ``start``."""
+    run = job.run_dir
+    if rc == 0 and is_finished(run, job.arm):
+        (run / FAILED_NAME).unlink(missing_ok=True)
+        return Outcome(job, "done", secs, returncode=0)
+    if _STOP.is_set() and rc in (130, 143, -signal.SIGINT, -signal.SIGKILL):
+        return Outcome(job, "interrupted", secs, returncode=rc)
+    if rc == 0:
+        error = "the trainer exited 0 but the run has not finished its budget"
+    else:
+        error = _log_tail(log, start) or f"exit status {rc}"
+    return Outcome(job, "failed", secs, f"exit {rc}: {error}", returncode=rc)
 
 
 def _stop_all(sig: int = signal.SIGINT) -> None:

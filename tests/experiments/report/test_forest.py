@@ -14,7 +14,7 @@ from ndp.experiments.report.forest import (
     read_forest,
 )
 
-ROOT = Path(__file__).resolve().parents[2] / "docs" / "results"
+ROOT = Path(__file__).resolve().parents[3] / "docs" / "results"
 
 
 def test_every_forest_row_is_in_a_committed_csv_and_the_headline_comes_first():

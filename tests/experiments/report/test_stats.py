@@ -233,7 +233,7 @@ def test_the_coverage_note_quotes_the_measured_coverages():
     import json
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[2] / S.COVERAGE_FILE
+    path = Path(__file__).resolve().parents[3] / S.COVERAGE_FILE
     if not path.is_file():
         pytest.skip("the results folder is not in this checkout")
     got = json.loads(path.read_text())

@@ -80,7 +80,8 @@ LEAVES = {
     "chunk_info",
     "act_inputs",
     "gym_ids",
-}  # leaf helper modules anyone may import
+    "hub",
+}  # leaf helper modules anyone may import (hub: the Hugging Face Hub, ndp.checks only)
 
 
 def _ndp_imports(path: Path) -> set[str]:

@@ -17,14 +17,14 @@ import typing
 from typing import Any
 
 
-def _numpy_bool(value: Any) -> bool:
+def _numpy_bool(value: object) -> bool:
     """numpy's bool scalar (``numpy.bool_``, named ``numpy.bool`` from numpy 2), without
     importing numpy."""
     t = type(value)
     return t.__module__ == "numpy" and t.__name__ in ("bool_", "bool")
 
 
-def check_flag(name: str, value: Any) -> bool:
+def check_flag(name: str, value: object) -> bool:
     """``value`` as a bool when it is True / False (numpy's bool too); anything else, such as
     the truthy string ``"no"``, is refused (ValueError naming ``name``): a flag of the Python
     API (``act(deterministic=)``, ``ChunkedEnv(stale_world=)``)."""
@@ -115,7 +115,7 @@ def check_device_available(device: str) -> None:
         raise ValueError(f"device: {device!r} is not available on this machine; use 'cpu'")
 
 
-def check_int(name: str, value: Any, low: int = 0, note: str = "") -> int:
+def check_int(name: str, value: object, low: int = 0, note: str = "") -> int:
     """``value`` as an int >= ``low`` (numpy integers accepted, bools refused).
 
     Raises:
@@ -127,7 +127,7 @@ def check_int(name: str, value: Any, low: int = 0, note: str = "") -> int:
     return int(value)
 
 
-def check_positive(name: str, value: Any) -> float:
+def check_positive(name: str, value: object) -> float:
     """``value`` as a finite float > 0 (bools refused).
 
     Raises:

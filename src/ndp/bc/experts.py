@@ -16,6 +16,8 @@ import numpy as np
 if TYPE_CHECKING:
     from metaworld.policies.policy import Policy
 
+    from ndp.envs.spec import TaskSpec
+
 
 class Expert(Protocol):
     """A per-step demonstrator."""
@@ -120,12 +122,12 @@ class PickExpert:
         return out
 
 
-EXPERTS: dict[str, Callable[[Any], Expert]] = {}
+EXPERTS: dict[str, Callable[[TaskSpec], Expert]] = {}
 """Task name or robot family -> ``(task spec) -> a new expert``; a task's own entry wins over
 its family's (:func:`register_expert`)."""
 
 
-def register_expert(name: str, build: Callable[[Any], Expert]) -> None:
+def register_expert(name: str, build: Callable[[TaskSpec], Expert]) -> None:
     """Give a task (its canonical name) or a whole robot family (``TaskSpec.family``) a scripted
     expert, so ``ndp il collect``, ``ndp il bc`` and the ``bc`` run kind work on it.
 
@@ -137,19 +139,19 @@ def register_expert(name: str, build: Callable[[Any], Expert]) -> None:
     EXPERTS[name] = build
 
 
-def _point_mass(spec: Any) -> Expert:
+def _point_mass(spec: TaskSpec) -> Expert:
     return PointMassExpert()
 
 
-def _throw(spec: Any) -> Expert:
+def _throw(spec: TaskSpec) -> Expert:
     return ThrowExpert()
 
 
-def _pick(spec: Any) -> Expert:
+def _pick(spec: TaskSpec) -> Expert:
     return PickExpert()
 
 
-def _metaworld(spec: Any) -> Expert:
+def _metaworld(spec: TaskSpec) -> Expert:
     return MetaWorldExpert(spec.name)
 
 
@@ -159,7 +161,7 @@ register_expert("pick", _pick)
 register_expert("metaworld", _metaworld)
 
 
-def expert_builder(task: str) -> Callable[[Any], Expert]:
+def expert_builder(task: str) -> Callable[[TaskSpec], Expert]:
     """The factory of a task's scripted expert (canonical name or alias): its own, else its
     family's.
 

@@ -26,7 +26,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 
@@ -35,6 +35,16 @@ from ndp.policies.config import PolicyConfig
 from ndp.runs.cli import cli
 from ndp.runs.driver import run
 from ndp.runs.session import LearnerDefaults
+
+if TYPE_CHECKING:
+    import torch
+
+    from ndp.bc.demos import Demos
+    from ndp.envs.spec import TaskSpec
+    from ndp.policies import ActorCritic
+    from ndp.rl.config import TrainConfig
+    from ndp.rl.normalize import ObsNormalizer
+    from ndp.runs.session import Manifest, RunSession
 
 BC_MODELS = {"ndp": "ndp", "nn": "ppo-multi", "nn-step": "ppo"}
 """BC model -> the RL method whose actor it trains."""
@@ -122,9 +132,11 @@ class CloningLearner(LearnerDefaults):
     sub-steps inside the episode), ``train_idx`` / ``val_idx`` the steps of each split.
     """
 
-    def __init__(self, model: Any, session: Any, *, obs: Any, y0: Any, dy0: Any, target: Any,
-                 mask: Any, train_idx: Any, val_idx: Any, cfg: BCConfig, rl_cfg: Any,
-                 obs_norm: Any, meta: dict[str, Any]) -> None:  # fmt: skip
+    def __init__(self, model: ActorCritic, session: RunSession, *, obs: torch.Tensor,
+                 y0: torch.Tensor, dy0: torch.Tensor, target: torch.Tensor, mask: torch.Tensor,
+                 train_idx: torch.Tensor, val_idx: torch.Tensor, cfg: BCConfig,
+                 rl_cfg: TrainConfig, obs_norm: ObsNormalizer,
+                 meta: dict[str, Any]) -> None:  # fmt: skip
         import torch
 
         self.model, self.session, self.cfg = model, session, cfg
@@ -137,7 +149,7 @@ class CloningLearner(LearnerDefaults):
         self.gen = torch.Generator().manual_seed(cfg.seed)
         self.step = 0
 
-    def loss_of(self, sel: Any) -> tuple[Any, Any]:
+    def loss_of(self, sel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Mean squared action error over the selected steps' valid sub-steps, and the
         per-entry squared errors [n, k, A]."""
         dist, _ = self.model.distribution(self.obs[sel], self.y0[sel], self.dy0[sel])
@@ -164,7 +176,7 @@ class CloningLearner(LearnerDefaults):
                     f"the cloning loss became {float(loss.detach())}", self.step
                 )
             self.opt.zero_grad(set_to_none=True)
-            loss.backward()
+            loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
             self.opt.step()
             total += float(loss.detach()) * len(sel)
             seen += len(sel)
@@ -224,7 +236,7 @@ class CloningLearner(LearnerDefaults):
         pass
 
 
-def bc_manifest(cfg: BCConfig, task: str, epoch: int) -> Any:
+def bc_manifest(cfg: BCConfig, task: str, epoch: int) -> Manifest:
     """The :class:`ndp.runs.session.Manifest` of a cloning run at ``epoch``."""
     from ndp.runs.session import Manifest
 
@@ -296,7 +308,7 @@ class CloningRecipe:
     resumable, with one checkpoint at the end: the cloned policy as the RL checkpoint that
     ``ndp rl train --resume`` fine-tunes (:meth:`CloningLearner.state_dict`)."""
 
-    def __init__(self, cfg: BCConfig, demos: Any, spec: Any, rl_cfg: Any) -> None:
+    def __init__(self, cfg: BCConfig, demos: Demos, spec: TaskSpec, rl_cfg: TrainConfig) -> None:
         from pathlib import Path
 
         from ndp.rl.config import TrainConfig
@@ -323,7 +335,7 @@ class CloningRecipe:
     def check_checkpoint(self, ckpt: dict[str, Any]) -> None:
         pass  # never resumed
 
-    def build(self, session: Any, fresh: bool) -> CloningLearner:
+    def build(self, session: RunSession, fresh: bool) -> CloningLearner:
         import torch
 
         from ndp.io import atomic_write_text
@@ -368,11 +380,13 @@ class CloningRecipe:
             meta=self.meta,
         )
 
-    def manifest(self, learner: CloningLearner) -> Any:
+    def manifest(self, learner: CloningLearner) -> Manifest:
         return bc_manifest(self.cfg, self.spec.name, learner.step)
 
     @contextlib.contextmanager
-    def log(self, learner: CloningLearner, session: Any) -> Iterator[Callable[[Any], None]]:
+    def log(
+        self, learner: CloningLearner, session: RunSession
+    ) -> Iterator[Callable[[dict[str, float]], None]]:
         from tqdm import tqdm
 
         from ndp.runs import MetricsLogger
@@ -399,7 +413,7 @@ class CloningRecipe:
         return learner.step >= self.cfg.epochs  # one checkpoint, at the end
 
     def summary(
-        self, learner: CloningLearner, last: dict[str, float], session: Any
+        self, learner: CloningLearner, last: dict[str, float], session: RunSession
     ) -> dict[str, Any]:
         return {
             "run_dir": str(session.run.path),

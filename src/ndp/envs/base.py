@@ -53,7 +53,7 @@ MAX_RENDER_SIZE = 4096
 """Largest rendered frame side (px) the envs accept."""
 
 
-def check_render_size(name: str, value: Any) -> int:
+def check_render_size(name: str, value: object) -> int:
     """``int(value)`` if it is an integer frame side in ``[1, MAX_RENDER_SIZE]`` px.
 
     Raises:
@@ -97,7 +97,7 @@ def divisors(n: int) -> tuple[int, ...]:
     return tuple(d for d in range(1, int(n) + 1) if n % d == 0)
 
 
-def check_substeps(substeps: Any, frame_skip: int) -> int:
+def check_substeps(substeps: object, frame_skip: int) -> int:
     """``int(substeps)`` if it divides ``frame_skip`` (the simulator steps of one env step).
 
     An env built with ``substeps = m`` cuts each of its env steps into m shorter ones of
@@ -145,15 +145,17 @@ every run and seed; ``docs/rl-release.md``): the env classes that have one defin
 (``release_config``); the others refuse it at construction."""
 
 
-def check_fixed_goal(value: Any) -> int | str | None:
+def check_fixed_goal(value: object) -> int | str | None:
     """``fixed_goal`` checked: None, an integer >= 0 (numpy integers accepted: the seed of one
     configuration) or ``"release"`` (:data:`RELEASE_GOAL`).
 
     Raises:
         ValueError: anything else (named in the message).
     """
-    if value is None or value == RELEASE_GOAL:
-        return value  # type: ignore[no-any-return]
+    if value is None:
+        return None
+    if value == RELEASE_GOAL:
+        return RELEASE_GOAL
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
         raise ValueError(f"fixed_goal: expected None, an integer >= 0 or 'release', got {value!r}")
     return int(value)

@@ -32,7 +32,7 @@ table reports); the commanded state is tracked in Python (mocap target = the pre
 from __future__ import annotations
 
 import functools
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from gymnasium import spaces
@@ -40,6 +40,9 @@ from gymnasium import spaces
 from ndp.checks import install_hint
 from ndp.envs import envpool_tasks
 from ndp.envs.base import NDPEnv
+
+if TYPE_CHECKING:
+    from ndp.envs.spec import TaskSpec
 
 BACKENDS = ("metaworld", "envpool")
 """Values of ``backend`` (``ndp rl train --backend``): metaworld's Python envs (the default)
@@ -60,7 +63,7 @@ ENVPOOL_INFO_KEYS = (
 """metaworld's info keys, as EnvPool reports them (floats in the step info)."""
 
 
-def check_backend_name(value: Any) -> str:
+def check_backend_name(value: object) -> str:
     """``backend`` checked (one of :data:`BACKENDS`).
 
     Raises:
@@ -102,13 +105,13 @@ def envpool_available() -> bool:
 
 
 def check_backend(
-    backend: Any,
-    spec: Any,
+    backend: object,
+    spec: TaskSpec,
     *,
     k: int = 1,
     stale_world: bool = False,
     reward_version: str = "v2",
-    fixed_goal: Any = None,
+    fixed_goal: object = None,
     substeps: int = 1,
     render_mode: str | None = None,
 ) -> str:

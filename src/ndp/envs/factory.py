@@ -52,20 +52,20 @@ from ndp.envs.spec import (
 from ndp.envs.torque import JacoTorqueEnv, MetaWorldTorqueEnv
 from ndp.gym_ids import TABLE, expand, register
 from ndp.io import atomic_write_text
-from ndp.schema import check_record, spec_record
+from ndp.schema import TaskSchema, check_record, spec_record
 
 
-def _make_metaworld(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+def _make_metaworld(spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
     return MetaWorldEnv(
         spec.metaworld_name or spec.name, horizon=horizon, render_mode=render_mode, **kw
     )
 
 
-def _make_jaco(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+def _make_jaco(spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
     return JacoEnv(spec.name, horizon=horizon, render_mode=render_mode, **kw)
 
 
-def _make_toy(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+def _make_toy(spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
     return PointMassEnv(dim=spec.dmp_dofs, horizon=horizon, render_mode=render_mode, **kw)
 
 
@@ -183,7 +183,9 @@ def make_env(
     return ReleaseObservation(env) if release9 else env
 
 
-def task_options(spec: Any, reward_version: str = "v2", fixed_goal: Any = None) -> dict[str, Any]:
+def task_options(
+    spec: TaskSpec, reward_version: str = "v2", fixed_goal: object = None
+) -> dict[str, Any]:
     """The env-class keywords of the task options, checked against the task's row.
 
     Raises:
@@ -220,7 +222,7 @@ RELEASE9 = (0, 1, 2, 4, 5, 6, 36, 37, 38)
 object's xyz, goal xyz."""
 
 
-def check_observation(spec: Any, observation: Any) -> str:
+def check_observation(spec: TaskSchema, observation: object) -> str:
     """``observation`` checked against the task's row.
 
     Raises:
@@ -330,7 +332,7 @@ def write_gym_id_table() -> None:
 
 
 def register_task(
-    spec: Any,
+    spec: TaskSpec,
     make: Callable[..., gym.Env] | None = None,
     *,
     torque: Callable[..., gym.Env] | None = None,
@@ -399,7 +401,7 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 """A task name, alias or family: what a command line, a file name and a gymnasium id take."""
 
 
-def check_task_spec(spec: Any) -> None:
+def check_task_spec(spec: object) -> None:
     """Every field of a task row, before anything is registered.
 
     Raises:
@@ -447,7 +449,7 @@ def check_task_spec(spec: Any) -> None:
         raise ValueError(f"spec.action_low: expected below action_high, got {low} and {high}")
 
 
-def probe_env(spec: Any, make: Callable[..., gym.Env]) -> None:
+def probe_env(spec: TaskSpec, make: Callable[..., gym.Env]) -> None:
     """Build the row's env with its family's ``make``, reset it (seed 0), step it once with a
     zero action, and check what it returns against the row.
 

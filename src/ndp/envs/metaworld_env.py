@@ -162,7 +162,7 @@ def reward_from_obs(task: str, reward_version: str = "v2") -> bool:
     return task in (REWARD_FROM_OBS if reward_version == "v2" else REWARD_FROM_OBS_V1)
 
 
-def check_reward_version(value: Any) -> str:
+def check_reward_version(value: object) -> str:
     """``reward_version`` checked (one of :data:`REWARD_VERSIONS`).
 
     Raises:

@@ -45,7 +45,7 @@ DEFAULT_SMOOTH_LAMBDA = 0.25
 docstring: how it was chosen)."""
 
 
-def check_reward(reward: Any) -> str:
+def check_reward(reward: object) -> str:
     """``reward`` checked: one of :data:`REWARDS`.
 
     Raises:

@@ -32,7 +32,10 @@ import dataclasses
 import difflib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal  # noqa: F401  # the inherited fields' annotations resolve here
+from typing import (
+    Literal,  # noqa: F401  # the inherited fields' annotations resolve here
+    TypeVar,
+)
 
 from ndp.dmp.controllers import DeltaController
 from ndp.envs import jaco, point_mass, torque
@@ -42,6 +45,9 @@ from ndp.envs.metaworld_env import METAWORLD_POS_SCALE, REWARD_FROM_OBS
 from ndp.envs.presets import DEFAULT as DEFAULT_PRESET
 from ndp.envs.presets import NDP_PRESETS, NDPPreset
 from ndp.schema import TaskSchema
+
+SpecT = TypeVar("SpecT", bound=TaskSchema)
+"""A task schema or a task-table row (:func:`finer_spec` keeps the type it is given)."""
 
 Family = str
 """A robot family: ``"metaworld"``, ``"jaco"``, ``"toy"``, or one added with
@@ -162,7 +168,7 @@ def ndp_preset(task: str) -> NDPPreset:
     return preset
 
 
-def frame_skip(spec: TaskSpec) -> int:
+def frame_skip(spec: TaskSchema) -> int:
     """Simulator steps per env step, ``control_dt / sim_dt``: Meta-World 5, Jaco 10, the toy
     point mass 1 (it has no finer simulator step).
 
@@ -178,7 +184,7 @@ def frame_skip(spec: TaskSpec) -> int:
     return n
 
 
-def substep_factors(spec: TaskSpec) -> tuple[int, ...]:
+def substep_factors(spec: TaskSchema) -> tuple[int, ...]:
     """The m a task's env step can be cut into (``finer_spec``, ``make_env(substeps=m)``): the
     divisors of its :func:`frame_skip` (Meta-World (1, 5), Jaco (1, 2, 5, 10), toy (1,)), so
     that every shorter env step is still a whole number of simulator steps; (1,) for
@@ -188,7 +194,7 @@ def substep_factors(spec: TaskSpec) -> tuple[int, ...]:
     return divisors(frame_skip(spec))
 
 
-def finer_spec(spec: TaskSpec, m: int) -> TaskSpec:
+def finer_spec(spec: SpecT, m: int) -> SpecT:
     """The row of the same task with each env step cut into ``m`` shorter ones.
 
     One env step lasts ``control_dt / m`` s (``frame_skip / m`` simulator steps), the default

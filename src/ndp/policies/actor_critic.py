@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 import torch
 from torch import nn
@@ -11,6 +11,9 @@ from ndp.nets.mlp import MLP
 from ndp.policies.base import ActionHead, HeadOutput
 from ndp.policies.config import PolicyConfig
 from ndp.policies.heads import build_head
+
+if TYPE_CHECKING:
+    from ndp.schema import TaskSchema
 
 
 class ActorCritic(nn.Module):
@@ -61,7 +64,7 @@ class ActorCritic(nn.Module):
         return v
 
 
-def build_actor_critic(obs_dim: int, spec: Any, cfg: PolicyConfig) -> ActorCritic:
+def build_actor_critic(obs_dim: int, spec: TaskSchema, cfg: PolicyConfig) -> ActorCritic:
     """Build the actor-critic for a task spec and a resolved policy config (a field left at
     None gets the PPO family's value: :meth:`PolicyConfig.with_defaults`)."""
     cfg = cfg.with_defaults()

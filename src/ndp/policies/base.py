@@ -6,12 +6,16 @@ with. Their own module so that heads defined elsewhere need not import ``ndp.pol
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING
 
 import torch
 from torch import nn
 
 from ndp.policies.distributions import PolicyDistribution
+
+if TYPE_CHECKING:
+    from ndp.policies.config import PolicyConfig
+    from ndp.schema import TaskSchema
 
 __all__ = ["HEAD_BUILDERS", "SINGLE_STEP_HEADS", "ActionHead", "HeadOutput", "register_head"]
 
@@ -36,15 +40,34 @@ class ActionHead(nn.Module):
         raise NotImplementedError
 
 
-HEAD_BUILDERS: dict[str, Callable[[Any, Any], ActionHead]] = {}
+HEAD_BUILDERS: dict[str, HeadBuilder] = {}
 """Head name -> ``build(policy_cfg, spec) -> ActionHead`` (see :func:`register_head`)."""
 SINGLE_STEP_HEADS: set[str] = set()
 """Heads that run one action per decision (k = 1)."""
 
 
+HeadBuilder = Callable[["PolicyConfig", "TaskSchema"], "ActionHead"]
+"""``build(resolved policy config, task schema) -> ActionHead`` (:func:`register_head`)."""
+
+
+def decision_k(cfg: PolicyConfig) -> int:
+    """``cfg.k`` of a resolved policy config (sub-steps per decision).
+
+    Raises:
+        ValueError: ``k`` is still None (the config was not resolved:
+            ``ndp.rl.config.resolve_config`` or ``PolicyConfig.with_defaults`` set it).
+    """
+    if cfg.k is None:
+        raise ValueError("policy config: k must be resolved (see ndp.rl.config.resolve_config)")
+    return cfg.k
+
+
 def register_head(
     name: str, single_step: bool = False
-) -> Callable[[Callable[[Any, Any], ActionHead]], Callable[[Any, Any], ActionHead]]:
+) -> Callable[
+    [HeadBuilder],
+    HeadBuilder,
+]:
     """Register an action head builder under ``name`` (a decorator).
 
     Args:
@@ -52,7 +75,9 @@ def register_head(
         single_step: the head emits one action per decision (k is forced to 1).
     """
 
-    def deco(fn: Callable[[Any, Any], ActionHead]) -> Callable[[Any, Any], ActionHead]:
+    def deco(
+        fn: HeadBuilder,
+    ) -> HeadBuilder:
         if name in HEAD_BUILDERS:
             raise ValueError(f"name: head {name!r} is already registered")
         HEAD_BUILDERS[name] = fn

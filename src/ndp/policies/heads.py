@@ -35,7 +35,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -47,13 +47,21 @@ from ndp.dmp.integrate import _linear_map_f64, check_finite, recording
 from ndp.policies import chunk_basis
 from ndp.policies.base import HEAD_BUILDERS as HEAD_BUILDERS  # the registry, re-exported:
 from ndp.policies.base import SINGLE_STEP_HEADS as SINGLE_STEP_HEADS  # importing this module
-from ndp.policies.base import ActionHead, HeadOutput  # registers every built-in head first
+from ndp.policies.base import (  # registers every built-in head first
+    ActionHead,
+    HeadOutput,
+    decision_k,
+)
 from ndp.policies.base import register_head as register_head
 from ndp.policies.conditioning import raw_jacobian, whitening_transform
 from ndp.policies.distributions import ParamGaussian, SubActionGaussian
 from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
 from ndp.policies.squashed import SquashedActionHead as SquashedActionHead  # the SAC family's
 from ndp.policies.squashed import SquashedNDPHead as SquashedNDPHead  # heads, registered there
+
+if TYPE_CHECKING:
+    from ndp.policies.config import PolicyConfig
+    from ndp.schema import TaskSchema
 
 
 class _RawActionHead(ActionHead):
@@ -632,7 +640,7 @@ def _identity(x: torch.Tensor) -> torch.Tensor:
     return x
 
 
-def build_head(cfg: Any, spec: Any) -> ActionHead:
+def build_head(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
     """Build the head named by a resolved :class:`ndp.policies.config.PolicyConfig`.
 
     Args:
@@ -645,18 +653,18 @@ def build_head(cfg: Any, spec: Any) -> ActionHead:
 
 
 @register_head("step", single_step=True)
-def _build_step(cfg: Any, spec: Any) -> ActionHead:
+def _build_step(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
     return StepHead(spec.action_dim, cfg.init_log_std)
 
 
 @register_head("multi")
-def _build_multi(cfg: Any, spec: Any) -> ActionHead:
+def _build_multi(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
     if cfg.chunk_basis == "none":
-        return MultiHead(cfg.k, spec.action_dim, cfg.init_log_std)
+        return MultiHead(decision_k(cfg), spec.action_dim, cfg.init_log_std)
     return build_chunk_basis_head(cfg, spec)
 
 
-def build_chunk_basis_head(cfg: Any, spec: Any) -> ChunkBasisHead:
+def build_chunk_basis_head(cfg: PolicyConfig, spec: TaskSchema) -> ChunkBasisHead:
     """PPO-multi's head restricted to ``cfg.chunk_basis`` (a resolved policy config with
     ``ndp.n_basis`` set; for 'dmp' every NDP field, as the 'ndp' method resolves them).
 
@@ -671,7 +679,7 @@ def build_chunk_basis_head(cfg: Any, spec: Any) -> ChunkBasisHead:
     Raises:
         ValueError: 1 + N > k, or a 'dmp' head that is not affine per DoF.
     """
-    kind, k, a = str(cfg.chunk_basis), int(cfg.k), int(spec.action_dim)
+    kind, k, a = str(cfg.chunk_basis), decision_k(cfg), int(spec.action_dim)
     if cfg.ndp.n_basis is None:
         raise ValueError("policy config: n_basis must be resolved for a chunk basis")
     columns = 1 + int(cfg.ndp.n_basis)
@@ -696,9 +704,11 @@ def build_chunk_basis_head(cfg: Any, spec: Any) -> ChunkBasisHead:
     elif kind == "pca":
         basis_t = torch.full((a, k, columns), float("nan"))
         try:
-            data = chunk_basis.read_basis_file(cfg.chunk_basis_file)
+            path = cfg.chunk_basis_file
+            assert path is not None  # PolicyConfig requires the file of a file basis
+            data = chunk_basis.read_basis_file(path)
             chunk_basis.check_basis_file(
-                data, cfg.chunk_basis_file, task=spec.name, k=k, action_dim=a, columns=columns
+                data, path, task=spec.name, k=k, action_dim=a, columns=columns
             )
             basis_t = torch.as_tensor(data.basis)
         except (OSError, ValueError, TypeError):
@@ -712,15 +722,15 @@ def build_chunk_basis_head(cfg: Any, spec: Any) -> ChunkBasisHead:
 
 
 @register_head("ndp")
-def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
+def _build_ndp(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
     head = cfg.ndp  # NDPHeadConfig
-    dmp = head.dmp_config(cfg.k)  # refuses an unresolved config
+    dmp = head.dmp_config(decision_k(cfg))  # refuses an unresolved config
     d = spec.dmp_dofs
     scale = _per_dof(spec.action_scale, d)
     absolute = _per_dof(getattr(spec, "action_absolute", False), d).astype(bool)
     high, low = _per_dof(spec.action_high, d), _per_dof(spec.action_low, d)
     span = high - low
-    delta_reach = cfg.k * scale  # largest move of a delta DoF in one decision
+    delta_reach = decision_k(cfg) * scale  # largest move of a delta DoF in one decision
     if head.absolute_goal:
         # absolute commands: goal = centre of the action range + half range * tanh (the goal
         # bound of goal_scale applies to delta DoF only)
@@ -736,14 +746,14 @@ def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
     weight_scale = head.weight_scale * reach if amplitude else np.full(d, head.weight_scale)
     direct = absolute & (head.absolute_mode == "direct")
     return NDPHead(
-        k=cfg.k,
+        k=decision_k(cfg),
         dmp_dofs=spec.dmp_dofs,
         action_dim=spec.action_dim,
         dmp=dmp,
         goal_scale=torch.as_tensor(goal_bound, dtype=torch.float32),
         weight_scale=torch.as_tensor(weight_scale, dtype=torch.float32),
         inverse_controller=spec.inverse_controller,
-        decision_dt=cfg.k * float(spec.control_dt),
+        decision_dt=decision_k(cfg) * float(spec.control_dt),
         param_noise=head.param_noise,
         init_log_std=cfg.init_log_std,
         goal_center=torch.as_tensor(centre, dtype=torch.float32),
@@ -755,7 +765,7 @@ def _build_ndp(cfg: Any, spec: Any) -> ActionHead:
     )
 
 
-def _dmp_velocity(cfg: Any, spec: Any) -> str:
+def _dmp_velocity(cfg: PolicyConfig, spec: TaskSchema) -> str:
     """The config's DMP start velocity, or the task preset's where the config leaves it None."""
     if cfg.dmp_velocity is not None:
         return str(cfg.dmp_velocity)
@@ -765,9 +775,9 @@ def _dmp_velocity(cfg: Any, spec: Any) -> str:
 
 
 @register_head("dyne")
-def _build_dyne(cfg: Any, spec: Any) -> ActionHead:
+def _build_dyne(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
     return DyneHead(
-        cfg.k, spec.action_dim, _as_tensor(spec.action_low), _as_tensor(spec.action_high)
+        decision_k(cfg), spec.action_dim, _as_tensor(spec.action_low), _as_tensor(spec.action_high)
     )
 
 
@@ -775,7 +785,7 @@ def _as_tensor(x: Any) -> torch.Tensor:
     return torch.as_tensor(np.asarray(x, dtype=np.float32))
 
 
-def _linear_controller(spec: Any) -> tuple[torch.Tensor, ...] | None:
+def _linear_controller(spec: TaskSchema) -> tuple[torch.Tensor, ...] | None:
     """(scale, absolute, low, high) [D] of a task whose controller is linear (a
     ``DeltaController``), else None (the composed path is used)."""
     ctrl = getattr(spec, "controller", None)
@@ -817,5 +827,5 @@ class HoldHead(_RawActionHead):
 
 
 @register_head("hold")
-def _build_hold(cfg: Any, spec: Any) -> ActionHead:
-    return HoldHead(cfg.k, spec.action_dim, cfg.init_log_std)
+def _build_hold(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
+    return HoldHead(decision_k(cfg), spec.action_dim, cfg.init_log_std)

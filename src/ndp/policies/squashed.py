@@ -23,13 +23,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import torch
 from torch import nn
 
-from ndp.policies.base import HEAD_BUILDERS, ActionHead, register_head
+from ndp.policies.base import HEAD_BUILDERS, ActionHead, decision_k, register_head
 from ndp.policies.distributions import ParamGaussian, gaussian_draw
+
+if TYPE_CHECKING:
+    from ndp.policies.config import PolicyConfig
+    from ndp.schema import TaskSchema
 
 LOG_STD_MIN = -20.0
 """Smallest log std of the raw parameters (SAC's usual bound)."""
@@ -171,12 +175,12 @@ class SquashedNDPHead(SquashedHead):
 
 
 @register_head("squashed")
-def _build_squashed(cfg: Any, spec: Any) -> ActionHead:
-    return SquashedActionHead(cfg.k, spec.action_dim, spec.action_low, spec.action_high)
+def _build_squashed(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
+    return SquashedActionHead(decision_k(cfg), spec.action_dim, spec.action_low, spec.action_high)
 
 
 @register_head("ndp-squashed")
-def _build_ndp_squashed(cfg: Any, spec: Any) -> ActionHead:
+def _build_ndp_squashed(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
     ndp = HEAD_BUILDERS["ndp"](cfg, spec)  # the NDP head as the "ndp" method builds it
     if not hasattr(ndp, "decode"):
         raise ValueError("head: the registered 'ndp' head has no decode(raw, y0, dy0)")

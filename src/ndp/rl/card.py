@@ -18,6 +18,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 import shutil
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -59,7 +60,7 @@ COMMANDED_SOURCE = (
 """How a card names the robot state of a policy whose DMP starts from the commanded state."""
 
 
-def robot_state_source(dmp_state: Any, spec: dict[str, Any]) -> str:
+def robot_state_source(dmp_state: str | None, spec: Mapping[str, object]) -> str:
     """Where the robot state a policy reads comes from: the task's measured source
     (``spec['y0_source']``) for ``dmp_state`` 'measured', :data:`COMMANDED_SOURCE` for
     'commanded'."""
@@ -236,7 +237,7 @@ def check_export_dir(out: Path, files: tuple[str, ...]) -> None:
 
 
 def write_card(
-    out: Any,
+    out: str | Path,
     meta: dict[str, Any],
     evaluation: dict[str, Any] | None,
     onnx: bool = False,

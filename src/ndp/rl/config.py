@@ -422,6 +422,7 @@ def help_config_class(algo: str) -> type[RunConfig]:
 
 
 if TYPE_CHECKING:
+    from ndp.envs.spec import TaskSpec
 
     class TrainConfig(RunConfig):
         """:class:`RunConfig` plus the registered learners' sections (for the type checker:
@@ -434,7 +435,7 @@ else:
     TrainConfig = _train_config()
 
 
-def resolve_config(cfg: TrainConfig, spec: Any | None = None) -> TrainConfig:
+def resolve_config(cfg: TrainConfig, spec: TaskSpec | None = None) -> TrainConfig:
     """Fill the task-dependent fields and validate; nothing here builds an environment.
 
     - ``task``: the method's task-table row (``Method.task_variant``: VICES runs the

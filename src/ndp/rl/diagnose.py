@@ -68,6 +68,8 @@ from ndp.rl.policy import Policy, load_policy
 
 if TYPE_CHECKING:
     from ndp.policies.actor_critic import ActorCritic
+    from ndp.policies.heads import NDPHead
+    from ndp.schema import TaskSchema
 
 JACOBIAN_EPISODES = 3
 """Deterministic episodes per policy of the conditioning diagnostic (every decision is read)."""
@@ -88,7 +90,7 @@ def _fresh(task: str, algo: str, overrides: dict[str, Any]) -> Policy:
     return _fresh_of(cfg, spec)
 
 
-def _fresh_of(cfg: TrainConfig, spec: Any) -> Policy:
+def _fresh_of(cfg: TrainConfig, spec: TaskSchema) -> Policy:
     """The network a run of ``cfg`` starts from (seeded with its seed), with a fresh normaliser
     (which learns the observation statistics during a diagnostic rollout, as in training)."""
     torch.manual_seed(cfg.seed)
@@ -98,7 +100,7 @@ def _fresh_of(cfg: TrainConfig, spec: Any) -> Policy:
 
 def _policy(
     task: str | None, algo: str, run: str | None, overrides: dict[str, Any]
-) -> tuple[TrainConfig, Any, ActorCritic, ObsNormalizer]:
+) -> tuple[TrainConfig, TaskSchema, ActorCritic, ObsNormalizer]:
     """(config, spec, model, obs normaliser) of a fresh policy or a trained run (the spec: a
     ``TaskSpec``, or a trained run's ``PolicySpec`` as ``Policy.spec``)."""
     if run is not None:
@@ -253,7 +255,7 @@ def _spectrum(s: torch.Tensor) -> list[float]:
 
 
 def conditioning_report(
-    head: Any, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+    head: NDPHead, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
 ) -> dict[str, Any]:
     """The conditioning of an NDP head's map at B decisions (raw [B, P], y0 / dy0 [B, D]).
 

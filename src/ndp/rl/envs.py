@@ -23,7 +23,7 @@ import dataclasses
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -35,6 +35,7 @@ from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.envpool_backend import check_backend
 from ndp.envs.factory import RELEASE9, check_observation
 from ndp.envs.rewards import check_reward, check_smooth_lambda
+from ndp.envs.spec import TaskSpec
 from ndp.envs.vector import (
     AsyncChunkedVectorEnv,
     SyncChunkedVectorEnv,
@@ -42,13 +43,16 @@ from ndp.envs.vector import (
     default_workers,
 )
 
+if TYPE_CHECKING:
+    from ndp.rl.config import TrainConfig
+
 
 @dataclass(frozen=True)
 class TaskHandle:
     """A resolved task."""
 
-    spec: Any
-    """The task spec (``ndp.envs.TaskSpec`` fields)."""
+    spec: TaskSpec
+    """The task spec (the task table's row)."""
     make: Callable[..., gym.Env]
     """``make(seed=None, horizon=None, render_mode=None) -> per-step gymnasium.Env``."""
 
@@ -267,7 +271,7 @@ def decision_start(
     )
 
 
-def run_envs(cfg: Any, task: Any) -> tuple[gym.vector.VectorEnv, int]:
+def run_envs(cfg: TrainConfig, task: TaskHandle) -> tuple[gym.vector.VectorEnv, int]:
     """The training envs of an RL run and their observation size: ``cfg.num_envs`` chunked
     copies of ``task`` (:func:`make_vector_env`) with the run's k, stale-world rule, horizon,
     vector kind, workers and execution (``cfg``: a resolved ``TrainConfig``)."""

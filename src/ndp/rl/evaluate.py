@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
 from ndp import zoo
@@ -38,7 +39,7 @@ EVAL_FILE = "eval-{mode}-e{episodes}-s{seed}{exec_k}.json"
 """A saved evaluation in the run directory (:func:`save_evaluation`): mode 'det' or 'sto'."""
 
 
-def _check_episodes(episodes: Any, seed: Any) -> None:
+def _check_episodes(episodes: object, seed: object) -> None:
     """Episode count and first seed checked before anything loads (one-line errors)."""
     check_int("episodes", episodes, 1)
     check_int("seed", seed, 0, note="(the first episode seed)")
@@ -115,14 +116,14 @@ def save_evaluation(run_dir: str | Path, result: dict[str, Any], seed: int) -> P
     return path
 
 
-def env_task(env: Any) -> str | None:
+def env_task(env: object) -> str | None:
     """The task-table row an env built by ``ndp.make_env`` runs (``env.unwrapped.ndp_task``,
     set by the factory), or None for an env built otherwise."""
     task = getattr(getattr(env, "unwrapped", env), "ndp_task", None)
     return task if isinstance(task, str) else None
 
 
-def check_env_task(pol: Any, env: Any, force: bool = False) -> None:
+def check_env_task(pol: Policy, env: object, force: bool = False) -> None:
     """Refuse to act with ``pol`` in an env of another task: tasks of one family share their
     observation and action sizes (reach-v3 and push-v3: 39 and 4), so nothing else would say.
 
@@ -140,7 +141,7 @@ def check_env_task(pol: Any, env: Any, force: bool = False) -> None:
 
 
 def run_episode(
-    pol: Policy, env: Any, seed: int, deterministic: bool, force: bool = False
+    pol: Policy, env: gym.Env, seed: int, deterministic: bool, force: bool = False
 ) -> dict[str, float]:
     """One episode of ``pol`` in ``env`` (a chunked env) from reset seed ``seed``: success at
     any step and at the final step, return and length in env steps. An env of another task than
@@ -219,7 +220,7 @@ def _record(
     seed: int,
     exec_k: int | None = None,
     render_size: tuple[int | None, int | None] | None = None,
-) -> tuple[list[np.ndarray], list[dict[str, Any]], Any]:
+) -> tuple[list[np.ndarray], list[dict[str, float]], Policy]:
     """Frames (every env step, ``render_size`` = (width, height) px where given) and episode
     rows of a run's policy (at ``exec_k`` sub-steps per decision where given:
     ``Policy.at_exec_k``), and the policy."""
@@ -229,7 +230,7 @@ def _record(
         pol = pol.at_exec_k(exec_k)
     recorders: list[FrameRecorder] = []
 
-    def record(base: Any) -> FrameRecorder:
+    def record(base: gym.Env) -> FrameRecorder:
         recorders.append(FrameRecorder(base))
         return recorders[-1]
 

@@ -47,10 +47,12 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from ndp.policies.base import ActionHead
     from ndp.rl.policy import Policy
+    from ndp.schema import TaskSchema
 
 
 REFUSED_ACTUATION = {
@@ -72,7 +74,7 @@ def exec_k_values(policy: Policy) -> tuple[int, ...]:
     return tuple(policy.cfg.k * m for m in substep_factors(policy.spec))
 
 
-def substeps_for(policy: Policy, exec_k: Any) -> int:
+def substeps_for(policy: Policy, exec_k: object) -> int:
     """m = ``exec_k / k`` after checking ``exec_k`` against :func:`exec_k_values`.
 
     Raises:
@@ -103,7 +105,7 @@ def dmp_steps_at(dmp_steps: int, exec_k: int) -> int:
     return math.lcm(int(dmp_steps), int(exec_k))
 
 
-def ndp_head_at(policy: Policy, exec_k: int, spec: Any) -> Any:
+def ndp_head_at(policy: Policy, exec_k: int, spec: TaskSchema) -> ActionHead:
     """A new NDP head reporting the trained head's DMP at ``exec_k`` + 1 points per decision.
 
     Built with the run's policy config (k = ``exec_k``, ``dmp_steps`` = :func:`dmp_steps_at`)

@@ -34,29 +34,41 @@ import importlib
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from ndp.policies import chunk_basis
-from ndp.policies.config import FILE_BASES, PRESET_FIELDS
+from ndp.policies.config import FILE_BASES, PRESET_FIELDS, PolicyConfig
 from ndp.runs.cli import HIDDEN
+
+if TYPE_CHECKING:
+    from ndp.envs.spec import TaskSpec
+    from ndp.rl.config import TrainConfig
+    from ndp.rl.run import RLLearner
+    from ndp.runs.session import RunSession
+    from ndp.schema import TaskSchema
 
 OFF_POLICY_PPO_READS = ("ppo.gamma", "ppo.clip_obs", "ppo.steps_per_update")
 """The ``ppo`` fields the off-policy learners share with PPO: the discount, the observation
 clip and the env steps per iteration (their metrics row)."""
 
+PolicyChanges = dict[str, object]
+"""A method's ``PolicyConfig`` changes, by field name (the NDP head's fields flat, as
+``PolicyConfig.updated`` takes them)."""
 
-def no_dmp(policy: Any, spec: Any) -> dict[str, Any]:
+
+def no_dmp(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
     """Resolution of heads without a DMP: the NDP head's preset fields are cleared (and its
     exploration and parameter map set back to their defaults)."""
     return {**dict.fromkeys(PRESET_FIELDS), "param_noise": False, "param_map": "tanh"}
 
 
-def resolve_ndp(policy: Any, spec: Any) -> dict[str, Any]:
+def resolve_ndp(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
     """NDP: ``n_basis``, ``a_z``, ``goal_scale`` from the task's preset where None;
     ``dmp_steps`` = preset steps per sub-step * k; ``weight_scale`` = a_z^2 / 4 where None."""
     from ndp.envs.presets import preset_of
 
     pre, head = preset_of(spec), policy.ndp
+    assert policy.k is not None  # resolvers get the config with k set (resolve_config)
     a_z = float(head.a_z if head.a_z is not None else pre.a_z)
     return {
         "n_basis": head.n_basis if head.n_basis is not None else pre.n_basis,
@@ -71,7 +83,7 @@ def resolve_ndp(policy: Any, spec: Any) -> dict[str, Any]:
     }
 
 
-def resolve_multi(policy: Any, spec: Any) -> dict[str, Any]:
+def resolve_multi(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
     """PPO-multi: no DMP, unless its chunk is restricted to a basis (``policy.chunk_basis``).
 
     A basis has 1 + N columns per DoF, N = ``n_basis`` (the task's NDP preset where None); the
@@ -89,6 +101,7 @@ def resolve_multi(policy: Any, spec: Any) -> dict[str, Any]:
     from ndp.envs.presets import preset_of
 
     head = policy.ndp
+    assert policy.k is not None  # resolvers get the config with k set (resolve_config)
     n_basis = int(head.n_basis if head.n_basis is not None else preset_of(spec).n_basis)
     chunk_basis.check_columns(basis, 1 + n_basis, int(policy.k))
     if basis == "dmp":
@@ -104,6 +117,7 @@ def resolve_multi(policy: Any, spec: Any) -> dict[str, Any]:
         return {**resolve_ndp(policy, spec), "param_noise": False, "mean_clip": False}
     if basis in FILE_BASES:
         path = policy.chunk_basis_file
+        assert path is not None  # PolicyConfig requires the file of a file basis
         data = chunk_basis.read_basis_file(path)
         chunk_basis.check_basis_file(
             data,
@@ -126,15 +140,15 @@ class Method:
     """Action head (a name registered with ``ndp.policies.heads.register_head``)."""
     description: str
     """One line for ``--help`` and docs."""
-    resolve: Callable[[Any, Any], dict[str, Any]] = no_dmp
+    resolve: Callable[[PolicyConfig, TaskSpec], PolicyChanges] = no_dmp
     """``(policy config with k set, task spec) -> PolicyConfig changes`` (task presets; the NDP
     head's fields flat, as ``PolicyConfig.updated`` takes them)."""
     metrics: tuple[str, ...] = field(default=())
     """Extra metric keys this method fills (docs/metrics.md)."""
-    task_variant: Callable[[Any], Any] | None = None
+    task_variant: Callable[[TaskSpec], TaskSpec] | None = None
     """``task spec -> the task-table row this method runs on`` (VICES: the torque-actuated
     variant of the requested task, ``ndp.envs.torque_variant``); None: the requested row."""
-    learner: Callable[[Any, Any], Any] | str | None = None
+    learner: Callable[[TrainConfig, RunSession], RLLearner] | str | None = None
     """``learner(resolved TrainConfig, RunSession) -> ndp.rl.run.RLLearner``, for a method with
     its own learning loop (off-policy, evolution, ...), or its entry point
     ``"package.module:name"`` (imported at the first :meth:`build_learner`, as gymnasium's
@@ -158,7 +172,7 @@ class Method:
                     f"got {self.learner!r}"
                 )
 
-    def build_learner(self, cfg: Any, session: Any) -> Any:
+    def build_learner(self, cfg: TrainConfig, session: RunSession) -> RLLearner | None:
         """The learner of a resolved config in its run ``session`` (``learner`` called, its
         entry point imported first); None when the method trains with the shared PPO
         trainer."""
@@ -315,7 +329,7 @@ def settings_sections() -> tuple[Settings, ...]:
     return tuple(SETTINGS.values())
 
 
-def section(cfg: Any, cls: type[T]) -> T:
+def section(cfg: TrainConfig, cls: type[T]) -> T:
     """The settings of type ``cls`` of a ``TrainConfig`` (typed: ``section(cfg, SACConfig)``),
     from the section registered with that class.
 
@@ -330,7 +344,7 @@ def section(cfg: Any, cls: type[T]) -> T:
     raise ValueError(f"cls: no settings section is registered with {cls.__name__}")
 
 
-def with_section(cfg: T, value: Any) -> T:
+def with_section(cfg: T, value: object) -> T:
     """``cfg`` with its settings section of ``type(value)`` replaced by ``value`` (a new
     config).
 
@@ -374,10 +388,10 @@ register_method(
 )
 
 
-def networks(policy: Any, hidden: tuple[int, ...], activation: str) -> dict[str, Any]:
+def networks(policy: PolicyConfig, hidden: tuple[int, ...], activation: str) -> PolicyChanges:
     """A method's own networks: ``hidden`` / ``activation`` where the config leaves them at
     None (the method's); a value the user gave is kept."""
-    out: dict[str, Any] = {}
+    out: PolicyChanges = {}
     if policy.hidden is None:
         out["hidden"] = hidden
     if policy.activation is None:
@@ -407,8 +421,8 @@ LOW_FREQ_K = 5
 """Env steps per decision of ``vices-low-freq`` (NDP's k)."""
 
 
-def _torque_variant(space: str | None = None, period: int = 1) -> Any:
-    def variant(spec: Any) -> Any:
+def _torque_variant(space: str | None = None, period: int = 1) -> Callable[[TaskSpec], TaskSpec]:
+    def variant(spec: TaskSpec) -> TaskSpec:
         from ndp.envs import torque_variant
 
         return torque_variant(spec, space=space, period=period)
@@ -416,9 +430,14 @@ def _torque_variant(space: str | None = None, period: int = 1) -> Any:
     return variant
 
 
-def _resolve_low_freq(policy: Any, spec: Any) -> dict[str, Any]:
+def _resolve_low_freq(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
     """``k`` = the torque row's decision period (5)."""
-    return {**no_dmp(policy, spec), "k": int(spec.controller.period)}
+    from ndp.envs.impedance import ImpedanceController
+
+    ctrl = spec.controller
+    if not isinstance(ctrl, ImpedanceController):
+        raise AttributeError(f"task {spec.name!r} has no impedance controller (no period)")
+    return {**no_dmp(policy, spec), "k": int(ctrl.period)}
 
 
 register_method(

@@ -23,10 +23,16 @@ from __future__ import annotations
 import math
 import random
 import time
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
+
+if TYPE_CHECKING:
+    from ndp.envs.chunked import ChunkedEnv
+    from ndp.rl.config import TrainConfig
+    from ndp.rl.normalize import ObsNormalizer
+    from ndp.schema import TaskSchema
 
 EVAL_METRICS = (
     "eval/success_any",
@@ -56,12 +62,12 @@ class PeriodicEvaluator:
         spec: the task spec the run's model was built for.
     """
 
-    def __init__(self, cfg: Any, spec: Any) -> None:
+    def __init__(self, cfg: TrainConfig, spec: TaskSchema) -> None:
         self.cfg = cfg
         self.spec = spec
         self.every = int(cfg.eval_every)
         self.episodes = int(cfg.eval_episodes)
-        self._env: Any = None
+        self._env: ChunkedEnv | None = None
 
     @property
     def enabled(self) -> bool:
@@ -69,7 +75,7 @@ class PeriodicEvaluator:
         return self.every > 0 and self.episodes > 0
 
     def maybe(
-        self, before: int, after: int, last: bool, model: torch.nn.Module, obs_norm: Any
+        self, before: int, after: int, last: bool, model: torch.nn.Module, obs_norm: ObsNormalizer
     ) -> dict[str, float]:
         """The :data:`EVAL_METRICS` of this update: an evaluation where one is due
         (:func:`eval_due`), else NaN."""
@@ -77,7 +83,7 @@ class PeriodicEvaluator:
             return dict.fromkeys(EVAL_METRICS, math.nan)
         return self.evaluate(model, obs_norm)
 
-    def evaluate(self, model: torch.nn.Module, obs_norm: Any) -> dict[str, float]:
+    def evaluate(self, model: torch.nn.Module, obs_norm: ObsNormalizer) -> dict[str, float]:
         """``eval_episodes`` deterministic episodes of ``model`` (an actor-critic of
         :func:`ndp.policies.build_actor_critic`) with ``obs_norm``'s statistics as they are."""
         from ndp.rl.config import EVAL_SEED

@@ -47,7 +47,7 @@ import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -71,7 +71,12 @@ from ndp.runs import load_checkpoint
 from ndp.runs.layout import provenance_sessions, run_commits
 from ndp.runs.lock import output_lock
 from ndp.runs.session import read_manifest
-from ndp.schema import PolicySpec, check_record, spec_record
+from ndp.schema import PolicySpec, TaskSchema, check_record, spec_record
+
+if TYPE_CHECKING:
+    import gymnasium as gym
+
+    from ndp.envs.chunked import ChunkedEnv
 
 EXPORT_FORMAT = "ndp-policy"
 """``format`` field of ``policy.json``."""
@@ -93,7 +98,7 @@ class Policy:
 
     cfg: TrainConfig
     """The run's resolved config (method, task, k, head settings)."""
-    spec: Any
+    spec: TaskSchema
     """The task spec: the task table's row (``ndp.envs.TaskSpec``), or, when the simulators are
     not installed, the one the export recorded (``ndp.schema.PolicySpec``, the same
     fields the head and :meth:`act` read)."""
@@ -222,9 +227,9 @@ class Policy:
         self,
         render_mode: str | None = None,
         horizon: int | None = None,
-        wrap: Callable[[Any], Any] | None = None,
+        wrap: Callable[[gym.Env], gym.Env] | None = None,
         render_size: tuple[int | None, int | None] | None = None,
-    ) -> Any:
+    ) -> ChunkedEnv:
         """The chunked env this policy was trained for (its k, stale-world rule, horizon).
 
         ``wrap``: applied to the task env before it is chunked (e.g. a frame recorder that sees
@@ -282,7 +287,7 @@ class Policy:
             return _write_export(self, Path(out_dir), evaluation)
 
 
-def _task_spec(cfg: TrainConfig, recorded: dict[str, Any] | None, source: str) -> Any:
+def _task_spec(cfg: TrainConfig, recorded: dict[str, Any] | None, source: str) -> TaskSchema:
     """The task's row of the task table when the simulators import (``ndp.envs``), else the
     spec the export recorded (``PolicySpec``). With both, a recorded field that differs from
     the table's is warned about (the table's is used, as the env is built from it)."""
@@ -446,7 +451,7 @@ class OnnxExportFound(ValueError):
         self.path = path
 
 
-def load_any_policy(path: str | Path) -> Policy | Any:
+def load_any_policy(path: str | Path) -> Policy | OnnxPolicy:
     """``ndp.load_policy``: :func:`load_policy` (a run, a safetensors export, ``zoo:NAME``), or
     for an ONNX export (a ``policy.onnx`` file or a folder holding one) its
     :class:`ndp.rl.onnx_export.OnnxPolicy`, which acts with the same calling convention

@@ -8,11 +8,14 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ndp.runs import MetricsLogger
+
+if TYPE_CHECKING:
+    from ndp.rl.config import TrainConfig
 
 
 def episode_charts(episodes: Sequence[Sequence[float]]) -> dict[str, float]:
@@ -50,7 +53,7 @@ class TrainProgress:
         self,
         run_dir: str | Path,
         columns: Sequence[str],
-        cfg: Any,
+        cfg: TrainConfig,
         update: int,
         global_step: int,
         resumed: bool,

@@ -18,7 +18,7 @@ import dataclasses
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from ndp.rl.config import SAFE_ON_RESUME, TrainConfig, load_config, resolve_config
 from ndp.rl.methods import METHODS
@@ -27,6 +27,9 @@ from ndp.rl.progress import TrainProgress
 from ndp.runs import RunDir
 from ndp.runs.driver import Checkpoint, Row, Run, RunPlan, run
 from ndp.runs.session import Learner, Manifest, RunSession
+
+if TYPE_CHECKING:
+    from ndp.runs.callbacks import Callback
 
 __all__ = [
     "RLLearner",
@@ -184,7 +187,7 @@ def train(
     max_updates: int | None = None,
     overwrite: bool = False,
     resolved: bool = False,
-    callbacks: Sequence[Any] | None = None,
+    callbacks: Sequence[Callback] | None = None,
 ) -> Row:
     """Train a fresh run through the run driver; returns the last update's metrics.
 
@@ -208,7 +211,7 @@ def train(
 def resume(
     run_dir: str | Path,
     max_updates: int | None = None,
-    callbacks: Sequence[Any] | None = None,
+    callbacks: Sequence[Callback] | None = None,
     **overrides: Any,
 ) -> Row:
     """Continue a run from its directory's checkpoint (at most one interval is lost).

@@ -119,17 +119,18 @@ class CheckpointEvery(Callback):
             self.paths.append(ctx.save())
 
 
-def check_callbacks(callbacks: Sequence[Any] | None) -> list[Callback]:
+def check_callbacks(callbacks: Sequence[object] | None) -> list[Callback]:
     """The callbacks as a list, each one checked.
 
     Raises:
         ValueError: one that is not a :class:`Callback` (naming ``callbacks`` and its index).
     """
-    out = list(callbacks or ())
-    for i, cb in enumerate(out):
+    out: list[Callback] = []
+    for i, cb in enumerate(callbacks or ()):
         if not isinstance(cb, Callback):
             raise ValueError(
                 f"callbacks: expected ndp.runs.callbacks.Callback instances, got "
                 f"{type(cb).__name__} at index {i}"
             )
+        out.append(cb)
     return out

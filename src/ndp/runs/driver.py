@@ -197,7 +197,7 @@ class Run(Generic[L, S]):
             self.close()
             raise
 
-    def train(self, max_steps: int | None = None, callbacks: Sequence[Any] | None = None) -> S:
+    def train(self, max_steps: int | None = None, callbacks: Sequence[Callback] | None = None) -> S:
         """Drive to the budget (or ``max_steps`` more steps, or until a callback stops it:
         :mod:`ndp.runs.callbacks`), rewrite run.json, and return the recipe's summary. May be
         called again to continue."""
@@ -234,7 +234,7 @@ def run(
     resume: bool = False,
     overwrite: bool = False,
     max_steps: int | None = None,
-    callbacks: Sequence[Any] | None = None,
+    callbacks: Sequence[Callback] | None = None,
 ) -> S:
     """Run ``recipe`` from its start, or from its checkpoint with ``resume``, to its budget
     (or ``max_steps`` more steps, or until a callback stops it); returns

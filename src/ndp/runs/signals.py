@@ -14,7 +14,7 @@ import signal
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from types import FrameType
 
 
 class Terminated(KeyboardInterrupt):
@@ -60,10 +60,10 @@ def stop_on_sigterm() -> Iterator[None]:
     (also where SIGINT was ignored at start-up, as for a shell's background jobs: a run is
     stopped by ``kill -INT`` as by Ctrl-C); the previous handlers are restored afterwards."""
 
-    def on_term(signum: int, frame: Any) -> None:
+    def on_term(signum: int, frame: FrameType | None) -> None:
         _stop(Terminated(signum))
 
-    def on_int(signum: int, frame: Any) -> None:
+    def on_int(signum: int, frame: FrameType | None) -> None:
         _stop(KeyboardInterrupt())
 
     try:

@@ -13,12 +13,14 @@ the defaults and the deviations.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from ndp.policies.config import PolicyConfig
 from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.methods import (
     OFF_POLICY_PPO_READS,
     Method,
+    PolicyChanges,
     Settings,
     networks,
     no_dmp,
@@ -36,7 +38,7 @@ DYNE_METRICS = (
 """Extra ``metrics.csv`` columns of Dyn-E runs (docs/metrics.md)."""
 
 
-def resolve_dyne(policy: Any, spec: Any) -> dict[str, Any]:
+def resolve_dyne(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
     """Dyn-E: no DMP; the TD3 actor is 400-300 ReLU (the original's) unless ``hidden`` /
     ``activation`` are given."""
     return {**no_dmp(policy, spec), **networks(policy, (400, 300), "relu")}
@@ -55,6 +57,9 @@ register_learner(
         reads=("dyne", *OFF_POLICY_PPO_READS, "ppo.norm_obs"),
     ),
 )
+
+if TYPE_CHECKING:
+    from ndp.schema import TaskSchema
 
 
 def __getattr__(name: str) -> Any:

@@ -19,11 +19,13 @@ defaults.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
+from ndp.policies.config import PolicyConfig
 from ndp.rl.methods import (
     OFF_POLICY_PPO_READS,
     Method,
+    PolicyChanges,
     Settings,
     networks,
     no_dmp,
@@ -39,26 +41,29 @@ SAC_METRICS = (
     "sac/replay",
     "sac/gradient_steps",
 )
+
+if TYPE_CHECKING:
+    from ndp.schema import TaskSchema
 """Extra ``metrics.csv`` columns of the SAC family's runs (docs/metrics.md)."""
 
 
-def _sac_networks(policy: Any) -> dict[str, Any]:
+def _sac_networks(policy: PolicyConfig) -> PolicyChanges:
     """SAC's networks: 256-256 ReLU (actor and each critic) unless ``hidden`` / ``activation``
     are given."""
     return networks(policy, (256, 256), "relu")
 
 
-def resolve_sac(policy: Any, spec: Any) -> dict[str, Any]:
+def resolve_sac(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
     """SAC: one action per decision (k = 1), no DMP, 256-256 ReLU."""
     return {**no_dmp(policy, spec), **_sac_networks(policy), "k": 1}
 
 
-def resolve_sac_chunk(policy: Any, spec: Any) -> dict[str, Any]:
+def resolve_sac_chunk(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
     """Chunked SAC: k actions per decision (``--k``), no DMP, 256-256 ReLU."""
     return {**no_dmp(policy, spec), **_sac_networks(policy)}
 
 
-def resolve_ndp_sac(policy: Any, spec: Any) -> dict[str, Any]:
+def resolve_ndp_sac(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
     """NDP-SAC: the NDP head's task presets (:func:`ndp.rl.methods.resolve_ndp`), 256-256
     ReLU."""
     return {**resolve_ndp(policy, spec), **_sac_networks(policy)}

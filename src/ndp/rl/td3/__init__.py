@@ -15,11 +15,13 @@ has the maths, the defaults with their sources and the deviations.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
+from ndp.policies.config import PolicyConfig
 from ndp.rl.methods import (
     OFF_POLICY_PPO_READS,
     Method,
+    PolicyChanges,
     Settings,
     networks,
     no_dmp,
@@ -27,11 +29,14 @@ from ndp.rl.methods import (
 )
 from ndp.rl.td3.config import TD3Config
 
+if TYPE_CHECKING:
+    from ndp.schema import TaskSchema
+
 TD3_METRICS = ("td3/q", "td3/replay", "td3/gradient_steps", "td3/actor_updates")
 """Extra ``metrics.csv`` columns of TD3 runs (docs/metrics.md)."""
 
 
-def resolve_td3(policy: Any, spec: Any) -> dict[str, Any]:
+def resolve_td3(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
     """TD3: one action per decision (k = 1), no DMP, 400-300 ReLU (SB3's default ``net_arch``
     for TD3 and the paper's) unless ``hidden`` / ``activation`` are given."""
     return {**no_dmp(policy, spec), **networks(policy, (400, 300), "relu"), "k": 1}

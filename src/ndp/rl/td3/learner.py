@@ -26,7 +26,7 @@ checkpoint's ``td3`` key.
 from __future__ import annotations
 
 import copy
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -50,6 +50,9 @@ from ndp.rl.td3.losses import (
     td3_target,
 )
 from ndp.runs.session import RunSession, nonfinite_parameter
+
+if TYPE_CHECKING:
+    from ndp.policies import ActorCritic
 
 COLUMNS = (*METRICS, *TD3_METRICS)
 """Columns of a TD3 run's ``metrics.csv``."""
@@ -153,7 +156,7 @@ class TD3Learner(OffPolicyLearner):
 
     # ----------------------------------------------------------------------- acting
     def policy_action(
-        self, model: Any, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
+        self, model: ActorCritic, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
     ) -> torch.Tensor:
         """The deterministic bounded action ``tanh(mean)`` [B, P] of ``model`` (the actor or
         its target), with the gradient."""

@@ -31,14 +31,14 @@ Each carries the command, the commit and the date (and the commits the runs were
 
 The report is a small library; :func:`report` puts its parts together:
 
-- :mod:`~ndp.experiments.report.runs`: finding runs (:func:`find_run_dirs`, :func:`run_info`);
-- :mod:`~ndp.experiments.report.cells`: cells and their numbers (:func:`build_cells`,
+- :mod:`ndp.experiments.report.runs`: finding runs (:func:`find_run_dirs`, :func:`run_info`);
+- :mod:`ndp.experiments.report.cells`: cells and their numbers (:func:`build_cells`,
   :func:`compute_numbers`; :func:`load_cells` does both from run directories);
-- :mod:`~ndp.experiments.report.markdown`, :mod:`~ndp.experiments.report.csvs`,
-  :mod:`~ndp.experiments.report.plots`: the tables, the CSV and the figures, from cells;
-- :mod:`~ndp.experiments.report.provenance`: command, commits and environments;
-- :mod:`~ndp.experiments.report.scope`: a study's scope and sections (conditions, readings,
-  selection); :mod:`~ndp.experiments.report.family`: a family of pairwise tests.
+- :mod:`ndp.experiments.report.markdown`, :mod:`ndp.experiments.report.csvs`,
+  :mod:`ndp.experiments.report.plots`: the tables, the CSV and the figures, from cells;
+- :mod:`ndp.experiments.report.provenance`: command, commits and environments;
+- :mod:`ndp.experiments.report.scope`: a study's scope and sections (conditions, readings,
+  selection); :mod:`ndp.experiments.report.family`: a family of pairwise tests.
 """
 
 from __future__ import annotations

@@ -3,13 +3,13 @@
 Each study is a declarative :class:`Study` entry (its tasks, arms, seeds, budget, conditions,
 selection and readings) in the ``STUDIES`` tuple of one module per study family:
 
-- :mod:`~ndp.experiments.studies.paper`: the paper's five tasks, MT50, the ablations;
-- :mod:`~ndp.experiments.studies.release`: the 2021 release's conditions;
-- :mod:`~ndp.experiments.studies.sb3`: the checks against Stable-Baselines3;
-- :mod:`~ndp.experiments.studies.offpolicy`: SAC, chunked SAC, NDP-SAC;
-- :mod:`~ndp.experiments.studies.regimes` and :mod:`~ndp.experiments.studies.mechanism`:
+- :mod:`ndp.experiments.studies.paper`: the paper's five tasks, MT50, the ablations;
+- :mod:`ndp.experiments.studies.release`: the 2021 release's conditions;
+- :mod:`ndp.experiments.studies.sb3`: the checks against Stable-Baselines3;
+- :mod:`ndp.experiments.studies.offpolicy`: SAC, chunked SAC, NDP-SAC;
+- :mod:`ndp.experiments.studies.regimes` and :mod:`ndp.experiments.studies.mechanism`:
   where NDP can win and why it loses;
-- :mod:`~ndp.experiments.studies.imitation`: behaviour cloning and digit writing.
+- :mod:`ndp.experiments.studies.imitation`: behaviour cloning and digit writing.
 
 Adding a study is one entry in one of those tuples (:data:`LIST_ORDER` places it in
 ``ndp sweep --list``; a study it does not name comes after those it names, in module order).

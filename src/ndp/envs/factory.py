@@ -164,6 +164,17 @@ def make_env(
 
     check_backend(backend, spec, reward_version=reward_version, fixed_goal=fixed_goal,
                   substeps=substeps, render_mode=render_mode)  # fmt: skip
+    env = _build_env(spec, backend, horizon, render_mode, kw)
+    defer_seed(env, seed)
+    if reward != "dense":
+        env = RewardVariant(env, reward, smooth_lambda)
+    return ReleaseObservation(env) if release9 else env
+
+
+def _build_env(
+    spec: TaskSpec, backend: str, horizon: int, render_mode: str | None, kw: dict[str, Any]
+) -> gym.Env:
+    """The task's env from its family's (or the envpool backend's) class, marked with its row."""
     families = TORQUE_FAMILIES if spec.actuation == "torque" else FAMILIES
     if spec.family not in families:
         raise ValueError(
@@ -177,10 +188,7 @@ def make_env(
     else:
         env = families[spec.family](spec, horizon, render_mode, **kw)
     env.unwrapped.ndp_task = spec.name  # type: ignore[attr-defined]  # the row (evaluation)
-    defer_seed(env, seed)
-    if reward != "dense":
-        env = RewardVariant(env, reward, smooth_lambda)
-    return ReleaseObservation(env) if release9 else env
+    return env
 
 
 def task_options(

@@ -116,4 +116,5 @@ def _ridge_lstsq(design: torch.Tensor, rhs: torch.Tensor, n: int, ridge: float) 
     reg[:n] = ridge * (design[:, :n] ** 2).sum(0).mean()
     a_aug = torch.cat([design, torch.diag(reg.sqrt())], 0)  # [n_out + K, K]
     b_aug = torch.cat([rhs, torch.zeros(k, rhs.shape[1], dtype=rhs.dtype)], 0)
-    return torch.linalg.lstsq(a_aug, b_aug, driver="gelsd").solution.T
+    sol: torch.Tensor = torch.linalg.lstsq(a_aug, b_aug, driver="gelsd").solution.T
+    return sol

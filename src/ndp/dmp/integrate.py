@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Iterator
 from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
@@ -186,6 +187,21 @@ def check_finite(**tensors: torch.Tensor | None) -> None:
             raise FloatingPointError(f"{name}: expected finite values, found NaN or Inf")
 
 
+def loop_basis(cfg: DMPConfig, goal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Basis centres and widths [N] in the dtype and on the device of ``goal`` (step loops)."""
+    c, h = basis_centres(cfg.n_basis, cfg.a_x, goal.dtype)
+    return c.to(goal.device), h.to(goal.device)
+
+
+def canonical_phases(cfg: DMPConfig) -> Iterator[float]:
+    """The canonical system's phase x after each of the ``cfg.steps`` Euler steps (x_0 = 1)."""
+    tau, dt, a_x = cfg.tau, cfg.step_dt, cfg.a_x
+    x = 1.0
+    for _ in range(cfg.steps):
+        x = x - a_x * x / tau * dt
+        yield x
+
+
 # --------------------------------------------------------------------------------------------
 # Reference loop
 # --------------------------------------------------------------------------------------------
@@ -225,16 +241,12 @@ def _reference(
 ) -> DMPTrajectory:
     dtype, device = goal.dtype, goal.device
     az, bz = spring_constants(cfg, a_z_t)
-    tau, dt, a_x = cfg.tau, cfg.step_dt, cfg.a_x
-    c, h = basis_centres(cfg.n_basis, a_x, dtype)
-    c, h = c.to(device), h.to(device)
-
-    x = 1.0
+    tau, dt = cfg.tau, cfg.step_dt
+    c, h = loop_basis(cfg, goal)
     y = y0
     z = tau * dy0
     pos, vel, acc = [y0], [dy0], [torch.zeros_like(y0)]
-    for _ in range(cfg.steps):
-        x = x - a_x * x / tau * dt
+    for x in canonical_phases(cfg):
         psi = rbf(torch.tensor(x, dtype=dtype, device=device), c, h, cfg.rbf)  # [N]
         if cfg.only_g:
             f = torch.zeros_like(y0)

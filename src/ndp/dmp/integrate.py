@@ -471,7 +471,8 @@ def dmp_rollout(
             ``cfg.learn_az`` and is clamped to ``cfg.az_range``.
         method: 'auto' (fast path unless a_z is per-sample), 'fast' or 'loop'.
         check: raise ``FloatingPointError`` if any input holds NaN or Inf (not while the call
-            is recorded by ``torch.export`` / ``torch.jit.trace``: :func:`recording`).
+            is recorded by ``torch.export`` / ``torch.jit.trace``: :func:`recording`, nor on
+            the meta device, whose tensors hold no values: there the call infers shapes).
         linear_map: ``linear_map_f64(cfg)``, precomputed by the caller (``DMPLayer`` holds
             its own, so that ``torch.export`` never has to build it while tracing); None: the
             process-wide cache.
@@ -488,6 +489,7 @@ def dmp_rollout(
     if not cfg.learn_az and a_z is not None:
         raise ValueError("a_z: per-sample a_z given but cfg.learn_az is False")
     goal, weights, y0, dy0, a_z = validate_inputs(cfg, goal, weights, y0, dy0, a_z)
+    check = check and not goal.is_meta
     if check and (cfg.learn_az or method == "loop"):
         check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0, a_z=a_z)
     if cfg.learn_az:
@@ -525,4 +527,5 @@ def dmp_positions(
     if cfg.learn_az:
         raise ValueError("cfg: dmp_positions needs a fixed a_z (learn_az False)")
     goal, weights, y0, dy0, _ = validate_inputs(cfg, goal, weights, y0, dy0)
+    check = check and not goal.is_meta
     return _fast_positions(cfg, goal, weights, y0, dy0, check, linear_map)

@@ -12,7 +12,7 @@ success (it is an evaluation metric, not a training signal). ``k = 1`` is plain 
 execution; ``stale_world=False`` uses the env's live reward at every sub-step.
 
 Envs used with ``stale_world=True`` must provide, on ``env.unwrapped``:
-``robot_state() -> (pos [D], vel [D])``, ``world_snapshot() -> Any`` and
+``robot_state() -> (pos [D], vel [D])``, ``world_snapshot() -> object`` and
 ``stale_reward(snapshot, action) -> float`` (pure: no side effects).
 """
 
@@ -36,9 +36,9 @@ class _RobotEnv(Protocol):
 
     def robot_state(self) -> tuple[np.ndarray, np.ndarray]: ...
 
-    def world_snapshot(self) -> Any: ...
+    def world_snapshot(self) -> object: ...
 
-    def stale_reward(self, snapshot: Any, action: np.ndarray) -> float: ...
+    def stale_reward(self, snapshot: object, action: np.ndarray) -> float: ...
 
 
 EXECUTIONS = ("all", "first-held")

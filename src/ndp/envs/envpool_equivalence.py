@@ -78,7 +78,7 @@ class _AlignedMetaWorld(MetaWorldEnv):
         self.stream = StdUniform(seed)
         inner = self.mw.reset_model
 
-        def reset_model() -> Any:
+        def reset_model() -> object:
             self.stream.rewind()
             return inner()
 

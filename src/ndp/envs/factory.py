@@ -262,8 +262,9 @@ class ReleaseObservation(gym.ObservationWrapper):
         self._idx = idx
         self.observation_space = spaces.Box(box.low[idx], box.high[idx], dtype=box.dtype)
 
-    def observation(self, observation: Any) -> Any:
-        return observation[self._idx].copy()
+    def observation(self, observation: np.ndarray) -> np.ndarray:
+        out: np.ndarray = observation[self._idx].copy()
+        return out
 
 
 def fixed_goal_seed(run_seed: int) -> int:

@@ -41,6 +41,7 @@ from typing import Any
 import mujoco
 import numpy as np
 from gymnasium.utils.ezpickle import EzPickle
+from numpy.typing import ArrayLike
 
 from ndp.envs import jaco
 from ndp.envs.base import CTRL_INFO, fit_offscreen_buffer, sim_unstable, warning_count
@@ -89,7 +90,8 @@ def _gain_out_of_range(raw: np.ndarray, ctrl: ImpedanceController) -> int:
     return int(np.count_nonzero(np.abs(gains) > 1.0))
 
 
-def _ctrl_info(clipped: int, saturated: int, finite: bool) -> dict[str, Any]:
+def _ctrl_info(clipped: int, saturated: int, finite: bool) -> dict[str, int]:
+    """The controller's info counters of one env step."""
     return {
         "ctrl_gains_clipped": int(clipped),
         "ctrl_torque_saturated": int(saturated),
@@ -113,7 +115,7 @@ def _sawyer_torque_class(cls: type) -> type:
         fit_offscreen_buffer(model, self.width, self.height)
         return model, mujoco.MjData(model)
 
-    def do_simulation(self: Any, ctrl: Any, n_frames: int) -> None:
+    def do_simulation(self: Any, ctrl: ArrayLike, n_frames: int) -> None:
         self.data.ctrl[:] = 0.0
         self.data.ctrl[:2] = ctrl
         mujoco.mj_step(self.model, self.data, nstep=n_frames)

@@ -25,7 +25,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -37,6 +37,7 @@ from ndp.io import atomic_save_npz
 if TYPE_CHECKING:
     from ndp.bc.experts import Expert
     from ndp.envs import ChunkedEnv
+    from ndp.envs.base import NDPEnv
 
 DEMO_FORMAT = "ndp-demos"
 DEMO_VERSION = 1
@@ -121,7 +122,7 @@ def collect(
     expert = expert_for(spec.name)
     env = ChunkedEnv(make_env(spec.name, horizon=horizon), k=1, stale_world=False)
     attempts = max_attempts if max_attempts is not None else 3 * episodes + 10
-    rows: dict[str, list[Any]] = {k: [] for k in _STEP_ARRAYS}
+    rows: dict[str, list[object]] = {k: [] for k in _STEP_ARRAYS}
     seeds: list[int] = []
     ep_success: list[bool] = []
     try:
@@ -156,12 +157,12 @@ def collect(
 
 def _record_episode(
     env: ChunkedEnv, expert: Expert, seed: int
-) -> tuple[dict[str, list[Any]], bool]:
+) -> tuple[dict[str, list[object]], bool]:
     """One expert episode reset with ``seed``: per-step rows and whether it ever succeeded."""
-    base = env.unwrapped
+    base = cast("NDPEnv", env.unwrapped)  # a task family's env (ndp.envs.base)
     obs, info = env.reset(seed=seed)
     expert.reset(base, obs, info)
-    ep: dict[str, list[Any]] = {k: [] for k in _STEP_ARRAYS}
+    ep: dict[str, list[object]] = {k: [] for k in _STEP_ARRAYS}
     any_success = False
     while True:
         a = np.asarray(expert.act(base, obs, info), dtype=np.float64)
@@ -185,10 +186,10 @@ def _record_episode(
 
 def _demos_from_rows(
     task: str,
-    rows: dict[str, list[Any]],
+    rows: dict[str, list[object]],
     seeds: list[int],
     ep_success: list[bool],
-    meta: dict[str, Any],
+    meta: dict[str, object],
 ) -> Demos:
     """Stack the recorded per-step rows into a :class:`Demos` with the documented dtypes."""
     arrays = {k: np.asarray(v) for k, v in rows.items()}

@@ -23,7 +23,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Iterator
-from typing import Any, NamedTuple, TypeVar
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 import torch
@@ -54,8 +54,8 @@ def euler_step(
     z: Num,
     goal: Num | float,
     f: Num,
-    a_z: Any,
-    b_z: Any,
+    a_z: Num | float,
+    b_z: Num | float,
     tau: float,
     dt: float,
     forcing: str,

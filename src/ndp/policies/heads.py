@@ -35,10 +35,11 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
+from numpy.typing import ArrayLike
 from torch import nn
 
 from ndp.dmp import DMPConfig, DMPLayer
@@ -159,7 +160,7 @@ class ChunkBasisHead(_RawActionHead):
         self._has_basis = bool(torch.isfinite(self.basis).all())
 
     def _load_from_state_dict(
-        self, state_dict: dict[str, Any], prefix: str, *args: Any, **kwargs: Any
+        self, state_dict: dict[str, object], prefix: str, *args: object, **kwargs: object
     ) -> None:
         super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
         self._has_basis = bool(torch.isfinite(self.basis).all())
@@ -384,7 +385,7 @@ class NDPHead(ActionHead):
         self._any_direct = bool(direct_t.any())
 
     def _load_from_state_dict(
-        self, state_dict: dict[str, Any], prefix: str, *args: Any, **kwargs: Any
+        self, state_dict: dict[str, object], prefix: str, *args: object, **kwargs: object
     ) -> None:
         for name in DERIVED_BUFFERS:  # derived, not state: older checkpoints held some of them
             state_dict.pop(prefix + name, None)
@@ -777,7 +778,8 @@ def _build_dyne(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
     )
 
 
-def _as_tensor(x: Any) -> torch.Tensor:
+def _as_tensor(x: ArrayLike) -> torch.Tensor:
+    """``x`` as a float32 tensor."""
     return torch.as_tensor(np.asarray(x, dtype=np.float32))
 
 
@@ -790,7 +792,7 @@ def _linear_controller(spec: TaskSchema) -> tuple[torch.Tensor, ...] | None:
     return ctrl.linear_parts
 
 
-def _per_dof(value: Any, d: int) -> np.ndarray:
+def _per_dof(value: ArrayLike, d: int) -> np.ndarray:
     """A scalar or a length-D sequence as a float array [D]."""
     arr = np.asarray(value, dtype=np.float64).reshape(-1)
     if arr.size == 1:

@@ -153,10 +153,7 @@ def make_env(
     if substeps != 1:
         spec = finer_spec(spec, substeps)  # checks substeps against the task's factors
         kw["substeps"] = substeps
-    if horizon is None:
-        horizon = spec.horizon
-    if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
-        raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
+    horizon = _task_horizon(spec, horizon)
     kw.update(task_options(spec, reward_version, fixed_goal))
     release9 = check_observation(spec, observation) == "release9"
     reward = check_reward(reward)
@@ -169,6 +166,15 @@ def make_env(
     if reward != "dense":
         env = RewardVariant(env, reward, smooth_lambda)
     return ReleaseObservation(env) if release9 else env
+
+
+def _task_horizon(spec: TaskSpec, horizon: int | None) -> int:
+    """``horizon`` (None: the task's), refused unless a positive int."""
+    if horizon is None:
+        horizon = spec.horizon
+    if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
+        raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
+    return horizon
 
 
 def _build_env(

@@ -672,13 +672,6 @@ def evaluate(
     data = load_data(dcfg, cfg.model.n_points)
     tr_idx, te_idx = make_split(data, dcfg)
     scored = tr_idx if len(te_idx) == 0 else te_idx  # 'all': every sample
-    x = torch.from_numpy(data.images)
-    y = torch.from_numpy(data.trajs)
-    t0 = time.perf_counter()
-    pred = predict(model, x[scored], y[scored][:, 0]).numpy()
-    infer_s = time.perf_counter() - t0
-    demo = data.trajs[scored]
-    mse = per_sample_mse(pred, demo)
     suffix = "" if own else f"-{data_tag(dcfg)}"
     out: dict[str, Any] = {
         "model": cfg.model.kind,
@@ -686,18 +679,10 @@ def evaluate(
         "split": dcfg.split,
         "epoch": int(ckpt["epoch"]),
         "scored_epoch": scored_epoch,
-        "n_test": len(scored),
-        "test_mse_px2": summarize(mse),
-        "per_class": grouped(mse, data.labels[scored]),
-        "per_writer": grouped(mse, data.writers[scored]),
-        "inference_s": infer_s,
     }
-    if dtw:
-        out["test_dtw_px"] = summarize(dtw_distance(pred, demo))
-    if include_train and len(te_idx) > 0:
-        pred_tr = predict(model, x[tr_idx], y[tr_idx][:, 0]).numpy()
-        out["n_train"] = len(tr_idx)
-        out["train_mse_px2"] = summarize(per_sample_mse(pred_tr, data.trajs[tr_idx]))
+    train_idx = tr_idx if include_train and len(te_idx) > 0 else None
+    scores, pred, mse = _score(model, data, scored, dtw, train_idx)
+    out.update(scores)
     png = Path(out_png) if out_png else run_path / f"predictions{suffix}.png"
     _draw_grid(png, data, scored, pred, mse, pick_samples(mse, n_grid, grid, seed=0))
     out["png"] = str(png)
@@ -709,6 +694,38 @@ def evaluate(
     out["json"] = str(run_path / f"eval{suffix}.json")
     atomic_write_text(run_path / f"eval{suffix}.json", json.dumps(out, indent=2) + "\n")
     return out
+
+
+def _score(
+    model: TrajectoryModel,
+    data: DigitData,
+    scored: np.ndarray,
+    dtw: bool,
+    train_idx: np.ndarray | None,
+) -> tuple[dict[str, object], np.ndarray, np.ndarray]:
+    """Predict the ``scored`` samples: (their scores for :func:`evaluate`'s summary, the
+    predictions, the per-sample MSE); the training error too where ``train_idx`` is given."""
+    x = torch.from_numpy(data.images)
+    y = torch.from_numpy(data.trajs)
+    t0 = time.perf_counter()
+    pred = predict(model, x[scored], y[scored][:, 0]).numpy()
+    infer_s = time.perf_counter() - t0
+    demo = data.trajs[scored]
+    mse = per_sample_mse(pred, demo)
+    out: dict[str, object] = {
+        "n_test": len(scored),
+        "test_mse_px2": summarize(mse),
+        "per_class": grouped(mse, data.labels[scored]),
+        "per_writer": grouped(mse, data.writers[scored]),
+        "inference_s": infer_s,
+    }
+    if dtw:
+        out["test_dtw_px"] = summarize(dtw_distance(pred, demo))
+    if train_idx is not None:
+        pred_tr = predict(model, x[train_idx], y[train_idx][:, 0]).numpy()
+        out["n_train"] = len(train_idx)
+        out["train_mse_px2"] = summarize(per_sample_mse(pred_tr, data.trajs[train_idx]))
+    return out, pred, mse
 
 
 def _load_best(model: TrajectoryModel, path: Path, epoch: int) -> int:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import gymnasium as gym
 import numpy as np
@@ -26,6 +26,7 @@ from ndp.checks import check_int
 from ndp.envs.base import check_fixed_goal, defer_seed
 from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.envpool_backend import EnvPoolMetaWorldEnv, check_backend
+from ndp.envs.impedance import ImpedanceController
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import (
     V1_REWARD_BROKEN,
@@ -54,28 +55,80 @@ from ndp.gym_ids import TABLE, expand, register
 from ndp.io import atomic_write_text
 from ndp.schema import TaskSchema, check_record, spec_record
 
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
-def _make_metaworld(spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+
+class _FrameOptions(TypedDict, total=False):
+    """Env-class keywords every family takes (rendered frame size, the fixed goal)."""
+
+    width: int
+    height: int
+    fixed_goal: int | str | None
+
+
+class _PointMassOptions(_FrameOptions, total=False):
+    terminate_on_success: bool
+
+
+class _MetaWorldTorqueOptions(_FrameOptions, total=False):
+    camera_name: str
+    reward_version: str
+
+
+class _MetaWorldOptions(_MetaWorldTorqueOptions, total=False):
+    substeps: int
+
+
+class _JacoTorqueOptions(_FrameOptions, total=False):
+    camera: str
+
+
+class _JacoOptions(_JacoTorqueOptions, total=False):
+    substeps: int
+
+
+def _make_metaworld(
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[_MetaWorldOptions]
+) -> gym.Env:
     return MetaWorldEnv(
         spec.metaworld_name or spec.name, horizon=horizon, render_mode=render_mode, **kw
     )
 
 
-def _make_jaco(spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+def _make_jaco(
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[_JacoOptions]
+) -> gym.Env:
     return JacoEnv(spec.name, horizon=horizon, render_mode=render_mode, **kw)
 
 
-def _make_toy(spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+def _make_toy(
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[_PointMassOptions]
+) -> gym.Env:
     return PointMassEnv(dim=spec.dmp_dofs, horizon=horizon, render_mode=render_mode, **kw)
 
 
-def _torque_metaworld(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+def _torque_metaworld(
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[_MetaWorldTorqueOptions]
+) -> gym.Env:
     task = spec.metaworld_name or spec.name
-    return MetaWorldTorqueEnv(task, spec.controller, horizon, render_mode, **kw)
+    return MetaWorldTorqueEnv(task, _impedance(spec), horizon, render_mode, **kw)
 
 
-def _torque_jaco(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
-    return JacoTorqueEnv(spec.base_task, spec.controller, horizon, render_mode, **kw)
+def _torque_jaco(
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[_JacoTorqueOptions]
+) -> gym.Env:
+    if spec.base_task is None:
+        raise ValueError(f"spec: the torque row {spec.name!r} names no base_task")
+    return JacoTorqueEnv(spec.base_task, _impedance(spec), horizon, render_mode, **kw)
+
+
+def _impedance(spec: TaskSpec) -> ImpedanceController | None:
+    """The impedance controller of a torque-actuated row (None: the env's default); a position
+    controller is refused, naming the row."""
+    if spec.controller is not None and not isinstance(spec.controller, ImpedanceController):
+        raise ValueError(f"spec: the torque row {spec.name!r} has no impedance controller")
+    return spec.controller
 
 
 FAMILIES: dict[str, Callable[..., gym.Env]] = {}

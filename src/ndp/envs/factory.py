@@ -34,7 +34,7 @@ from ndp.envs.metaworld_env import (
     check_reward_version,
     metaworld_env_names,
 )
-from ndp.envs.point_mass import PointMassEnv
+from ndp.envs.point_mass import PointMassEnv, PointMassOptions
 from ndp.envs.release import RELEASE_GOAL_TASKS
 from ndp.envs.rewards import RewardVariant, check_reward, check_smooth_lambda
 from ndp.envs.spec import (
@@ -65,10 +65,6 @@ class _FrameOptions(TypedDict, total=False):
     width: int
     height: int
     fixed_goal: int | str | None
-
-
-class _PointMassOptions(_FrameOptions, total=False):
-    terminate_on_success: bool
 
 
 class _MetaWorldTorqueOptions(_FrameOptions, total=False):
@@ -103,7 +99,7 @@ def _make_jaco(
 
 
 def _make_toy(
-    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[_PointMassOptions]
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[PointMassOptions]
 ) -> gym.Env:
     return PointMassEnv(dim=spec.dmp_dofs, horizon=horizon, render_mode=render_mode, **kw)
 

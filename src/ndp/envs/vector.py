@@ -25,7 +25,7 @@ import itertools
 import multiprocessing as mp
 import os
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from multiprocessing.connection import Connection
 from multiprocessing.context import BaseContext
 from typing import Any, cast
@@ -37,7 +37,9 @@ from numpy.typing import DTypeLike
 from ndp.chunk_info import info_schema  # the step info's arrays, from its schema
 
 
-def widen_info_arrays(vector_infos: dict[str, Any], env_info: dict[str, Any], n: int) -> None:
+def widen_info_arrays(
+    vector_infos: dict[str, object], env_info: Mapping[str, object], n: int
+) -> None:
     """Before gymnasium's ``_add_info`` adds env ``i``'s info to ``vector_infos``: an array
     [n, *s] that the info's value [*p, *s] (more leading axes) cannot be written into is
     widened to [n, *p, *s], each row repeated along the new axes (in place).

@@ -240,6 +240,25 @@ def test_layer_is_parameter_free_and_follows_dtype():
     assert "n_basis=6" in repr(layer)
 
 
+@pytest.mark.parametrize("learn_az", [False, True])
+def test_meta_tensors_infer_shapes_and_device_is_refused_at_once(learn_az):
+    cfg = DMPConfig(n_basis=6, steps=35, subsample=7, learn_az=learn_az)
+    with torch.device("meta"):
+        layer = DMPLayer(cfg)  # checks on: meta tensors hold no values to check
+        goal, y0, dy0 = (torch.zeros(4, 3) for _ in range(3))
+        w = torch.zeros(4, 3, 6)
+        a_z = torch.zeros(4) if learn_az else None
+    out = layer(goal, w, y0, dy0, a_z=a_z)
+    for t in out:
+        assert t.is_meta and t.shape == (4, cfg.n_out, 3)
+    if not learn_az:
+        pos = layer.positions(goal, w, y0, dy0)
+        assert pos.is_meta and pos.shape == (4, cfg.n_out, 3)
+    for name in ("device", "dtype"):
+        with pytest.raises(ValueError, match=f"^{name}: DMPLayer holds no parameters"):
+            DMPLayer(cfg, **{name: "meta"})
+
+
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
 def test_cuda_matches_cpu():
     cfg = DMPConfig(n_basis=6, steps=35, subsample=7)

@@ -25,7 +25,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -33,6 +33,11 @@ from ndp.bc.experts import expert_for
 from ndp.checks import check_int
 from ndp.chunk_info import dmp_start
 from ndp.io import atomic_save_npz
+
+if TYPE_CHECKING:
+    from ndp.bc.experts import Expert
+    from ndp.envs import ChunkedEnv
+    from ndp.envs.base import NDPEnv
 
 DEMO_FORMAT = "ndp-demos"
 DEMO_VERSION = 1
@@ -116,43 +121,20 @@ def collect(
     spec = get_task_spec(task)
     expert = expert_for(spec.name)
     env = ChunkedEnv(make_env(spec.name, horizon=horizon), k=1, stale_world=False)
-    base = env.unwrapped
     attempts = max_attempts if max_attempts is not None else 3 * episodes + 10
-    rows: dict[str, list[Any]] = {k: [] for k in _STEP_ARRAYS}
+    rows: dict[str, list[object]] = {k: [] for k in _STEP_ARRAYS}
     seeds: list[int] = []
     ep_success: list[bool] = []
     try:
         for attempt in range(attempts):
             if len(seeds) == episodes:
                 break
-            s = seed + attempt
-            obs, info = env.reset(seed=s)
-            expert.reset(base, obs, info)
-            ep: dict[str, list[Any]] = {k: [] for k in _STEP_ARRAYS}
-            any_success = False
-            while True:
-                a = np.asarray(expert.act(base, obs, info), dtype=np.float64)
-                ep["obs"].append(np.asarray(obs, dtype=np.float32))
-                ep["actions"].append(a.astype(np.float32))
-                frames = (
-                    ("measured", "robot_pos", "robot_vel"),
-                    ("commanded", "cmd_pos", "cmd_vel"),
-                )
-                for frame, kp, kv in frames:
-                    y0, dy0 = dmp_start(info, frame)
-                    ep[kp].append(y0)
-                    ep[kv].append(dy0)
-                obs, r, term, trunc, info = env.step(a[None])
-                ep["rewards"].append(np.float32(r))
-                ep["success"].append(bool(info["success"]))
-                any_success |= bool(info["success"])
-                if term or trunc:
-                    break
+            ep, any_success = _record_episode(env, expert, seed + attempt)
             if any_success or keep_failures:
                 ep["episode"] = [len(seeds)] * len(ep["obs"])
                 for k in _STEP_ARRAYS:
                     rows[k].extend(ep[k])
-                seeds.append(s)
+                seeds.append(seed + attempt)
                 ep_success.append(any_success)
     finally:
         env.close()
@@ -161,9 +143,58 @@ def collect(
             f"episodes: the expert of {spec.name} succeeded in {len(seeds)} of {attempts} "
             f"attempts, fewer than the {episodes} asked (use keep_failures to record failures)"
         )
+    meta = {
+        "format": DEMO_FORMAT,
+        "version": DEMO_VERSION,
+        "task": spec.name,
+        "horizon": horizon or spec.horizon,
+        "expert": type(expert).__name__,
+        "seed": seed,
+        "keep_failures": keep_failures,
+    }
+    return _demos_from_rows(spec.name, rows, seeds, ep_success, meta)
+
+
+def _record_episode(
+    env: ChunkedEnv, expert: Expert, seed: int
+) -> tuple[dict[str, list[object]], bool]:
+    """One expert episode reset with ``seed``: per-step rows and whether it ever succeeded."""
+    base = cast("NDPEnv", env.unwrapped)  # a task family's env (ndp.envs.base)
+    obs, info = env.reset(seed=seed)
+    expert.reset(base, obs, info)
+    ep: dict[str, list[object]] = {k: [] for k in _STEP_ARRAYS}
+    any_success = False
+    while True:
+        a = np.asarray(expert.act(base, obs, info), dtype=np.float64)
+        ep["obs"].append(np.asarray(obs, dtype=np.float32))
+        ep["actions"].append(a.astype(np.float32))
+        frames = (
+            ("measured", "robot_pos", "robot_vel"),
+            ("commanded", "cmd_pos", "cmd_vel"),
+        )
+        for frame, kp, kv in frames:
+            y0, dy0 = dmp_start(info, frame)
+            ep[kp].append(y0)
+            ep[kv].append(dy0)
+        obs, r, term, trunc, info = env.step(a[None])
+        ep["rewards"].append(np.float32(r))
+        ep["success"].append(bool(info["success"]))
+        any_success |= bool(info["success"])
+        if term or trunc:
+            return ep, any_success
+
+
+def _demos_from_rows(
+    task: str,
+    rows: dict[str, list[object]],
+    seeds: list[int],
+    ep_success: list[bool],
+    meta: dict[str, object],
+) -> Demos:
+    """Stack the recorded per-step rows into a :class:`Demos` with the documented dtypes."""
     arrays = {k: np.asarray(v) for k, v in rows.items()}
     return Demos(
-        spec.name,
+        task,
         arrays["obs"].astype(np.float32),
         arrays["actions"].astype(np.float32),
         arrays["rewards"].astype(np.float32),
@@ -175,15 +206,7 @@ def collect(
         },
         seeds=np.asarray(seeds, dtype=np.int64),
         episode_success=np.asarray(ep_success, dtype=bool),
-        meta={
-            "format": DEMO_FORMAT,
-            "version": DEMO_VERSION,
-            "task": spec.name,
-            "horizon": horizon or spec.horizon,
-            "expert": type(expert).__name__,
-            "seed": seed,
-            "keep_failures": keep_failures,
-        },
+        meta=meta,
     )
 
 

@@ -2,29 +2,32 @@
 and the toy task's straight line.
 
 An expert is an object with ``reset(env, obs, info)`` and ``act(env, obs, info) -> action [A]``
-in [-1, 1]; ``env`` is the unwrapped task env (scripts may read its simulator, as a human
-demonstrator sees the scene), ``obs`` and ``info`` what the per-step env returned last.
+in [-1, 1]; ``env`` is the unwrapped task env, an :class:`ndp.envs.base.NDPEnv` (scripts may
+read its simulator, as a human demonstrator sees the scene), ``obs`` and ``info`` what the
+per-step env returned last.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Protocol, cast
 
 import numpy as np
 
 if TYPE_CHECKING:
     from metaworld.policies.policy import Policy
 
+    from ndp.envs.base import NDPEnv
+    from ndp.envs.jaco import JacoEnv
     from ndp.envs.spec import TaskSpec
 
 
 class Expert(Protocol):
     """A per-step demonstrator."""
 
-    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None: ...
+    def reset(self, env: NDPEnv, obs: np.ndarray, info: Mapping[str, object]) -> None: ...
 
-    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray: ...
+    def act(self, env: NDPEnv, obs: np.ndarray, info: Mapping[str, object]) -> np.ndarray: ...
 
 
 class MetaWorldExpert:
@@ -39,20 +42,20 @@ class MetaWorldExpert:
         make: Callable[[], Policy] = ENV_POLICY_MAP[name]
         self.policy = make()
 
-    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
+    def reset(self, env: NDPEnv, obs: np.ndarray, info: Mapping[str, object]) -> None:
         pass
 
-    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+    def act(self, env: NDPEnv, obs: np.ndarray, info: Mapping[str, object]) -> np.ndarray:
         return np.clip(np.asarray(self.policy.get_action(obs), dtype=np.float64), -1.0, 1.0)
 
 
 class PointMassExpert:
     """Straight to the goal at full speed (the toy task: obs = position, velocity, goal)."""
 
-    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
+    def reset(self, env: NDPEnv, obs: np.ndarray, info: Mapping[str, object]) -> None:
         pass
 
-    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+    def act(self, env: NDPEnv, obs: np.ndarray, info: Mapping[str, object]) -> np.ndarray:
         from ndp.envs.point_mass import ACTION_SCALE
 
         d = len(obs) // 3
@@ -67,15 +70,16 @@ class ThrowExpert:
     def __init__(self, speed: float = 3.2, release: int = 17) -> None:
         self.speed, self.release, self.t = float(speed), int(release), 0
 
-    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
+    def reset(self, env: NDPEnv, obs: np.ndarray, info: Mapping[str, object]) -> None:
         self.t = 0
 
-    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+    def act(self, env: NDPEnv, obs: np.ndarray, info: Mapping[str, object]) -> np.ndarray:
         import mujoco
 
         from ndp.envs import jaco as J
 
-        m, d = env.model, env.data
+        jaco = cast("JacoEnv", env)  # the Throw task's env (registered for the family)
+        m, d = jaco.model, jaco.data
         if self.t < self.release:
             jacp = np.zeros((3, m.nv))
             mujoco.mj_jacSite(m, d, jacp, None, m.site("jaco/hand/gripsite").id)
@@ -98,16 +102,17 @@ class PickExpert:
     def __init__(self) -> None:
         self.plan: list[tuple[np.ndarray, float, int]] = []
 
-    def reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
+    def reset(self, env: NDPEnv, obs: np.ndarray, info: Mapping[str, object]) -> None:
         from ndp.envs import jaco as J
 
         cube = np.asarray(obs[18:21], dtype=np.float64).copy()
-        above = J.jaco_ik(env.model, cube + np.array([0, 0, 0.15]), q0=J.PICK_HOME)
-        grasp = J.jaco_ik(env.model, cube + np.array([0, 0, 0.03]), q0=above)
-        lift = J.jaco_ik(env.model, cube + np.array([0, 0, 0.25]), q0=grasp)
+        model = cast("JacoEnv", env).model  # the Pick task's env (registered for the family)
+        above = J.jaco_ik(model, cube + np.array([0, 0, 0.15]), q0=J.PICK_HOME)
+        grasp = J.jaco_ik(model, cube + np.array([0, 0, 0.03]), q0=above)
+        lift = J.jaco_ik(model, cube + np.array([0, 0, 0.25]), q0=grasp)
         self.plan = [(above, -1.0, 30), (grasp, -1.0, 30), (grasp, 1.0, 25), (lift, 1.0, 40)]
 
-    def act(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+    def act(self, env: NDPEnv, obs: np.ndarray, info: Mapping[str, object]) -> np.ndarray:
         from ndp.envs import jaco as J
 
         while self.plan and self.plan[0][2] <= 0:
@@ -117,7 +122,7 @@ class PickExpert:
             return hold
         q, fingers, steps = self.plan[0]
         self.plan[0] = (q, fingers, steps - 1)
-        a = np.clip((q - env.joint_targets[:6]) / J.ARM_DELTA, -1.0, 1.0) * 0.5
+        a = np.clip((q - cast("JacoEnv", env).joint_targets[:6]) / J.ARM_DELTA, -1.0, 1.0) * 0.5
         out: np.ndarray = np.r_[a, fingers]
         return out
 

@@ -46,25 +46,8 @@ def fit_dmp(
         (goal [B, D], weights [B, D, N]) in the dtype and device of ``demo``.
     """
     cfg = cfg or DMPConfig()
-    if cfg.learn_az:
-        raise ValueError("cfg: fit_dmp needs a fixed a_z (learn_az=False)")
-    if cfg.only_g:
-        raise ValueError("cfg: fit_dmp fits forcing weights; only_g=True has none")
-    if not isinstance(demo, torch.Tensor) or demo.ndim != 3 or not demo.is_floating_point():
-        raise ValueError("demo: expected a floating-point tensor [B, n_out, D]")
+    _check_fit_args(demo, cfg, ridge)
     b, t1, d = demo.shape
-    if t1 != cfg.n_out:
-        raise ValueError(
-            f"demo: expected {cfg.n_out} points per trajectory (steps // subsample + 1), got {t1}"
-        )
-    if not bool(torch.isfinite(demo).all()):
-        raise ValueError("demo: expected finite values, found NaN or Inf")
-    if (
-        isinstance(ridge, bool)
-        or not isinstance(ridge, (int, float))
-        or not 0.0 <= ridge < math.inf
-    ):
-        raise ValueError(f"ridge: expected a finite number >= 0, got {ridge!r}")
     n = cfg.n_basis
     m = torch.as_tensor(_linear_map_f64(cfg, None)[:, :t1].copy())  # [N + 3, n_out] positions
     y = demo.detach().to(torch.float64, copy=True).cpu()
@@ -82,6 +65,44 @@ def fit_dmp(
         g_fixed = goal.detach().to(torch.float64).cpu()
         rhs = rhs - g_fixed.unsqueeze(-1) * m[n]
         design = m[:n].T  # [n_out, N]
+    sol = _ridge_lstsq(design, rhs.reshape(b * d, t1).T, n, ridge)  # [B * D, K]
+    sol = sol.reshape(b, d, -1)
+    v = sol[..., :n]
+    g = sol[..., n] if goal is None else g_fixed
+    if not cfg.scale_by_goal:
+        return g.to(demo), v.to(demo)
+    scale = g - y0
+    sign = torch.where(scale >= 0, 1.0, -1.0).to(scale)
+    scale = torch.where(scale.abs() < min_scale, sign * min_scale, scale)
+    w = v / scale.unsqueeze(-1)
+    return g.to(demo), w.to(demo)
+
+
+def _check_fit_args(demo: torch.Tensor, cfg: DMPConfig, ridge: float) -> None:
+    """Refuse a config without fittable weights, a malformed demonstration or a bad ridge."""
+    if cfg.learn_az:
+        raise ValueError("cfg: fit_dmp needs a fixed a_z (learn_az=False)")
+    if cfg.only_g:
+        raise ValueError("cfg: fit_dmp fits forcing weights; only_g=True has none")
+    if not isinstance(demo, torch.Tensor) or demo.ndim != 3 or not demo.is_floating_point():
+        raise ValueError("demo: expected a floating-point tensor [B, n_out, D]")
+    t1 = demo.shape[1]
+    if t1 != cfg.n_out:
+        raise ValueError(
+            f"demo: expected {cfg.n_out} points per trajectory (steps // subsample + 1), got {t1}"
+        )
+    if not bool(torch.isfinite(demo).all()):
+        raise ValueError("demo: expected finite values, found NaN or Inf")
+    if (
+        isinstance(ridge, bool)
+        or not isinstance(ridge, (int, float))
+        or not 0.0 <= ridge < math.inf
+    ):
+        raise ValueError(f"ridge: expected a finite number >= 0, got {ridge!r}")
+
+
+def _ridge_lstsq(design: torch.Tensor, rhs: torch.Tensor, n: int, ridge: float) -> torch.Tensor:
+    """Ridge least squares ``design [n_out, K] @ x = rhs [n_out, M]``, transposed: [M, K]."""
     # The map is badly conditioned (late basis functions barely move the trajectory: the
     # condition number of `design` is ~1e13 at N = 30), so a ridge term penalises the forcing
     # coefficients v (never the goal), scaled to their block. The regularised problem is solved
@@ -94,15 +115,6 @@ def fit_dmp(
     reg = torch.zeros(k, dtype=design.dtype)
     reg[:n] = ridge * (design[:, :n] ** 2).sum(0).mean()
     a_aug = torch.cat([design, torch.diag(reg.sqrt())], 0)  # [n_out + K, K]
-    b_aug = torch.cat([rhs.reshape(b * d, t1).T, torch.zeros(k, b * d, dtype=rhs.dtype)], 0)
-    sol = torch.linalg.lstsq(a_aug, b_aug, driver="gelsd").solution.T  # [B * D, K]
-    sol = sol.reshape(b, d, -1)
-    v = sol[..., :n]
-    g = sol[..., n] if goal is None else g_fixed
-    if not cfg.scale_by_goal:
-        return g.to(demo), v.to(demo)
-    scale = g - y0
-    sign = torch.where(scale >= 0, 1.0, -1.0).to(scale)
-    scale = torch.where(scale.abs() < min_scale, sign * min_scale, scale)
-    w = v / scale.unsqueeze(-1)
-    return g.to(demo), w.to(demo)
+    b_aug = torch.cat([rhs, torch.zeros(k, rhs.shape[1], dtype=rhs.dtype)], 0)
+    sol: torch.Tensor = torch.linalg.lstsq(a_aug, b_aug, driver="gelsd").solution.T
+    return sol

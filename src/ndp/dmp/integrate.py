@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any, NamedTuple, TypeVar
+from collections.abc import Iterator
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 import torch
@@ -53,8 +54,8 @@ def euler_step(
     z: Num,
     goal: Num | float,
     f: Num,
-    a_z: Any,
-    b_z: Any,
+    a_z: Num | float,
+    b_z: Num | float,
     tau: float,
     dt: float,
     forcing: str,
@@ -186,6 +187,21 @@ def check_finite(**tensors: torch.Tensor | None) -> None:
             raise FloatingPointError(f"{name}: expected finite values, found NaN or Inf")
 
 
+def loop_basis(cfg: DMPConfig, goal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Basis centres and widths [N] in the dtype and on the device of ``goal`` (step loops)."""
+    c, h = basis_centres(cfg.n_basis, cfg.a_x, goal.dtype)
+    return c.to(goal.device), h.to(goal.device)
+
+
+def canonical_phases(cfg: DMPConfig) -> Iterator[float]:
+    """The canonical system's phase x after each of the ``cfg.steps`` Euler steps (x_0 = 1)."""
+    tau, dt, a_x = cfg.tau, cfg.step_dt, cfg.a_x
+    x = 1.0
+    for _ in range(cfg.steps):
+        x = x - a_x * x / tau * dt
+        yield x
+
+
 # --------------------------------------------------------------------------------------------
 # Reference loop
 # --------------------------------------------------------------------------------------------
@@ -225,16 +241,12 @@ def _reference(
 ) -> DMPTrajectory:
     dtype, device = goal.dtype, goal.device
     az, bz = spring_constants(cfg, a_z_t)
-    tau, dt, a_x = cfg.tau, cfg.step_dt, cfg.a_x
-    c, h = basis_centres(cfg.n_basis, a_x, dtype)
-    c, h = c.to(device), h.to(device)
-
-    x = 1.0
+    tau, dt = cfg.tau, cfg.step_dt
+    c, h = loop_basis(cfg, goal)
     y = y0
     z = tau * dy0
     pos, vel, acc = [y0], [dy0], [torch.zeros_like(y0)]
-    for _ in range(cfg.steps):
-        x = x - a_x * x / tau * dt
+    for x in canonical_phases(cfg):
         psi = rbf(torch.tensor(x, dtype=dtype, device=device), c, h, cfg.rbf)  # [N]
         if cfg.only_g:
             f = torch.zeros_like(y0)
@@ -459,7 +471,8 @@ def dmp_rollout(
             ``cfg.learn_az`` and is clamped to ``cfg.az_range``.
         method: 'auto' (fast path unless a_z is per-sample), 'fast' or 'loop'.
         check: raise ``FloatingPointError`` if any input holds NaN or Inf (not while the call
-            is recorded by ``torch.export`` / ``torch.jit.trace``: :func:`recording`).
+            is recorded by ``torch.export`` / ``torch.jit.trace``: :func:`recording`, nor on
+            the meta device, whose tensors hold no values: there the call infers shapes).
         linear_map: ``linear_map_f64(cfg)``, precomputed by the caller (``DMPLayer`` holds
             its own, so that ``torch.export`` never has to build it while tracing); None: the
             process-wide cache.
@@ -476,6 +489,7 @@ def dmp_rollout(
     if not cfg.learn_az and a_z is not None:
         raise ValueError("a_z: per-sample a_z given but cfg.learn_az is False")
     goal, weights, y0, dy0, a_z = validate_inputs(cfg, goal, weights, y0, dy0, a_z)
+    check = check and not goal.is_meta
     if check and (cfg.learn_az or method == "loop"):
         check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0, a_z=a_z)
     if cfg.learn_az:
@@ -513,4 +527,5 @@ def dmp_positions(
     if cfg.learn_az:
         raise ValueError("cfg: dmp_positions needs a fixed a_z (learn_az False)")
     goal, weights, y0, dy0, _ = validate_inputs(cfg, goal, weights, y0, dy0)
+    check = check and not goal.is_meta
     return _fast_positions(cfg, goal, weights, y0, dy0, check, linear_map)

@@ -24,7 +24,9 @@ class DMPLayer(nn.Module):
     Args:
         config: integrator settings; keyword overrides are applied on top of it.
         check_finite: raise ``FloatingPointError`` when an input holds NaN or Inf (one
-            reduction per input; switch off only where the caller checks itself).
+            reduction per input; switch off only where the caller checks itself). Tensors on
+            the meta device hold no values: they are not checked, and the layer returns
+            meta tensors of the output shapes (shape inference).
         **overrides: any :class:`DMPConfig` field, e.g. ``n_basis=6``.
     """
 
@@ -35,6 +37,11 @@ class DMPLayer(nn.Module):
         config = config or DMPConfig()
         fields = [f.name for f in dataclasses.fields(DMPConfig)]
         for name in overrides:
+            if name in ("device", "dtype"):
+                raise ValueError(
+                    f"{name}: DMPLayer holds no parameters; its outputs follow the inputs' "
+                    "device and dtype (meta tensors in: shapes out)"
+                )
             if name not in fields:
                 import difflib
 

@@ -19,9 +19,15 @@ from __future__ import annotations
 
 import torch
 
-from ndp.dmp.basis import basis_centres, normalised_rbf
+from ndp.dmp.basis import normalised_rbf
 from ndp.dmp.config import DMPConfig
-from ndp.dmp.integrate import euler_step, spring_constants, validate_inputs
+from ndp.dmp.integrate import (
+    canonical_phases,
+    euler_step,
+    loop_basis,
+    spring_constants,
+    validate_inputs,
+)
 
 
 def dmp_sensitivities(
@@ -45,9 +51,8 @@ def dmp_sensitivities(
     goal, weights, y0, dy0, a_z_t = validate_inputs(cfg, goal, weights, y0, dy0, a_z)
     dtype, device = goal.dtype, goal.device
     az, bz = spring_constants(cfg, a_z_t)
-    tau, dt, a_x = cfg.tau, cfg.step_dt, cfg.a_x
-    c, h = basis_centres(cfg.n_basis, a_x, dtype)
-    c, h = c.to(device), h.to(device)
+    tau, dt = cfg.tau, cfg.step_dt
+    c, h = loop_basis(cfg, goal)
     az_w = az.unsqueeze(-1) if isinstance(az, torch.Tensor) else az
     bz_w = bz.unsqueeze(-1) if isinstance(bz, torch.Tensor) else bz
 
@@ -56,9 +61,7 @@ def dmp_sensitivities(
     g_y = torch.zeros_like(goal)
     g_z = torch.zeros_like(goal)
     out_w, out_g = [w_y], [g_y]
-    x = 1.0
-    for _ in range(cfg.steps):
-        x = x - a_x * x / tau * dt
+    for x in canonical_phases(cfg):
         phi = normalised_rbf(torch.tensor(x, dtype=dtype, device=device), c, h, cfg.rbf)
         if cfg.only_g:
             df_dw = torch.zeros_like(weights)

@@ -22,12 +22,14 @@ from __future__ import annotations
 import gc
 import os
 import sys
-from typing import Any
+from collections.abc import Callable
+from typing import Any, SupportsInt
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
+from numpy.typing import ArrayLike
 
 SIM_UNSTABLE = "sim_unstable"
 """Info key: the simulator went unstable and the episode was truncated."""
@@ -77,7 +79,7 @@ def fit_offscreen_buffer(model: mujoco.MjModel, width: int, height: int) -> None
     vis.offwidth, vis.offheight = max(vis.offwidth, int(width)), max(vis.offheight, int(height))
 
 
-def check_horizon(horizon: Any) -> int:
+def check_horizon(horizon: SupportsInt | str) -> int:
     """``int(horizon)`` if it is at least 1.
 
     Raises:
@@ -191,7 +193,7 @@ class NDPEnv(gym.Env):
     the 2021 release's one hard-coded configuration (:meth:`release_config`;
     ``goals="release"``)."""
 
-    def _setup(self, horizon: Any, render_mode: str | None, action_dim: int) -> None:
+    def _setup(self, horizon: SupportsInt | str, render_mode: str | None, action_dim: int) -> None:
         """Check and store ``horizon`` and ``render_mode``; set the ``[-1, 1]^action_dim``
         float32 action space.
 
@@ -219,7 +221,7 @@ class NDPEnv(gym.Env):
             seed, self._pending_seed = self._pending_seed, None
         super().reset(seed=seed)
 
-    def _set_fixed_goal(self, fixed_goal: Any, task: str = "") -> None:
+    def _set_fixed_goal(self, fixed_goal: object, task: str = "") -> None:
         """Check and store ``fixed_goal`` (None, an int >= 0, or ``"release"`` where
         :meth:`release_config` has one for ``task``).
 
@@ -251,7 +253,7 @@ class NDPEnv(gym.Env):
         return np.random.default_rng(self.fixed_goal)
 
     # ------------------------------------------------------------------ step helpers
-    def _check_action(self, action: Any) -> np.ndarray:
+    def _check_action(self, action: ArrayLike) -> np.ndarray:
         """``action`` as float64 of the action space's shape, finite (not yet clipped).
 
         Raises:
@@ -307,12 +309,12 @@ class NDPEnv(gym.Env):
         info.update(self._state_info(False, np.nan_to_num(pos), np.nan_to_num(vel), True))
         return last_obs, 0.0, False, True, info
 
-    def _render_frame(self, draw: Any) -> np.ndarray | None:
+    def _render_frame(self, draw: Callable[[], np.ndarray | None]) -> np.ndarray | None:
         """``draw()`` (the env's own rendering call) with the OpenGL failures of a machine
         without a display turned into one line naming ``MUJOCO_GL`` and what to set."""
         hook = sys.unraisablehook
         try:
-            return draw()  # type: ignore[no-any-return]
+            return draw()
         except Exception as exc:  # mujoco.FatalError, GLFW / EGL / OSMesa errors
             text = f"{type(exc).__name__}: {exc}"
             words = ("OpenGL", "EGL", "GLFW", "glfw", "DISPLAY", "display", "GL context")

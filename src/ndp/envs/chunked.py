@@ -12,7 +12,7 @@ success (it is an evaluation metric, not a training signal). ``k = 1`` is plain 
 execution; ``stale_world=False`` uses the env's live reward at every sub-step.
 
 Envs used with ``stale_world=True`` must provide, on ``env.unwrapped``:
-``robot_state() -> (pos [D], vel [D])``, ``world_snapshot() -> Any`` and
+``robot_state() -> (pos [D], vel [D])``, ``world_snapshot() -> object`` and
 ``stale_reward(snapshot, action) -> float`` (pure: no side effects).
 """
 
@@ -36,9 +36,9 @@ class _RobotEnv(Protocol):
 
     def robot_state(self) -> tuple[np.ndarray, np.ndarray]: ...
 
-    def world_snapshot(self) -> Any: ...
+    def world_snapshot(self) -> object: ...
 
-    def stale_reward(self, snapshot: Any, action: np.ndarray) -> float: ...
+    def stale_reward(self, snapshot: object, action: np.ndarray) -> float: ...
 
 
 EXECUTIONS = ("all", "first-held")
@@ -149,6 +149,18 @@ class ChunkedEnv(gym.Wrapper):
         )
         return obs, info
 
+    def _sub_actions(self, actions: np.ndarray) -> np.ndarray:
+        """The k sub-actions to execute: checked, clipped to the env's bounds, in its dtype."""
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"actions: expected shape {self.action_space.shape}, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError("actions: expected finite values, got NaN or inf")
+        a = np.clip(a, self._low, self._high).astype(self.env.action_space.dtype)
+        if self.execution == "first-held":  # the release's: sub-action 0, held k env steps
+            a = np.repeat(a[:1], self.k, axis=0)
+        return a
+
     def step(self, actions: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         """Run up to k sub-steps.
 
@@ -161,14 +173,7 @@ class ChunkedEnv(gym.Wrapper):
         Raises:
             ValueError: wrong shape or non-finite values in ``actions``.
         """
-        a = np.asarray(actions, dtype=np.float64)
-        if a.shape != self.action_space.shape:
-            raise ValueError(f"actions: expected shape {self.action_space.shape}, got {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError("actions: expected finite values, got NaN or inf")
-        a = np.clip(a, self._low, self._high).astype(self.env.action_space.dtype)
-        if self.execution == "first-held":  # the release's: sub-action 0, held k env steps
-            a = np.repeat(a[:1], self.k, axis=0)
+        a = self._sub_actions(actions)
         k, dof = self.k, self.dof
         sub_r = np.zeros(k)
         sub_live = np.zeros(k)

@@ -32,10 +32,13 @@ table reports); the commanded state is tracked in Python (mocap target = the pre
 from __future__ import annotations
 
 import functools
-from typing import TYPE_CHECKING, Any
+from collections.abc import Sequence
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 from gymnasium import spaces
+from numpy.typing import ArrayLike
 
 from ndp.checks import install_hint
 from ndp.envs import envpool_tasks
@@ -80,7 +83,7 @@ def envpool_task_id(task: str) -> str:
     return "MetaWorld/" + "".join(p[:1].upper() + p[1:] for p in name.split("-")) + f"-{version}"
 
 
-def import_envpool() -> Any:
+def import_envpool() -> ModuleType:
     """``import envpool`` with the install hint when it is missing.
 
     Raises:
@@ -208,7 +211,9 @@ class StdUniform:
         u = (words[0::2] + words[1::2] * 2.0**32) / 2.0**64
         return np.minimum(u, np.nextafter(1.0, 0.0))  # libstdc++'s rounding guard
 
-    def uniform(self, low: Any = 0.0, high: Any = 1.0, size: Any = None) -> Any:
+    def uniform(
+        self, low: ArrayLike = 0.0, high: ArrayLike = 1.0, size: int | Sequence[int] | None = None
+    ) -> np.ndarray | float:
         """``low + u * (high - low)`` per entry (numpy's broadcasting of ``low`` / ``high``)."""
         lo, hi = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
         shape = (
@@ -222,8 +227,19 @@ class StdUniform:
         return out if shape else float(out)
 
 
+class MetaWorldFacts(TypedDict):
+    """What :func:`metaworld_facts` reads from metaworld's env of a task."""
+
+    observation_space: spaces.Box
+    hand_init_pos: np.ndarray
+    mocap_low: np.ndarray
+    mocap_high: np.ndarray
+    action_scale: float
+    control_dt: float
+
+
 @functools.cache
-def metaworld_facts(task: str) -> dict[str, Any]:
+def metaworld_facts(task: str) -> MetaWorldFacts:
     """What the adapter takes from metaworld's own env of ``task`` (built once per process):
     the goal-visible observation space, the hand's reset position, the mocap box, the action
     scale and the control period (s)."""
@@ -233,7 +249,7 @@ def metaworld_facts(task: str) -> dict[str, Any]:
     env._partially_observable = False
     del env.sawyer_observation_space
     box = env.sawyer_observation_space
-    facts = {
+    facts: MetaWorldFacts = {
         "observation_space": spaces.Box(box.low, box.high, dtype=np.float64),
         "hand_init_pos": np.asarray(env.hand_init_pos, dtype=np.float64).copy(),
         "mocap_low": np.asarray(env.mocap_low, dtype=np.float64).copy(),

@@ -35,7 +35,7 @@ import platform
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -78,7 +78,7 @@ class _AlignedMetaWorld(MetaWorldEnv):
         self.stream = StdUniform(seed)
         inner = self.mw.reset_model
 
-        def reset_model() -> Any:
+        def reset_model() -> object:
             self.stream.rewind()
             return inner()
 
@@ -130,12 +130,49 @@ def rollouts(
     return {key: np.asarray(v) for key, v in out.items()}
 
 
+class Verdict(TypedDict):
+    """The per-task verdict of :func:`compare` (fields in its docstring)."""
+
+    match: bool
+    obs_max_diff: float
+    reward_max_diff: float
+    reward_excess: float
+    success_mismatches: int
+    success_steps_metaworld: int
+    success_steps_envpool: int
+    first_obs_step: int
+    hand_vel_max_diff: float
+    cmd_max_diff: float
+
+
+class EquivalenceRow(Verdict):
+    """One row of :func:`check_tasks`: the task and its verdict."""
+
+    task: str
+
+
+class EquivalenceMeta(TypedDict):
+    """What :func:`write_results` records beside the rows: the command and its settings."""
+
+    command: str
+    commit: str
+    date: str
+    versions: dict[str, str]
+    machine: str
+    steps: int
+    seed: int
+    action_seed: int
+    obs_atol: float
+    reward_atol: float
+    reward_rtol: float
+
+
 def compare(
     run: dict[str, np.ndarray],
     obs_atol: float = OBS_ATOL,
     reward_atol: float = REWARD_ATOL,
     reward_rtol: float = REWARD_RTOL,
-) -> dict[str, Any]:
+) -> Verdict:
     """The per-task verdict of :func:`rollouts`' arrays (pure).
 
     Returns:
@@ -167,7 +204,7 @@ def compare(
 
 def check_tasks(
     tasks: list[str], steps: int = STEPS, seed: int = SEED, action_seed: int = ACTION_SEED
-) -> list[dict[str, Any]]:
+) -> list[EquivalenceRow]:
     """:func:`compare` of :func:`rollouts` for each task, ``{"task": ..., **verdict}`` rows."""
     return [{"task": t, **compare(rollouts(t, steps, seed, action_seed))} for t in tasks]
 
@@ -187,7 +224,7 @@ def _commit() -> str:
         return "unknown"
 
 
-def write_results(rows: list[dict[str, Any]], meta: dict[str, Any], root: Path) -> None:
+def write_results(rows: list[EquivalenceRow], meta: EquivalenceMeta, root: Path) -> None:
     """Write ``equivalence.csv``, ``equivalence.json`` and ``README.md`` under
     ``root / RESULTS`` and the differing tasks into ``root / TASKS_MODULE``."""
     out = root / RESULTS
@@ -255,7 +292,7 @@ def main(argv: list[str] | None = None) -> None:
         rows.append(row)
         print(json.dumps(row), flush=True)
     if args.write:
-        meta = {
+        meta: EquivalenceMeta = {
             "command": "python -m ndp.envs.envpool_equivalence " + " ".join(sys.argv[1:]),
             "commit": _commit(),
             "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),

@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import gymnasium as gym
 import numpy as np
@@ -26,6 +26,7 @@ from ndp.checks import check_int
 from ndp.envs.base import check_fixed_goal, defer_seed
 from ndp.envs.chunked import ChunkedEnv
 from ndp.envs.envpool_backend import EnvPoolMetaWorldEnv, check_backend
+from ndp.envs.impedance import ImpedanceController
 from ndp.envs.jaco import JacoEnv
 from ndp.envs.metaworld_env import (
     V1_REWARD_BROKEN,
@@ -33,7 +34,7 @@ from ndp.envs.metaworld_env import (
     check_reward_version,
     metaworld_env_names,
 )
-from ndp.envs.point_mass import PointMassEnv
+from ndp.envs.point_mass import PointMassEnv, PointMassOptions
 from ndp.envs.release import RELEASE_GOAL_TASKS
 from ndp.envs.rewards import RewardVariant, check_reward, check_smooth_lambda
 from ndp.envs.spec import (
@@ -54,28 +55,76 @@ from ndp.gym_ids import TABLE, expand, register
 from ndp.io import atomic_write_text
 from ndp.schema import TaskSchema, check_record, spec_record
 
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
-def _make_metaworld(spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+
+class _FrameOptions(TypedDict, total=False):
+    """Env-class keywords every family takes (rendered frame size, the fixed goal)."""
+
+    width: int
+    height: int
+    fixed_goal: int | str | None
+
+
+class _MetaWorldTorqueOptions(_FrameOptions, total=False):
+    camera_name: str
+    reward_version: str
+
+
+class _MetaWorldOptions(_MetaWorldTorqueOptions, total=False):
+    substeps: int
+
+
+class _JacoTorqueOptions(_FrameOptions, total=False):
+    camera: str
+
+
+class _JacoOptions(_JacoTorqueOptions, total=False):
+    substeps: int
+
+
+def _make_metaworld(
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[_MetaWorldOptions]
+) -> gym.Env:
     return MetaWorldEnv(
         spec.metaworld_name or spec.name, horizon=horizon, render_mode=render_mode, **kw
     )
 
 
-def _make_jaco(spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+def _make_jaco(
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[_JacoOptions]
+) -> gym.Env:
     return JacoEnv(spec.name, horizon=horizon, render_mode=render_mode, **kw)
 
 
-def _make_toy(spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+def _make_toy(
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[PointMassOptions]
+) -> gym.Env:
     return PointMassEnv(dim=spec.dmp_dofs, horizon=horizon, render_mode=render_mode, **kw)
 
 
-def _torque_metaworld(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
+def _torque_metaworld(
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[_MetaWorldTorqueOptions]
+) -> gym.Env:
     task = spec.metaworld_name or spec.name
-    return MetaWorldTorqueEnv(task, spec.controller, horizon, render_mode, **kw)
+    return MetaWorldTorqueEnv(task, _impedance(spec), horizon, render_mode, **kw)
 
 
-def _torque_jaco(spec: Any, horizon: int, render_mode: str | None, **kw: Any) -> gym.Env:
-    return JacoTorqueEnv(spec.base_task, spec.controller, horizon, render_mode, **kw)
+def _torque_jaco(
+    spec: TaskSpec, horizon: int, render_mode: str | None, **kw: Unpack[_JacoTorqueOptions]
+) -> gym.Env:
+    if spec.base_task is None:
+        raise ValueError(f"spec: the torque row {spec.name!r} names no base_task")
+    return JacoTorqueEnv(spec.base_task, _impedance(spec), horizon, render_mode, **kw)
+
+
+def _impedance(spec: TaskSpec) -> ImpedanceController | None:
+    """The impedance controller of a torque-actuated row (None: the env's default); a position
+    controller is refused, naming the row."""
+    if spec.controller is not None and not isinstance(spec.controller, ImpedanceController):
+        raise ValueError(f"spec: the torque row {spec.name!r} has no impedance controller")
+    return spec.controller
 
 
 FAMILIES: dict[str, Callable[..., gym.Env]] = {}
@@ -153,10 +202,7 @@ def make_env(
     if substeps != 1:
         spec = finer_spec(spec, substeps)  # checks substeps against the task's factors
         kw["substeps"] = substeps
-    if horizon is None:
-        horizon = spec.horizon
-    if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
-        raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
+    horizon = _task_horizon(spec, horizon)
     kw.update(task_options(spec, reward_version, fixed_goal))
     release9 = check_observation(spec, observation) == "release9"
     reward = check_reward(reward)
@@ -164,6 +210,26 @@ def make_env(
 
     check_backend(backend, spec, reward_version=reward_version, fixed_goal=fixed_goal,
                   substeps=substeps, render_mode=render_mode)  # fmt: skip
+    env = _build_env(spec, backend, horizon, render_mode, kw)
+    defer_seed(env, seed)
+    if reward != "dense":
+        env = RewardVariant(env, reward, smooth_lambda)
+    return ReleaseObservation(env) if release9 else env
+
+
+def _task_horizon(spec: TaskSpec, horizon: int | None) -> int:
+    """``horizon`` (None: the task's), refused unless a positive int."""
+    if horizon is None:
+        horizon = spec.horizon
+    if isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1:
+        raise ValueError(f"horizon: expected a positive int, got {horizon!r}")
+    return horizon
+
+
+def _build_env(
+    spec: TaskSpec, backend: str, horizon: int, render_mode: str | None, kw: dict[str, Any]
+) -> gym.Env:
+    """The task's env from its family's (or the envpool backend's) class, marked with its row."""
     families = TORQUE_FAMILIES if spec.actuation == "torque" else FAMILIES
     if spec.family not in families:
         raise ValueError(
@@ -177,10 +243,7 @@ def make_env(
     else:
         env = families[spec.family](spec, horizon, render_mode, **kw)
     env.unwrapped.ndp_task = spec.name  # type: ignore[attr-defined]  # the row (evaluation)
-    defer_seed(env, seed)
-    if reward != "dense":
-        env = RewardVariant(env, reward, smooth_lambda)
-    return ReleaseObservation(env) if release9 else env
+    return env
 
 
 def task_options(
@@ -254,8 +317,9 @@ class ReleaseObservation(gym.ObservationWrapper):
         self._idx = idx
         self.observation_space = spaces.Box(box.low[idx], box.high[idx], dtype=box.dtype)
 
-    def observation(self, observation: Any) -> Any:
-        return observation[self._idx].copy()
+    def observation(self, observation: np.ndarray) -> np.ndarray:
+        out: np.ndarray = observation[self._idx].copy()
+        return out
 
 
 def fixed_goal_seed(run_seed: int) -> int:

@@ -180,6 +180,20 @@ def metaworld_env_names() -> list[str]:
     return list(ALL_V3_ENVIRONMENTS)
 
 
+def _world_dofs(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """qpos and qvel indices of the world's (non-robot) joints."""
+    world_q: list[int] = []
+    world_v: list[int] = []
+    for j in range(m.njnt):
+        if m.joint(j).name in ROBOT_JOINTS:
+            continue
+        nq = {0: 7, 1: 4, 2: 1, 3: 1}[int(m.jnt_type[j])]
+        nv = {0: 6, 1: 3, 2: 1, 3: 1}[int(m.jnt_type[j])]
+        world_q += range(m.jnt_qposadr[j], m.jnt_qposadr[j] + nq)
+        world_v += range(m.jnt_dofadr[j], m.jnt_dofadr[j] + nv)
+    return np.array(world_q, dtype=int), np.array(world_v, dtype=int)
+
+
 class MetaWorldEnv(NDPEnv, EzPickle):
     """One Meta-World v3 task with random goals on every reset and a configurable horizon.
 
@@ -246,33 +260,13 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         self._set_fixed_goal(fixed_goal, task)
         self.task = task
         width, height = check_render_size("width", width), check_render_size("height", height)
-        env = self._task_class(ALL_V3_ENVIRONMENTS[task])(
-            render_mode=render_mode, camera_name=camera_name, width=width, height=height
-        )
-        # Task setup as metaworld's own benchmark construction does it, but with the random
-        # reset vector drawn fresh from our seeded generator at every reset.
-        env._set_task_called = True
-        env._freeze_rand_vec = False
-        env.seeded_rand_vec = True
-        env._partially_observable = False
-        del env.sawyer_observation_space  # cached property: recompute with the goal visible
-        env.max_path_length = self.horizon
-        self.mw = env
+        self._make_task_env(task, render_mode, camera_name, width, height)
+        env = self.mw
         self.model: mujoco.MjModel = env.model
         self.data: mujoco.MjData = env.data
         self.observation_space = env.sawyer_observation_space
         m = self.model
-        world_q: list[int] = []
-        world_v: list[int] = []
-        for j in range(m.njnt):
-            if m.joint(j).name in ROBOT_JOINTS:
-                continue
-            nq = {0: 7, 1: 4, 2: 1, 3: 1}[int(m.jnt_type[j])]
-            nv = {0: 6, 1: 3, 2: 1, 3: 1}[int(m.jnt_type[j])]
-            world_q += range(m.jnt_qposadr[j], m.jnt_qposadr[j] + nq)
-            world_v += range(m.jnt_dofadr[j], m.jnt_dofadr[j] + nv)
-        self._world_q = np.array(world_q, dtype=int)
-        self._world_v = np.array(world_v, dtype=int)
+        self._world_q, self._world_v = _world_dofs(m)
         self._hand = m.body("hand").id
         self._gripper = -1.0
         self._gripper_rate = 0.0
@@ -283,6 +277,25 @@ class MetaWorldEnv(NDPEnv, EzPickle):
         self.control_dt = float(m.opt.timestep * env.frame_skip) / self.substeps
         # the current-frame blocks (obs[:18]) of the last `substeps` env steps (substeps > 1)
         self._frames: deque[np.ndarray] = deque(maxlen=self.substeps)
+
+    def _make_task_env(
+        self, task: str, render_mode: str | None, camera_name: str, width: int, height: int
+    ) -> None:
+        """Create ``self.mw``, the metaworld task env, set up as metaworld's own benchmark
+        construction does it but with the random reset vector drawn fresh from our seeded
+        generator at every reset."""
+        from metaworld.env_dict import ALL_V3_ENVIRONMENTS
+
+        env = self._task_class(ALL_V3_ENVIRONMENTS[task])(
+            render_mode=render_mode, camera_name=camera_name, width=width, height=height
+        )
+        env._set_task_called = True
+        env._freeze_rand_vec = False
+        env.seeded_rand_vec = True
+        env._partially_observable = False
+        del env.sawyer_observation_space  # cached property: recompute with the goal visible
+        env.max_path_length = self.horizon
+        self.mw = env
 
     def release_config(self, task: str) -> np.ndarray | None:
         """The release's reset vector of ``task`` (``ndp.envs.release.RELEASE_CONFIGS``)."""

@@ -26,12 +26,15 @@ actions like every delta-controlled task.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 from gymnasium import spaces
 
 from ndp.envs.base import NDPEnv, check_render_size, defer_seed
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 ACTION_SCALE = 0.05
 """Displacement (m) per env step for an action of 1."""
@@ -181,13 +184,22 @@ class PointMassEnv(NDPEnv):
         return img
 
 
+class PointMassOptions(TypedDict, total=False):
+    """:class:`PointMassEnv`'s keywords besides dim, horizon and render_mode."""
+
+    terminate_on_success: bool
+    fixed_goal: int | str | None
+    width: int
+    height: int
+
+
 def make_point_mass_env(
     *,
     seed: int | None = None,
     horizon: int | None = None,
     render_mode: str | None = None,
     dim: int = 2,
-    **kw: Any,
+    **kw: Unpack[PointMassOptions],
 ) -> PointMassEnv:
     """Factory with the signature of ``ndp.envs.make_env`` (without the name)."""
     env = PointMassEnv(

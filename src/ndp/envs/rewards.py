@@ -56,7 +56,7 @@ def check_reward(reward: object) -> str:
     return reward
 
 
-def check_smooth_lambda(smooth_lambda: Any, reward: str = "smooth") -> float:
+def check_smooth_lambda(smooth_lambda: object, reward: str = "smooth") -> float:
     """The smooth reward's lambda: None gives :data:`DEFAULT_SMOOTH_LAMBDA`.
 
     Args:

@@ -36,16 +36,20 @@ unstable simulator, ``sim_unstable`` True).
 from __future__ import annotations
 
 import functools
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
 from gymnasium.utils.ezpickle import EzPickle
+from numpy.typing import ArrayLike
 
 from ndp.envs import jaco
 from ndp.envs.base import CTRL_INFO, fit_offscreen_buffer, sim_unstable, warning_count
 from ndp.envs.impedance import ImpedanceArm, ImpedanceController
 from ndp.envs.metaworld_env import MetaWorldEnv
+
+if TYPE_CHECKING:
+    from metaworld.sawyer_xyz_env import SawyerXYZEnv
 
 SAWYER_JOINTS = tuple(f"right_j{i}" for i in range(7))
 """The Sawyer arm joints of the Meta-World models."""
@@ -89,7 +93,8 @@ def _gain_out_of_range(raw: np.ndarray, ctrl: ImpedanceController) -> int:
     return int(np.count_nonzero(np.abs(gains) > 1.0))
 
 
-def _ctrl_info(clipped: int, saturated: int, finite: bool) -> dict[str, Any]:
+def _ctrl_info(clipped: int, saturated: int, finite: bool) -> dict[str, int]:
+    """The controller's info counters of one env step."""
     return {
         "ctrl_gains_clipped": int(clipped),
         "ctrl_torque_saturated": int(saturated),
@@ -106,14 +111,14 @@ def _sawyer_torque_class(cls: type) -> type:
     gripper controls as before and leaves the torque actuators at zero.
     """
 
-    def _initialize_simulation(self: Any) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    def _initialize_simulation(self: SawyerXYZEnv) -> tuple[mujoco.MjModel, mujoco.MjData]:
         spec = mujoco.MjSpec.from_file(self.fullpath)
         _add_torque_actuators(spec, SAWYER_JOINTS, SAWYER_TORQUE_LIMIT)
         model = spec.compile()
         fit_offscreen_buffer(model, self.width, self.height)
         return model, mujoco.MjData(model)
 
-    def do_simulation(self: Any, ctrl: Any, n_frames: int) -> None:
+    def do_simulation(self: SawyerXYZEnv, ctrl: ArrayLike, n_frames: int) -> None:
         self.data.ctrl[:] = 0.0
         self.data.ctrl[:2] = ctrl
         mujoco.mj_step(self.model, self.data, nstep=n_frames)

@@ -20,20 +20,26 @@ that dies (killed, segfault) raises :class:`WorkerError` naming it.
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 import multiprocessing as mp
 import os
 import traceback
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from multiprocessing.connection import Connection
+from multiprocessing.context import BaseContext
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
+from numpy.typing import DTypeLike
 
 from ndp.chunk_info import info_schema  # the step info's arrays, from its schema
 
 
-def widen_info_arrays(vector_infos: dict[str, Any], env_info: dict[str, Any], n: int) -> None:
+def widen_info_arrays(
+    vector_infos: dict[str, object], env_info: Mapping[str, object], n: int
+) -> None:
     """Before gymnasium's ``_add_info`` adds env ``i``'s info to ``vector_infos``: an array
     [n, *s] that the info's value [*p, *s] (more leading axes) cannot be written into is
     widened to [n, *p, *s], each row repeated along the new axes (in place).
@@ -90,7 +96,10 @@ class _Shared:
     """
 
     def __init__(
-        self, layout: dict[str, tuple[tuple[int, ...], Any]], raw: Any = None, ctx: Any = None
+        self,
+        layout: dict[str, tuple[tuple[int, ...], DTypeLike]],
+        raw: ctypes.Array[ctypes.c_byte] | None = None,
+        ctx: BaseContext | None = None,
     ):
         self.layout = layout
         offsets, size = {}, 0
@@ -112,8 +121,9 @@ class _Shared:
 
 def _layout(
     num_envs: int, obs_dim: int, k: int, action_dim: int, dof: int
-) -> dict[str, tuple[tuple[int, ...], Any]]:
-    lay: dict[str, tuple[tuple[int, ...], Any]] = {
+) -> dict[str, tuple[tuple[int, ...], DTypeLike]]:
+    """Name -> (shape, dtype) of the shared arrays of ``num_envs`` chunked envs."""
+    lay: dict[str, tuple[tuple[int, ...], DTypeLike]] = {
         "actions": ((num_envs, k, action_dim), np.float64),
         "obs": ((num_envs, obs_dim), np.float64),
         "final_obs": ((num_envs, obs_dim), np.float64),
@@ -139,7 +149,7 @@ class _Slice:
             if key in info:
                 self.a[f"{prefix}/{key}"][i] = info[key]
 
-    def _write_reset(self, i: int, obs: Any, info: dict[str, Any]) -> None:
+    def _write_reset(self, i: int, obs: np.ndarray, info: dict[str, Any]) -> None:
         for key in self.info_keys:
             self.a[f"info/{key}"][i] = 0
         self._write_info("info", i, info)
@@ -173,9 +183,9 @@ def _worker(
     lo: int,
     hi: int,
     fns: Sequence[Callable[[], gym.Env]],
-    raw: Any,
-    layout: dict[str, tuple[tuple[int, ...], Any]],
-    conn: Any,
+    raw: ctypes.Array[ctypes.c_byte],
+    layout: dict[str, tuple[tuple[int, ...], DTypeLike]],
+    conn: Connection,
 ) -> None:
     """Worker loop: own envs lo..hi-1, answer 'reset', 'step', 'spaces', 'close' over ``conn``."""
     try:
@@ -300,7 +310,8 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
             obs_space, act_space = env0.observation_space, env0.action_space
         else:
             self._send_all("spaces", None)
-            obs_space, act_space = self._gather("spaces")[0]
+            spaces_ = self._gather("spaces")[0]  # the worker's (observation, action) spaces
+            obs_space, act_space = cast("tuple[gym.Space[Any], gym.Space[Any]]", spaces_)
         self.single_observation_space = obs_space
         self.single_action_space = act_space
         self.observation_space = gym.vector.utils.batch_space(obs_space, n)
@@ -308,7 +319,7 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
         self.metadata = {"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP}
 
     # ------------------------------------------------------------------ plumbing
-    def _send_all(self, cmd: str, args: Any) -> None:
+    def _send_all(self, cmd: str, args: object) -> None:
         for idx, conn in enumerate(self._conns):
             arg = args[idx] if isinstance(args, list) else args
             try:
@@ -327,8 +338,10 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
         """Worker name: its slice (slice 0 is the main process's when ``main_steps``)."""
         return str(idx + (1 if self._local is not None else 0))
 
-    def _gather(self, what: str) -> list[Any]:
-        out, errors = [], []
+    def _gather(self, what: str) -> list[object]:
+        """Each worker's answer payload, in order; WorkerError naming the failed ones."""
+        out: list[object] = []
+        errors: list[str] = []
         for idx, conn in enumerate(self._conns):
             try:
                 status, payload = conn.recv()
@@ -403,7 +416,7 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
         term, trunc = a["terminated"].copy(), a["truncated"].copy()
         return (a["obs"].copy(), a["reward"].copy(), term, trunc, self._infos(term | trunc))
 
-    def close(self, **kwargs: Any) -> None:
+    def close(self, **kwargs: object) -> None:
         """Stop the workers and free the shared memory (idempotent)."""
         if self._closed:
             return

@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import TypedDict
 
 import torch
 
@@ -25,13 +25,23 @@ from ndp.il.config import DataConfig, ModelConfig
 from ndp.il.metrics import per_sample_mse, summarize
 
 
+class FloorRow(TypedDict):
+    """One N of :func:`dmp_floor`."""
+
+    n_basis: int
+    n_test: int
+    mse_px2: dict[str, float]
+    """mean, std, median, max, percentiles over trajectories (:func:`ndp.il.metrics.summarize`)."""
+    fit_s: float
+
+
 def dmp_floor(
     data_cfg: DataConfig,
     n_basis: Sequence[int] = (30,),
     model_cfg: ModelConfig | None = None,
     ridge: float = 0.0,
     chunk: int = 2000,
-) -> list[dict[str, Any]]:
+) -> list[FloorRow]:
     """Test MSE (px^2) of least-squares DMP fits to every test trajectory, per N.
 
     Args:
@@ -52,7 +62,7 @@ def dmp_floor(
     tr, te = make_split(data, data_cfg)
     scored = te if len(te) else tr
     demos = torch.from_numpy(data.trajs[scored]).to(torch.float64)
-    out = []
+    out: list[FloorRow] = []
     for n in n_basis:
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise ValueError(f"n_basis: expected integers >= 1, got {n!r}")

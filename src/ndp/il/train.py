@@ -666,23 +666,12 @@ def evaluate(
     ckpt = load_checkpoint(path)
     run_path = path if path.is_dir() else path.parent
     model, cfg = load_model(ckpt)
-    scored_epoch = int(ckpt["epoch"])
-    if path.is_dir() and (path / BEST_NAME).is_file():  # selected on the validation split
-        best = load_checkpoint(path / BEST_NAME)
-        model.load_state_dict(best["model"])
-        scored_epoch = int(best["epoch"])
+    scored_epoch = _load_best(model, path, int(ckpt["epoch"]))
     own = data_cfg is None or data_cfg == cfg.data
     dcfg = cfg.data if data_cfg is None else data_cfg
     data = load_data(dcfg, cfg.model.n_points)
     tr_idx, te_idx = make_split(data, dcfg)
     scored = tr_idx if len(te_idx) == 0 else te_idx  # 'all': every sample
-    x = torch.from_numpy(data.images)
-    y = torch.from_numpy(data.trajs)
-    t0 = time.perf_counter()
-    pred = predict(model, x[scored], y[scored][:, 0]).numpy()
-    infer_s = time.perf_counter() - t0
-    demo = data.trajs[scored]
-    mse = per_sample_mse(pred, demo)
     suffix = "" if own else f"-{data_tag(dcfg)}"
     out: dict[str, Any] = {
         "model": cfg.model.kind,
@@ -690,6 +679,40 @@ def evaluate(
         "split": dcfg.split,
         "epoch": int(ckpt["epoch"]),
         "scored_epoch": scored_epoch,
+    }
+    train_idx = tr_idx if include_train and len(te_idx) > 0 else None
+    scores, pred, mse = _score(model, data, scored, dtw, train_idx)
+    out.update(scores)
+    png = Path(out_png) if out_png else run_path / f"predictions{suffix}.png"
+    _draw_grid(png, data, scored, pred, mse, pick_samples(mse, n_grid, grid, seed=0))
+    out["png"] = str(png)
+    out["grid"] = grid
+    if save_predictions:
+        npz = run_path / f"predictions{suffix}.npz"
+        _save_predictions(npz, data, scored, pred, mse)
+        out["predictions"] = str(npz)
+    out["json"] = str(run_path / f"eval{suffix}.json")
+    atomic_write_text(run_path / f"eval{suffix}.json", json.dumps(out, indent=2) + "\n")
+    return out
+
+
+def _score(
+    model: TrajectoryModel,
+    data: DigitData,
+    scored: np.ndarray,
+    dtw: bool,
+    train_idx: np.ndarray | None,
+) -> tuple[dict[str, object], np.ndarray, np.ndarray]:
+    """Predict the ``scored`` samples: (their scores for :func:`evaluate`'s summary, the
+    predictions, the per-sample MSE); the training error too where ``train_idx`` is given."""
+    x = torch.from_numpy(data.images)
+    y = torch.from_numpy(data.trajs)
+    t0 = time.perf_counter()
+    pred = predict(model, x[scored], y[scored][:, 0]).numpy()
+    infer_s = time.perf_counter() - t0
+    demo = data.trajs[scored]
+    mse = per_sample_mse(pred, demo)
+    out: dict[str, object] = {
         "n_test": len(scored),
         "test_mse_px2": summarize(mse),
         "per_class": grouped(mse, data.labels[scored]),
@@ -698,32 +721,51 @@ def evaluate(
     }
     if dtw:
         out["test_dtw_px"] = summarize(dtw_distance(pred, demo))
-    if include_train and len(te_idx) > 0:
-        pred_tr = predict(model, x[tr_idx], y[tr_idx][:, 0]).numpy()
-        out["n_train"] = len(tr_idx)
-        out["train_mse_px2"] = summarize(per_sample_mse(pred_tr, data.trajs[tr_idx]))
-    png = Path(out_png) if out_png else run_path / f"predictions{suffix}.png"
-    pick = pick_samples(mse, n_grid, grid, seed=0)
+    if train_idx is not None:
+        pred_tr = predict(model, x[train_idx], y[train_idx][:, 0]).numpy()
+        out["n_train"] = len(train_idx)
+        out["train_mse_px2"] = summarize(per_sample_mse(pred_tr, data.trajs[train_idx]))
+    return out, pred, mse
+
+
+def _load_best(model: TrajectoryModel, path: Path, epoch: int) -> int:
+    """Load the run's best checkpoint (selected on the validation split) into ``model`` when
+    ``path`` is a run folder that has one; the epoch scored (``epoch`` otherwise)."""
+    if path.is_dir() and (path / BEST_NAME).is_file():
+        best = load_checkpoint(path / BEST_NAME)
+        model.load_state_dict(best["model"])
+        return int(best["epoch"])
+    return epoch
+
+
+def _draw_grid(
+    png: Path,
+    data: DigitData,
+    scored: np.ndarray,
+    pred: np.ndarray,
+    mse: np.ndarray,
+    pick: np.ndarray,
+) -> None:
+    """Draw the picked scored samples (demonstration, prediction) titled label, writer, MSE."""
+    demo = data.trajs[scored]
     titles = []
     for i in pick:
         w = int(data.writers[scored[i]])
         who = f" w{w}" if w >= 0 else ""
         titles.append(f"{int(data.labels[scored[i]])}{who}: {mse[i]:.2f}")
     save_prediction_grid(png, data.images[scored[pick]], demo[pick], pred[pick], titles=titles)
-    out["png"] = str(png)
-    out["grid"] = grid
-    if save_predictions:
-        npz = run_path / f"predictions{suffix}.npz"
-        atomic_save_npz(
-            npz,
-            pred=pred.astype(np.float32),
-            demo=demo.astype(np.float32),
-            index=np.asarray(scored),
-            labels=data.labels[scored],
-            writers=data.writers[scored],
-            mse_px2=mse,
-        )
-        out["predictions"] = str(npz)
-    out["json"] = str(run_path / f"eval{suffix}.json")
-    atomic_write_text(run_path / f"eval{suffix}.json", json.dumps(out, indent=2) + "\n")
-    return out
+
+
+def _save_predictions(
+    npz: Path, data: DigitData, scored: np.ndarray, pred: np.ndarray, mse: np.ndarray
+) -> None:
+    """Write the predicted and demonstrated trajectories of the scored samples (``.npz``)."""
+    atomic_save_npz(
+        npz,
+        pred=pred.astype(np.float32),
+        demo=data.trajs[scored].astype(np.float32),
+        index=np.asarray(scored),
+        labels=data.labels[scored],
+        writers=data.writers[scored],
+        mse_px2=mse,
+    )

@@ -31,6 +31,7 @@ from __future__ import annotations
 import io
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -201,7 +202,9 @@ class BasisFile:
     """Every array of the file (``basis``, ``singular_values``, ``explained``, ``mean``)."""
 
 
-def basis_file_bytes(basis: np.ndarray, provenance: dict[str, Any], **arrays: np.ndarray) -> bytes:
+def basis_file_bytes(
+    basis: np.ndarray, provenance: Mapping[str, object], **arrays: np.ndarray
+) -> bytes:
     """The bytes of a basis file (``.npz``, no pickled objects): ``basis`` [A, k, P],
     ``provenance`` (JSON text) and ``arrays`` (the caller writes them, atomically).
 

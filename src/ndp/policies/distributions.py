@@ -71,7 +71,24 @@ def gaussian_draw(
     return mean + noise * log_std.exp()
 
 
-class SubActionGaussian:
+class _DiagGaussian:
+    """A diagonal Gaussian over ``z`` (sub-actions or raw parameters) with its ``mean`` and a
+    broadcast ``log_std``: the draw and the mode of both exploration spaces."""
+
+    def __init__(self, mean: torch.Tensor, log_std: torch.Tensor) -> None:
+        self.mean = mean
+        self.log_std = log_std
+
+    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Draw ``z`` [shape of ``mean``] (no gradient)."""
+        return gaussian_draw(self.mean, self.log_std, generator).detach()
+
+    def mode(self) -> torch.Tensor:
+        """The means [shape of ``mean``]."""
+        return self.mean.detach()
+
+
+class SubActionGaussian(_DiagGaussian):
     """Independent diagonal Gaussians around each of the k sub-actions of a decision.
 
     Args:
@@ -80,18 +97,6 @@ class SubActionGaussian:
     """
 
     per_decision = False
-
-    def __init__(self, mean: torch.Tensor, log_std: torch.Tensor) -> None:
-        self.mean = mean
-        self.log_std = log_std
-
-    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
-        """Draw sub-actions [B, k, A] (no gradient)."""
-        return gaussian_draw(self.mean, self.log_std, generator).detach()
-
-    def mode(self) -> torch.Tensor:
-        """The means [B, k, A]."""
-        return self.mean.detach()
 
     def log_prob(self, z: torch.Tensor) -> torch.Tensor:
         """Per-sub-action log-probs [B, k] of ``z`` [B, k, A]."""
@@ -106,7 +111,7 @@ class SubActionGaussian:
         return z
 
 
-class ParamGaussian:
+class ParamGaussian(_DiagGaussian):
     """A diagonal Gaussian over the raw (pre-squashing) DMP parameters of a decision.
 
     One log-prob per decision; the k sub-actions are a deterministic function of the sample
@@ -126,17 +131,8 @@ class ParamGaussian:
         log_std: torch.Tensor,
         decode: Callable[[torch.Tensor], torch.Tensor],
     ) -> None:
-        self.mean = mean
-        self.log_std = log_std
+        super().__init__(mean, log_std)
         self._decode = decode
-
-    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
-        """Draw raw parameters [B, P] (no gradient)."""
-        return gaussian_draw(self.mean, self.log_std, generator).detach()
-
-    def mode(self) -> torch.Tensor:
-        """The mean parameters [B, P]."""
-        return self.mean.detach()
 
     def log_prob(self, z: torch.Tensor) -> torch.Tensor:
         """Log-prob of the decision [B, 1] for parameters ``z`` [B, P]."""

@@ -35,10 +35,11 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
+from numpy.typing import ArrayLike
 from torch import nn
 
 from ndp.dmp import DMPConfig, DMPLayer
@@ -159,7 +160,7 @@ class ChunkBasisHead(_RawActionHead):
         self._has_basis = bool(torch.isfinite(self.basis).all())
 
     def _load_from_state_dict(
-        self, state_dict: dict[str, Any], prefix: str, *args: Any, **kwargs: Any
+        self, state_dict: dict[str, object], prefix: str, *args: object, **kwargs: object
     ) -> None:
         super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
         self._has_basis = bool(torch.isfinite(self.basis).all())
@@ -208,6 +209,24 @@ DERIVED_BUFFERS = (
 )
 """NDPHead buffers computed from the config and the task: not saved, ignored when loading
 (checkpoints of earlier versions saved some of them)."""
+
+
+def _check_head_args(k: int, dmp: DMPConfig, param_map: str) -> None:
+    """Refuse an unknown ``param_map``, a whitened map on a nonlinear DMP or a DMP config
+    whose reported grid does not give ``k`` points."""
+    if param_map not in PARAM_MAPS:
+        raise ValueError(f"param_map: expected one of {', '.join(PARAM_MAPS)}, got {param_map!r}")
+    if param_map == "whitened" and (dmp.learn_az or dmp.scale_by_goal):
+        raise ValueError(
+            "param_map: 'whitened' needs a fixed a_z and 'amplitude' forcing (the map must be "
+            f"linear in the raw outputs), got learn_az={dmp.learn_az}, "
+            f"forcing={'goal' if dmp.scale_by_goal else 'amplitude'}"
+        )
+    if dmp.steps // dmp.subsample != k or dmp.steps % dmp.subsample:
+        raise ValueError(
+            f"dmp: steps/subsample must give k={k} points, got steps={dmp.steps}, "
+            f"subsample={dmp.subsample}"
+        )
 
 
 class NDPHead(ActionHead):
@@ -290,21 +309,7 @@ class NDPHead(ActionHead):
         param_map: str = "tanh",
     ) -> None:
         super().__init__()
-        if param_map not in PARAM_MAPS:
-            raise ValueError(
-                f"param_map: expected one of {', '.join(PARAM_MAPS)}, got {param_map!r}"
-            )
-        if param_map == "whitened" and (dmp.learn_az or dmp.scale_by_goal):
-            raise ValueError(
-                "param_map: 'whitened' needs a fixed a_z and 'amplitude' forcing (the map must be "
-                f"linear in the raw outputs), got learn_az={dmp.learn_az}, "
-                f"forcing={'goal' if dmp.scale_by_goal else 'amplitude'}"
-            )
-        if dmp.steps // dmp.subsample != k or dmp.steps % dmp.subsample:
-            raise ValueError(
-                f"dmp: steps/subsample must give k={k} points, got steps={dmp.steps}, "
-                f"subsample={dmp.subsample}"
-            )
+        _check_head_args(k, dmp, param_map)
         self.k = int(k)
         self.dmp_dofs = int(dmp_dofs)
         self.action_dim = int(action_dim)
@@ -320,26 +325,7 @@ class NDPHead(ActionHead):
             lo, hi = dmp.az_range
             frac = min(max((dmp.a_z - lo) / (hi - lo), 1e-3), 1 - 1e-3)
             self._az_offset = math.log(frac / (1.0 - frac))  # raw 0 gives the preset a_z
-        gs = torch.as_tensor(goal_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
-        self.register_buffer("goal_scale", gs, persistent=False)
-        # DoF with a fixed goal centre (absolute commands) ignore y0 and dy0 for the goal.
-        centre = (
-            torch.full((self.dmp_dofs,), float("nan"))
-            if goal_center is None
-            else (torch.as_tensor(goal_center, dtype=torch.float32).clone())
-        )
-        # NaN centre: a goal relative to y0
-        self.register_buffer("absolute_goal", ~torch.isnan(centre), persistent=False)
-        self.register_buffer("goal_center", centre.nan_to_num(), persistent=False)
-        ws = torch.as_tensor(weight_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
-        self.register_buffer("weight_scale", ws, persistent=False)
-        direct_t = (
-            torch.zeros(self.dmp_dofs, dtype=torch.bool)
-            if direct is None
-            else (torch.as_tensor(direct, dtype=torch.bool).clone())
-        )
-        self.register_buffer("direct", direct_t, persistent=False)
-        self._any_direct = bool(direct_t.any())
+        self._register_scales(goal_scale, weight_scale, goal_center, direct)
         self.mean_clip = bool(mean_clip)
         self.start_at_rest = bool(start_at_rest)
         self.inverse_controller = inverse_controller
@@ -368,8 +354,38 @@ class NDPHead(ActionHead):
             self.register_buffer("whitening", w)
             self.param_map = "whitened"
 
+    def _register_scales(
+        self,
+        goal_scale: float | torch.Tensor,
+        weight_scale: float | torch.Tensor,
+        goal_center: torch.Tensor | None,
+        direct: torch.Tensor | None,
+    ) -> None:
+        """Register the per-DoF buffers goal_scale, absolute_goal, goal_center, weight_scale
+        and direct (non-persistent: derived from the arguments)."""
+        gs = torch.as_tensor(goal_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
+        self.register_buffer("goal_scale", gs, persistent=False)
+        # DoF with a fixed goal centre (absolute commands) ignore y0 and dy0 for the goal.
+        centre = (
+            torch.full((self.dmp_dofs,), float("nan"))
+            if goal_center is None
+            else (torch.as_tensor(goal_center, dtype=torch.float32).clone())
+        )
+        # NaN centre: a goal relative to y0
+        self.register_buffer("absolute_goal", ~torch.isnan(centre), persistent=False)
+        self.register_buffer("goal_center", centre.nan_to_num(), persistent=False)
+        ws = torch.as_tensor(weight_scale, dtype=torch.float32).expand(self.dmp_dofs).clone()
+        self.register_buffer("weight_scale", ws, persistent=False)
+        direct_t = (
+            torch.zeros(self.dmp_dofs, dtype=torch.bool)
+            if direct is None
+            else (torch.as_tensor(direct, dtype=torch.bool).clone())
+        )
+        self.register_buffer("direct", direct_t, persistent=False)
+        self._any_direct = bool(direct_t.any())
+
     def _load_from_state_dict(
-        self, state_dict: dict[str, Any], prefix: str, *args: Any, **kwargs: Any
+        self, state_dict: dict[str, object], prefix: str, *args: object, **kwargs: object
     ) -> None:
         for name in DERIVED_BUFFERS:  # derived, not state: older checkpoints held some of them
             state_dict.pop(prefix + name, None)
@@ -537,23 +553,7 @@ class NDPHead(ActionHead):
                 ``mean_clip``, forcing 'goal' (w multiplies g - y0), A != D, or a probe that
                 moves another DoF or a random batch off the affine map.
         """
-        cfg = self.dmp.config
-        why = [
-            name
-            for name, bad in (
-                ("learn_az", self.learn_az),
-                ("only_g", self.only_g),
-                ("mean_clip", self.mean_clip),
-                ("forcing='goal'", cfg.scale_by_goal),
-                (f"action_dim {self.action_dim} != dmp_dofs {self.dmp_dofs}",
-                 self.action_dim != self.dmp_dofs),
-            )
-            if bad
-        ]  # fmt: skip
-        if why:
-            raise ValueError(
-                f"head: the NDP head's chunk is not affine per DoF in (g, w) with {', '.join(why)}"
-            )
+        self._refuse_non_affine()
         head = copy.deepcopy(self).to(torch.float64).eval()
         d, n, k = self.dmp_dofs, self.n_basis, self.k
         p = 1 + n
@@ -577,34 +577,31 @@ class NDPHead(ActionHead):
                 idx = dof if col == 0 else d + dof * n + col - 1
                 basis[dof, :, col] = j_raw[idx, :, dof]
                 own[idx, dof] = True
-        scale = max(float(j.abs().max()) for j in (j_raw, j_y0, j_dy0, torch.ones(1)))
-        cross = max(
-            float(j_raw.masked_fill(own.unsqueeze(1), 0.0).abs().max()),
-            float(j_y0.masked_fill(torch.eye(d, dtype=torch.bool).unsqueeze(1), 0.0).abs().max()),
-            float(j_dy0.masked_fill(torch.eye(d, dtype=torch.bool).unsqueeze(1), 0.0).abs().max()),
-        )
-        if cross > 1e-12 * scale:
-            raise ValueError(
-                f"head: the NDP head's chunk couples DoF (a unit input moves another DoF's "
-                f"actions by {cross:.3g}); a per-DoF basis cannot represent it"
-            )
+        _check_per_dof(j_raw, j_y0, j_dy0, own)
         offset_y0 = torch.diagonal(j_y0, dim1=0, dim2=2)  # [k, D]
         offset_dy0 = torch.diagonal(j_dy0, dim1=0, dim2=2)
-        gen = torch.Generator().manual_seed(0)
-        raw = torch.randn(8, self.n_params, generator=gen, dtype=torch.float64)
-        y0 = torch.rand(8, d, generator=gen, dtype=torch.float64) * 2 - 1
-        dy0 = torch.rand(8, d, generator=gen, dtype=torch.float64) * 2 - 1
-        c = torch.cat((raw[:, :d, None], raw[:, d:].reshape(8, d, n)), dim=-1)  # [B, D, P]
-        want = run(raw, y0, dy0)
-        got = torch.einsum("dkp,bdp->bkd", basis, c) + base
-        got = got + y0[:, None, :] * offset_y0 + dy0[:, None, :] * offset_dy0
-        err = float((got - want).abs().max())
-        if err > 1e-9 * max(float(want.abs().max()), 1.0):
-            raise ValueError(
-                f"head: the NDP head's chunk is not affine in (g, w) for a fixed start state "
-                f"(off by {err:.3g} at random inputs)"
-            )
+        _check_affine(run, (basis, base, offset_y0, offset_dy0), self.n_params)
         return basis, base, offset_y0, offset_dy0
+
+    def _refuse_non_affine(self) -> None:
+        """Refuse (ValueError naming the reasons) a head whose chunk is not affine per DoF."""
+        cfg = self.dmp.config
+        why = [
+            name
+            for name, bad in (
+                ("learn_az", self.learn_az),
+                ("only_g", self.only_g),
+                ("mean_clip", self.mean_clip),
+                ("forcing='goal'", cfg.scale_by_goal),
+                (f"action_dim {self.action_dim} != dmp_dofs {self.dmp_dofs}",
+                 self.action_dim != self.dmp_dofs),
+            )
+            if bad
+        ]  # fmt: skip
+        if why:
+            raise ValueError(
+                f"head: the NDP head's chunk is not affine per DoF in (g, w) with {', '.join(why)}"
+            )
 
     def distribution(
         self, raw: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
@@ -781,7 +778,8 @@ def _build_dyne(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
     )
 
 
-def _as_tensor(x: Any) -> torch.Tensor:
+def _as_tensor(x: ArrayLike) -> torch.Tensor:
+    """``x`` as a float32 tensor."""
     return torch.as_tensor(np.asarray(x, dtype=np.float32))
 
 
@@ -794,7 +792,7 @@ def _linear_controller(spec: TaskSchema) -> tuple[torch.Tensor, ...] | None:
     return ctrl.linear_parts
 
 
-def _per_dof(value: Any, d: int) -> np.ndarray:
+def _per_dof(value: ArrayLike, d: int) -> np.ndarray:
     """A scalar or a length-D sequence as a float array [D]."""
     arr = np.asarray(value, dtype=np.float64).reshape(-1)
     if arr.size == 1:
@@ -829,3 +827,47 @@ class HoldHead(_RawActionHead):
 @register_head("hold")
 def _build_hold(cfg: PolicyConfig, spec: TaskSchema) -> ActionHead:
     return HoldHead(decision_k(cfg), spec.action_dim, cfg.init_log_std)
+
+
+def _check_per_dof(
+    j_raw: torch.Tensor, j_y0: torch.Tensor, j_dy0: torch.Tensor, own: torch.Tensor
+) -> None:
+    """Refuse unit-input responses [inputs, k, D] that move another DoF's actions than their
+    own (``own`` [n_params, D] for the raw outputs; the diagonal for y0 and dy0)."""
+    d = j_y0.shape[0]
+    scale = max(float(j.abs().max()) for j in (j_raw, j_y0, j_dy0, torch.ones(1)))
+    cross = max(
+        float(j_raw.masked_fill(own.unsqueeze(1), 0.0).abs().max()),
+        float(j_y0.masked_fill(torch.eye(d, dtype=torch.bool).unsqueeze(1), 0.0).abs().max()),
+        float(j_dy0.masked_fill(torch.eye(d, dtype=torch.bool).unsqueeze(1), 0.0).abs().max()),
+    )
+    if cross > 1e-12 * scale:
+        raise ValueError(
+            f"head: the NDP head's chunk couples DoF (a unit input moves another DoF's "
+            f"actions by {cross:.3g}); a per-DoF basis cannot represent it"
+        )
+
+
+def _check_affine(
+    run: Callable[[torch.Tensor, torch.Tensor, torch.Tensor], torch.Tensor],
+    parts: tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor],
+    n_params: int,
+) -> None:
+    """Refuse an affine map ``parts`` (:meth:`NDPHead.affine_parts`) that a seeded random batch
+    of ``run(raw, y0, dy0)`` does not match to a relative 1e-9."""
+    basis, base, offset_y0, offset_dy0 = parts
+    d, n = basis.shape[0], basis.shape[2] - 1
+    gen = torch.Generator().manual_seed(0)
+    raw = torch.randn(8, n_params, generator=gen, dtype=torch.float64)
+    y0 = torch.rand(8, d, generator=gen, dtype=torch.float64) * 2 - 1
+    dy0 = torch.rand(8, d, generator=gen, dtype=torch.float64) * 2 - 1
+    c = torch.cat((raw[:, :d, None], raw[:, d:].reshape(8, d, n)), dim=-1)  # [B, D, P]
+    want = run(raw, y0, dy0)
+    got = torch.einsum("dkp,bdp->bkd", basis, c) + base
+    got = got + y0[:, None, :] * offset_y0 + dy0[:, None, :] * offset_dy0
+    err = float((got - want).abs().max())
+    if err > 1e-9 * max(float(want.abs().max()), 1.0):
+        raise ValueError(
+            f"head: the NDP head's chunk is not affine in (g, w) for a fixed start state "
+            f"(off by {err:.3g} at random inputs)"
+        )

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import torch
 from torch import nn
@@ -32,6 +32,8 @@ from ndp.policies.base import HEAD_BUILDERS, ActionHead, decision_k, register_he
 from ndp.policies.distributions import ParamGaussian, gaussian_draw
 
 if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
     from ndp.policies.config import PolicyConfig
     from ndp.schema import TaskSchema
 
@@ -119,7 +121,9 @@ class SquashedActionHead(SquashedHead):
     low: torch.Tensor
     high: torch.Tensor
 
-    def __init__(self, k: int, action_dim: int, low: Any, high: Any) -> None:
+    def __init__(
+        self, k: int, action_dim: int, low: ArrayLike | torch.Tensor, high: ArrayLike | torch.Tensor
+    ) -> None:
         super().__init__()
         self.k, self.action_dim = int(k), int(action_dim)
         self.n_params = 2 * self.k * self.action_dim

@@ -59,10 +59,12 @@ from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.logger import METRICS
 from ndp.rl.methods import section, with_section
 from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.offpolicy.state import OffPolicyState, Part
 from ndp.rl.optim import soft_update
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
 from ndp.rl.replay import RingReplay
+from ndp.runs.checkpoint import INT, Spec, Tensor
 from ndp.runs.session import (
     CountsUpdates,
     RunSession,
@@ -262,7 +264,7 @@ def _robot_state(info: dict[str, Any], n: int) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- learner
-class DyneLearner(CountsUpdates):
+class DyneLearner(OffPolicyState, CountsUpdates):
     """Dyn-E on the shared run infrastructure (see the module docstring).
 
     An :class:`ndp.rl.run.RLLearner`: the run driver opens the run, seeds, restores and
@@ -272,6 +274,8 @@ class DyneLearner(CountsUpdates):
         cfg: the resolved config (``resolve_config``); ``dyne.explore_steps`` is filled here.
         session: the run's session (paths, the divergence message).
     """
+
+    section = "dyne"
 
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
@@ -332,51 +336,31 @@ class DyneLearner(CountsUpdates):
         self._started = True
 
     # ----------------------------------------------------------------------- state
-    def state_dict(self) -> dict[str, Any]:
-        """Everything needed to continue (the session adds the global RNG state and config)."""
+    def parts(self) -> dict[str, Part]:
+        """Saved under ``dyne``: the embedding, critics, targets, optimisers."""
         return {
-            "model": self.model.state_dict(),
-            "obs_norm": self.obs_norm.state_dict(),
-            "obs_dim": self.obs_dim,
-            "update": self.update,
-            "global_step": self.global_step,
-            "dyne": {
-                "embedding": self.embedding.state_dict(),
-                "critic": self.critic.state_dict(),
-                "critic_target": self.critic_target.state_dict(),
-                "actor_target": self.actor_target.state_dict(),
-                "actor_opt": self.actor_opt.state_dict(),
-                "critic_opt": self.critic_opt.state_dict(),
-                "replay": self.replay.state_dict(),
-                "rng": self.rng.bit_generator.state,
-                "gen": self.gen.get_state(),
-                "rl_steps": self.rl_steps,
-                "grad_steps": self.grad_steps,
-                "update_debt": self.update_debt,
-                "embed_stats": dict(self.embed_stats),
-            },
+            "embedding": self.embedding,
+            "critic": self.critic,
+            "critic_target": self.critic_target,
+            "actor_target": self.actor_target,
+            "actor_opt": self.actor_opt,
+            "critic_opt": self.critic_opt,
         }
 
-    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
-        """Continue from a checkpoint (the session restores the global RNG state)."""
-        dy = ckpt["dyne"]
-        self.model.load_state_dict(ckpt["model"])
-        self.obs_norm.load_state_dict(ckpt["obs_norm"])
-        self.embedding.load_state_dict(dy["embedding"])
-        self.critic.load_state_dict(dy["critic"])
-        self.critic_target.load_state_dict(dy["critic_target"])
-        self.actor_target.load_state_dict(dy["actor_target"])
-        self.actor_opt.load_state_dict(dy["actor_opt"])
-        self.critic_opt.load_state_dict(dy["critic_opt"])
-        self.replay.load_state_dict(dy["replay"])
-        self.rng.bit_generator.state = dy["rng"]
-        self.gen.set_state(dy["gen"])
-        self.rl_steps = int(dy["rl_steps"])
-        self.grad_steps = int(dy["grad_steps"])
-        self.update_debt = float(dy["update_debt"])
-        self.embed_stats = dict(dy["embed_stats"])
-        self.update = int(ckpt["update"])
-        self.global_step = int(ckpt["global_step"])
+    def extra_state(self) -> dict[str, object]:
+        """The torch generator, the TD3 phase's env steps, the embedding's statistics."""
+        return {"gen": self.gen.get_state(), "rl_steps": self.rl_steps,
+                "embed_stats": dict(self.embed_stats)}  # fmt: skip
+
+    def extra_schema(self) -> dict[str, Spec]:
+        """``gen`` a generator state, ``rl_steps`` an integer, ``embed_stats`` a dict."""
+        return {"gen": Tensor(self.gen.get_state()), "rl_steps": INT, "embed_stats": dict}
+
+    def load_extra_state(self, s: dict[str, Any]) -> None:
+        """Restore the values of :meth:`extra_state`; the embedding is fitted: freeze it."""
+        self.gen.set_state(s["gen"])
+        self.rl_steps = int(s["rl_steps"])
+        self.embed_stats = dict(s["embed_stats"])
         self.embedded = True
         self._freeze_embedding()
 

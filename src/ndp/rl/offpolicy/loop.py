@@ -31,6 +31,7 @@ from ndp.rl.config import TrainConfig
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.offpolicy.replay import DecisionReplay
 from ndp.rl.offpolicy.returns import bootstrap_discount, chunk_return
+from ndp.rl.offpolicy.state import OffPolicyState
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
 from ndp.runs.session import CountsUpdates, RunSession, TrainingDivergedError
@@ -63,11 +64,12 @@ class OffPolicyAlgorithm(Protocol):
         ...
 
 
-class OffPolicyLearner(CountsUpdates):
+class OffPolicyLearner(OffPolicyState, CountsUpdates):
     """The collection loop of an off-policy learner over decisions of k env steps (see the
     module docstring). A subclass calls :meth:`_open_loop` (envs) before building its
     networks, then :meth:`_open_replay` (replay, evaluator, generator), and implements
-    :class:`OffPolicyAlgorithm`.
+    :class:`OffPolicyAlgorithm`, and names its checkpoint's parts
+    (:class:`ndp.rl.offpolicy.state.OffPolicyState`).
 
     Attributes set by the loop: ``cfg``, ``spec``, ``session``, ``run``, ``k``, ``E``, ``T``,
     ``gamma``, ``envs``, ``obs_dim``, ``replay``, ``obs_norm`` (identity statistics: the
@@ -76,7 +78,6 @@ class OffPolicyLearner(CountsUpdates):
     ``update``, ``global_step``, ``grad_steps``, ``update_debt``.
     """
 
-    model: Any
     random_steps: int
     batch_size: int
     updates_per_step: float
@@ -138,22 +139,6 @@ class OffPolicyLearner(CountsUpdates):
     def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
         """:meth:`OffPolicyAlgorithm.algorithm_metrics`."""
         raise NotImplementedError
-
-    # ----------------------------------------------------------------------- the loop's state
-    def loop_state(self) -> dict[str, Any]:
-        """The loop's part of the checkpoint: replay, generator, gradient steps, update debt."""
-        return {
-            "replay": self.replay.state_dict(),
-            "rng": self.rng.bit_generator.state,
-            "grad_steps": self.grad_steps,
-            "update_debt": self.update_debt,
-        }
-
-    def load_loop_state(self, state: dict[str, Any]) -> None:
-        """Continue from :meth:`loop_state`'s output."""
-        self.replay.load_state_dict(state["replay"])
-        self.rng.bit_generator.state = state["rng"]
-        self.grad_steps, self.update_debt = int(state["grad_steps"]), float(state["update_debt"])
 
     def close(self) -> None:
         """Close the environments (training and evaluation)."""

@@ -53,6 +53,13 @@ from ndp.rl.onpolicy.losses import (
 from ndp.rl.optim import FlatAdam
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
+from ndp.runs.checkpoint import (
+    OptimizerState,
+    Spec,
+    check_state,
+    policy_schema,
+    running_stats,
+)
 from ndp.runs.session import (
     CountsUpdates,
     RunSession,
@@ -222,8 +229,23 @@ class Trainer(CountsUpdates):
             self.obs_dim,
         )
 
+    def checkpoint_schema(self) -> dict[str, Spec]:
+        """What a checkpoint must hold (:func:`ppo_state`'s keys), shaped like the model now;
+        the optimiser's moments may be per parameter (older checkpoints, :class:`FlatAdam`)."""
+        return {
+            **policy_schema(self.model.state_dict(), self.obs_dim),
+            "optimizer": OptimizerState(),
+            "ret_norm": running_stats(()),
+        }
+
     def load_state_dict(self, ckpt: dict[str, Any]) -> None:
-        """Continue from a checkpoint (the session restores the global RNG state)."""
+        """Continue from a checkpoint (the session restores the global RNG state).
+
+        Raises:
+            ValueError: the checkpoint does not match :meth:`checkpoint_schema` (one line
+                naming the file and the key).
+        """
+        check_state(ckpt, self.checkpoint_schema(), self.ckpt_path)
         self.model.load_state_dict(ckpt["model"])
         self._sync_rollout_model()
         self.opt.load_state_dict(ckpt["optimizer"])

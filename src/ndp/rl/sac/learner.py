@@ -35,6 +35,7 @@ from ndp.rl.logger import METRICS
 from ndp.rl.methods import section
 from ndp.rl.offpolicy.critics import TwinQ as TwinQ  # re-exported (its old home)
 from ndp.rl.offpolicy.loop import OffPolicyLearner, first_learning_decision, mean_of
+from ndp.rl.offpolicy.state import Part
 from ndp.rl.sac import SAC_METRICS
 from ndp.rl.sac.config import SACConfig
 from ndp.rl.sac.health import Q_RUNAWAY, q_runaway
@@ -45,6 +46,7 @@ from ndp.rl.sac.losses import (
     critic_target,
     soft_update,
 )
+from ndp.runs.checkpoint import REAL, MayLack, Spec, Tensor
 from ndp.runs.session import RunSession, nonfinite_parameter
 
 COLUMNS = (*METRICS, *SAC_METRICS)
@@ -113,6 +115,8 @@ class SACLearner(OffPolicyLearner):
         session: the run's session (paths, the divergence message).
     """
 
+    section = "sac"
+
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         check_budget(cfg)  # before any env is built
         s = self.settings = section(cfg, SACConfig)
@@ -155,41 +159,29 @@ class SACLearner(OffPolicyLearner):
                  ("log_alpha", self.log_alpha)]  # fmt: skip
         return nonfinite_parameter(named)
 
-    def state_dict(self) -> dict[str, Any]:
-        """The policy checkpoint keys (``ndp.rl.methods.POLICY_CHECKPOINT_KEYS``) plus ``sac``:
-        critics, targets, optimisers, temperature, replay, generator, counters."""
+    def parts(self) -> dict[str, Part]:
+        """Saved under ``sac``: critics, targets, optimisers."""
         return {
-            "model": self.model.state_dict(),
-            "obs_norm": self.obs_norm.state_dict(),
-            "obs_dim": self.obs_dim,
-            "update": self.update,
-            "global_step": self.global_step,
-            "sac": {
-                "critic": self.critic.state_dict(),
-                "critic_target": self.critic_target.state_dict(),
-                "actor_opt": self.actor_opt.state_dict(),
-                "critic_opt": self.critic_opt.state_dict(),
-                "alpha_opt": self.alpha_opt.state_dict(),
-                "log_alpha": self.log_alpha.detach().clone(),
-                **self.loop_state(),
-                "return_peak": self.return_peak,
-            },
+            "critic": self.critic,
+            "critic_target": self.critic_target,
+            "actor_opt": self.actor_opt,
+            "critic_opt": self.critic_opt,
+            "alpha_opt": self.alpha_opt,
         }
 
-    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
-        """Continue from :meth:`state_dict`'s output (the session restores the global RNGs)."""
-        self.model.load_state_dict(ckpt["model"])
-        self.obs_norm.load_state_dict(ckpt["obs_norm"])
-        self.update, self.global_step = int(ckpt["update"]), int(ckpt["global_step"])
-        s = ckpt["sac"]
-        self.critic.load_state_dict(s["critic"])
-        self.critic_target.load_state_dict(s["critic_target"])
-        self.actor_opt.load_state_dict(s["actor_opt"])
-        self.critic_opt.load_state_dict(s["critic_opt"])
-        self.alpha_opt.load_state_dict(s["alpha_opt"])
+    def extra_state(self) -> dict[str, object]:
+        """The temperature and the critic-health peak."""
+        return {"log_alpha": self.log_alpha.detach().clone(), "return_peak": self.return_peak}
+
+    def extra_schema(self) -> dict[str, Spec]:
+        """``return_peak`` may be absent (checkpoints before 2026-12-05 lack it)."""
+        return {"log_alpha": Tensor(self.log_alpha.detach()),
+                "return_peak": MayLack((REAL, type(None)))}  # fmt: skip
+
+    def load_extra_state(self, s: dict[str, Any]) -> None:
+        """The temperature and the peak."""
         with torch.no_grad():
             self.log_alpha.copy_(s["log_alpha"])
-        self.load_loop_state(s)
         self.return_peak = s.get("return_peak")  # checkpoints before 2026-12-05 lack it
 
     # ----------------------------------------------------------------------- acting

@@ -38,6 +38,7 @@ from ndp.rl.logger import METRICS
 from ndp.rl.methods import section
 from ndp.rl.offpolicy.critics import TwinQ
 from ndp.rl.offpolicy.loop import OffPolicyLearner, first_learning_decision, mean_of
+from ndp.rl.offpolicy.state import Part
 from ndp.rl.optim import soft_update
 from ndp.rl.td3 import TD3_METRICS
 from ndp.rl.td3.config import TD3Config
@@ -49,6 +50,7 @@ from ndp.rl.td3.losses import (
     smoothed_target_action,
     td3_target,
 )
+from ndp.runs.checkpoint import INT, Spec
 from ndp.runs.session import RunSession, nonfinite_parameter
 
 if TYPE_CHECKING:
@@ -90,6 +92,8 @@ class TD3Learner(OffPolicyLearner):
         session: the run's session (paths, the divergence message).
     """
 
+    section = "td3"
+
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         check_budget(cfg)  # before any env is built
         s = self.settings = section(cfg, TD3Config)
@@ -120,39 +124,27 @@ class TD3Learner(OffPolicyLearner):
             [*self.model.actor.named_parameters(), *self.critic.named_parameters()]
         )
 
-    def state_dict(self) -> dict[str, Any]:
-        """The policy checkpoint keys (``ndp.rl.methods.POLICY_CHECKPOINT_KEYS``) plus ``td3``:
-        critics, targets, optimisers, replay, generator, counters."""
+    def parts(self) -> dict[str, Part]:
+        """Saved under ``td3``: critics, targets, optimisers."""
         return {
-            "model": self.model.state_dict(),
-            "obs_norm": self.obs_norm.state_dict(),
-            "obs_dim": self.obs_dim,
-            "update": self.update,
-            "global_step": self.global_step,
-            "td3": {
-                "critic": self.critic.state_dict(),
-                "critic_target": self.critic_target.state_dict(),
-                "actor_target": self.actor_target.state_dict(),
-                "actor_opt": self.actor_opt.state_dict(),
-                "critic_opt": self.critic_opt.state_dict(),
-                "actor_updates": self.actor_updates,
-                **self.loop_state(),
-            },
+            "critic": self.critic,
+            "critic_target": self.critic_target,
+            "actor_target": self.actor_target,
+            "actor_opt": self.actor_opt,
+            "critic_opt": self.critic_opt,
         }
 
-    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
-        """Continue from :meth:`state_dict`'s output (the session restores the global RNGs)."""
-        self.model.load_state_dict(ckpt["model"])
-        self.obs_norm.load_state_dict(ckpt["obs_norm"])
-        self.update, self.global_step = int(ckpt["update"]), int(ckpt["global_step"])
-        s = ckpt["td3"]
-        self.critic.load_state_dict(s["critic"])
-        self.critic_target.load_state_dict(s["critic_target"])
-        self.actor_target.load_state_dict(s["actor_target"])
-        self.actor_opt.load_state_dict(s["actor_opt"])
-        self.critic_opt.load_state_dict(s["critic_opt"])
+    def extra_state(self) -> dict[str, object]:
+        """The count of actor updates."""
+        return {"actor_updates": self.actor_updates}
+
+    def extra_schema(self) -> dict[str, Spec]:
+        """``actor_updates``: an integer."""
+        return {"actor_updates": INT}
+
+    def load_extra_state(self, s: dict[str, Any]) -> None:
+        """The count of actor updates."""
         self.actor_updates = int(s["actor_updates"])
-        self.load_loop_state(s)
 
     # ----------------------------------------------------------------------- acting
     def policy_action(

@@ -18,8 +18,10 @@ driver (:mod:`ndp.runs.driver`) opens, seeds, restores, drives and checkpoints i
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
+from collections.abc import Iterator
 from typing import Any, Protocol
 
 import numpy as np
@@ -39,6 +41,25 @@ from ndp.runs.session import CountsUpdates, RunSession, TrainingDivergedError
 REPLAY_COLUMNS = ("obs", "y0", "dy0", "ret", "discount", "next_obs", "next_y0", "next_dy0")
 """Replay columns the loop fills itself (a batch holds them as [B, width] tensors; ``ret``
 and ``discount`` are [B, 1]); an algorithm adds its own (``act``'s second value)."""
+
+
+class LoopSettings(Protocol):
+    """The loop's budget in a learner's settings (``SACConfig``, ``TD3Config``)."""
+
+    @property
+    def random_steps(self) -> int:
+        """Env steps of random actions before learning starts."""
+        ...
+
+    @property
+    def batch_size(self) -> int:
+        """Decisions per gradient step."""
+        ...
+
+    @property
+    def updates_per_step(self) -> float:
+        """Gradient steps per executed env step."""
+        ...
 
 
 class OffPolicyAlgorithm(Protocol):
@@ -81,23 +102,16 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
     random_steps: int
     batch_size: int
     updates_per_step: float
+    _critic_params: list[torch.nn.Parameter]
 
-    def _open_loop(
-        self,
-        cfg: TrainConfig,
-        session: RunSession,
-        *,
-        random_steps: int,
-        batch_size: int,
-        updates_per_step: float,
-    ) -> None:
+    def _open_loop(self, cfg: TrainConfig, session: RunSession, settings: LoopSettings) -> None:
         """Resolve the task and build the training envs (before any network: the order of
-        the global RNG's draws is the learner's)."""
+        the global RNG's draws is the learner's); the loop's budget comes from ``settings``."""
         task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
         self.cfg, self.spec, self.session = cfg, task.spec, session
         self.run = session.run
-        self.random_steps, self.batch_size = random_steps, batch_size
-        self.updates_per_step = updates_per_step
+        self.random_steps, self.batch_size = settings.random_steps, settings.batch_size
+        self.updates_per_step = settings.updates_per_step
         self.k, self.E, self.T = cfg.k, cfg.num_envs, cfg.decisions_per_env
         self.gamma = float(cfg.ppo.gamma)
         self.envs, self.obs_dim = rl_envs.run_envs(cfg, task)
@@ -240,6 +254,26 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
 
     def _diverged(self, what: str) -> TrainingDivergedError:
         return self.session.diverged(what, self.update)
+
+    @contextlib.contextmanager
+    def _critics_frozen(self) -> Iterator[None]:
+        """The critics' parameters (``_critic_params``) take no gradient inside the block."""
+        for p in self._critic_params:
+            p.requires_grad_(False)
+        try:
+            yield
+        finally:
+            for p in self._critic_params:
+                p.requires_grad_(True)
+
+    def _step(self, opt: torch.optim.Optimizer, loss: torch.Tensor, what: str) -> None:
+        """One optimiser step on ``loss`` (the ``what`` loss: its name in the divergence
+        message when it is not finite)."""
+        if not bool(torch.isfinite(loss)):
+            raise self._diverged(f"the {what} loss became {float(loss.detach())}")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
+        opt.step()
 
 
 def first_learning_decision(

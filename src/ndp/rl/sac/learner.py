@@ -120,8 +120,7 @@ class SACLearner(OffPolicyLearner):
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         check_budget(cfg)  # before any env is built
         s = self.settings = section(cfg, SACConfig)
-        self._open_loop(cfg, session, random_steps=s.random_steps, batch_size=s.batch_size,
-                        updates_per_step=s.updates_per_step)  # fmt: skip
+        self._open_loop(cfg, session, s)
         self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         self.P = self.model.head.n_params // 2
         self.is_ndp = isinstance(self.model.head, SquashedNDPHead)
@@ -257,13 +256,8 @@ class SACLearner(OffPolicyLearner):
         dist = self._dist(b["obs"], b["y0"], b["dy0"])
         u = dist.rsample()
         logp = dist.log_prob(u)[:, 0]
-        for p in self._critic_params:  # the actor's loss does not train the critics
-            p.requires_grad_(False)
-        try:
+        with self._critics_frozen():  # the actor's loss does not train the critics
             q1_pi, q2_pi = self.critic(b["obs"], self.critic_input(u, dist))
-        finally:
-            for p in self._critic_params:
-                p.requires_grad_(True)
         la = actor_loss(logp, q1_pi, q2_pi, alpha)
         self._step(self.actor_opt, la, "actor")
         lt = alpha_loss(self.log_alpha, logp, self.target_entropy)
@@ -275,13 +269,6 @@ class SACLearner(OffPolicyLearner):
             "alpha": float(lt.detach()),
             "q": float(torch.minimum(q1, q2).detach().mean()),
         }
-
-    def _step(self, opt: torch.optim.Optimizer, loss: torch.Tensor, what: str) -> None:
-        if not bool(torch.isfinite(loss)):
-            raise self._diverged(f"the {what} loss became {float(loss.detach())}")
-        opt.zero_grad(set_to_none=True)
-        loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
-        opt.step()
 
     def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
         """SAC's columns of the row: learning rate, losses, temperature, Q, replay, steps."""

@@ -97,8 +97,7 @@ class TD3Learner(OffPolicyLearner):
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         check_budget(cfg)  # before any env is built
         s = self.settings = section(cfg, TD3Config)
-        self._open_loop(cfg, session, random_steps=s.random_steps, batch_size=s.batch_size,
-                        updates_per_step=s.updates_per_step)  # fmt: skip
+        self._open_loop(cfg, session, s)
         self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         self.P = self.model.head.n_params // 2
         pol = cfg.policy
@@ -193,14 +192,9 @@ class TD3Learner(OffPolicyLearner):
         self._step(self.critic_opt, lc, "critic")
         out = {"critic": float(lc.detach()), "q": float(torch.minimum(q1, q2).detach().mean())}
         if actor_update_due(self.grad_steps + 1, s.policy_delay):  # the loop counts after
-            for p in self._critic_params:  # the actor's loss does not train the critics
-                p.requires_grad_(False)
-            try:
-                q1_pi, _ = self.critic(b["obs"], self.policy_action(self.model, b["obs"], b["y0"],
-                                                                    b["dy0"]))  # fmt: skip
-            finally:
-                for p in self._critic_params:
-                    p.requires_grad_(True)
+            with self._critics_frozen():  # the actor's loss does not train the critics
+                p_pi = self.policy_action(self.model, b["obs"], b["y0"], b["dy0"])
+                q1_pi, _ = self.critic(b["obs"], p_pi)
             la = actor_loss(q1_pi)
             self._step(self.actor_opt, la, "actor")
             soft_update(self.critic_target, self.critic, s.tau)
@@ -208,13 +202,6 @@ class TD3Learner(OffPolicyLearner):
             self.actor_updates += 1
             out["actor"] = float(la.detach())
         return out
-
-    def _step(self, opt: torch.optim.Optimizer, loss: torch.Tensor, what: str) -> None:
-        if not bool(torch.isfinite(loss)):
-            raise self._diverged(f"the {what} loss became {float(loss.detach())}")
-        opt.zero_grad(set_to_none=True)
-        loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
-        opt.step()
 
     def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
         """TD3's columns of the row: learning rate, losses, Q, replay, step counts."""

@@ -161,6 +161,33 @@ def train_embedding(
     if n < 2:
         raise ValueError(f"explore_steps: expected at least 2 full action sequences, got {n}")
     b = min(cfg.embed_batch, n)
+    pred_hist, kl_hist = _fit_embedding_net(emb, s0, actions, delta, cfg, b, generator)
+    white, max_latent = _whiten_latents(emb, actions)
+    dec_hist = _fit_decoder(emb, decoder, white, cfg, b, generator)
+    return {
+        "embed_loss_first": _window_mean(pred_hist, False),
+        "embed_loss": _window_mean(pred_hist, True),
+        "embed_kl": _window_mean(kl_hist, True),
+        "decoder_loss_first": _window_mean(dec_hist, False),
+        "decoder_loss": _window_mean(dec_hist, True),
+        "max_latent": max_latent,
+        "sequences": float(n),
+    }
+
+
+def _fit_embedding_net(
+    emb: SequenceEmbedding,
+    s0: torch.Tensor,
+    actions: torch.Tensor,
+    delta: torch.Tensor,
+    cfg: DyneConfig,
+    b: int,
+    generator: torch.Generator | None,
+) -> tuple[list[float], list[float]]:
+    """Step 1 of :func:`train_embedding`: whitening statistics, then ``embed_updates`` steps
+    on mini-batches of ``b`` sequences; the encoder is frozen after. Returns the prediction
+    loss and the KL of every step."""
+    n = s0.shape[0]
     emb.set_state_stats(s0, delta)
     opt = torch.optim.Adam(emb.parameters(), lr=cfg.embed_lr, amsgrad=True)
     pred_hist: list[float] = []
@@ -181,13 +208,34 @@ def train_embedding(
     emb.eval()
     for p in emb.parameters():
         p.requires_grad_(False)
+    return pred_hist, kl_hist
+
+
+def _whiten_latents(emb: SequenceEmbedding, actions: torch.Tensor) -> tuple[torch.Tensor, float]:
+    """Step 2 of :func:`train_embedding`: the encoder means of the data set the latent's
+    whitening statistics; returns the whitened latents [N, L] and their largest magnitude."""
+    n = actions.shape[0]
     with torch.no_grad():
         mu = torch.cat([emb.encode(actions[i : i + 4096])[0] for i in range(0, n, 4096)])
         std = mu.std(0)
         emb.z_mean.copy_(mu.mean(0))
         emb.z_std.copy_(torch.where(std > 1e-6, std, torch.ones_like(std)))
         white = emb.whiten_latent(mu)
-        max_latent = float(white.abs().max())
+        return white, float(white.abs().max())
+
+
+def _fit_decoder(
+    emb: SequenceEmbedding,
+    decoder: ActionDecoder,
+    white: torch.Tensor,
+    cfg: DyneConfig,
+    b: int,
+    generator: torch.Generator | None,
+) -> list[float]:
+    """Step 3 of :func:`train_embedding`: ``decoder_updates`` steps of the cycle loss on
+    mini-batches of ``b`` whitened latents; the decoder is frozen after. Returns the cycle
+    loss of every step."""
+    n = white.shape[0]
     dopt = torch.optim.Adam(decoder.parameters(), lr=cfg.embed_lr)
     dec_hist: list[float] = []
     for _ in range(cfg.decoder_updates):
@@ -204,22 +252,16 @@ def train_embedding(
         dec_hist.append(float(recon.detach()))
     for p in decoder.parameters():
         p.requires_grad_(False)
+    return dec_hist
 
-    def _mean(h: list[float], last: bool) -> float:
-        if not h:
-            return math.nan
-        m = max(1, len(h) // 10)
-        return float(np.mean(h[-m:] if last else h[:m]))
 
-    return {
-        "embed_loss_first": _mean(pred_hist, False),
-        "embed_loss": _mean(pred_hist, True),
-        "embed_kl": _mean(kl_hist, True),
-        "decoder_loss_first": _mean(dec_hist, False),
-        "decoder_loss": _mean(dec_hist, True),
-        "max_latent": max_latent,
-        "sequences": float(n),
-    }
+def _window_mean(h: list[float], last: bool) -> float:
+    """The mean of the first (``last`` False) or last tenth (at least one value) of ``h``;
+    NaN for none."""
+    if not h:
+        return math.nan
+    m = max(1, len(h) // 10)
+    return float(np.mean(h[-m:] if last else h[:m]))
 
 
 # --------------------------------------------------------------------------- TD3 pieces

@@ -6,11 +6,15 @@ import numbers
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NoReturn, TypeAlias
+from typing import TYPE_CHECKING, Any, NoReturn, TypeAlias
 
 from ndp.io import atomic_torch_save
 from ndp.runs.layout import CHECKPOINT_NAME
 from ndp.runs.signals import deferred_stops
+
+if TYPE_CHECKING:
+    import numpy as np
+    import torch
 
 __all__ = [
     "INT",
@@ -163,7 +167,7 @@ class MayLack(Rule):
 class Holds(Rule):
     """A value judged by ``problem`` (None: fine; else what is wrong, in words)."""
 
-    problem: Callable[[Any], str | None]
+    problem: Callable[[object], str | None]
     expected: str = "a value"
 
     def check(self, value: object, path: str) -> None:
@@ -173,7 +177,7 @@ class Holds(Rule):
             _fail(path, what)
 
 
-def _finite_tensor(value: object, path: str, like: Any = None) -> None:
+def _finite_tensor(value: object, path: str, like: torch.Tensor | np.ndarray | None = None) -> None:
     """``value`` is a tensor (or array), finite where it is a float, shaped (and of the float
     or integer kind) like ``like`` where given."""
     import numpy as np
@@ -197,7 +201,7 @@ def _finite_tensor(value: object, path: str, like: Any = None) -> None:
 class Tensor(Rule):
     """A tensor (or array) of finite values, shaped like ``like`` where given."""
 
-    like: Any = None
+    like: torch.Tensor | np.ndarray | None = None
     expected = "a tensor"
 
     def check(self, value: object, path: str) -> None:
@@ -210,7 +214,7 @@ class Tensors(Rule):
     """A module's state dict: the keys of ``like`` (when given) with their shapes, finite
     floats."""
 
-    like: Mapping[str, Any] | None = None
+    like: Mapping[str, torch.Tensor] | None = None
     expected = "a state dict of tensors"
 
     def check(self, value: object, path: str) -> None:
@@ -233,7 +237,7 @@ class OptimizerState(Rule):
     """A ``torch.optim`` state dict: ``state`` and ``param_groups``, finite moments; with
     ``opt``, as many groups and parameters as it has, and moments shaped like its parameters."""
 
-    opt: Any = None
+    opt: torch.optim.Optimizer | None = None
     expected = "an optimiser state"
 
     def check(self, value: object, path: str) -> None:
@@ -300,7 +304,7 @@ def _where(source: str | Path | None) -> str:
     return f"checkpoint {source}: " if source is not None else "checkpoint: "
 
 
-def policy_schema(model: Mapping[str, Any], obs_dim: int) -> dict[str, Spec]:
+def policy_schema(model: Mapping[str, torch.Tensor], obs_dim: int) -> dict[str, Spec]:
     """The policy keys every RL learner's checkpoint holds (``ndp.rl.methods.
     POLICY_CHECKPOINT_KEYS`` less ``config``, which the session checks): the model's state dict
     (shaped like ``model``), the observation statistics for ``obs_dim`` inputs, the counters."""
@@ -318,7 +322,7 @@ def running_stats(shape: tuple[int, ...]) -> dict[str, Spec]:
     return {"mean": Tensor(_zeros(shape)), "var": Tensor(_zeros(shape)), "count": REAL}
 
 
-def _zeros(shape: tuple[int, ...]) -> Any:
+def _zeros(shape: tuple[int, ...]) -> torch.Tensor:
     import torch
 
     return torch.zeros(shape)

@@ -28,7 +28,12 @@ import torch
 
 from ndp.envs.base import CTRL_INFO
 from ndp.policies import build_actor_critic
-from ndp.policies.distributions import SubActionGaussian, correlate
+from ndp.policies.distributions import (
+    AR1SubActionGaussian,
+    PolicyDistribution,
+    SubActionGaussian,
+    correlate,
+)
 from ndp.rl.config import TrainConfig
 from ndp.rl.envs import (
     EpisodeTracker,
@@ -73,7 +78,7 @@ __all__ = ["Trainer", "TrainingDivergedError", "ppo_state"]
 class Decision(NamedTuple):
     """One rollout decision of :meth:`Trainer.decide` for E envs."""
 
-    dist: Any
+    dist: PolicyDistribution
     """The exploration distribution (a :mod:`ndp.policies.distributions` one)."""
     aux: dict[str, torch.Tensor]
     """The head's diagnostics (NDP: ``goal_norm``, ``weight_norm`` [E])."""
@@ -173,7 +178,7 @@ class Trainer(CountsUpdates):
                 "or the hold head): use first_held_ratio='own'"
             )
 
-    def _explore(self, dist: Any, carry: torch.Tensor | None) -> Any:
+    def _explore(self, dist: PolicyDistribution, carry: torch.Tensor | None) -> PolicyDistribution:
         """The exploration distribution the run samples from: ``dist`` itself (white noise) or
         with AR(1) noise continued from ``carry`` [B, A] (``--noise ar1``)."""
         if self._rho is None:
@@ -349,7 +354,7 @@ class Trainer(CountsUpdates):
     def _step_envs(
         self,
         act: torch.Tensor,
-        dist: Any,
+        dist: PolicyDistribution,
         z: torch.Tensor,
         ctrl: dict[str, float],
         episodes: list[tuple[float, float, float, float, float]],
@@ -379,6 +384,7 @@ class Trainer(CountsUpdates):
 
         self._episodes.add(infos, done, sub_r, live, mask, episodes)
         if self._carry is not None:  # continue the noise; a new episode starts afresh
+            assert isinstance(dist, AR1SubActionGaussian)  # _explore with a carry
             self._carry = dist.last_noise(z)
             if done.any():
                 fresh = torch.from_numpy(done)

@@ -1,6 +1,6 @@
-"""Every learner validates its checkpoint on load: a real save -> load round trip for SAC, TD3
-and the on-policy trainer, and one-line errors naming the file and the key for a missing key, a
-wrong shape, NaN in a weight or in the replay and a newer schema version."""
+"""Every learner validates its checkpoint on load: a real save -> load round trip for SAC, TD3,
+Dyn-E and the on-policy trainer, and one-line errors naming the file and the key for a missing
+key, a wrong shape, NaN in a weight or in the replay and a newer schema version."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import pytest
 import torch
 
 from ndp.rl.config import PPOConfig, TrainConfig
+from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.run import open_run, resume
 from ndp.rl.sac.config import SACConfig
 from ndp.rl.td3.config import TD3Config
@@ -69,6 +70,15 @@ def _check_refusals(learner, ckpt, path, cases):
     [
         ("sac", "sac", {"sac": SACConfig(random_steps=100, batch_size=32)}),
         ("td3", "td3", {"td3": TD3Config(random_steps=100, batch_size=32)}),
+        (
+            "dyne",
+            "dyne",
+            {
+                "dyne": DyneConfig(
+                    explore_steps=200, embed_updates=20, decoder_updates=20, batch_size=32
+                )
+            },
+        ),
     ],
 )
 def test_an_off_policy_checkpoint_round_trips_and_a_spoiled_one_is_named(
@@ -76,7 +86,7 @@ def test_an_off_policy_checkpoint_round_trips_and_a_spoiled_one_is_named(
 ):
     opened = _open(tmp_path, algo, **settings)
     try:
-        opened.train(2)
+        opened.train(4 if algo == "dyne" else 2)  # Dyn-E: 2 exploration iterations, 2 of TD3
         lr = opened.learner
         path = lr.run.checkpoint
         ckpt = load_checkpoint(path, kind="rl")

@@ -12,11 +12,11 @@ from ndp.runs.checkpoint import (
     INT,
     REAL,
     SCHEMA_VERSION,
+    FiniteTensor,
     Holds,
     MayLack,
     OptimizerState,
-    Tensor,
-    Tensors,
+    StateDict,
     check_state,
     load_checkpoint,
     save_checkpoint,
@@ -33,9 +33,13 @@ def _net_and_opt():
 
 def _schema(net, opt):
     return {
-        "model": Tensors(net.state_dict()),
+        "model": StateDict(net.state_dict()),
         "update": INT,
-        "algo": {"opt": OptimizerState(opt), "peak": MayLack((REAL, type(None))), "t": Tensor()},
+        "algo": {
+            "opt": OptimizerState(opt),
+            "peak": MayLack((REAL, type(None))),
+            "t": FiniteTensor(),
+        },
     }
 
 

@@ -20,13 +20,13 @@ __all__ = [
     "INT",
     "REAL",
     "SCHEMA_VERSION",
+    "FiniteTensor",
     "Holds",
     "MayLack",
     "OptimizerState",
     "Rule",
     "Spec",
-    "Tensor",
-    "Tensors",
+    "StateDict",
     "check_state",
     "load_checkpoint",
     "policy_schema",
@@ -198,7 +198,7 @@ def _finite_tensor(value: object, path: str, like: torch.Tensor | np.ndarray | N
 
 
 @dataclass(frozen=True)
-class Tensor(Rule):
+class FiniteTensor(Rule):
     """A tensor (or array) of finite values, shaped like ``like`` where given."""
 
     like: torch.Tensor | np.ndarray | None = None
@@ -210,7 +210,7 @@ class Tensor(Rule):
 
 
 @dataclass(frozen=True)
-class Tensors(Rule):
+class StateDict(Rule):
     """A module's state dict: the keys of ``like`` (when given) with their shapes, finite
     floats."""
 
@@ -309,7 +309,7 @@ def policy_schema(model: Mapping[str, torch.Tensor], obs_dim: int) -> dict[str, 
     POLICY_CHECKPOINT_KEYS`` less ``config``, which the session checks): the model's state dict
     (shaped like ``model``), the observation statistics for ``obs_dim`` inputs, the counters."""
     return {
-        "model": Tensors(model),
+        "model": StateDict(model),
         "obs_norm": running_stats((obs_dim,)),
         "obs_dim": INT,
         "update": INT,
@@ -319,7 +319,7 @@ def policy_schema(model: Mapping[str, torch.Tensor], obs_dim: int) -> dict[str, 
 
 def running_stats(shape: tuple[int, ...]) -> dict[str, Spec]:
     """A running mean / variance of values of ``shape`` (``ndp.rl.normalize.RunningMeanStd``)."""
-    return {"mean": Tensor(_zeros(shape)), "var": Tensor(_zeros(shape)), "count": REAL}
+    return {"mean": FiniteTensor(_zeros(shape)), "var": FiniteTensor(_zeros(shape)), "count": REAL}
 
 
 def _zeros(shape: tuple[int, ...]) -> torch.Tensor:

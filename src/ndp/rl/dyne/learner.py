@@ -64,7 +64,7 @@ from ndp.rl.optim import soft_update
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
 from ndp.rl.replay import RingReplay
-from ndp.runs.checkpoint import INT, Spec, Tensor
+from ndp.runs.checkpoint import INT, FiniteTensor, Spec
 from ndp.runs.session import (
     CountsUpdates,
     RunSession,
@@ -396,7 +396,7 @@ class DyneLearner(OffPolicyState, CountsUpdates):
 
     def extra_schema(self) -> dict[str, Spec]:
         """``gen`` a generator state, ``rl_steps`` an integer, ``embed_stats`` a dict."""
-        return {"gen": Tensor(self.gen.get_state()), "rl_steps": INT, "embed_stats": dict}
+        return {"gen": FiniteTensor(self.gen.get_state()), "rl_steps": INT, "embed_stats": dict}
 
     def load_extra_state(self, s: dict[str, Any]) -> None:
         """Restore the values of :meth:`extra_state`; the embedding is fitted: freeze it."""

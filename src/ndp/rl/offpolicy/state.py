@@ -29,7 +29,7 @@ from ndp.runs.checkpoint import (
     Holds,
     OptimizerState,
     Spec,
-    Tensors,
+    StateDict,
     check_state,
     policy_schema,
 )
@@ -97,7 +97,7 @@ class OffPolicyState:
     def checkpoint_schema(self) -> dict[str, Spec]:
         """What a checkpoint of this learner must hold, shaped like its networks now."""
         own: dict[str, Spec] = {
-            name: Tensors(p.state_dict()) if isinstance(p, nn.Module) else OptimizerState(p)
+            name: StateDict(p.state_dict()) if isinstance(p, nn.Module) else OptimizerState(p)
             for name, p in self.parts().items()
         }
         loop: dict[str, Spec] = {

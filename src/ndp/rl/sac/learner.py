@@ -46,7 +46,7 @@ from ndp.rl.sac.losses import (
     critic_target,
     soft_update,
 )
-from ndp.runs.checkpoint import REAL, MayLack, Spec, Tensor
+from ndp.runs.checkpoint import REAL, FiniteTensor, MayLack, Spec
 from ndp.runs.session import RunSession, nonfinite_parameter
 
 COLUMNS = (*METRICS, *SAC_METRICS)
@@ -174,7 +174,7 @@ class SACLearner(OffPolicyLearner):
 
     def extra_schema(self) -> dict[str, Spec]:
         """``return_peak`` may be absent (checkpoints before 2026-12-05 lack it)."""
-        return {"log_alpha": Tensor(self.log_alpha.detach()),
+        return {"log_alpha": FiniteTensor(self.log_alpha.detach()),
                 "return_peak": MayLack((REAL, type(None)))}  # fmt: skip
 
     def load_extra_state(self, s: dict[str, Any]) -> None:

@@ -72,31 +72,55 @@ class RingReplay:
             "capacity": self.capacity,
         }
 
+    def problem(self, d: object) -> str | None:
+        """What is wrong with a saved buffer (:meth:`state_dict`'s output) for this one, in
+        words; None when it loads. Every column present with [size, width] rows of finite
+        floats, the size within the capacity (the same capacity where saved) and the write
+        position consistent with the size."""
+        if not isinstance(d, dict) or not isinstance(d.get("data"), dict):
+            return "expected a replay buffer (a dict with data, ptr, size)"
+        size, ptr, cap = d.get("size"), d.get("ptr"), d.get("capacity")
+        for key, value in (("size", size), ("ptr", ptr)):
+            if isinstance(value, bool) or not isinstance(value, int | np.integer):
+                return f"{key}: expected an integer, got {value!r}"
+        assert isinstance(size, int | np.integer) and isinstance(ptr, int | np.integer)
+        if cap is not None and int(cap) != self.capacity:
+            return f"the buffer holds {cap} decisions, expected {self.capacity}"
+        if not 0 <= size <= self.capacity:
+            return f"holds {size} decisions, expected 0 to the capacity {self.capacity}"
+        # unwrapped: ptr == size (0 once full); wrapped (size == the saved capacity): any row
+        unwrapped = cap is not None and size < int(cap)
+        if not 0 <= ptr < self.capacity or ptr > size or (unwrapped and ptr != size):
+            return f"write position {ptr} does not fit size {size} (capacity {self.capacity})"
+        for name, shape in self.shapes.items():
+            if name not in d["data"]:
+                return f"column {name} is missing (expected columns {', '.join(self.shapes)})"
+            col = np.asarray(d["data"][name])
+            width = math.prod(shape)
+            if col.ndim < 1 or len(col) != size:
+                return f"column {name} has shape {col.shape}, expected {size} rows (the size)"
+            if math.prod(col.shape[1:]) != width:
+                return f"column {name} has shape {col.shape[1:]} in the checkpoint, {shape} now"
+            if col.dtype.kind != "f":
+                return f"column {name} has dtype {col.dtype}, expected a float dtype"
+            if not np.isfinite(col).all():
+                return f"column {name} holds NaN/Inf (expected finite values)"
+        return None
+
     def load_state_dict(self, d: dict[str, Any]) -> None:
         """Restore :meth:`state_dict`'s output (same capacity and column shapes; a checkpoint
-        without a capacity must fit in this one).
+        without a capacity must fit in this one), validated first (:meth:`problem`).
 
         Raises:
-            ValueError: the saved buffer does not fit, naming the mismatch.
+            ValueError: the saved buffer does not fit or holds non-finite values, naming the
+                mismatch.
         """
+        what = self.problem(d)
+        if what is not None:
+            raise ValueError(f"replay: {what}")
         size = int(d["size"])
-        saved_cap = d.get("capacity")
-        if saved_cap is not None and int(saved_cap) != self.capacity:
-            raise ValueError(
-                f"replay: the checkpoint's buffer holds {saved_cap} decisions, "
-                f"expected {self.capacity}"
-            )
-        if size > self.capacity:
-            raise ValueError(
-                f"replay: the checkpoint holds {size} decisions, capacity {self.capacity}"
-            )
         for name, shape in self.shapes.items():
             col = np.asarray(d["data"][name], dtype=np.float32)
-            if len(col) != size or math.prod(col.shape[1:]) != math.prod(shape):
-                raise ValueError(
-                    f"replay: column {name} has shape {col.shape[1:]} in the checkpoint, "
-                    f"{shape} now"
-                )
             self.matrix[:size, self._slices[name]] = col.reshape(size, math.prod(shape))
         self.ptr = int(d["ptr"])
         self.size = size

@@ -59,10 +59,12 @@ from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.logger import METRICS
 from ndp.rl.methods import section, with_section
 from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.offpolicy.state import OffPolicyState, Part
 from ndp.rl.optim import soft_update
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
 from ndp.rl.replay import RingReplay
+from ndp.runs.checkpoint import INT, FiniteTensor, Spec
 from ndp.runs.session import (
     CountsUpdates,
     RunSession,
@@ -159,6 +161,33 @@ def train_embedding(
     if n < 2:
         raise ValueError(f"explore_steps: expected at least 2 full action sequences, got {n}")
     b = min(cfg.embed_batch, n)
+    pred_hist, kl_hist = _fit_embedding_net(emb, s0, actions, delta, cfg, b, generator)
+    white, max_latent = _whiten_latents(emb, actions)
+    dec_hist = _fit_decoder(emb, decoder, white, cfg, b, generator)
+    return {
+        "embed_loss_first": _window_mean(pred_hist, False),
+        "embed_loss": _window_mean(pred_hist, True),
+        "embed_kl": _window_mean(kl_hist, True),
+        "decoder_loss_first": _window_mean(dec_hist, False),
+        "decoder_loss": _window_mean(dec_hist, True),
+        "max_latent": max_latent,
+        "sequences": float(n),
+    }
+
+
+def _fit_embedding_net(
+    emb: SequenceEmbedding,
+    s0: torch.Tensor,
+    actions: torch.Tensor,
+    delta: torch.Tensor,
+    cfg: DyneConfig,
+    b: int,
+    generator: torch.Generator | None,
+) -> tuple[list[float], list[float]]:
+    """Step 1 of :func:`train_embedding`: whitening statistics, then ``embed_updates`` steps
+    on mini-batches of ``b`` sequences; the encoder is frozen after. Returns the prediction
+    loss and the KL of every step."""
+    n = s0.shape[0]
     emb.set_state_stats(s0, delta)
     opt = torch.optim.Adam(emb.parameters(), lr=cfg.embed_lr, amsgrad=True)
     pred_hist: list[float] = []
@@ -179,13 +208,34 @@ def train_embedding(
     emb.eval()
     for p in emb.parameters():
         p.requires_grad_(False)
+    return pred_hist, kl_hist
+
+
+def _whiten_latents(emb: SequenceEmbedding, actions: torch.Tensor) -> tuple[torch.Tensor, float]:
+    """Step 2 of :func:`train_embedding`: the encoder means of the data set the latent's
+    whitening statistics; returns the whitened latents [N, L] and their largest magnitude."""
+    n = actions.shape[0]
     with torch.no_grad():
         mu = torch.cat([emb.encode(actions[i : i + 4096])[0] for i in range(0, n, 4096)])
         std = mu.std(0)
         emb.z_mean.copy_(mu.mean(0))
         emb.z_std.copy_(torch.where(std > 1e-6, std, torch.ones_like(std)))
         white = emb.whiten_latent(mu)
-        max_latent = float(white.abs().max())
+        return white, float(white.abs().max())
+
+
+def _fit_decoder(
+    emb: SequenceEmbedding,
+    decoder: ActionDecoder,
+    white: torch.Tensor,
+    cfg: DyneConfig,
+    b: int,
+    generator: torch.Generator | None,
+) -> list[float]:
+    """Step 3 of :func:`train_embedding`: ``decoder_updates`` steps of the cycle loss on
+    mini-batches of ``b`` whitened latents; the decoder is frozen after. Returns the cycle
+    loss of every step."""
+    n = white.shape[0]
     dopt = torch.optim.Adam(decoder.parameters(), lr=cfg.embed_lr)
     dec_hist: list[float] = []
     for _ in range(cfg.decoder_updates):
@@ -202,22 +252,16 @@ def train_embedding(
         dec_hist.append(float(recon.detach()))
     for p in decoder.parameters():
         p.requires_grad_(False)
+    return dec_hist
 
-    def _mean(h: list[float], last: bool) -> float:
-        if not h:
-            return math.nan
-        m = max(1, len(h) // 10)
-        return float(np.mean(h[-m:] if last else h[:m]))
 
-    return {
-        "embed_loss_first": _mean(pred_hist, False),
-        "embed_loss": _mean(pred_hist, True),
-        "embed_kl": _mean(kl_hist, True),
-        "decoder_loss_first": _mean(dec_hist, False),
-        "decoder_loss": _mean(dec_hist, True),
-        "max_latent": max_latent,
-        "sequences": float(n),
-    }
+def _window_mean(h: list[float], last: bool) -> float:
+    """The mean of the first (``last`` False) or last tenth (at least one value) of ``h``;
+    NaN for none."""
+    if not h:
+        return math.nan
+    m = max(1, len(h) // 10)
+    return float(np.mean(h[-m:] if last else h[:m]))
 
 
 # --------------------------------------------------------------------------- TD3 pieces
@@ -262,7 +306,7 @@ def _robot_state(info: dict[str, Any], n: int) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- learner
-class DyneLearner(CountsUpdates):
+class DyneLearner(OffPolicyState, CountsUpdates):
     """Dyn-E on the shared run infrastructure (see the module docstring).
 
     An :class:`ndp.rl.run.RLLearner`: the run driver opens the run, seeds, restores and
@@ -272,6 +316,8 @@ class DyneLearner(CountsUpdates):
         cfg: the resolved config (``resolve_config``); ``dyne.explore_steps`` is filled here.
         session: the run's session (paths, the divergence message).
     """
+
+    section = "dyne"
 
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
@@ -332,51 +378,31 @@ class DyneLearner(CountsUpdates):
         self._started = True
 
     # ----------------------------------------------------------------------- state
-    def state_dict(self) -> dict[str, Any]:
-        """Everything needed to continue (the session adds the global RNG state and config)."""
+    def parts(self) -> dict[str, Part]:
+        """Saved under ``dyne``: the embedding, critics, targets, optimisers."""
         return {
-            "model": self.model.state_dict(),
-            "obs_norm": self.obs_norm.state_dict(),
-            "obs_dim": self.obs_dim,
-            "update": self.update,
-            "global_step": self.global_step,
-            "dyne": {
-                "embedding": self.embedding.state_dict(),
-                "critic": self.critic.state_dict(),
-                "critic_target": self.critic_target.state_dict(),
-                "actor_target": self.actor_target.state_dict(),
-                "actor_opt": self.actor_opt.state_dict(),
-                "critic_opt": self.critic_opt.state_dict(),
-                "replay": self.replay.state_dict(),
-                "rng": self.rng.bit_generator.state,
-                "gen": self.gen.get_state(),
-                "rl_steps": self.rl_steps,
-                "grad_steps": self.grad_steps,
-                "update_debt": self.update_debt,
-                "embed_stats": dict(self.embed_stats),
-            },
+            "embedding": self.embedding,
+            "critic": self.critic,
+            "critic_target": self.critic_target,
+            "actor_target": self.actor_target,
+            "actor_opt": self.actor_opt,
+            "critic_opt": self.critic_opt,
         }
 
-    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
-        """Continue from a checkpoint (the session restores the global RNG state)."""
-        dy = ckpt["dyne"]
-        self.model.load_state_dict(ckpt["model"])
-        self.obs_norm.load_state_dict(ckpt["obs_norm"])
-        self.embedding.load_state_dict(dy["embedding"])
-        self.critic.load_state_dict(dy["critic"])
-        self.critic_target.load_state_dict(dy["critic_target"])
-        self.actor_target.load_state_dict(dy["actor_target"])
-        self.actor_opt.load_state_dict(dy["actor_opt"])
-        self.critic_opt.load_state_dict(dy["critic_opt"])
-        self.replay.load_state_dict(dy["replay"])
-        self.rng.bit_generator.state = dy["rng"]
-        self.gen.set_state(dy["gen"])
-        self.rl_steps = int(dy["rl_steps"])
-        self.grad_steps = int(dy["grad_steps"])
-        self.update_debt = float(dy["update_debt"])
-        self.embed_stats = dict(dy["embed_stats"])
-        self.update = int(ckpt["update"])
-        self.global_step = int(ckpt["global_step"])
+    def extra_state(self) -> dict[str, object]:
+        """The torch generator, the TD3 phase's env steps, the embedding's statistics."""
+        return {"gen": self.gen.get_state(), "rl_steps": self.rl_steps,
+                "embed_stats": dict(self.embed_stats)}  # fmt: skip
+
+    def extra_schema(self) -> dict[str, Spec]:
+        """``gen`` a generator state, ``rl_steps`` an integer, ``embed_stats`` a dict."""
+        return {"gen": FiniteTensor(self.gen.get_state()), "rl_steps": INT, "embed_stats": dict}
+
+    def load_extra_state(self, s: dict[str, Any]) -> None:
+        """Restore the values of :meth:`extra_state`; the embedding is fitted: freeze it."""
+        self.gen.set_state(s["gen"])
+        self.rl_steps = int(s["rl_steps"])
+        self.embed_stats = dict(s["embed_stats"])
         self.embedded = True
         self._freeze_embedding()
 

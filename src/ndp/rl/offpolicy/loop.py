@@ -18,8 +18,10 @@ driver (:mod:`ndp.runs.driver`) opens, seeds, restores, drives and checkpoints i
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
+from collections.abc import Iterator
 from typing import Any, Protocol
 
 import numpy as np
@@ -31,6 +33,7 @@ from ndp.rl.config import TrainConfig
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.offpolicy.replay import DecisionReplay
 from ndp.rl.offpolicy.returns import bootstrap_discount, chunk_return
+from ndp.rl.offpolicy.state import OffPolicyState
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
 from ndp.runs.session import CountsUpdates, RunSession, TrainingDivergedError
@@ -38,6 +41,25 @@ from ndp.runs.session import CountsUpdates, RunSession, TrainingDivergedError
 REPLAY_COLUMNS = ("obs", "y0", "dy0", "ret", "discount", "next_obs", "next_y0", "next_dy0")
 """Replay columns the loop fills itself (a batch holds them as [B, width] tensors; ``ret``
 and ``discount`` are [B, 1]); an algorithm adds its own (``act``'s second value)."""
+
+
+class LoopSettings(Protocol):
+    """The loop's budget in a learner's settings (``SACConfig``, ``TD3Config``)."""
+
+    @property
+    def random_steps(self) -> int:
+        """Env steps of random actions before learning starts."""
+        ...
+
+    @property
+    def batch_size(self) -> int:
+        """Decisions per gradient step."""
+        ...
+
+    @property
+    def updates_per_step(self) -> float:
+        """Gradient steps per executed env step."""
+        ...
 
 
 class OffPolicyAlgorithm(Protocol):
@@ -63,11 +85,12 @@ class OffPolicyAlgorithm(Protocol):
         ...
 
 
-class OffPolicyLearner(CountsUpdates):
+class OffPolicyLearner(OffPolicyState, CountsUpdates):
     """The collection loop of an off-policy learner over decisions of k env steps (see the
     module docstring). A subclass calls :meth:`_open_loop` (envs) before building its
     networks, then :meth:`_open_replay` (replay, evaluator, generator), and implements
-    :class:`OffPolicyAlgorithm`.
+    :class:`OffPolicyAlgorithm`, and names its checkpoint's parts
+    (:class:`ndp.rl.offpolicy.state.OffPolicyState`).
 
     Attributes set by the loop: ``cfg``, ``spec``, ``session``, ``run``, ``k``, ``E``, ``T``,
     ``gamma``, ``envs``, ``obs_dim``, ``replay``, ``obs_norm`` (identity statistics: the
@@ -76,27 +99,19 @@ class OffPolicyLearner(CountsUpdates):
     ``update``, ``global_step``, ``grad_steps``, ``update_debt``.
     """
 
-    model: Any
     random_steps: int
     batch_size: int
     updates_per_step: float
+    _critic_params: list[torch.nn.Parameter]
 
-    def _open_loop(
-        self,
-        cfg: TrainConfig,
-        session: RunSession,
-        *,
-        random_steps: int,
-        batch_size: int,
-        updates_per_step: float,
-    ) -> None:
+    def _open_loop(self, cfg: TrainConfig, session: RunSession, settings: LoopSettings) -> None:
         """Resolve the task and build the training envs (before any network: the order of
-        the global RNG's draws is the learner's)."""
+        the global RNG's draws is the learner's); the loop's budget comes from ``settings``."""
         task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
         self.cfg, self.spec, self.session = cfg, task.spec, session
         self.run = session.run
-        self.random_steps, self.batch_size = random_steps, batch_size
-        self.updates_per_step = updates_per_step
+        self.random_steps, self.batch_size = settings.random_steps, settings.batch_size
+        self.updates_per_step = settings.updates_per_step
         self.k, self.E, self.T = cfg.k, cfg.num_envs, cfg.decisions_per_env
         self.gamma = float(cfg.ppo.gamma)
         self.envs, self.obs_dim = rl_envs.run_envs(cfg, task)
@@ -138,22 +153,6 @@ class OffPolicyLearner(CountsUpdates):
     def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
         """:meth:`OffPolicyAlgorithm.algorithm_metrics`."""
         raise NotImplementedError
-
-    # ----------------------------------------------------------------------- the loop's state
-    def loop_state(self) -> dict[str, Any]:
-        """The loop's part of the checkpoint: replay, generator, gradient steps, update debt."""
-        return {
-            "replay": self.replay.state_dict(),
-            "rng": self.rng.bit_generator.state,
-            "grad_steps": self.grad_steps,
-            "update_debt": self.update_debt,
-        }
-
-    def load_loop_state(self, state: dict[str, Any]) -> None:
-        """Continue from :meth:`loop_state`'s output."""
-        self.replay.load_state_dict(state["replay"])
-        self.rng.bit_generator.state = state["rng"]
-        self.grad_steps, self.update_debt = int(state["grad_steps"]), float(state["update_debt"])
 
     def close(self) -> None:
         """Close the environments (training and evaluation)."""
@@ -255,6 +254,26 @@ class OffPolicyLearner(CountsUpdates):
 
     def _diverged(self, what: str) -> TrainingDivergedError:
         return self.session.diverged(what, self.update)
+
+    @contextlib.contextmanager
+    def _critics_frozen(self) -> Iterator[None]:
+        """The critics' parameters (``_critic_params``) take no gradient inside the block."""
+        for p in self._critic_params:
+            p.requires_grad_(False)
+        try:
+            yield
+        finally:
+            for p in self._critic_params:
+                p.requires_grad_(True)
+
+    def _step(self, opt: torch.optim.Optimizer, loss: torch.Tensor, what: str) -> None:
+        """One optimiser step on ``loss`` (the ``what`` loss: its name in the divergence
+        message when it is not finite)."""
+        if not bool(torch.isfinite(loss)):
+            raise self._diverged(f"the {what} loss became {float(loss.detach())}")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
+        opt.step()
 
 
 def first_learning_decision(

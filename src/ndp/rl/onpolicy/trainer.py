@@ -28,7 +28,12 @@ import torch
 
 from ndp.envs.base import CTRL_INFO
 from ndp.policies import build_actor_critic
-from ndp.policies.distributions import SubActionGaussian, correlate
+from ndp.policies.distributions import (
+    AR1SubActionGaussian,
+    PolicyDistribution,
+    SubActionGaussian,
+    correlate,
+)
 from ndp.rl.config import TrainConfig
 from ndp.rl.envs import (
     EpisodeTracker,
@@ -53,6 +58,13 @@ from ndp.rl.onpolicy.losses import (
 from ndp.rl.optim import FlatAdam
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
+from ndp.runs.checkpoint import (
+    OptimizerState,
+    Spec,
+    check_state,
+    policy_schema,
+    running_stats,
+)
 from ndp.runs.session import (
     CountsUpdates,
     RunSession,
@@ -66,7 +78,7 @@ __all__ = ["Trainer", "TrainingDivergedError", "ppo_state"]
 class Decision(NamedTuple):
     """One rollout decision of :meth:`Trainer.decide` for E envs."""
 
-    dist: Any
+    dist: PolicyDistribution
     """The exploration distribution (a :mod:`ndp.policies.distributions` one)."""
     aux: dict[str, torch.Tensor]
     """The head's diagnostics (NDP: ``goal_norm``, ``weight_norm`` [E])."""
@@ -166,7 +178,7 @@ class Trainer(CountsUpdates):
                 "or the hold head): use first_held_ratio='own'"
             )
 
-    def _explore(self, dist: Any, carry: torch.Tensor | None) -> Any:
+    def _explore(self, dist: PolicyDistribution, carry: torch.Tensor | None) -> PolicyDistribution:
         """The exploration distribution the run samples from: ``dist`` itself (white noise) or
         with AR(1) noise continued from ``carry`` [B, A] (``--noise ar1``)."""
         if self._rho is None:
@@ -222,8 +234,23 @@ class Trainer(CountsUpdates):
             self.obs_dim,
         )
 
+    def checkpoint_schema(self) -> dict[str, Spec]:
+        """What a checkpoint must hold (:func:`ppo_state`'s keys), shaped like the model now;
+        the optimiser's moments may be per parameter (older checkpoints, :class:`FlatAdam`)."""
+        return {
+            **policy_schema(self.model.state_dict(), self.obs_dim),
+            "optimizer": OptimizerState(),
+            "ret_norm": running_stats(()),
+        }
+
     def load_state_dict(self, ckpt: dict[str, Any]) -> None:
-        """Continue from a checkpoint (the session restores the global RNG state)."""
+        """Continue from a checkpoint (the session restores the global RNG state).
+
+        Raises:
+            ValueError: the checkpoint does not match :meth:`checkpoint_schema` (one line
+                naming the file and the key).
+        """
+        check_state(ckpt, self.checkpoint_schema(), self.ckpt_path)
         self.model.load_state_dict(ckpt["model"])
         self._sync_rollout_model()
         self.opt.load_state_dict(ckpt["optimizer"])
@@ -295,33 +322,9 @@ class Trainer(CountsUpdates):
                 goal_norms.append(float(aux["goal_norm"].mean()))
                 weight_norms.append(float(aux["weight_norm"].mean()))
 
-            next_obs, _, term, trunc, infos = self.envs.step(act.numpy())
-            term = np.asarray(term, dtype=bool)
-            trunc = np.asarray(trunc, dtype=bool)
-            done = term | trunc
-            sub_r, live, mask = decision_rewards(infos, done, E, k)
-            r_n = self.ret_norm(sub_r, mask, done)
-            boot = trunc & ~term
-            if boot.any():  # bootstrap truncated episodes from their final observation
-                fin = np.stack([np.asarray(o, dtype=np.float64) for o in infos["final_obs"][boot]])
-                fin_n = torch.from_numpy(self.obs_norm(fin.reshape(-1, self.obs_dim)))
-                with torch.no_grad():
-                    v_fin = self.rollout_model.value(fin_n)[:, 0].numpy()
-                r_n = bootstrap_truncated(r_n, mask, boot, v_fin, gamma)
+            r_n, mask, done = self._step_envs(act, dist, z, ctrl, episodes)
             rew_b[t], mask_b[t], end_b[t] = r_n, mask, done
             executed += int(mask.sum())
-            for key in CTRL_INFO:
-                if key in infos or "final_info" in infos:
-                    ctrl[key] += float(step_info(infos, done, key).sum())
-
-            self._episodes.add(infos, done, sub_r, live, mask, episodes)
-            if self._carry is not None:  # continue the noise; a new episode starts afresh
-                self._carry = dist.last_noise(z)
-                if done.any():
-                    fresh = torch.from_numpy(done)
-                    self._carry[fresh] = torch.randn(int(done.sum()), self._carry.shape[1])
-            self._obs = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
-            self._y0, self._dy0 = decision_start(infos, E, self._dmp_frame)
 
         with torch.no_grad():
             last_obs = torch.from_numpy(self.obs_norm(self._obs))
@@ -347,6 +350,48 @@ class Trainer(CountsUpdates):
             "per_decision": per_decision,
             "carry": None if carry_b is None else carry_b.reshape(n, -1),
         }
+
+    def _step_envs(
+        self,
+        act: torch.Tensor,
+        dist: PolicyDistribution,
+        z: torch.Tensor,
+        ctrl: dict[str, float],
+        episodes: list[tuple[float, float, float, float, float]],
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Execute one decision's actions [E, k, A] in every env: returns the normalised
+        sub-step rewards (truncated episodes bootstrapped from their final observation), the
+        executed-step mask [E, k] and the episode ends [E]; adds the controller counters to
+        ``ctrl``, finished episodes to ``episodes``, continues the AR(1) carry and moves the
+        envs' observation and robot state on."""
+        E, k = self.num_envs, self.k
+        next_obs, _, term, trunc, infos = self.envs.step(act.numpy())
+        term = np.asarray(term, dtype=bool)
+        trunc = np.asarray(trunc, dtype=bool)
+        done = term | trunc
+        sub_r, live, mask = decision_rewards(infos, done, E, k)
+        r_n = self.ret_norm(sub_r, mask, done)
+        boot = trunc & ~term
+        if boot.any():  # bootstrap truncated episodes from their final observation
+            fin = np.stack([np.asarray(o, dtype=np.float64) for o in infos["final_obs"][boot]])
+            fin_n = torch.from_numpy(self.obs_norm(fin.reshape(-1, self.obs_dim)))
+            with torch.no_grad():
+                v_fin = self.rollout_model.value(fin_n)[:, 0].numpy()
+            r_n = bootstrap_truncated(r_n, mask, boot, v_fin, self.cfg.ppo.gamma)
+        for key in CTRL_INFO:
+            if key in infos or "final_info" in infos:
+                ctrl[key] += float(step_info(infos, done, key).sum())
+
+        self._episodes.add(infos, done, sub_r, live, mask, episodes)
+        if self._carry is not None:  # continue the noise; a new episode starts afresh
+            assert isinstance(dist, AR1SubActionGaussian)  # _explore with a carry
+            self._carry = dist.last_noise(z)
+            if done.any():
+                fresh = torch.from_numpy(done)
+                self._carry[fresh] = torch.randn(int(done.sum()), self._carry.shape[1])
+        self._obs = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
+        self._y0, self._dy0 = decision_start(infos, E, self._dmp_frame)
+        return r_n, mask, done
 
     # ----------------------------------------------------------------------- update
     def learn(self, batch: dict[str, Any]) -> dict[str, float]:
@@ -390,56 +435,60 @@ class Trainer(CountsUpdates):
             bounds = [int(b) for b in np.linspace(0, n, n_mb + 1)]
             for lo, hi in itertools.pairwise(bounds):
                 mb = {key: val[lo:hi] for key, val in shuf.items()}
-                try:
-                    dist, _ = self.model.distribution(mb["obs"], mb["y0"], mb["dy0"])
-                except FloatingPointError as exc:
-                    raise self._diverged(f"non-finite DMP input in the update ({exc})") from None
-                dist = self._explore(dist, mb.get("carry"))
-                m, vm = mb["mask"], mb["vmask"]
-                mb_adv = normalize_advantages(mb["adv"], m) if per_mb_norm else mb["adv"]
-                if isinstance(dist, SubActionGaussian):  # fused surrogate: one autograd node
-                    pg, kl, cf = gaussian_policy_loss(
-                        dist.mean, dist.log_std, mb["z"], mb["logp"], mb_adv, m, p.clip
-                    )
-                else:
-                    pg, kl, cf = policy_loss(dist.log_prob(mb["z"]), mb["logp"], mb_adv, m, p.clip)
-                v = self.model.value(mb["obs"])
-                vl = value_loss(v, mb["values"], mb["returns"], vm, vclip)
-                if p.ent_coef > 0:
-                    ent = entropy_mean(dist.entropy(), vm)
-                    loss = pg + p.vf_coef * vl - p.ent_coef * ent
-                else:
-                    with torch.no_grad():
-                        ent = entropy_mean(dist.entropy(), vm)
-                    loss = pg + p.vf_coef * vl
-                self.opt.zero_grad()
-                loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
-                gn = self.opt.clip_grad_norm(p.max_grad_norm)
-                if not bool(torch.isfinite(loss.detach() + gn)):  # one check for both
-                    raise self._diverged(
-                        f"non-finite loss or gradient (policy {float(pg.detach())}, value "
-                        f"{float(vl.detach())}, gradient norm {float(gn)})"
-                    )
-                self.opt.step()
-                for key, val in (
-                    ("policy", pg),
-                    ("value", vl),
-                    ("entropy", ent),
-                    ("approx_kl", kl),
-                    ("clipfrac", cf),
-                    ("grad_norm", gn),
-                ):
-                    stats[key].append(val.detach())
+                for key, val in self._minibatch_step(mb, per_mb_norm, vclip).items():
+                    stats[key].append(val)
         self._check_params("after the update")
         self._sync_rollout_model()
         out = {k: float(torch.stack(v).mean()) for k, v in stats.items()}
-        valid = vmask_all > 0
-        y, yhat = batch["returns"][valid], batch["values"][valid]
-        var_y = float(y.var()) if y.numel() > 1 else 0.0
-        out["explained_variance"] = (
-            math.nan if var_y == 0 else 1.0 - float((y - yhat).var()) / var_y
-        )
+        out["explained_variance"] = explained_variance(batch["returns"], batch["values"], vmask_all)
         return out
+
+    def _minibatch_step(
+        self, mb: dict[str, torch.Tensor], per_mb_norm: bool, vclip: float | None
+    ) -> dict[str, torch.Tensor]:
+        """One PPO gradient step on the mini-batch ``mb`` (advantages normalised over it when
+        ``per_mb_norm``; ``vclip`` the value clip, None for none); returns its statistics
+        (detached): policy, value and entropy losses, approximate KL, clip fraction, gradient
+        norm.
+
+        Raises:
+            TrainingDivergedError: a non-finite DMP input, loss or gradient.
+        """
+        p = self.cfg.ppo
+        try:
+            dist, _ = self.model.distribution(mb["obs"], mb["y0"], mb["dy0"])
+        except FloatingPointError as exc:
+            raise self._diverged(f"non-finite DMP input in the update ({exc})") from None
+        dist = self._explore(dist, mb.get("carry"))
+        m, vm = mb["mask"], mb["vmask"]
+        mb_adv = normalize_advantages(mb["adv"], m) if per_mb_norm else mb["adv"]
+        if isinstance(dist, SubActionGaussian):  # fused surrogate: one autograd node
+            pg, kl, cf = gaussian_policy_loss(
+                dist.mean, dist.log_std, mb["z"], mb["logp"], mb_adv, m, p.clip
+            )
+        else:
+            pg, kl, cf = policy_loss(dist.log_prob(mb["z"]), mb["logp"], mb_adv, m, p.clip)
+        v = self.model.value(mb["obs"])
+        vl = value_loss(v, mb["values"], mb["returns"], vm, vclip)
+        if p.ent_coef > 0:
+            ent = entropy_mean(dist.entropy(), vm)
+            loss = pg + p.vf_coef * vl - p.ent_coef * ent
+        else:
+            with torch.no_grad():
+                ent = entropy_mean(dist.entropy(), vm)
+            loss = pg + p.vf_coef * vl
+        self.opt.zero_grad()
+        loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
+        gn = self.opt.clip_grad_norm(p.max_grad_norm)
+        if not bool(torch.isfinite(loss.detach() + gn)):  # one check for both
+            raise self._diverged(
+                f"non-finite loss or gradient (policy {float(pg.detach())}, value "
+                f"{float(vl.detach())}, gradient norm {float(gn)})"
+            )
+        self.opt.step()
+        stats = {"policy": pg, "value": vl, "entropy": ent, "approx_kl": kl, "clipfrac": cf,
+                 "grad_norm": gn}  # fmt: skip
+        return {key: val.detach() for key, val in stats.items()}
 
     # ----------------------------------------------------------------------- loop
     def iterate(self) -> dict[str, float]:
@@ -503,6 +552,15 @@ class Trainer(CountsUpdates):
         self.envs.close()
         self.evaluator.close()
         self.session.close()
+
+
+def explained_variance(returns: torch.Tensor, values: torch.Tensor, mask: torch.Tensor) -> float:
+    """``1 - Var(returns - values) / Var(returns)`` over the executed sub-steps (``mask`` > 0);
+    NaN where the returns do not vary."""
+    valid = mask > 0
+    y, yhat = returns[valid], values[valid]
+    var_y = float(y.var()) if y.numel() > 1 else 0.0
+    return math.nan if var_y == 0 else 1.0 - float((y - yhat).var()) / var_y
 
 
 def ppo_state(

@@ -35,6 +35,7 @@ from ndp.rl.logger import METRICS
 from ndp.rl.methods import section
 from ndp.rl.offpolicy.critics import TwinQ as TwinQ  # re-exported (its old home)
 from ndp.rl.offpolicy.loop import OffPolicyLearner, first_learning_decision, mean_of
+from ndp.rl.offpolicy.state import Part
 from ndp.rl.sac import SAC_METRICS
 from ndp.rl.sac.config import SACConfig
 from ndp.rl.sac.health import Q_RUNAWAY, q_runaway
@@ -45,6 +46,7 @@ from ndp.rl.sac.losses import (
     critic_target,
     soft_update,
 )
+from ndp.runs.checkpoint import REAL, FiniteTensor, MayLack, Spec
 from ndp.runs.session import RunSession, nonfinite_parameter
 
 COLUMNS = (*METRICS, *SAC_METRICS)
@@ -113,11 +115,12 @@ class SACLearner(OffPolicyLearner):
         session: the run's session (paths, the divergence message).
     """
 
+    section = "sac"
+
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         check_budget(cfg)  # before any env is built
         s = self.settings = section(cfg, SACConfig)
-        self._open_loop(cfg, session, random_steps=s.random_steps, batch_size=s.batch_size,
-                        updates_per_step=s.updates_per_step)  # fmt: skip
+        self._open_loop(cfg, session, s)
         self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         self.P = self.model.head.n_params // 2
         self.is_ndp = isinstance(self.model.head, SquashedNDPHead)
@@ -155,41 +158,29 @@ class SACLearner(OffPolicyLearner):
                  ("log_alpha", self.log_alpha)]  # fmt: skip
         return nonfinite_parameter(named)
 
-    def state_dict(self) -> dict[str, Any]:
-        """The policy checkpoint keys (``ndp.rl.methods.POLICY_CHECKPOINT_KEYS``) plus ``sac``:
-        critics, targets, optimisers, temperature, replay, generator, counters."""
+    def parts(self) -> dict[str, Part]:
+        """Saved under ``sac``: critics, targets, optimisers."""
         return {
-            "model": self.model.state_dict(),
-            "obs_norm": self.obs_norm.state_dict(),
-            "obs_dim": self.obs_dim,
-            "update": self.update,
-            "global_step": self.global_step,
-            "sac": {
-                "critic": self.critic.state_dict(),
-                "critic_target": self.critic_target.state_dict(),
-                "actor_opt": self.actor_opt.state_dict(),
-                "critic_opt": self.critic_opt.state_dict(),
-                "alpha_opt": self.alpha_opt.state_dict(),
-                "log_alpha": self.log_alpha.detach().clone(),
-                **self.loop_state(),
-                "return_peak": self.return_peak,
-            },
+            "critic": self.critic,
+            "critic_target": self.critic_target,
+            "actor_opt": self.actor_opt,
+            "critic_opt": self.critic_opt,
+            "alpha_opt": self.alpha_opt,
         }
 
-    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
-        """Continue from :meth:`state_dict`'s output (the session restores the global RNGs)."""
-        self.model.load_state_dict(ckpt["model"])
-        self.obs_norm.load_state_dict(ckpt["obs_norm"])
-        self.update, self.global_step = int(ckpt["update"]), int(ckpt["global_step"])
-        s = ckpt["sac"]
-        self.critic.load_state_dict(s["critic"])
-        self.critic_target.load_state_dict(s["critic_target"])
-        self.actor_opt.load_state_dict(s["actor_opt"])
-        self.critic_opt.load_state_dict(s["critic_opt"])
-        self.alpha_opt.load_state_dict(s["alpha_opt"])
+    def extra_state(self) -> dict[str, object]:
+        """The temperature and the critic-health peak."""
+        return {"log_alpha": self.log_alpha.detach().clone(), "return_peak": self.return_peak}
+
+    def extra_schema(self) -> dict[str, Spec]:
+        """``return_peak`` may be absent (checkpoints before 2026-12-05 lack it)."""
+        return {"log_alpha": FiniteTensor(self.log_alpha.detach()),
+                "return_peak": MayLack((REAL, type(None)))}  # fmt: skip
+
+    def load_extra_state(self, s: dict[str, Any]) -> None:
+        """The temperature and the peak."""
         with torch.no_grad():
             self.log_alpha.copy_(s["log_alpha"])
-        self.load_loop_state(s)
         self.return_peak = s.get("return_peak")  # checkpoints before 2026-12-05 lack it
 
     # ----------------------------------------------------------------------- acting
@@ -265,13 +256,8 @@ class SACLearner(OffPolicyLearner):
         dist = self._dist(b["obs"], b["y0"], b["dy0"])
         u = dist.rsample()
         logp = dist.log_prob(u)[:, 0]
-        for p in self._critic_params:  # the actor's loss does not train the critics
-            p.requires_grad_(False)
-        try:
+        with self._critics_frozen():  # the actor's loss does not train the critics
             q1_pi, q2_pi = self.critic(b["obs"], self.critic_input(u, dist))
-        finally:
-            for p in self._critic_params:
-                p.requires_grad_(True)
         la = actor_loss(logp, q1_pi, q2_pi, alpha)
         self._step(self.actor_opt, la, "actor")
         lt = alpha_loss(self.log_alpha, logp, self.target_entropy)
@@ -283,13 +269,6 @@ class SACLearner(OffPolicyLearner):
             "alpha": float(lt.detach()),
             "q": float(torch.minimum(q1, q2).detach().mean()),
         }
-
-    def _step(self, opt: torch.optim.Optimizer, loss: torch.Tensor, what: str) -> None:
-        if not bool(torch.isfinite(loss)):
-            raise self._diverged(f"the {what} loss became {float(loss.detach())}")
-        opt.zero_grad(set_to_none=True)
-        loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
-        opt.step()
 
     def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
         """SAC's columns of the row: learning rate, losses, temperature, Q, replay, steps."""

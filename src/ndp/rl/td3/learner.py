@@ -38,6 +38,7 @@ from ndp.rl.logger import METRICS
 from ndp.rl.methods import section
 from ndp.rl.offpolicy.critics import TwinQ
 from ndp.rl.offpolicy.loop import OffPolicyLearner, first_learning_decision, mean_of
+from ndp.rl.offpolicy.state import Part
 from ndp.rl.optim import soft_update
 from ndp.rl.td3 import TD3_METRICS
 from ndp.rl.td3.config import TD3Config
@@ -49,6 +50,7 @@ from ndp.rl.td3.losses import (
     smoothed_target_action,
     td3_target,
 )
+from ndp.runs.checkpoint import INT, Spec
 from ndp.runs.session import RunSession, nonfinite_parameter
 
 if TYPE_CHECKING:
@@ -90,11 +92,12 @@ class TD3Learner(OffPolicyLearner):
         session: the run's session (paths, the divergence message).
     """
 
+    section = "td3"
+
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         check_budget(cfg)  # before any env is built
         s = self.settings = section(cfg, TD3Config)
-        self._open_loop(cfg, session, random_steps=s.random_steps, batch_size=s.batch_size,
-                        updates_per_step=s.updates_per_step)  # fmt: skip
+        self._open_loop(cfg, session, s)
         self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         self.P = self.model.head.n_params // 2
         pol = cfg.policy
@@ -120,39 +123,27 @@ class TD3Learner(OffPolicyLearner):
             [*self.model.actor.named_parameters(), *self.critic.named_parameters()]
         )
 
-    def state_dict(self) -> dict[str, Any]:
-        """The policy checkpoint keys (``ndp.rl.methods.POLICY_CHECKPOINT_KEYS``) plus ``td3``:
-        critics, targets, optimisers, replay, generator, counters."""
+    def parts(self) -> dict[str, Part]:
+        """Saved under ``td3``: critics, targets, optimisers."""
         return {
-            "model": self.model.state_dict(),
-            "obs_norm": self.obs_norm.state_dict(),
-            "obs_dim": self.obs_dim,
-            "update": self.update,
-            "global_step": self.global_step,
-            "td3": {
-                "critic": self.critic.state_dict(),
-                "critic_target": self.critic_target.state_dict(),
-                "actor_target": self.actor_target.state_dict(),
-                "actor_opt": self.actor_opt.state_dict(),
-                "critic_opt": self.critic_opt.state_dict(),
-                "actor_updates": self.actor_updates,
-                **self.loop_state(),
-            },
+            "critic": self.critic,
+            "critic_target": self.critic_target,
+            "actor_target": self.actor_target,
+            "actor_opt": self.actor_opt,
+            "critic_opt": self.critic_opt,
         }
 
-    def load_state_dict(self, ckpt: dict[str, Any]) -> None:
-        """Continue from :meth:`state_dict`'s output (the session restores the global RNGs)."""
-        self.model.load_state_dict(ckpt["model"])
-        self.obs_norm.load_state_dict(ckpt["obs_norm"])
-        self.update, self.global_step = int(ckpt["update"]), int(ckpt["global_step"])
-        s = ckpt["td3"]
-        self.critic.load_state_dict(s["critic"])
-        self.critic_target.load_state_dict(s["critic_target"])
-        self.actor_target.load_state_dict(s["actor_target"])
-        self.actor_opt.load_state_dict(s["actor_opt"])
-        self.critic_opt.load_state_dict(s["critic_opt"])
+    def extra_state(self) -> dict[str, object]:
+        """The count of actor updates."""
+        return {"actor_updates": self.actor_updates}
+
+    def extra_schema(self) -> dict[str, Spec]:
+        """``actor_updates``: an integer."""
+        return {"actor_updates": INT}
+
+    def load_extra_state(self, s: dict[str, Any]) -> None:
+        """The count of actor updates."""
         self.actor_updates = int(s["actor_updates"])
-        self.load_loop_state(s)
 
     # ----------------------------------------------------------------------- acting
     def policy_action(
@@ -201,14 +192,9 @@ class TD3Learner(OffPolicyLearner):
         self._step(self.critic_opt, lc, "critic")
         out = {"critic": float(lc.detach()), "q": float(torch.minimum(q1, q2).detach().mean())}
         if actor_update_due(self.grad_steps + 1, s.policy_delay):  # the loop counts after
-            for p in self._critic_params:  # the actor's loss does not train the critics
-                p.requires_grad_(False)
-            try:
-                q1_pi, _ = self.critic(b["obs"], self.policy_action(self.model, b["obs"], b["y0"],
-                                                                    b["dy0"]))  # fmt: skip
-            finally:
-                for p in self._critic_params:
-                    p.requires_grad_(True)
+            with self._critics_frozen():  # the actor's loss does not train the critics
+                p_pi = self.policy_action(self.model, b["obs"], b["y0"], b["dy0"])
+                q1_pi, _ = self.critic(b["obs"], p_pi)
             la = actor_loss(q1_pi)
             self._step(self.actor_opt, la, "actor")
             soft_update(self.critic_target, self.critic, s.tau)
@@ -216,13 +202,6 @@ class TD3Learner(OffPolicyLearner):
             self.actor_updates += 1
             out["actor"] = float(la.detach())
         return out
-
-    def _step(self, opt: torch.optim.Optimizer, loss: torch.Tensor, what: str) -> None:
-        if not bool(torch.isfinite(loss)):
-            raise self._diverged(f"the {what} loss became {float(loss.detach())}")
-        opt.zero_grad(set_to_none=True)
-        loss.backward()  # type: ignore[no-untyped-call]  # torch: Tensor.backward is unannotated
-        opt.step()
 
     def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
         """TD3's columns of the row: learning rate, losses, Q, replay, step counts."""

@@ -17,9 +17,12 @@ import argparse
 import dataclasses
 import json
 import sys
-from typing import Any
+from typing import Any, TypeAlias
 
 from ndp.rl.config import EVAL_SEED, FRESH_EVAL_SEED, TrainConfig
+
+_SubParsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
+"""What ``ArgumentParser.add_subparsers()`` returns: where sub-commands are registered."""
 
 TRAIN_NOTES = (
     "Unset NDP fields come "
@@ -52,7 +55,7 @@ def train_description() -> str:
     )
 
 
-def add_subparser(sub: Any) -> None:
+def add_subparser(sub: _SubParsers) -> None:
     """Register ``rl`` with sub-commands ``train``, ``methods``, ``eval``, ``export``,
     ``fit-basis``, ``render`` and ``diagnose``."""
     rl = sub.add_parser(
@@ -66,7 +69,12 @@ def add_subparser(sub: Any) -> None:
 
     ms = rl_sub.add_parser("methods", help="list the registered methods (--algo values)")
     ms.set_defaults(func=_cmd_methods)
+    for add in (_add_eval, _add_export, _add_push, _add_fit_basis, _add_render, _add_diagnose):
+        add(rl_sub)
 
+
+def _add_eval(rl_sub: _SubParsers) -> None:
+    """``ndp rl eval RUN_DIR``: success over N episodes, per mode and ``--exec-k``."""
     ev = rl_sub.add_parser("eval", help="success of a trained run over N episodes")
     ev.add_argument("run_dir", metavar="RUN_DIR")
     ev.add_argument("--episodes", type=int, default=10, help="episodes per mode (default 10)")
@@ -102,6 +110,9 @@ def add_subparser(sub: Any) -> None:
     )
     ev.set_defaults(func=_cmd_eval)
 
+
+def _add_export(rl_sub: _SubParsers) -> None:
+    """``ndp rl export RUN_DIR OUT_DIR``: a trained run's policy as safetensors or ONNX."""
     ex = rl_sub.add_parser(
         "export",
         help="export a trained run's policy (safetensors + JSON, no pickle; or one ONNX graph)",
@@ -119,6 +130,9 @@ def add_subparser(sub: Any) -> None:
     )
     ex.set_defaults(func=_cmd_export)
 
+
+def _add_push(rl_sub: _SubParsers) -> None:
+    """``ndp rl push SOURCE ORG/NAME``: upload a policy to the Hugging Face Hub."""
     pu = rl_sub.add_parser(
         "push",
         help="upload a run's policy (exported, with its card) or an export folder to the "
@@ -130,6 +144,9 @@ def add_subparser(sub: Any) -> None:
     pu.add_argument("--message", default=None, help="the commit message")
     pu.set_defaults(func=_cmd_push)
 
+
+def _add_fit_basis(rl_sub: _SubParsers) -> None:
+    """``ndp rl fit-basis RUN_DIR... --out FILE``: PPO-multi's 'pca' chunk basis."""
     fb = rl_sub.add_parser(
         "fit-basis",
         help="fit PPO-multi's 'pca' chunk basis (--chunk-basis pca) to trained PPO-multi runs",
@@ -155,6 +172,9 @@ def add_subparser(sub: Any) -> None:
     fb.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     fb.set_defaults(func=_cmd_fit_basis)
 
+
+def _add_render(rl_sub: _SubParsers) -> None:
+    """``ndp rl render RUN_DIR``: an mp4 of a trained run (or two, side by side)."""
     rd = rl_sub.add_parser("render", help="render a trained run to mp4")
     rd.add_argument("run_dir", metavar="RUN_DIR")
     rd.add_argument("--out", default=None, help="mp4 path (default RUN_DIR/video.mp4)")
@@ -198,6 +218,9 @@ def add_subparser(sub: Any) -> None:
     )
     rd.set_defaults(func=_cmd_render)
 
+
+def _add_diagnose(rl_sub: _SubParsers) -> None:
+    """``ndp rl diagnose``: the handicap or (``--jacobian``) conditioning diagnostic."""
     dg = rl_sub.add_parser(
         "diagnose",
         help="the NDP head's handicaps on a rollout, or (--jacobian) the conditioning of its "

@@ -352,23 +352,8 @@ def diagnose_main(argv: list[str] | None = None) -> int:
 
 def train_command(argv: list[str]) -> int:
     """``ndp rl train [--resume RUN_DIR | --overwrite] [options of TrainConfig]``."""
-    from ndp.rl.config import (
-        SAFE_ON_RESUME,
-        load_config,
-        resolve_config,
-        unused_basis_options,
-        unused_head_options,
-        unused_method_options,
-    )
-    from ndp.runs import RunDir
-    from ndp.runs.cli import changed_fields, parse_config, pop_flag, pop_option
+    from ndp.runs.cli import pop_flag, pop_option
     from ndp.runs.signals import report_stop, stop_on_sigterm
-
-    # the trainer (torch, the simulators) is imported only once the options are parsed
-    def trainer() -> Any:
-        from ndp.rl import run as module
-
-        return module
 
     resume_dir, rest = pop_option(argv, "--resume")
     overwrite, rest = pop_flag(rest, "--overwrite")
@@ -384,48 +369,16 @@ def train_command(argv: list[str]) -> int:
     try:
         with stop_on_sigterm():
             if resume_dir is not None:
-                saved = load_config(RunDir(resume_dir).config)
-                saved = dataclasses.replace(saved, run_dir=str(resume_dir))
-                cfg = parse_config(
-                    TrainConfig, rest, prog=prog, description=train_description(), default=saved
-                )
-                changed = changed_fields(saved, cfg)
-                refused = [f for f in changed if f not in SAFE_ON_RESUME]
-                if refused:
-                    raise ValueError(
-                        f"resume: these options would change the run and are refused: {refused} "
-                        f"(only {list(SAFE_ON_RESUME)} may change; start a new run for the others)"
-                    )
-                metrics = trainer().resume(resume_dir, **{f: getattr(cfg, f) for f in changed})
+                metrics = _resume_run(resume_dir, rest, prog)
                 if not metrics:
-                    print(
-                        f"ndp: nothing to do: {resume_dir} has finished its budget; --resume "
-                        "with a larger --steps extends it",
-                        file=sys.stderr,
-                    )
                     return 0
             else:
-                base = config_from_file(config_file) if config_file is not None else None
-                cfg = parse_config(
-                    TrainConfig, rest, prog=prog, description=train_description(), default=base
-                )
-                unused = unused_head_options(cfg)  # before resolving, which clears them
-                unused_basis = unused_basis_options(cfg)
-                other = unused_method_options(cfg)
-                if other:  # a learner's option that this method does not read: refused
-                    raise ValueError(unread_learner_message(cfg.algo, other))
-                # resolved once, here: the run directory every message names is the one the
-                # run writes (an alias task or VICES's task variant gives the canonical row)
-                cfg = resolve_config(cfg)
+                cfg = _new_run_config(rest, prog, config_file)
                 run_name = cfg.run_dir or "."
-                if unused:
-                    print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "
-                          f"--algo {cfg.algo} does not run; not used", file=sys.stderr)  # fmt: skip
-                if unused_basis:
-                    print(f"ndp: note: {', '.join(unused_basis)}: options of PPO-multi's "
-                          f"chunk basis, which --algo {cfg.algo} does not run; not used",
-                          file=sys.stderr)  # fmt: skip
-                metrics = trainer().train(cfg, overwrite=overwrite, resolved=True)
+                # the trainer (torch, the simulators) is imported only once the options are parsed
+                from ndp.rl.run import train
+
+                metrics = train(cfg, overwrite=overwrite, resolved=True)
     except FloatingPointError as exc:  # ndp.rl.onpolicy.trainer.TrainingDivergedError
         print(f"ndp: error: {exc}", file=sys.stderr)
         return 3
@@ -434,6 +387,67 @@ def train_command(argv: list[str]) -> int:
     keys = ("update", "global_step", "charts/success_any", "charts/episode_return")
     print(json.dumps({k: metrics.get(k) for k in keys}))
     return 0
+
+
+def _resume_run(resume_dir: str, rest: list[str], prog: str) -> dict[str, float]:
+    """``--resume RUN_DIR``: continue the run with the options that may change on a resume
+    (refusing the others). Its metrics, or an empty dict (said on stderr) when its budget is
+    already spent."""
+    from ndp.rl.config import SAFE_ON_RESUME, load_config
+    from ndp.runs import RunDir
+    from ndp.runs.cli import changed_fields, parse_config
+
+    saved = load_config(RunDir(resume_dir).config)
+    saved = dataclasses.replace(saved, run_dir=str(resume_dir))
+    cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description(), default=saved)
+    changed = changed_fields(saved, cfg)
+    refused = [f for f in changed if f not in SAFE_ON_RESUME]
+    if refused:
+        raise ValueError(
+            f"resume: these options would change the run and are refused: {refused} "
+            f"(only {list(SAFE_ON_RESUME)} may change; start a new run for the others)"
+        )
+    from ndp.rl.run import resume
+
+    metrics = resume(resume_dir, **{f: getattr(cfg, f) for f in changed})
+    if not metrics:
+        print(
+            f"ndp: nothing to do: {resume_dir} has finished its budget; --resume "
+            "with a larger --steps extends it",
+            file=sys.stderr,
+        )
+    return metrics
+
+
+def _new_run_config(rest: list[str], prog: str, config_file: str | None) -> TrainConfig:
+    """A new run's config: the options over ``--config FILE`` (or the defaults), a learner's
+    option that the method does not read refused, resolved once, here (the run directory
+    every message names is the one the run writes: an alias task or VICES's task variant
+    gives the canonical row). Options of a part the method does not run are noted on stderr."""
+    from ndp.rl.config import (
+        resolve_config,
+        unused_basis_options,
+        unused_head_options,
+        unused_method_options,
+    )
+    from ndp.runs.cli import parse_config
+
+    base = config_from_file(config_file) if config_file is not None else None
+    cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description(), default=base)
+    unused = unused_head_options(cfg)  # before resolving, which clears them
+    unused_basis = unused_basis_options(cfg)
+    other = unused_method_options(cfg)
+    if other:  # a learner's option that this method does not read: refused
+        raise ValueError(unread_learner_message(cfg.algo, other))
+    cfg = resolve_config(cfg)
+    if unused:
+        print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "
+              f"--algo {cfg.algo} does not run; not used", file=sys.stderr)  # fmt: skip
+    if unused_basis:
+        print(f"ndp: note: {', '.join(unused_basis)}: options of PPO-multi's "
+              f"chunk basis, which --algo {cfg.algo} does not run; not used",
+              file=sys.stderr)  # fmt: skip
+    return cfg
 
 
 def config_from_file(path: str) -> TrainConfig:

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Annotated, Any, cast
 
 from ndp.checks import check_int, check_positive, plain_numbers
 from ndp.policies.config import PolicyConfig
-from ndp.rl.methods import METHODS, SETTINGS, settings_sections
+from ndp.rl.methods import METHODS, SETTINGS, Method, settings_sections
 from ndp.runs.cli import cli
 
 EVAL_SEED = 10_000
@@ -471,33 +471,45 @@ def resolve_config(cfg: TrainConfig, spec: TaskSpec | None = None) -> TrainConfi
 
         spec = resolve_task(cfg.task).spec
     from ndp.checks import check_device_available
-    from ndp.envs.factory import task_options
+    from ndp.envs.factory import check_observation, task_options
 
     task_options(spec, cfg.reward_version)  # v1 rewards on a task without them: refused here
-    from ndp.envs.factory import check_observation
-
     check_observation(spec, cfg.observation)
     check_device_available(cfg.device)  # before any env is built or run folder made
-    from ndp.policies.config import DEFAULT_K
-    from ndp.policies.heads import SINGLE_STEP_HEADS
-
     method = METHODS[cfg.algo]
     if method.task_variant is not None:
         spec = method.task_variant(spec)
+    policy = _resolve_policy(cfg, method, spec)
+    run_dir = cfg.run_dir or default_run_dir(spec.name, cfg.algo, cfg.seed)
+    goals = _resolve_goals(cfg, spec)
+    assert policy.k is not None  # set by _resolve_policy
+    _check_env_options(cfg, spec, policy.k, goals)
+    from ndp.envs.rewards import check_smooth_lambda
+
+    price = check_smooth_lambda(cfg.smooth_lambda, cfg.reward) if cfg.reward == "smooth" else None
+    return dataclasses.replace(
+        cfg, task=spec.name, policy=policy, run_dir=run_dir, goals=goals, smooth_lambda=price
+    )
+
+
+def _resolve_policy(cfg: TrainConfig, method: Method, spec: TaskSpec) -> PolicyConfig:
+    """:func:`resolve_config`'s policy: the method's head and k (a k the method cannot run
+    refused, naming k), the DMP frame from the task's preset where None, PPO-multi's chunk
+    basis cleared for the other heads, then the method's own resolution and the defaults."""
+    from ndp.envs.presets import preset_of
+    from ndp.policies.config import BASIS_HEADS, DEFAULT_K
+    from ndp.policies.heads import SINGLE_STEP_HEADS
+
     pol = cfg.policy
     k_asked = pol.k
     one_action = method.head in SINGLE_STEP_HEADS
     k = 1 if one_action else (k_asked or DEFAULT_K)
     # the DMP frame is read by the trainer for every method (the robot state it records)
-    from ndp.envs.presets import preset_of
-
     preset = preset_of(spec)
     frame = {
         name: getattr(pol, name) if getattr(pol, name) is not None else getattr(preset, name)
         for name in ("dmp_state", "dmp_velocity")
     }
-    from ndp.policies.config import BASIS_HEADS
-
     if method.head not in BASIS_HEADS:  # PPO-multi's chunk basis: cleared for other heads
         frame.update(chunk_basis="none", chunk_basis_file=None)  # (a note names it: cli)
     with_k = dataclasses.replace(pol, head=method.head, k=k, **frame)
@@ -509,7 +521,14 @@ def resolve_config(cfg: TrainConfig, spec: TaskSpec | None = None) -> TrainConfi
             else f"decides every {policy.k} env step(s) on {spec.name}"
         )
         raise ValueError(f"k: --algo {cfg.algo} {how}, got k={k_asked}")
-    run_dir = cfg.run_dir or default_run_dir(spec.name, cfg.algo, cfg.seed)
+    return policy
+
+
+def _resolve_goals(cfg: TrainConfig, spec: TaskSpec) -> str:
+    """:func:`resolve_config`'s ``goals``: ``"as-release"`` becomes what the release gave the
+    method on the task; ``"release"`` is refused, before any run folder, where there is none."""
+    from ndp.envs.factory import task_options
+
     goals = cfg.goals
     if goals == "as-release":
         from ndp.envs.release import release_goals
@@ -520,23 +539,24 @@ def resolve_config(cfg: TrainConfig, spec: TaskSpec | None = None) -> TrainConfi
             raise ValueError(f"goals: 'as-release' needs a task the release ran ({exc})") from None
     if goals == "release":  # refused here, before any run folder, where there is none
         task_options(spec, cfg.reward_version, "release")
-    from ndp.envs.rewards import check_smooth_lambda, check_stale_world
+    return goals
 
-    assert policy.k is not None  # set just above
-    check_stale_world(cfg.reward, cfg.stale_world, policy.k)
+
+def _check_env_options(cfg: TrainConfig, spec: TaskSpec, k: int, goals: str) -> None:
+    """:func:`resolve_config`'s environment checks: the stale-world rule with the reward at
+    this k, and the backend (what EnvPool does not serve refused; its install hint where it is
+    missing), before any run folder."""
     from ndp.envs.envpool_backend import check_backend
+    from ndp.envs.rewards import check_stale_world
 
+    check_stale_world(cfg.reward, cfg.stale_world, k)
     fixed = None if goals == "random" else goals
-    check_backend(cfg.backend, spec, k=policy.k, stale_world=cfg.stale_world,
+    check_backend(cfg.backend, spec, k=k, stale_world=cfg.stale_world,
                   reward_version=cfg.reward_version, fixed_goal=fixed)  # fmt: skip
     if cfg.backend == "envpool":
         from ndp.envs.envpool_backend import import_envpool
 
         import_envpool()  # the install hint before any run folder
-    price = check_smooth_lambda(cfg.smooth_lambda, cfg.reward) if cfg.reward == "smooth" else None
-    return dataclasses.replace(
-        cfg, task=spec.name, policy=policy, run_dir=run_dir, goals=goals, smooth_lambda=price
-    )
 
 
 def default_run_dir(task: str, algo: str, seed: int) -> str:

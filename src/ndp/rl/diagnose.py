@@ -130,41 +130,7 @@ def diagnose(
         **cfg.chunk_options(),
     )
     key = "cmd" if cfg.policy.dmp_state == "commanded" else "dmp"
-    scale = np.array([s if s > 0 else 1.0 for s in spec.action_scale])[: spec.action_dim]
-    delta = ~np.array(spec.action_absolute)[: spec.action_dim]
-    absolute = np.flatnonzero(~delta)
-    low, high = np.array(spec.action_low), np.array(spec.action_high)
-    gen = torch.Generator().manual_seed(seed)
-    obs, info = env.reset(seed=seed)
-    intended, executed, moved, grip_mean, prev_cmd = [], [], [], [], []
-    last_cmd = info[f"{key}_y0"][absolute] if absolute.size else None
-    for _ in range(decisions):
-        o = torch.from_numpy(obs_norm(np.asarray(obs, dtype=np.float64)[None], update=True))
-        y0 = torch.as_tensor(info[f"{key}_y0"], dtype=torch.float32)[None]
-        dy0 = torch.as_tensor(info[f"{key}_dy0"], dtype=torch.float32)[None]
-        with torch.no_grad():
-            dist, _ = model.distribution(o, y0, dy0)
-            z = dist.sample(gen)
-            act = dist.actions(z)[0].numpy()
-            mean = dist.actions(dist.mode())[0].numpy()
-        ex = np.clip(act, low, high)
-        intended.append(np.abs(mean[:, delta]) * scale[delta])
-        executed.append(np.abs(ex[:, delta]) * scale[delta])
-        before = info[f"{key}_y0"]
-        if absolute.size:
-            assert last_cmd is not None  # set whenever there are absolute DoF
-            grip_mean.append(mean[:, absolute[0]])
-            prev_cmd.append(float(last_cmd[0]))
-        obs, _, term, trunc, info = env.step(act)
-        # commanded-target motion per sub-step of this decision (measured in the env)
-        cmd_now = dmp_start(info, "commanded")[0]
-        moved.append(
-            np.abs(cmd_now[: len(delta)][delta] - np.asarray(before)[: len(delta)][delta]) / k
-        )
-        last_cmd = ex[-1, absolute] if absolute.size else None
-        if term or trunc:
-            obs, info = env.reset()
-            last_cmd = info[f"{key}_y0"][absolute] if absolute.size else None
+    rec = _handicap_rollout(env, model, obs_norm, spec, key, decisions, seed)
     env.close()
     out: dict[str, Any] = {
         "task": cfg.task,
@@ -179,20 +145,89 @@ def diagnose(
             },
             **{f: getattr(cfg.policy, f) for f in ("dmp_state", "dmp_velocity", "init_log_std")},
         },
-        "intended_disp": np.mean(intended, axis=(0, 2)).tolist(),
-        "executed_disp": np.mean(executed, axis=(0, 2)).tolist(),
-        "moved_disp_per_substep": float(np.mean(moved)),
-        "action_scale": float(scale[delta].mean()),
+        "intended_disp": np.mean(rec.intended, axis=(0, 2)).tolist(),
+        "executed_disp": np.mean(rec.executed, axis=(0, 2)).tolist(),
+        "moved_disp_per_substep": float(np.mean(rec.moved)),
+        "action_scale": rec.action_scale,
     }
-    if grip_mean:
-        g = np.array(grip_mean)  # [decisions, k]
-        p = np.array(prev_cmd)
+    if rec.grip_mean:
+        g = np.array(rec.grip_mean)  # [decisions, k]
+        p = np.array(rec.prev_cmd)
         out["grip_mean_std"] = g.std(0).tolist()
         out["grip_noise_corr"] = [
             float(np.corrcoef(g[:, j], p)[0, 1]) if g[:, j].std() > 1e-9 and p.std() > 1e-9 else 0.0
             for j in range(k)
         ]
     return out
+
+
+@dataclasses.dataclass
+class _Handicaps:
+    """What :func:`_handicap_rollout` records, a row per decision (the module docstring)."""
+
+    action_scale: float
+    """The mean action scale of the delta DoF (m or rad per sub-step)."""
+    intended: list[np.ndarray] = dataclasses.field(default_factory=list)
+    """|mean| of the delta DoF times their scale, [k, delta DoF]."""
+    executed: list[np.ndarray] = dataclasses.field(default_factory=list)
+    """|clip(sample)| of the delta DoF times their scale, [k, delta DoF]."""
+    moved: list[np.ndarray] = dataclasses.field(default_factory=list)
+    """The commanded target's motion per sub-step, [delta DoF]."""
+    grip_mean: list[np.ndarray] = dataclasses.field(default_factory=list)
+    """The first absolute DoF's sub-step means, [k] (none without absolute DoF)."""
+    prev_cmd: list[float] = dataclasses.field(default_factory=list)
+    """That DoF's command executed last before the decision."""
+
+
+def _handicap_rollout(
+    env: ChunkedEnv,
+    model: ActorCritic,
+    obs_norm: ObsNormalizer,
+    spec: TaskSchema,
+    key: str,
+    decisions: int,
+    seed: int,
+) -> _Handicaps:
+    """Run ``decisions`` decisions of the stochastic policy in ``env`` (the normaliser
+    learning, episodes reset as they end) and record the handicaps of each; ``key``: the
+    DMP frame's info prefix (``cmd`` or ``dmp``)."""
+    k = env.k
+    scale = np.array([s if s > 0 else 1.0 for s in spec.action_scale])[: spec.action_dim]
+    delta = ~np.array(spec.action_absolute)[: spec.action_dim]
+    absolute = np.flatnonzero(~delta)
+    low, high = np.array(spec.action_low), np.array(spec.action_high)
+    rec = _Handicaps(action_scale=float(scale[delta].mean()))
+    gen = torch.Generator().manual_seed(seed)
+    obs, info = env.reset(seed=seed)
+    last_cmd = info[f"{key}_y0"][absolute] if absolute.size else None
+    for _ in range(decisions):
+        o = torch.from_numpy(obs_norm(np.asarray(obs, dtype=np.float64)[None], update=True))
+        y0 = torch.as_tensor(info[f"{key}_y0"], dtype=torch.float32)[None]
+        dy0 = torch.as_tensor(info[f"{key}_dy0"], dtype=torch.float32)[None]
+        with torch.no_grad():
+            dist, _ = model.distribution(o, y0, dy0)
+            z = dist.sample(gen)
+            act = dist.actions(z)[0].numpy()
+            mean = dist.actions(dist.mode())[0].numpy()
+        ex = np.clip(act, low, high)
+        rec.intended.append(np.abs(mean[:, delta]) * scale[delta])
+        rec.executed.append(np.abs(ex[:, delta]) * scale[delta])
+        before = info[f"{key}_y0"]
+        if absolute.size:
+            assert last_cmd is not None  # set whenever there are absolute DoF
+            rec.grip_mean.append(mean[:, absolute[0]])
+            rec.prev_cmd.append(float(last_cmd[0]))
+        obs, _, term, trunc, info = env.step(act)
+        # commanded-target motion per sub-step of this decision (measured in the env)
+        cmd_now = dmp_start(info, "commanded")[0]
+        rec.moved.append(
+            np.abs(cmd_now[: len(delta)][delta] - np.asarray(before)[: len(delta)][delta]) / k
+        )
+        last_cmd = ex[-1, absolute] if absolute.size else None
+        if term or trunc:
+            obs, info = env.reset()
+            last_cmd = info[f"{key}_y0"][absolute] if absolute.size else None
+    return rec
 
 
 def _decisions(

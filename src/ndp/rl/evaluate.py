@@ -303,22 +303,10 @@ def render(
 
     os.environ.setdefault("MUJOCO_GL", "egl")
 
-    target = Path(out) if out is not None else default_output_dir(run_dir) / "video.mp4"
-    # before rendering anything; an existing file at a path the user named needs overwrite
-    check_output_path(target, "out", overwrite=None if out is None else overwrite)
-    for name, side in (("width", width), ("height", height)):
-        if side is not None:
-            check_render_size(name, side)  # before loading or rendering anything
-            check_video_size(name, side)  # what the mp4 encoder accepts
-    if compare is not None:
-        other = load_policy(compare)
-        mine = load_policy(run_dir)
-        if other.cfg.task != mine.cfg.task:
-            raise ValueError(
-                f"compare: {compare} is a {other.cfg.task} run, {run_dir} a {mine.cfg.task} run"
-            )
+    target = _render_target(run_dir, out, compare, width, height, overwrite)
     size = (width, height)
     frames, rows, pol = _record(run_dir, episodes, deterministic, seed, exec_k, size)
+    frame_h, frame_w = frames[0].shape[:2]  # one run's frame (before side_by_side)
     result: dict[str, Any] = {}
     if compare is not None:
         frames_b, rows_b, pol_b = _record(compare, episodes, deterministic, seed, exec_k, size)
@@ -328,8 +316,6 @@ def render(
                 f"trained one and {run_dir} at {pol.substeps}; the videos would not line up"
             )
         result["success_any_compare"] = float(np.mean([r["success_any"] for r in rows_b]))
-    frame_h, frame_w = frames[0].shape[:2]  # one run's frame (before side_by_side)
-    if compare is not None:
         frames = side_by_side(frames, frames_b)
     stride, fps = video_rate(float(pol.spec.control_dt))  # the finer row at exec_k
     frames = frames[::stride]
@@ -344,6 +330,34 @@ def render(
         "fps": fps,
         **result,
     }
+
+
+def _render_target(
+    run_dir: str | Path,
+    out: str | Path | None,
+    compare: str | Path | None,
+    width: int | None,
+    height: int | None,
+    overwrite: bool,
+) -> Path:
+    """:func:`render`'s mp4 path, its arguments checked before anything is rendered: the path
+    (an existing file the user named needs ``overwrite``), the frame size, and that a
+    ``compare`` run is of the same task."""
+    target = Path(out) if out is not None else default_output_dir(run_dir) / "video.mp4"
+    # before rendering anything; an existing file at a path the user named needs overwrite
+    check_output_path(target, "out", overwrite=None if out is None else overwrite)
+    for name, side in (("width", width), ("height", height)):
+        if side is not None:
+            check_render_size(name, side)  # before loading or rendering anything
+            check_video_size(name, side)  # what the mp4 encoder accepts
+    if compare is not None:
+        other = load_policy(compare)
+        mine = load_policy(run_dir)
+        if other.cfg.task != mine.cfg.task:
+            raise ValueError(
+                f"compare: {compare} is a {other.cfg.task} run, {run_dir} a {mine.cfg.task} run"
+            )
+    return target
 
 
 EXEC_K_TABLE_KEYS = (

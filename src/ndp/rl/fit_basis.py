@@ -104,17 +104,7 @@ def fit_basis(
     out_path = check_output_path(out, "out", overwrite=overwrite)
     policies = [load_policy(r) for r in run_dirs]
     first = policies[0]
-    task, k, a = first.cfg.task, first.cfg.k, int(first.spec.action_dim)
-    for run, pol in zip(run_dirs, policies, strict=True):
-        if pol.cfg.algo not in FIT_ALGOS:
-            raise ValueError(
-                f"run_dirs: {run} is a {pol.cfg.algo} run; expected {', '.join(FIT_ALGOS)}"
-            )
-        got = (pol.cfg.task, pol.cfg.k, int(pol.spec.action_dim))
-        if got != (task, k, a):
-            raise ValueError(
-                f"run_dirs: {run} has (task, k, DoF count) {got}, the first run {(task, k, a)}"
-            )
+    task, k, a = _check_runs(run_dirs, policies)
     if n_basis is None:
         from ndp.envs.presets import preset_of
 
@@ -139,16 +129,7 @@ def fit_basis(
         "decisions": int(chunks.shape[0]),
         "mode": "deterministic" if deterministic else "stochastic",
         "seed": seed,
-        "runs": [
-            {
-                "path": portable_path(r),
-                "seed": p.cfg.seed,
-                "steps": p.cfg.steps,
-                "chunk_basis": p.cfg.policy.chunk_basis,
-                "commits": run_commits(r) or list((p.training or {}).get("commits") or []),
-            }
-            for r, p in zip(run_dirs, policies, strict=True)
-        ],
+        "runs": _runs_provenance(run_dirs, policies),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "commit": git_commit(),
         "versions": installed_versions(),
@@ -170,3 +151,38 @@ def fit_basis(
         "decisions": int(chunks.shape[0]),
         "explained": [round(float(e), 6) for e in explained],
     }
+
+
+def _check_runs(run_dirs: Sequence[str | Path], policies: Sequence[Policy]) -> tuple[str, int, int]:
+    """``(task, k, DoF count)`` of the first run, every run checked to be a PPO-multi run of
+    the same (ValueError naming the run)."""
+    first = policies[0]
+    task, k, a = first.cfg.task, first.cfg.k, int(first.spec.action_dim)
+    for run, pol in zip(run_dirs, policies, strict=True):
+        if pol.cfg.algo not in FIT_ALGOS:
+            raise ValueError(
+                f"run_dirs: {run} is a {pol.cfg.algo} run; expected {', '.join(FIT_ALGOS)}"
+            )
+        got = (pol.cfg.task, pol.cfg.k, int(pol.spec.action_dim))
+        if got != (task, k, a):
+            raise ValueError(
+                f"run_dirs: {run} has (task, k, DoF count) {got}, the first run {(task, k, a)}"
+            )
+    return task, k, a
+
+
+def _runs_provenance(
+    run_dirs: Sequence[str | Path], policies: Sequence[Policy]
+) -> list[dict[str, object]]:
+    """The basis file's record of each run it was fitted to: its path, seed, budget, chunk
+    basis and commits."""
+    return [
+        {
+            "path": portable_path(r),
+            "seed": p.cfg.seed,
+            "steps": p.cfg.steps,
+            "chunk_basis": p.cfg.policy.chunk_basis,
+            "commits": run_commits(r) or list((p.training or {}).get("commits") or []),
+        }
+        for r, p in zip(run_dirs, policies, strict=True)
+    ]

@@ -114,26 +114,8 @@ def fit_basis(
     chunk_basis.check_columns("pca", columns, k)
     chunks = np.concatenate([collect_chunks(p, decisions, seed, deterministic) for p in policies])
     basis, sing, explained = chunk_basis.pca_basis(chunks, columns)
-    provenance = {
-        "format": chunk_basis.BASIS_FILE_FORMAT,
-        "version": chunk_basis.BASIS_FILE_VERSION,
-        "basis": "pca",
-        "centred": False,
-        "task": task,
-        "algo": first.cfg.algo,
-        "k": k,
-        "action_dim": a,
-        "n_basis": n_basis,
-        "columns": columns,
-        "decisions_per_run": decisions,
-        "decisions": int(chunks.shape[0]),
-        "mode": "deterministic" if deterministic else "stochastic",
-        "seed": seed,
-        "runs": _runs_provenance(run_dirs, policies),
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "commit": git_commit(),
-        "versions": installed_versions(),
-    }
+    mode = "deterministic" if deterministic else "stochastic"
+    provenance = _provenance(run_dirs, policies, n_basis, decisions, len(chunks), mode, seed)
     data = chunk_basis.basis_file_bytes(
         basis,
         provenance,
@@ -169,6 +151,40 @@ def _check_runs(run_dirs: Sequence[str | Path], policies: Sequence[Policy]) -> t
                 f"run_dirs: {run} has (task, k, DoF count) {got}, the first run {(task, k, a)}"
             )
     return task, k, a
+
+
+def _provenance(
+    run_dirs: Sequence[str | Path],
+    policies: Sequence[Policy],
+    n_basis: int,
+    decisions_per_run: int,
+    decisions: int,
+    mode: str,
+    seed: int,
+) -> dict[str, object]:
+    """The basis file's provenance (JSON): its format, what it was fitted to and how (the
+    runs: :func:`_runs_provenance`), the date, commit and installed versions."""
+    first = policies[0]
+    return {
+        "format": chunk_basis.BASIS_FILE_FORMAT,
+        "version": chunk_basis.BASIS_FILE_VERSION,
+        "basis": "pca",
+        "centred": False,
+        "task": first.cfg.task,
+        "algo": first.cfg.algo,
+        "k": first.cfg.k,
+        "action_dim": int(first.spec.action_dim),
+        "n_basis": n_basis,
+        "columns": 1 + n_basis,
+        "decisions_per_run": decisions_per_run,
+        "decisions": decisions,
+        "mode": mode,
+        "seed": seed,
+        "runs": _runs_provenance(run_dirs, policies),
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "commit": git_commit(),
+        "versions": installed_versions(),
+    }
 
 
 def _runs_provenance(

@@ -17,7 +17,7 @@ import argparse
 import dataclasses
 import json
 import sys
-from typing import Any, TypeAlias
+from typing import TypeAlias
 
 from ndp.rl.config import EVAL_SEED, FRESH_EVAL_SEED, TrainConfig
 
@@ -282,9 +282,9 @@ def add_diagnose_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _overrides(items: list[str]) -> dict[str, Any]:
+def _overrides(items: list[str]) -> dict[str, object]:
     """``FIELD=VALUE`` items as a dict (values read as JSON, else as plain strings)."""
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for item in items:
         name, eq, val = item.partition("=")
         if not eq or not name:
@@ -322,7 +322,7 @@ def diagnose_command(args: argparse.Namespace) -> int:
             )
             for task, run in sources
         ]
-        out: dict[str, Any] = {"jacobian": reports}
+        out: dict[str, object] = {"jacobian": reports}
         if args.png is not None:
             out["png"] = str(plot_spectra(reports, args.png))
         print(json.dumps(out, indent=1))
@@ -525,9 +525,10 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     for det in modes:
         for k2 in values:
             result = evaluate(args.run_dir, args.episodes, det, args.seed, k2)
+            out: dict[str, object] = dict(result)
             if args.save:
-                result["saved"] = str(save_evaluation(args.run_dir, result, args.seed))
-            print(json.dumps(result), flush=True)
+                out["saved"] = str(save_evaluation(args.run_dir, result, args.seed))
+            print(json.dumps(out), flush=True)
     return 0
 
 

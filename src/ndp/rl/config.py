@@ -26,7 +26,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, cast
+from typing import TYPE_CHECKING, Annotated, Any, TypedDict, cast
 
 from ndp.checks import check_int, check_positive, plain_numbers
 from ndp.policies.config import PolicyConfig
@@ -55,6 +55,26 @@ REWARDS = ("dense", "sparse", "smooth")
 BACKENDS = ("metaworld", "envpool")
 """Values of ``TrainConfig.backend`` (``ndp.envs.envpool_backend.BACKENDS``; here too, so that
 a config checks without the simulators installed)."""
+
+
+class EnvOptions(TypedDict, total=False):
+    """The task options of a run's envs (:meth:`RunConfig.env_options`: the keywords of
+    ``ndp.envs.make_env`` and :func:`ndp.rl.envs.resolve_task`)."""
+
+    reward_version: str
+    backend: str
+    observation: str
+    reward: str
+    smooth_lambda: float
+    fixed_goal: int | str
+
+
+class ChunkOptions(TypedDict):
+    """The :class:`ndp.envs.ChunkedEnv` keywords of a run (:meth:`RunConfig.chunk_options`)."""
+
+    stale_world: bool
+    execution: str
+
 
 SAFE_ON_RESUME = (
     "progress",
@@ -323,14 +343,14 @@ class RunConfig:
         """Updates in the run: ceil(steps / env_steps_per_update)."""
         return math.ceil(self.steps / self.env_steps_per_update)
 
-    def env_options(self) -> dict[str, Any]:
+    def env_options(self) -> EnvOptions:
         """The task options every env of this run gets (``ndp.envs.make_env`` keywords):
         ``reward_version``, ``backend`` where not 'metaworld', ``observation`` where not 'full',
         ``reward`` where not 'dense' (with
         ``smooth_lambda`` where set), and the ``fixed_goal``: for ``goals="per-seed"`` the seed
         derived from ``seed`` (``ndp.envs.fixed_goal_seed``), for ``goals="release"`` the
         string ``"release"``."""
-        out: dict[str, Any] = {"reward_version": self.reward_version}
+        out: EnvOptions = {"reward_version": self.reward_version}
         if self.backend != "metaworld":
             out["backend"] = self.backend
         if self.observation != "full":
@@ -347,7 +367,7 @@ class RunConfig:
             out["fixed_goal"] = "release"
         return out
 
-    def chunk_options(self) -> dict[str, Any]:
+    def chunk_options(self) -> ChunkOptions:
         """The :class:`ndp.envs.ChunkedEnv` keywords of this run (``stale_world``,
         ``execution``): every env the run's policy acts in gets them (training, evaluation,
         rendering)."""
@@ -429,7 +449,7 @@ if TYPE_CHECKING:
         the sections are read typed with ``ndp.rl.methods.section(cfg, SACConfig)`` and
         replaced with ``ndp.rl.methods.with_section``; the constructor takes every field)."""
 
-        def __init__(self, **fields: Any) -> None: ...
+        def __init__(self, **fields: object) -> None: ...
 
 else:
     TrainConfig = _train_config()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from ndp.io import atomic_savefig
 from ndp.policies import PolicyConfig
@@ -68,7 +67,7 @@ def plot_curve(run: Path, out_png: Path, title: str) -> Path:
     return out_png
 
 
-def run_rl_demo(out_dir: Path, quick: bool = True) -> dict[str, Any]:
+def run_rl_demo(out_dir: Path, quick: bool = True) -> dict[str, object]:
     """Train a short NDP run, write its learning curve (PNG) and a video (mp4).
 
     Args:

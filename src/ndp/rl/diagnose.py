@@ -45,6 +45,7 @@ Usage::
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -81,7 +82,7 @@ RANK_RULE = (
 """The rule of the condition number, stated in every report (ndp.policies.conditioning)."""
 
 
-def _fresh(task: str, algo: str, overrides: dict[str, Any]) -> Policy:
+def _fresh(task: str, algo: str, overrides: Mapping[str, object]) -> Policy:
     """A fresh policy of ``task`` (its config resolved with ``overrides`` of the policy
     config, the network initialised from the config's seed, a fresh observation normaliser)."""
     spec = resolve_task(task).spec
@@ -99,7 +100,7 @@ def _fresh_of(cfg: TrainConfig, spec: TaskSchema) -> Policy:
 
 
 def _policy(
-    task: str | None, algo: str, run: str | None, overrides: dict[str, Any]
+    task: str | None, algo: str, run: str | None, overrides: Mapping[str, object]
 ) -> tuple[TrainConfig, TaskSchema, ActorCritic, ObsNormalizer]:
     """(config, spec, model, obs normaliser) of a fresh policy or a trained run (the spec: a
     ``TaskSpec``, or a trained run's ``PolicySpec`` as ``Policy.spec``)."""
@@ -118,8 +119,8 @@ def diagnose(
     run: str | None = None,
     decisions: int = 300,
     seed: int = 0,
-    **overrides: Any,
-) -> dict[str, Any]:
+    **overrides: object,
+) -> dict[str, object]:
     """Run the handicap diagnostic; returns a JSON-ready dict (see the module docstring)."""
     cfg, spec, model, obs_norm = _policy(task, algo, run, overrides)
     torch.set_num_threads(1)
@@ -132,7 +133,7 @@ def diagnose(
     key = "cmd" if cfg.policy.dmp_state == "commanded" else "dmp"
     rec = _handicap_rollout(env, model, obs_norm, spec, key, decisions, seed)
     env.close()
-    out: dict[str, Any] = {
+    out: dict[str, object] = {
         "task": cfg.task,
         "algo": cfg.algo,
         "run": run,
@@ -291,7 +292,7 @@ def _spectrum(s: torch.Tensor) -> list[float]:
 
 def conditioning_report(
     head: NDPHead, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """The conditioning of an NDP head's map at B decisions (raw [B, P], y0 / dy0 [B, D]).
 
     Returns:
@@ -311,7 +312,7 @@ def conditioning_report(
     c = conditioning(jac, map_jac, slice(0, d), slice(d, n))
     r_min = int(c.rank.min())
     b = int(raw.shape[0])
-    out: dict[str, Any] = {
+    out: dict[str, object] = {
         "decisions": b,
         "rank": r_min
         if b == 1
@@ -357,8 +358,8 @@ def jacobian_diagnostic(
     run: str | None = None,
     episodes: int = JACOBIAN_EPISODES,
     seed: int = 0,
-    **overrides: Any,
-) -> dict[str, Any]:
+    **overrides: object,
+) -> dict[str, object]:
     """The conditioning of an NDP policy's action map (see the module docstring).
 
     Args:
@@ -394,7 +395,7 @@ def jacobian_diagnostic(
     torch.set_num_threads(1)
     d = int(head.dmp_dofs)
     zero = torch.zeros(1, int(head.n_params))
-    out: dict[str, Any] = {
+    out: dict[str, object] = {
         "source": str(run) if run is not None else f"{task} (fresh)",
         "task": fresh.cfg.task,
         "algo": fresh.cfg.algo,
@@ -418,7 +419,7 @@ def jacobian_diagnostic(
     return out
 
 
-def plot_spectra(reports: list[dict[str, Any]], path: str | Path) -> Path:
+def plot_spectra(reports: Sequence[Mapping[str, Any]], path: str | Path) -> Path:
     """A figure of the singular-value spectra of :func:`jacobian_diagnostic` reports, one panel
     per report (policy): at raw = 0, at the fresh network's outputs and at the trained
     policy's (per index, the median over decisions and the 10-90 % band), on a log scale;

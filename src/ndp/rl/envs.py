@@ -23,7 +23,7 @@ import dataclasses
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -57,24 +57,29 @@ class TaskHandle:
     """``make(seed=None, horizon=None, render_mode=None) -> per-step gymnasium.Env``."""
 
 
-def resolve_task(name: str, **options: Any) -> TaskHandle:
+def resolve_task(
+    name: str,
+    *,
+    reward_version: str = "v2",
+    fixed_goal: int | str | None = None,
+    observation: str = "full",
+    reward: str = "dense",
+    smooth_lambda: float | None = None,
+    backend: str = "metaworld",
+) -> TaskHandle:
     """Resolve a task name or alias through ``ndp.envs.TASKS`` (the toy tasks included).
 
-    ``options``: task options every env of the handle gets (``reward_version``,
-    ``fixed_goal``, ``observation``, ``reward``, ``smooth_lambda``, ``backend``:
-    ``ndp.envs.make_env``),
-    checked here against the task's row.
+    The keywords: task options every env of the handle gets (``ndp.envs.make_env``'s; a run's
+    are ``TrainConfig.env_options()``), checked here against the task's row.
 
     Raises:
         ValueError: unknown name (the message lists close names), or a bad option.
     """
     spec = get_task_spec(name)
-    observation = check_observation(spec, options.pop("observation", "full"))
-    reward = check_reward(options.pop("reward", "dense"))
-    backend = options.pop("backend", "metaworld")
-    price = options.pop("smooth_lambda", None)
-    check_smooth_lambda(price, reward)
-    kw = task_options(spec, **options)
+    observation = check_observation(spec, observation)
+    reward = check_reward(reward)
+    check_smooth_lambda(smooth_lambda, reward)
+    kw = task_options(spec, reward_version, fixed_goal)
     if backend != "metaworld":
         # the run's k and stale-world rule are checked by resolve_config / make_vector_env
         check_backend(backend, spec, reward_version=kw.get("reward_version", "v2"),
@@ -82,8 +87,8 @@ def resolve_task(name: str, **options: Any) -> TaskHandle:
         kw["backend"] = backend
     if reward != "dense":
         kw["reward"] = reward
-    if price is not None:
-        kw["smooth_lambda"] = price
+    if smooth_lambda is not None:
+        kw["smooth_lambda"] = smooth_lambda
     if observation != "full":
         kw["observation"] = observation
         spec = dataclasses.replace(spec, obs_dim=len(RELEASE9))
@@ -155,7 +160,9 @@ def env_seeds(seed: int, num_envs: int, epoch: int = 0) -> list[int]:
     return [int(s) for s in base]
 
 
-def step_info(infos: dict[str, Any], done: np.ndarray, key: str, default: Any = 0.0) -> np.ndarray:
+def step_info(
+    infos: dict[str, Any], done: np.ndarray, key: str, default: float = 0.0
+) -> np.ndarray:
     """The finished step's value of ``key`` per env (``final_info`` where the episode ended).
 
     Args:
@@ -240,12 +247,16 @@ class FrameRecorder(gym.Wrapper):
         super().__init__(env)
         self.frames: list[np.ndarray] = []
 
-    def reset(self, **kw: Any) -> tuple[Any, dict[str, Any]]:
-        out = self.env.reset(**kw)
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, object] | None = None
+    ) -> tuple[np.ndarray, dict[str, object]]:
+        out = self.env.reset(seed=seed, options=options)
         self.frames.append(np.asarray(self.env.render()))
         return out
 
-    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, object]]:
         out = self.env.step(action)
         self.frames.append(np.asarray(self.env.render()))
         return out

@@ -15,7 +15,6 @@ from __future__ import annotations
 import datetime
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
@@ -75,7 +74,7 @@ def fit_basis(
     seed: int = EVAL_SEED,
     deterministic: bool = True,
     overwrite: bool = False,
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """Fit the 'pca' chunk basis to the rollouts of trained PPO-multi runs and write it.
 
     Args:

@@ -44,7 +44,9 @@ from ndp.envs.vector import (
 )
 
 if TYPE_CHECKING:
-    from ndp.rl.config import TrainConfig
+    from typing_extensions import Unpack  # typing's from Python 3.11
+
+    from ndp.rl.config import EnvOptions, TrainConfig
 
 
 @dataclass(frozen=True)
@@ -57,29 +59,29 @@ class TaskHandle:
     """``make(seed=None, horizon=None, render_mode=None) -> per-step gymnasium.Env``."""
 
 
-def resolve_task(
-    name: str,
-    *,
-    reward_version: str = "v2",
-    fixed_goal: int | str | None = None,
-    observation: str = "full",
-    reward: str = "dense",
-    smooth_lambda: float | None = None,
-    backend: str = "metaworld",
-) -> TaskHandle:
+def resolve_task(name: str, **options: Unpack[EnvOptions]) -> TaskHandle:
     """Resolve a task name or alias through ``ndp.envs.TASKS`` (the toy tasks included).
 
-    The keywords: task options every env of the handle gets (``ndp.envs.make_env``'s; a run's
-    are ``TrainConfig.env_options()``), checked here against the task's row.
+    ``options``: task options every env of the handle gets (``reward_version``,
+    ``fixed_goal``, ``observation``, ``reward``, ``smooth_lambda``, ``backend``:
+    ``ndp.envs.make_env``; a run's are ``TrainConfig.env_options()``), checked here against
+    the task's row.
 
     Raises:
         ValueError: unknown name (the message lists close names), or a bad option.
     """
     spec = get_task_spec(name)
-    observation = check_observation(spec, observation)
-    reward = check_reward(reward)
-    check_smooth_lambda(smooth_lambda, reward)
-    kw = task_options(spec, reward_version, fixed_goal)
+    observation = check_observation(spec, options.pop("observation", "full"))
+    reward = check_reward(options.pop("reward", "dense"))
+    backend = options.pop("backend", "metaworld")
+    price = options.pop("smooth_lambda", None)
+    check_smooth_lambda(price, reward)
+    version, goal = options.pop("reward_version", "v2"), options.pop("fixed_goal", None)
+    if options:  # a keyword that is no task option (as a call with it would say)
+        raise TypeError(
+            f"resolve_task() got an unexpected keyword argument {next(iter(options))!r}"
+        )
+    kw = task_options(spec, version, goal)
     if backend != "metaworld":
         # the run's k and stale-world rule are checked by resolve_config / make_vector_env
         check_backend(backend, spec, reward_version=kw.get("reward_version", "v2"),
@@ -87,8 +89,8 @@ def resolve_task(
         kw["backend"] = backend
     if reward != "dense":
         kw["reward"] = reward
-    if smooth_lambda is not None:
-        kw["smooth_lambda"] = smooth_lambda
+    if price is not None:
+        kw["smooth_lambda"] = price
     if observation != "full":
         kw["observation"] = observation
         spec = dataclasses.replace(spec, obs_dim=len(RELEASE9))

@@ -20,7 +20,7 @@ import json
 import shutil
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -28,6 +28,31 @@ from ndp.io import atomic_write_text
 from ndp.policies.config import DMP_HEADS
 from ndp.rl.methods import METHODS
 from ndp.runs.layout import CHECKPOINT_NAME, CONFIG_NAME, METRICS_NAME
+
+
+class CardEvaluation(TypedDict, total=False):
+    """What a card reports as measured (``evaluation`` of :func:`card_fields`, ``Policy.export``
+    and :func:`ndp.rl.policy.export_policy`); ``success`` and ``episodes`` make a result."""
+
+    success: float
+    """Success rate (success at any step of an episode)."""
+    episodes: int
+    """Episodes it was measured over."""
+    deterministic: bool
+    """Acting with the mode (default True), else sampling."""
+    first_seed: int
+    """The first episode's reset seed."""
+    success_final: float | None
+    """Success at the final step."""
+    episode_return: float | None
+    """Mean return."""
+    command: str
+    """The command that measured it."""
+    protocol: str
+    """How it was measured, in words."""
+    zoo: bool
+    """A policy shipped with the package (its card loads it as ``zoo:NAME``)."""
+
 
 NOT_RECORDED = "not recorded"
 """The value of a card field the export does not record."""
@@ -101,7 +126,7 @@ def wilson_ci(success: float, episodes: int) -> tuple[float, float]:
 
 
 def card_fields(
-    meta: dict[str, Any], evaluation: dict[str, Any] | None = None, name: str | None = None
+    meta: dict[str, Any], evaluation: CardEvaluation | None = None, name: str | None = None
 ) -> dict[str, Any]:
     """The front matter of a card, as a dict.
 
@@ -185,7 +210,7 @@ format (one YAML file per benchmark, each a list of results)."""
 
 
 def eval_results(
-    meta: dict[str, Any], evaluation: dict[str, Any] | None, date: str | None = None
+    meta: dict[str, Any], evaluation: CardEvaluation | None, date: str | None = None
 ) -> dict[str, str]:
     """The ``.eval_results/`` files of an export: ``{file name: YAML text}``, one file named
     after the task holding the measured success rate, or nothing where no evaluation was
@@ -239,7 +264,7 @@ def check_export_dir(out: Path, files: tuple[str, ...]) -> None:
 def write_card(
     out: str | Path,
     meta: dict[str, Any],
-    evaluation: dict[str, Any] | None,
+    evaluation: CardEvaluation | None,
     onnx: bool = False,
     date: str | None = None,
 ) -> None:
@@ -257,7 +282,7 @@ def write_card(
         atomic_write_text(folder / name, text)
 
 
-def to_yaml(obj: Any, indent: int = 0) -> str:
+def to_yaml(obj: object, indent: int = 0) -> str:
     """Block YAML of JSON-like data (dicts, lists, strings, numbers, booleans, None); strings
     are written as JSON strings, which YAML reads as double-quoted scalars."""
     pad = " " * indent
@@ -281,12 +306,12 @@ def to_yaml(obj: Any, indent: int = 0) -> str:
     return pad + _scalar(obj)
 
 
-def _flat(v: Any) -> bool:
+def _flat(v: object) -> bool:
     """A list of scalars (written in flow style, ``[a, b]``)."""
     return isinstance(v, list) and all(not isinstance(x, (dict, list)) for x in v)
 
 
-def _scalar(v: Any) -> str:
+def _scalar(v: object) -> str:
     if isinstance(v, bool) or v is None:
         return json.dumps(v)
     if isinstance(v, (int, float)):
@@ -300,7 +325,7 @@ def _scalar(v: Any) -> str:
 
 def model_card(
     meta: dict[str, Any],
-    evaluation: dict[str, Any] | None = None,
+    evaluation: CardEvaluation | None = None,
     name: str | None = None,
     onnx: bool = False,
 ) -> str:
@@ -371,16 +396,16 @@ def model_card(
     return "\n".join(lines)
 
 
-def _seq(v: Any) -> str:
+def _seq(v: object) -> str:
     return ", ".join(str(x) for x in v) if isinstance(v, list) else str(v)
 
 
-def _budget(fields: dict[str, Any]) -> str:
+def _budget(fields: Mapping[str, object]) -> str:
     b = fields["budget_env_steps"]
     return f"{b:,} env steps" if isinstance(b, int) else f"budget {NOT_RECORDED}"
 
 
-def _torch_use(name: str, evaluation: dict[str, Any] | None) -> list[str]:
+def _torch_use(name: str, evaluation: CardEvaluation | None) -> list[str]:
     return [
         "```python",
         "import ndp",
@@ -412,13 +437,13 @@ def _onnx_use(name: str) -> list[str]:
     ]
 
 
-def _load_path(name: str, evaluation: dict[str, Any] | None) -> str:
+def _load_path(name: str, evaluation: CardEvaluation | None) -> str:
     if evaluation and evaluation.get("zoo"):
         return f"zoo:{name}"
     return name
 
 
-def _result_text(fields: dict[str, Any], evaluation: dict[str, Any] | None) -> str:
+def _result_text(fields: dict[str, Any], evaluation: CardEvaluation | None) -> str:
     if fields["success_rate"] == NOT_RECORDED:
         return (
             "Success rate: not recorded (measure it with `ndp rl eval` on the training run, "
@@ -436,10 +461,11 @@ def _result_text(fields: dict[str, Any], evaluation: dict[str, Any] | None) -> s
         text += f", episode seeds {evaluation['first_seed']} on"
     text += "."
     extra = []
-    if evaluation.get("success_final") is not None:
-        extra.append(f"success at the final step {float(evaluation['success_final']):.2f}")
-    if evaluation.get("episode_return") is not None:
-        extra.append(f"mean return {float(evaluation['episode_return']):.1f}")
+    final, ret = evaluation.get("success_final"), evaluation.get("episode_return")
+    if final is not None:
+        extra.append(f"success at the final step {float(final):.2f}")
+    if ret is not None:
+        extra.append(f"mean return {float(ret):.1f}")
     if extra:
         text += " Also: " + ", ".join(extra) + "."
     if evaluation.get("protocol"):

@@ -17,9 +17,12 @@ import argparse
 import dataclasses
 import json
 import sys
-from typing import Any
+from typing import TypeAlias
 
 from ndp.rl.config import EVAL_SEED, FRESH_EVAL_SEED, TrainConfig
+
+_SubParsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
+"""What ``ArgumentParser.add_subparsers()`` returns: where sub-commands are registered."""
 
 TRAIN_NOTES = (
     "Unset NDP fields come "
@@ -52,7 +55,7 @@ def train_description() -> str:
     )
 
 
-def add_subparser(sub: Any) -> None:
+def add_subparser(sub: _SubParsers) -> None:
     """Register ``rl`` with sub-commands ``train``, ``methods``, ``eval``, ``export``,
     ``fit-basis``, ``render`` and ``diagnose``."""
     rl = sub.add_parser(
@@ -66,7 +69,12 @@ def add_subparser(sub: Any) -> None:
 
     ms = rl_sub.add_parser("methods", help="list the registered methods (--algo values)")
     ms.set_defaults(func=_cmd_methods)
+    for add in (_add_eval, _add_export, _add_push, _add_fit_basis, _add_render, _add_diagnose):
+        add(rl_sub)
 
+
+def _add_eval(rl_sub: _SubParsers) -> None:
+    """``ndp rl eval RUN_DIR``: success over N episodes, per mode and ``--exec-k``."""
     ev = rl_sub.add_parser("eval", help="success of a trained run over N episodes")
     ev.add_argument("run_dir", metavar="RUN_DIR")
     ev.add_argument("--episodes", type=int, default=10, help="episodes per mode (default 10)")
@@ -102,6 +110,9 @@ def add_subparser(sub: Any) -> None:
     )
     ev.set_defaults(func=_cmd_eval)
 
+
+def _add_export(rl_sub: _SubParsers) -> None:
+    """``ndp rl export RUN_DIR OUT_DIR``: a trained run's policy as safetensors or ONNX."""
     ex = rl_sub.add_parser(
         "export",
         help="export a trained run's policy (safetensors + JSON, no pickle; or one ONNX graph)",
@@ -119,6 +130,9 @@ def add_subparser(sub: Any) -> None:
     )
     ex.set_defaults(func=_cmd_export)
 
+
+def _add_push(rl_sub: _SubParsers) -> None:
+    """``ndp rl push SOURCE ORG/NAME``: upload a policy to the Hugging Face Hub."""
     pu = rl_sub.add_parser(
         "push",
         help="upload a run's policy (exported, with its card) or an export folder to the "
@@ -130,6 +144,9 @@ def add_subparser(sub: Any) -> None:
     pu.add_argument("--message", default=None, help="the commit message")
     pu.set_defaults(func=_cmd_push)
 
+
+def _add_fit_basis(rl_sub: _SubParsers) -> None:
+    """``ndp rl fit-basis RUN_DIR... --out FILE``: PPO-multi's 'pca' chunk basis."""
     fb = rl_sub.add_parser(
         "fit-basis",
         help="fit PPO-multi's 'pca' chunk basis (--chunk-basis pca) to trained PPO-multi runs",
@@ -155,6 +172,9 @@ def add_subparser(sub: Any) -> None:
     fb.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     fb.set_defaults(func=_cmd_fit_basis)
 
+
+def _add_render(rl_sub: _SubParsers) -> None:
+    """``ndp rl render RUN_DIR``: an mp4 of a trained run (or two, side by side)."""
     rd = rl_sub.add_parser("render", help="render a trained run to mp4")
     rd.add_argument("run_dir", metavar="RUN_DIR")
     rd.add_argument("--out", default=None, help="mp4 path (default RUN_DIR/video.mp4)")
@@ -198,6 +218,9 @@ def add_subparser(sub: Any) -> None:
     )
     rd.set_defaults(func=_cmd_render)
 
+
+def _add_diagnose(rl_sub: _SubParsers) -> None:
+    """``ndp rl diagnose``: the handicap or (``--jacobian``) conditioning diagnostic."""
     dg = rl_sub.add_parser(
         "diagnose",
         help="the NDP head's handicaps on a rollout, or (--jacobian) the conditioning of its "
@@ -259,9 +282,9 @@ def add_diagnose_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _overrides(items: list[str]) -> dict[str, Any]:
+def _overrides(items: list[str]) -> dict[str, object]:
     """``FIELD=VALUE`` items as a dict (values read as JSON, else as plain strings)."""
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for item in items:
         name, eq, val = item.partition("=")
         if not eq or not name:
@@ -299,7 +322,7 @@ def diagnose_command(args: argparse.Namespace) -> int:
             )
             for task, run in sources
         ]
-        out: dict[str, Any] = {"jacobian": reports}
+        out: dict[str, object] = {"jacobian": reports}
         if args.png is not None:
             out["png"] = str(plot_spectra(reports, args.png))
         print(json.dumps(out, indent=1))
@@ -329,23 +352,8 @@ def diagnose_main(argv: list[str] | None = None) -> int:
 
 def train_command(argv: list[str]) -> int:
     """``ndp rl train [--resume RUN_DIR | --overwrite] [options of TrainConfig]``."""
-    from ndp.rl.config import (
-        SAFE_ON_RESUME,
-        load_config,
-        resolve_config,
-        unused_basis_options,
-        unused_head_options,
-        unused_method_options,
-    )
-    from ndp.runs import RunDir
-    from ndp.runs.cli import changed_fields, parse_config, pop_flag, pop_option
+    from ndp.runs.cli import pop_flag, pop_option
     from ndp.runs.signals import report_stop, stop_on_sigterm
-
-    # the trainer (torch, the simulators) is imported only once the options are parsed
-    def trainer() -> Any:
-        from ndp.rl import run as module
-
-        return module
 
     resume_dir, rest = pop_option(argv, "--resume")
     overwrite, rest = pop_flag(rest, "--overwrite")
@@ -361,48 +369,16 @@ def train_command(argv: list[str]) -> int:
     try:
         with stop_on_sigterm():
             if resume_dir is not None:
-                saved = load_config(RunDir(resume_dir).config)
-                saved = dataclasses.replace(saved, run_dir=str(resume_dir))
-                cfg = parse_config(
-                    TrainConfig, rest, prog=prog, description=train_description(), default=saved
-                )
-                changed = changed_fields(saved, cfg)
-                refused = [f for f in changed if f not in SAFE_ON_RESUME]
-                if refused:
-                    raise ValueError(
-                        f"resume: these options would change the run and are refused: {refused} "
-                        f"(only {list(SAFE_ON_RESUME)} may change; start a new run for the others)"
-                    )
-                metrics = trainer().resume(resume_dir, **{f: getattr(cfg, f) for f in changed})
+                metrics = _resume_run(resume_dir, rest, prog)
                 if not metrics:
-                    print(
-                        f"ndp: nothing to do: {resume_dir} has finished its budget; --resume "
-                        "with a larger --steps extends it",
-                        file=sys.stderr,
-                    )
                     return 0
             else:
-                base = config_from_file(config_file) if config_file is not None else None
-                cfg = parse_config(
-                    TrainConfig, rest, prog=prog, description=train_description(), default=base
-                )
-                unused = unused_head_options(cfg)  # before resolving, which clears them
-                unused_basis = unused_basis_options(cfg)
-                other = unused_method_options(cfg)
-                if other:  # a learner's option that this method does not read: refused
-                    raise ValueError(unread_learner_message(cfg.algo, other))
-                # resolved once, here: the run directory every message names is the one the
-                # run writes (an alias task or VICES's task variant gives the canonical row)
-                cfg = resolve_config(cfg)
+                cfg = _new_run_config(rest, prog, config_file)
                 run_name = cfg.run_dir or "."
-                if unused:
-                    print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "
-                          f"--algo {cfg.algo} does not run; not used", file=sys.stderr)  # fmt: skip
-                if unused_basis:
-                    print(f"ndp: note: {', '.join(unused_basis)}: options of PPO-multi's "
-                          f"chunk basis, which --algo {cfg.algo} does not run; not used",
-                          file=sys.stderr)  # fmt: skip
-                metrics = trainer().train(cfg, overwrite=overwrite, resolved=True)
+                # the trainer (torch, the simulators) is imported only once the options are parsed
+                from ndp.rl.run import train
+
+                metrics = train(cfg, overwrite=overwrite, resolved=True)
     except FloatingPointError as exc:  # ndp.rl.onpolicy.trainer.TrainingDivergedError
         print(f"ndp: error: {exc}", file=sys.stderr)
         return 3
@@ -411,6 +387,67 @@ def train_command(argv: list[str]) -> int:
     keys = ("update", "global_step", "charts/success_any", "charts/episode_return")
     print(json.dumps({k: metrics.get(k) for k in keys}))
     return 0
+
+
+def _resume_run(resume_dir: str, rest: list[str], prog: str) -> dict[str, float]:
+    """``--resume RUN_DIR``: continue the run with the options that may change on a resume
+    (refusing the others). Its metrics, or an empty dict (said on stderr) when its budget is
+    already spent."""
+    from ndp.rl.config import SAFE_ON_RESUME, load_config
+    from ndp.runs import RunDir
+    from ndp.runs.cli import changed_fields, parse_config
+
+    saved = load_config(RunDir(resume_dir).config)
+    saved = dataclasses.replace(saved, run_dir=str(resume_dir))
+    cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description(), default=saved)
+    changed = changed_fields(saved, cfg)
+    refused = [f for f in changed if f not in SAFE_ON_RESUME]
+    if refused:
+        raise ValueError(
+            f"resume: these options would change the run and are refused: {refused} "
+            f"(only {list(SAFE_ON_RESUME)} may change; start a new run for the others)"
+        )
+    from ndp.rl.run import resume
+
+    metrics = resume(resume_dir, **{f: getattr(cfg, f) for f in changed})
+    if not metrics:
+        print(
+            f"ndp: nothing to do: {resume_dir} has finished its budget; --resume "
+            "with a larger --steps extends it",
+            file=sys.stderr,
+        )
+    return metrics
+
+
+def _new_run_config(rest: list[str], prog: str, config_file: str | None) -> TrainConfig:
+    """A new run's config: the options over ``--config FILE`` (or the defaults), a learner's
+    option that the method does not read refused, resolved once, here (the run directory
+    every message names is the one the run writes: an alias task or VICES's task variant
+    gives the canonical row). Options of a part the method does not run are noted on stderr."""
+    from ndp.rl.config import (
+        resolve_config,
+        unused_basis_options,
+        unused_head_options,
+        unused_method_options,
+    )
+    from ndp.runs.cli import parse_config
+
+    base = config_from_file(config_file) if config_file is not None else None
+    cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description(), default=base)
+    unused = unused_head_options(cfg)  # before resolving, which clears them
+    unused_basis = unused_basis_options(cfg)
+    other = unused_method_options(cfg)
+    if other:  # a learner's option that this method does not read: refused
+        raise ValueError(unread_learner_message(cfg.algo, other))
+    cfg = resolve_config(cfg)
+    if unused:
+        print(f"ndp: note: {', '.join(unused)}: options of the NDP head, which "
+              f"--algo {cfg.algo} does not run; not used", file=sys.stderr)  # fmt: skip
+    if unused_basis:
+        print(f"ndp: note: {', '.join(unused_basis)}: options of PPO-multi's "
+              f"chunk basis, which --algo {cfg.algo} does not run; not used",
+              file=sys.stderr)  # fmt: skip
+    return cfg
 
 
 def config_from_file(path: str) -> TrainConfig:
@@ -488,9 +525,10 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     for det in modes:
         for k2 in values:
             result = evaluate(args.run_dir, args.episodes, det, args.seed, k2)
+            out: dict[str, object] = dict(result)
             if args.save:
-                result["saved"] = str(save_evaluation(args.run_dir, result, args.seed))
-            print(json.dumps(result), flush=True)
+                out["saved"] = str(save_evaluation(args.run_dir, result, args.seed))
+            print(json.dumps(out), flush=True)
     return 0
 
 

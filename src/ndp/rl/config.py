@@ -26,11 +26,11 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, cast
+from typing import TYPE_CHECKING, Annotated, Any, TypedDict, cast
 
 from ndp.checks import check_int, check_positive, plain_numbers
 from ndp.policies.config import PolicyConfig
-from ndp.rl.methods import METHODS, SETTINGS, settings_sections
+from ndp.rl.methods import METHODS, SETTINGS, Method, settings_sections
 from ndp.runs.cli import cli
 
 EVAL_SEED = 10_000
@@ -55,6 +55,26 @@ REWARDS = ("dense", "sparse", "smooth")
 BACKENDS = ("metaworld", "envpool")
 """Values of ``TrainConfig.backend`` (``ndp.envs.envpool_backend.BACKENDS``; here too, so that
 a config checks without the simulators installed)."""
+
+
+class EnvOptions(TypedDict, total=False):
+    """The task options of a run's envs (:meth:`RunConfig.env_options`: the keywords of
+    ``ndp.envs.make_env`` and :func:`ndp.rl.envs.resolve_task`)."""
+
+    reward_version: str
+    backend: str
+    observation: str
+    reward: str
+    smooth_lambda: float
+    fixed_goal: int | str
+
+
+class ChunkOptions(TypedDict):
+    """The :class:`ndp.envs.ChunkedEnv` keywords of a run (:meth:`RunConfig.chunk_options`)."""
+
+    stale_world: bool
+    execution: str
+
 
 SAFE_ON_RESUME = (
     "progress",
@@ -323,14 +343,14 @@ class RunConfig:
         """Updates in the run: ceil(steps / env_steps_per_update)."""
         return math.ceil(self.steps / self.env_steps_per_update)
 
-    def env_options(self) -> dict[str, Any]:
+    def env_options(self) -> EnvOptions:
         """The task options every env of this run gets (``ndp.envs.make_env`` keywords):
         ``reward_version``, ``backend`` where not 'metaworld', ``observation`` where not 'full',
         ``reward`` where not 'dense' (with
         ``smooth_lambda`` where set), and the ``fixed_goal``: for ``goals="per-seed"`` the seed
         derived from ``seed`` (``ndp.envs.fixed_goal_seed``), for ``goals="release"`` the
         string ``"release"``."""
-        out: dict[str, Any] = {"reward_version": self.reward_version}
+        out: EnvOptions = {"reward_version": self.reward_version}
         if self.backend != "metaworld":
             out["backend"] = self.backend
         if self.observation != "full":
@@ -347,7 +367,7 @@ class RunConfig:
             out["fixed_goal"] = "release"
         return out
 
-    def chunk_options(self) -> dict[str, Any]:
+    def chunk_options(self) -> ChunkOptions:
         """The :class:`ndp.envs.ChunkedEnv` keywords of this run (``stale_world``,
         ``execution``): every env the run's policy acts in gets them (training, evaluation,
         rendering)."""
@@ -429,7 +449,7 @@ if TYPE_CHECKING:
         the sections are read typed with ``ndp.rl.methods.section(cfg, SACConfig)`` and
         replaced with ``ndp.rl.methods.with_section``; the constructor takes every field)."""
 
-        def __init__(self, **fields: Any) -> None: ...
+        def __init__(self, **fields: object) -> None: ...
 
 else:
     TrainConfig = _train_config()
@@ -471,33 +491,45 @@ def resolve_config(cfg: TrainConfig, spec: TaskSpec | None = None) -> TrainConfi
 
         spec = resolve_task(cfg.task).spec
     from ndp.checks import check_device_available
-    from ndp.envs.factory import task_options
+    from ndp.envs.factory import check_observation, task_options
 
     task_options(spec, cfg.reward_version)  # v1 rewards on a task without them: refused here
-    from ndp.envs.factory import check_observation
-
     check_observation(spec, cfg.observation)
     check_device_available(cfg.device)  # before any env is built or run folder made
-    from ndp.policies.config import DEFAULT_K
-    from ndp.policies.heads import SINGLE_STEP_HEADS
-
     method = METHODS[cfg.algo]
     if method.task_variant is not None:
         spec = method.task_variant(spec)
+    policy = _resolve_policy(cfg, method, spec)
+    run_dir = cfg.run_dir or default_run_dir(spec.name, cfg.algo, cfg.seed)
+    goals = _resolve_goals(cfg, spec)
+    assert policy.k is not None  # set by _resolve_policy
+    _check_env_options(cfg, spec, policy.k, goals)
+    from ndp.envs.rewards import check_smooth_lambda
+
+    price = check_smooth_lambda(cfg.smooth_lambda, cfg.reward) if cfg.reward == "smooth" else None
+    return dataclasses.replace(
+        cfg, task=spec.name, policy=policy, run_dir=run_dir, goals=goals, smooth_lambda=price
+    )
+
+
+def _resolve_policy(cfg: TrainConfig, method: Method, spec: TaskSpec) -> PolicyConfig:
+    """:func:`resolve_config`'s policy: the method's head and k (a k the method cannot run
+    refused, naming k), the DMP frame from the task's preset where None, PPO-multi's chunk
+    basis cleared for the other heads, then the method's own resolution and the defaults."""
+    from ndp.envs.presets import preset_of
+    from ndp.policies.config import BASIS_HEADS, DEFAULT_K
+    from ndp.policies.heads import SINGLE_STEP_HEADS
+
     pol = cfg.policy
     k_asked = pol.k
     one_action = method.head in SINGLE_STEP_HEADS
     k = 1 if one_action else (k_asked or DEFAULT_K)
     # the DMP frame is read by the trainer for every method (the robot state it records)
-    from ndp.envs.presets import preset_of
-
     preset = preset_of(spec)
     frame = {
         name: getattr(pol, name) if getattr(pol, name) is not None else getattr(preset, name)
         for name in ("dmp_state", "dmp_velocity")
     }
-    from ndp.policies.config import BASIS_HEADS
-
     if method.head not in BASIS_HEADS:  # PPO-multi's chunk basis: cleared for other heads
         frame.update(chunk_basis="none", chunk_basis_file=None)  # (a note names it: cli)
     with_k = dataclasses.replace(pol, head=method.head, k=k, **frame)
@@ -509,7 +541,14 @@ def resolve_config(cfg: TrainConfig, spec: TaskSpec | None = None) -> TrainConfi
             else f"decides every {policy.k} env step(s) on {spec.name}"
         )
         raise ValueError(f"k: --algo {cfg.algo} {how}, got k={k_asked}")
-    run_dir = cfg.run_dir or default_run_dir(spec.name, cfg.algo, cfg.seed)
+    return policy
+
+
+def _resolve_goals(cfg: TrainConfig, spec: TaskSpec) -> str:
+    """:func:`resolve_config`'s ``goals``: ``"as-release"`` becomes what the release gave the
+    method on the task; ``"release"`` is refused, before any run folder, where there is none."""
+    from ndp.envs.factory import task_options
+
     goals = cfg.goals
     if goals == "as-release":
         from ndp.envs.release import release_goals
@@ -520,23 +559,24 @@ def resolve_config(cfg: TrainConfig, spec: TaskSpec | None = None) -> TrainConfi
             raise ValueError(f"goals: 'as-release' needs a task the release ran ({exc})") from None
     if goals == "release":  # refused here, before any run folder, where there is none
         task_options(spec, cfg.reward_version, "release")
-    from ndp.envs.rewards import check_smooth_lambda, check_stale_world
+    return goals
 
-    assert policy.k is not None  # set just above
-    check_stale_world(cfg.reward, cfg.stale_world, policy.k)
+
+def _check_env_options(cfg: TrainConfig, spec: TaskSpec, k: int, goals: str) -> None:
+    """:func:`resolve_config`'s environment checks: the stale-world rule with the reward at
+    this k, and the backend (what EnvPool does not serve refused; its install hint where it is
+    missing), before any run folder."""
     from ndp.envs.envpool_backend import check_backend
+    from ndp.envs.rewards import check_stale_world
 
+    check_stale_world(cfg.reward, cfg.stale_world, k)
     fixed = None if goals == "random" else goals
-    check_backend(cfg.backend, spec, k=policy.k, stale_world=cfg.stale_world,
+    check_backend(cfg.backend, spec, k=k, stale_world=cfg.stale_world,
                   reward_version=cfg.reward_version, fixed_goal=fixed)  # fmt: skip
     if cfg.backend == "envpool":
         from ndp.envs.envpool_backend import import_envpool
 
         import_envpool()  # the install hint before any run folder
-    price = check_smooth_lambda(cfg.smooth_lambda, cfg.reward) if cfg.reward == "smooth" else None
-    return dataclasses.replace(
-        cfg, task=spec.name, policy=policy, run_dir=run_dir, goals=goals, smooth_lambda=price
-    )
 
 
 def default_run_dir(task: str, algo: str, seed: int) -> str:

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
-from typing import Any
 
 from ndp.io import atomic_savefig
-from ndp.policies import PolicyConfig
 from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.runs import read_metrics
 
@@ -18,19 +17,7 @@ def demo_config(out_dir: Path, quick: bool = True) -> TrainConfig:
     4 mini-batches, lr 1e-3): about 15-30 s on 2 cores. Otherwise NDP on reach-v3 with the
     paper's hyperparameters for 150k env steps (several minutes).
     """
-    if quick:
-        return TrainConfig(
-            task="point-mass",
-            algo="ndp",
-            steps=30_000,
-            seed=0,
-            num_envs=4,
-            run_dir=str(Path(out_dir) / "rl_demo_run"),
-            progress=False,
-            ppo=PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3),
-            policy=PolicyConfig(),
-        )
-    return TrainConfig(
+    cfg = TrainConfig(
         task="reach-v3",
         algo="ndp",
         steps=150_000,
@@ -38,6 +25,15 @@ def demo_config(out_dir: Path, quick: bool = True) -> TrainConfig:
         num_envs=4,
         run_dir=str(Path(out_dir) / "rl_demo_run"),
         progress=True,
+    )
+    if not quick:
+        return cfg
+    return dataclasses.replace(
+        cfg,
+        task="point-mass",
+        steps=30_000,
+        progress=False,
+        ppo=PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3),
     )
 
 
@@ -68,7 +64,7 @@ def plot_curve(run: Path, out_png: Path, title: str) -> Path:
     return out_png
 
 
-def run_rl_demo(out_dir: Path, quick: bool = True) -> dict[str, Any]:
+def run_rl_demo(out_dir: Path, quick: bool = True) -> dict[str, object]:
     """Train a short NDP run, write its learning curve (PNG) and a video (mp4).
 
     Args:

@@ -45,6 +45,7 @@ Usage::
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -81,7 +82,7 @@ RANK_RULE = (
 """The rule of the condition number, stated in every report (ndp.policies.conditioning)."""
 
 
-def _fresh(task: str, algo: str, overrides: dict[str, Any]) -> Policy:
+def _fresh(task: str, algo: str, overrides: Mapping[str, object]) -> Policy:
     """A fresh policy of ``task`` (its config resolved with ``overrides`` of the policy
     config, the network initialised from the config's seed, a fresh observation normaliser)."""
     spec = resolve_task(task).spec
@@ -99,7 +100,7 @@ def _fresh_of(cfg: TrainConfig, spec: TaskSchema) -> Policy:
 
 
 def _policy(
-    task: str | None, algo: str, run: str | None, overrides: dict[str, Any]
+    task: str | None, algo: str, run: str | None, overrides: Mapping[str, object]
 ) -> tuple[TrainConfig, TaskSchema, ActorCritic, ObsNormalizer]:
     """(config, spec, model, obs normaliser) of a fresh policy or a trained run (the spec: a
     ``TaskSpec``, or a trained run's ``PolicySpec`` as ``Policy.spec``)."""
@@ -118,8 +119,8 @@ def diagnose(
     run: str | None = None,
     decisions: int = 300,
     seed: int = 0,
-    **overrides: Any,
-) -> dict[str, Any]:
+    **overrides: object,
+) -> dict[str, object]:
     """Run the handicap diagnostic; returns a JSON-ready dict (see the module docstring)."""
     cfg, spec, model, obs_norm = _policy(task, algo, run, overrides)
     torch.set_num_threads(1)
@@ -130,43 +131,9 @@ def diagnose(
         **cfg.chunk_options(),
     )
     key = "cmd" if cfg.policy.dmp_state == "commanded" else "dmp"
-    scale = np.array([s if s > 0 else 1.0 for s in spec.action_scale])[: spec.action_dim]
-    delta = ~np.array(spec.action_absolute)[: spec.action_dim]
-    absolute = np.flatnonzero(~delta)
-    low, high = np.array(spec.action_low), np.array(spec.action_high)
-    gen = torch.Generator().manual_seed(seed)
-    obs, info = env.reset(seed=seed)
-    intended, executed, moved, grip_mean, prev_cmd = [], [], [], [], []
-    last_cmd = info[f"{key}_y0"][absolute] if absolute.size else None
-    for _ in range(decisions):
-        o = torch.from_numpy(obs_norm(np.asarray(obs, dtype=np.float64)[None], update=True))
-        y0 = torch.as_tensor(info[f"{key}_y0"], dtype=torch.float32)[None]
-        dy0 = torch.as_tensor(info[f"{key}_dy0"], dtype=torch.float32)[None]
-        with torch.no_grad():
-            dist, _ = model.distribution(o, y0, dy0)
-            z = dist.sample(gen)
-            act = dist.actions(z)[0].numpy()
-            mean = dist.actions(dist.mode())[0].numpy()
-        ex = np.clip(act, low, high)
-        intended.append(np.abs(mean[:, delta]) * scale[delta])
-        executed.append(np.abs(ex[:, delta]) * scale[delta])
-        before = info[f"{key}_y0"]
-        if absolute.size:
-            assert last_cmd is not None  # set whenever there are absolute DoF
-            grip_mean.append(mean[:, absolute[0]])
-            prev_cmd.append(float(last_cmd[0]))
-        obs, _, term, trunc, info = env.step(act)
-        # commanded-target motion per sub-step of this decision (measured in the env)
-        cmd_now = dmp_start(info, "commanded")[0]
-        moved.append(
-            np.abs(cmd_now[: len(delta)][delta] - np.asarray(before)[: len(delta)][delta]) / k
-        )
-        last_cmd = ex[-1, absolute] if absolute.size else None
-        if term or trunc:
-            obs, info = env.reset()
-            last_cmd = info[f"{key}_y0"][absolute] if absolute.size else None
+    rec = _handicap_rollout(env, model, obs_norm, spec, key, decisions, seed)
     env.close()
-    out: dict[str, Any] = {
+    out: dict[str, object] = {
         "task": cfg.task,
         "algo": cfg.algo,
         "run": run,
@@ -179,20 +146,89 @@ def diagnose(
             },
             **{f: getattr(cfg.policy, f) for f in ("dmp_state", "dmp_velocity", "init_log_std")},
         },
-        "intended_disp": np.mean(intended, axis=(0, 2)).tolist(),
-        "executed_disp": np.mean(executed, axis=(0, 2)).tolist(),
-        "moved_disp_per_substep": float(np.mean(moved)),
-        "action_scale": float(scale[delta].mean()),
+        "intended_disp": np.mean(rec.intended, axis=(0, 2)).tolist(),
+        "executed_disp": np.mean(rec.executed, axis=(0, 2)).tolist(),
+        "moved_disp_per_substep": float(np.mean(rec.moved)),
+        "action_scale": rec.action_scale,
     }
-    if grip_mean:
-        g = np.array(grip_mean)  # [decisions, k]
-        p = np.array(prev_cmd)
+    if rec.grip_mean:
+        g = np.array(rec.grip_mean)  # [decisions, k]
+        p = np.array(rec.prev_cmd)
         out["grip_mean_std"] = g.std(0).tolist()
         out["grip_noise_corr"] = [
             float(np.corrcoef(g[:, j], p)[0, 1]) if g[:, j].std() > 1e-9 and p.std() > 1e-9 else 0.0
             for j in range(k)
         ]
     return out
+
+
+@dataclasses.dataclass
+class _Handicaps:
+    """What :func:`_handicap_rollout` records, a row per decision (the module docstring)."""
+
+    action_scale: float
+    """The mean action scale of the delta DoF (m or rad per sub-step)."""
+    intended: list[np.ndarray] = dataclasses.field(default_factory=list)
+    """|mean| of the delta DoF times their scale, [k, delta DoF]."""
+    executed: list[np.ndarray] = dataclasses.field(default_factory=list)
+    """|clip(sample)| of the delta DoF times their scale, [k, delta DoF]."""
+    moved: list[np.ndarray] = dataclasses.field(default_factory=list)
+    """The commanded target's motion per sub-step, [delta DoF]."""
+    grip_mean: list[np.ndarray] = dataclasses.field(default_factory=list)
+    """The first absolute DoF's sub-step means, [k] (none without absolute DoF)."""
+    prev_cmd: list[float] = dataclasses.field(default_factory=list)
+    """That DoF's command executed last before the decision."""
+
+
+def _handicap_rollout(
+    env: ChunkedEnv,
+    model: ActorCritic,
+    obs_norm: ObsNormalizer,
+    spec: TaskSchema,
+    key: str,
+    decisions: int,
+    seed: int,
+) -> _Handicaps:
+    """Run ``decisions`` decisions of the stochastic policy in ``env`` (the normaliser
+    learning, episodes reset as they end) and record the handicaps of each; ``key``: the
+    DMP frame's info prefix (``cmd`` or ``dmp``)."""
+    k = env.k
+    scale = np.array([s if s > 0 else 1.0 for s in spec.action_scale])[: spec.action_dim]
+    delta = ~np.array(spec.action_absolute)[: spec.action_dim]
+    absolute = np.flatnonzero(~delta)
+    low, high = np.array(spec.action_low), np.array(spec.action_high)
+    rec = _Handicaps(action_scale=float(scale[delta].mean()))
+    gen = torch.Generator().manual_seed(seed)
+    obs, info = env.reset(seed=seed)
+    last_cmd = info[f"{key}_y0"][absolute] if absolute.size else None
+    for _ in range(decisions):
+        o = torch.from_numpy(obs_norm(np.asarray(obs, dtype=np.float64)[None], update=True))
+        y0 = torch.as_tensor(info[f"{key}_y0"], dtype=torch.float32)[None]
+        dy0 = torch.as_tensor(info[f"{key}_dy0"], dtype=torch.float32)[None]
+        with torch.no_grad():
+            dist, _ = model.distribution(o, y0, dy0)
+            z = dist.sample(gen)
+            act = dist.actions(z)[0].numpy()
+            mean = dist.actions(dist.mode())[0].numpy()
+        ex = np.clip(act, low, high)
+        rec.intended.append(np.abs(mean[:, delta]) * scale[delta])
+        rec.executed.append(np.abs(ex[:, delta]) * scale[delta])
+        before = info[f"{key}_y0"]
+        if absolute.size:
+            assert last_cmd is not None  # set whenever there are absolute DoF
+            rec.grip_mean.append(mean[:, absolute[0]])
+            rec.prev_cmd.append(float(last_cmd[0]))
+        obs, _, term, trunc, info = env.step(act)
+        # commanded-target motion per sub-step of this decision (measured in the env)
+        cmd_now = dmp_start(info, "commanded")[0]
+        rec.moved.append(
+            np.abs(cmd_now[: len(delta)][delta] - np.asarray(before)[: len(delta)][delta]) / k
+        )
+        last_cmd = ex[-1, absolute] if absolute.size else None
+        if term or trunc:
+            obs, info = env.reset()
+            last_cmd = info[f"{key}_y0"][absolute] if absolute.size else None
+    return rec
 
 
 def _decisions(
@@ -256,7 +292,7 @@ def _spectrum(s: torch.Tensor) -> list[float]:
 
 def conditioning_report(
     head: NDPHead, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """The conditioning of an NDP head's map at B decisions (raw [B, P], y0 / dy0 [B, D]).
 
     Returns:
@@ -276,7 +312,7 @@ def conditioning_report(
     c = conditioning(jac, map_jac, slice(0, d), slice(d, n))
     r_min = int(c.rank.min())
     b = int(raw.shape[0])
-    out: dict[str, Any] = {
+    out: dict[str, object] = {
         "decisions": b,
         "rank": r_min
         if b == 1
@@ -322,8 +358,8 @@ def jacobian_diagnostic(
     run: str | None = None,
     episodes: int = JACOBIAN_EPISODES,
     seed: int = 0,
-    **overrides: Any,
-) -> dict[str, Any]:
+    **overrides: object,
+) -> dict[str, object]:
     """The conditioning of an NDP policy's action map (see the module docstring).
 
     Args:
@@ -359,7 +395,7 @@ def jacobian_diagnostic(
     torch.set_num_threads(1)
     d = int(head.dmp_dofs)
     zero = torch.zeros(1, int(head.n_params))
-    out: dict[str, Any] = {
+    out: dict[str, object] = {
         "source": str(run) if run is not None else f"{task} (fresh)",
         "task": fresh.cfg.task,
         "algo": fresh.cfg.algo,
@@ -383,7 +419,7 @@ def jacobian_diagnostic(
     return out
 
 
-def plot_spectra(reports: list[dict[str, Any]], path: str | Path) -> Path:
+def plot_spectra(reports: Sequence[Mapping[str, Any]], path: str | Path) -> Path:
     """A figure of the singular-value spectra of :func:`jacobian_diagnostic` reports, one panel
     per report (policy): at raw = 0, at the fresh network's outputs and at the trained
     policy's (per index, the median over decisions and the 10-90 % band), on a log scale;

@@ -23,7 +23,7 @@ import dataclasses
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -44,7 +44,9 @@ from ndp.envs.vector import (
 )
 
 if TYPE_CHECKING:
-    from ndp.rl.config import TrainConfig
+    from typing_extensions import Unpack  # typing's from Python 3.11
+
+    from ndp.rl.config import EnvOptions, TrainConfig
 
 
 @dataclass(frozen=True)
@@ -57,13 +59,13 @@ class TaskHandle:
     """``make(seed=None, horizon=None, render_mode=None) -> per-step gymnasium.Env``."""
 
 
-def resolve_task(name: str, **options: Any) -> TaskHandle:
+def resolve_task(name: str, **options: Unpack[EnvOptions]) -> TaskHandle:
     """Resolve a task name or alias through ``ndp.envs.TASKS`` (the toy tasks included).
 
     ``options``: task options every env of the handle gets (``reward_version``,
     ``fixed_goal``, ``observation``, ``reward``, ``smooth_lambda``, ``backend``:
-    ``ndp.envs.make_env``),
-    checked here against the task's row.
+    ``ndp.envs.make_env``; a run's are ``TrainConfig.env_options()``), checked here against
+    the task's row.
 
     Raises:
         ValueError: unknown name (the message lists close names), or a bad option.
@@ -74,7 +76,12 @@ def resolve_task(name: str, **options: Any) -> TaskHandle:
     backend = options.pop("backend", "metaworld")
     price = options.pop("smooth_lambda", None)
     check_smooth_lambda(price, reward)
-    kw = task_options(spec, **options)
+    version, goal = options.pop("reward_version", "v2"), options.pop("fixed_goal", None)
+    if options:  # a keyword that is no task option (as a call with it would say)
+        raise TypeError(
+            f"resolve_task() got an unexpected keyword argument {next(iter(options))!r}"
+        )
+    kw = task_options(spec, version, goal)
     if backend != "metaworld":
         # the run's k and stale-world rule are checked by resolve_config / make_vector_env
         check_backend(backend, spec, reward_version=kw.get("reward_version", "v2"),
@@ -155,7 +162,9 @@ def env_seeds(seed: int, num_envs: int, epoch: int = 0) -> list[int]:
     return [int(s) for s in base]
 
 
-def step_info(infos: dict[str, Any], done: np.ndarray, key: str, default: Any = 0.0) -> np.ndarray:
+def step_info(
+    infos: dict[str, Any], done: np.ndarray, key: str, default: float = 0.0
+) -> np.ndarray:
     """The finished step's value of ``key`` per env (``final_info`` where the episode ended).
 
     Args:
@@ -240,12 +249,16 @@ class FrameRecorder(gym.Wrapper):
         super().__init__(env)
         self.frames: list[np.ndarray] = []
 
-    def reset(self, **kw: Any) -> tuple[Any, dict[str, Any]]:
-        out = self.env.reset(**kw)
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, object] | None = None
+    ) -> tuple[np.ndarray, dict[str, object]]:
+        out = self.env.reset(seed=seed, options=options)
         self.frames.append(np.asarray(self.env.render()))
         return out
 
-    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, object]]:
         out = self.env.step(action)
         self.frames.append(np.asarray(self.env.render()))
         return out

@@ -5,9 +5,8 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -77,7 +76,7 @@ def check_save_target(run_dir: str | Path) -> None:
         )
 
 
-def save_evaluation(run_dir: str | Path, result: dict[str, Any], seed: int) -> Path:
+def save_evaluation(run_dir: str | Path, result: Mapping[str, float], seed: int) -> Path:
     """Write an :func:`evaluate` result into the run (atomic; one file per protocol, replaced
     when the same protocol is evaluated again) with the protocol and the Wilson 95% interval
     of the success at any step.
@@ -169,7 +168,7 @@ def evaluate(
     deterministic: bool = True,
     seed: int = EVAL_SEED,
     exec_k: int | None = None,
-) -> dict[str, Any]:
+) -> dict[str, float]:
     """Success of a trained policy over ``episodes`` fresh episodes.
 
     Args:
@@ -196,7 +195,7 @@ def evaluate(
 
 def evaluate_policy(
     pol: Policy, episodes: int = 10, deterministic: bool = True, seed: int = EVAL_SEED
-) -> dict[str, Any]:
+) -> dict[str, float]:
     """:func:`evaluate` of a loaded policy (or its ``at_exec_k`` copy) in ``pol.make_env()``."""
     _check_episodes(episodes, seed)
     env = pol.make_env()
@@ -204,7 +203,7 @@ def evaluate_policy(
         rows = [run_episode(pol, env, seed + i, deterministic) for i in range(episodes)]
     finally:
         env.close()
-    out: dict[str, Any] = {"episodes": episodes, "deterministic": deterministic}
+    out: dict[str, float] = {"episodes": episodes, "deterministic": deterministic}
     for key in rows[0]:
         out[key] = float(np.mean([r[key] for r in rows]))
     out["episode_seconds"] = out["episode_length"] * float(pol.spec.control_dt)
@@ -273,7 +272,7 @@ def render(
     width: int | None = None,
     height: int | None = None,
     overwrite: bool = False,
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """Render ``episodes`` episodes of a trained policy to one mp4 (every env step is a frame;
     in real time, at most 60 frames per second: finer steps are subsampled).
 
@@ -303,23 +302,11 @@ def render(
 
     os.environ.setdefault("MUJOCO_GL", "egl")
 
-    target = Path(out) if out is not None else default_output_dir(run_dir) / "video.mp4"
-    # before rendering anything; an existing file at a path the user named needs overwrite
-    check_output_path(target, "out", overwrite=None if out is None else overwrite)
-    for name, side in (("width", width), ("height", height)):
-        if side is not None:
-            check_render_size(name, side)  # before loading or rendering anything
-            check_video_size(name, side)  # what the mp4 encoder accepts
-    if compare is not None:
-        other = load_policy(compare)
-        mine = load_policy(run_dir)
-        if other.cfg.task != mine.cfg.task:
-            raise ValueError(
-                f"compare: {compare} is a {other.cfg.task} run, {run_dir} a {mine.cfg.task} run"
-            )
+    target = _render_target(run_dir, out, compare, width, height, overwrite)
     size = (width, height)
     frames, rows, pol = _record(run_dir, episodes, deterministic, seed, exec_k, size)
-    result: dict[str, Any] = {}
+    frame_h, frame_w = frames[0].shape[:2]  # one run's frame (before side_by_side)
+    result: dict[str, float] = {}
     if compare is not None:
         frames_b, rows_b, pol_b = _record(compare, episodes, deterministic, seed, exec_k, size)
         if pol_b.substeps != pol.substeps:
@@ -328,8 +315,6 @@ def render(
                 f"trained one and {run_dir} at {pol.substeps}; the videos would not line up"
             )
         result["success_any_compare"] = float(np.mean([r["success_any"] for r in rows_b]))
-    frame_h, frame_w = frames[0].shape[:2]  # one run's frame (before side_by_side)
-    if compare is not None:
         frames = side_by_side(frames, frames_b)
     stride, fps = video_rate(float(pol.spec.control_dt))  # the finer row at exec_k
     frames = frames[::stride]
@@ -344,6 +329,34 @@ def render(
         "fps": fps,
         **result,
     }
+
+
+def _render_target(
+    run_dir: str | Path,
+    out: str | Path | None,
+    compare: str | Path | None,
+    width: int | None,
+    height: int | None,
+    overwrite: bool,
+) -> Path:
+    """:func:`render`'s mp4 path, its arguments checked before anything is rendered: the path
+    (an existing file the user named needs ``overwrite``), the frame size, and that a
+    ``compare`` run is of the same task."""
+    target = Path(out) if out is not None else default_output_dir(run_dir) / "video.mp4"
+    # before rendering anything; an existing file at a path the user named needs overwrite
+    check_output_path(target, "out", overwrite=None if out is None else overwrite)
+    for name, side in (("width", width), ("height", height)):
+        if side is not None:
+            check_render_size(name, side)  # before loading or rendering anything
+            check_video_size(name, side)  # what the mp4 encoder accepts
+    if compare is not None:
+        other = load_policy(compare)
+        mine = load_policy(run_dir)
+        if other.cfg.task != mine.cfg.task:
+            raise ValueError(
+                f"compare: {compare} is a {other.cfg.task} run, {run_dir} a {mine.cfg.task} run"
+            )
+    return target
 
 
 EXEC_K_TABLE_KEYS = (
@@ -374,7 +387,7 @@ def exec_k_table(
     deterministic: bool = True,
     every: bool = False,
     ndp_hold: bool = False,
-) -> list[dict[str, Any]]:
+) -> list[dict[str, object]]:
     """Success vs K2 for trained runs: one :func:`ndp.rl.evaluate.evaluate` per run and K2.
 
     Args:

@@ -15,7 +15,6 @@ from __future__ import annotations
 import datetime
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
@@ -75,7 +74,7 @@ def fit_basis(
     seed: int = EVAL_SEED,
     deterministic: bool = True,
     overwrite: bool = False,
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """Fit the 'pca' chunk basis to the rollouts of trained PPO-multi runs and write it.
 
     Args:
@@ -104,17 +103,7 @@ def fit_basis(
     out_path = check_output_path(out, "out", overwrite=overwrite)
     policies = [load_policy(r) for r in run_dirs]
     first = policies[0]
-    task, k, a = first.cfg.task, first.cfg.k, int(first.spec.action_dim)
-    for run, pol in zip(run_dirs, policies, strict=True):
-        if pol.cfg.algo not in FIT_ALGOS:
-            raise ValueError(
-                f"run_dirs: {run} is a {pol.cfg.algo} run; expected {', '.join(FIT_ALGOS)}"
-            )
-        got = (pol.cfg.task, pol.cfg.k, int(pol.spec.action_dim))
-        if got != (task, k, a):
-            raise ValueError(
-                f"run_dirs: {run} has (task, k, DoF count) {got}, the first run {(task, k, a)}"
-            )
+    task, k, a = _check_runs(run_dirs, policies)
     if n_basis is None:
         from ndp.envs.presets import preset_of
 
@@ -124,35 +113,8 @@ def fit_basis(
     chunk_basis.check_columns("pca", columns, k)
     chunks = np.concatenate([collect_chunks(p, decisions, seed, deterministic) for p in policies])
     basis, sing, explained = chunk_basis.pca_basis(chunks, columns)
-    provenance = {
-        "format": chunk_basis.BASIS_FILE_FORMAT,
-        "version": chunk_basis.BASIS_FILE_VERSION,
-        "basis": "pca",
-        "centred": False,
-        "task": task,
-        "algo": first.cfg.algo,
-        "k": k,
-        "action_dim": a,
-        "n_basis": n_basis,
-        "columns": columns,
-        "decisions_per_run": decisions,
-        "decisions": int(chunks.shape[0]),
-        "mode": "deterministic" if deterministic else "stochastic",
-        "seed": seed,
-        "runs": [
-            {
-                "path": portable_path(r),
-                "seed": p.cfg.seed,
-                "steps": p.cfg.steps,
-                "chunk_basis": p.cfg.policy.chunk_basis,
-                "commits": run_commits(r) or list((p.training or {}).get("commits") or []),
-            }
-            for r, p in zip(run_dirs, policies, strict=True)
-        ],
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "commit": git_commit(),
-        "versions": installed_versions(),
-    }
+    mode = "deterministic" if deterministic else "stochastic"
+    provenance = _provenance(run_dirs, policies, n_basis, decisions, len(chunks), mode, seed)
     data = chunk_basis.basis_file_bytes(
         basis,
         provenance,
@@ -170,3 +132,72 @@ def fit_basis(
         "decisions": int(chunks.shape[0]),
         "explained": [round(float(e), 6) for e in explained],
     }
+
+
+def _check_runs(run_dirs: Sequence[str | Path], policies: Sequence[Policy]) -> tuple[str, int, int]:
+    """``(task, k, DoF count)`` of the first run, every run checked to be a PPO-multi run of
+    the same (ValueError naming the run)."""
+    first = policies[0]
+    task, k, a = first.cfg.task, first.cfg.k, int(first.spec.action_dim)
+    for run, pol in zip(run_dirs, policies, strict=True):
+        if pol.cfg.algo not in FIT_ALGOS:
+            raise ValueError(
+                f"run_dirs: {run} is a {pol.cfg.algo} run; expected {', '.join(FIT_ALGOS)}"
+            )
+        got = (pol.cfg.task, pol.cfg.k, int(pol.spec.action_dim))
+        if got != (task, k, a):
+            raise ValueError(
+                f"run_dirs: {run} has (task, k, DoF count) {got}, the first run {(task, k, a)}"
+            )
+    return task, k, a
+
+
+def _provenance(
+    run_dirs: Sequence[str | Path],
+    policies: Sequence[Policy],
+    n_basis: int,
+    decisions_per_run: int,
+    decisions: int,
+    mode: str,
+    seed: int,
+) -> dict[str, object]:
+    """The basis file's provenance (JSON): its format, what it was fitted to and how (the
+    runs: :func:`_runs_provenance`), the date, commit and installed versions."""
+    first = policies[0]
+    return {
+        "format": chunk_basis.BASIS_FILE_FORMAT,
+        "version": chunk_basis.BASIS_FILE_VERSION,
+        "basis": "pca",
+        "centred": False,
+        "task": first.cfg.task,
+        "algo": first.cfg.algo,
+        "k": first.cfg.k,
+        "action_dim": int(first.spec.action_dim),
+        "n_basis": n_basis,
+        "columns": 1 + n_basis,
+        "decisions_per_run": decisions_per_run,
+        "decisions": decisions,
+        "mode": mode,
+        "seed": seed,
+        "runs": _runs_provenance(run_dirs, policies),
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "commit": git_commit(),
+        "versions": installed_versions(),
+    }
+
+
+def _runs_provenance(
+    run_dirs: Sequence[str | Path], policies: Sequence[Policy]
+) -> list[dict[str, object]]:
+    """The basis file's record of each run it was fitted to: its path, seed, budget, chunk
+    basis and commits."""
+    return [
+        {
+            "path": portable_path(r),
+            "seed": p.cfg.seed,
+            "steps": p.cfg.steps,
+            "chunk_basis": p.cfg.policy.chunk_basis,
+            "commits": run_commits(r) or list((p.training or {}).get("commits") or []),
+        }
+        for r, p in zip(run_dirs, policies, strict=True)
+    ]

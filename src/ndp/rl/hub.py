@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
-from typing import Any
 
 from ndp.hub import push_folder
 
@@ -17,8 +16,8 @@ def push_policy(
     repo_id: str,
     private: bool = False,
     message: str | None = None,
-    api: Any = None,
-) -> dict[str, Any]:
+    api: object = None,
+) -> dict[str, object]:
     """Upload a policy to the Hub as model repository ``repo_id``.
 
     Args:
@@ -38,8 +37,8 @@ def push_policy(
             return push_folder(here, repo_id, private, msg, api)
         if not here.is_dir():
             raise ValueError(f"source: no such run or export folder {src}")
-    from ndp.rl.loading import load_any
+    from ndp.rl.policy import load_policy  # a run or zoo:NAME (an export was uploaded above)
 
     with tempfile.TemporaryDirectory(prefix="ndp-push-") as tmp:
-        out = load_any(src).export(Path(tmp) / "export")
+        out = load_policy(src).export(Path(tmp) / "export")
         return push_folder(out, repo_id, private, msg, api)

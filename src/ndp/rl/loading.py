@@ -6,13 +6,16 @@ Hugging Face Hub (:mod:`ndp.hub`) as the export it holds."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from ndp.hub import download, is_hub_ref
 from ndp.rl.onnx_policy import OnnxPolicy, is_onnx_export
 
+if TYPE_CHECKING:
+    from ndp.rl.policy import Policy
 
-def load_any(path: str | Path) -> Any:
+
+def load_any(path: str | Path) -> Policy | OnnxPolicy:
     """``ndp.load_policy``: an ONNX export as an :class:`OnnxPolicy` without importing torch;
     anything else (a run, a safetensors export, ``zoo:NAME``) through
     :func:`ndp.rl.policy.load_any_policy`."""

@@ -3,10 +3,22 @@
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 import numpy.typing as npt
+
+
+class RunningStats(TypedDict):
+    """The state of a :class:`RunningMeanStd` (a checkpoint's, or an export's ``obs_norm``
+    read back from JSON, where the arrays are lists)."""
+
+    mean: npt.ArrayLike
+    """Mean per entry."""
+    var: npt.ArrayLike
+    """Variance per entry."""
+    count: float
+    """Samples merged (with the initial pseudo-count)."""
 
 
 class RunningMeanStd:
@@ -35,11 +47,11 @@ class RunningMeanStd:
         self.var = m2 / tot
         self.count = tot
 
-    def state_dict(self) -> dict[str, Any]:
+    def state_dict(self) -> RunningStats:
         """Statistics as plain arrays."""
         return {"mean": self.mean.copy(), "var": self.var.copy(), "count": self.count}
 
-    def load_state_dict(self, d: dict[str, Any]) -> None:
+    def load_state_dict(self, d: RunningStats) -> None:
         """Restore from :meth:`state_dict`."""
         self.mean = np.asarray(d["mean"], dtype=np.float64).copy()
         self.var = np.asarray(d["var"], dtype=np.float64).copy()
@@ -85,11 +97,11 @@ class ObsNormalizer:
             )
         return np.clip(z, -self.clip, self.clip).astype(np.float32)
 
-    def state_dict(self) -> dict[str, Any]:
+    def state_dict(self) -> RunningStats:
         """Running statistics."""
         return self.rms.state_dict()
 
-    def load_state_dict(self, d: dict[str, Any]) -> None:
+    def load_state_dict(self, d: RunningStats) -> None:
         """Restore the running statistics."""
         self.rms.load_state_dict(d)
 
@@ -148,10 +160,10 @@ class ReturnNormalizer:
             return x
         return x / np.sqrt(self.rms.var + 1e-8)
 
-    def state_dict(self) -> dict[str, Any]:
+    def state_dict(self) -> RunningStats:
         """Running statistics (the per-env running returns are episode state, not saved)."""
         return self.rms.state_dict()
 
-    def load_state_dict(self, d: dict[str, Any]) -> None:
+    def load_state_dict(self, d: RunningStats) -> None:
         """Restore the running statistics."""
         self.rms.load_state_dict(d)

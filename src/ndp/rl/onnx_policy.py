@@ -8,13 +8,15 @@ is loaded. The export itself (the graph from a torch policy) is :mod:`ndp.rl.onn
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 
-from ndp.act_inputs import ObsRange, check_act_inputs, obs_range_of
+from ndp.act_inputs import ObsRange, RobotState, check_act_inputs, obs_range_of
 from ndp.checks import check_flag, install_hint
 
 ONNX_FORMAT = "ndp-policy-onnx"
@@ -28,7 +30,7 @@ ONNX_FILE = "policy.onnx"
 """File name of the graph inside the export directory."""
 
 
-def _require(name: str) -> Any:
+def _require(name: str) -> ModuleType:
     """Import ``onnx`` / ``onnxruntime``, or say which extra installs them."""
     import importlib
 
@@ -145,7 +147,12 @@ class OnnxPolicy:
         )
         """The task facts the export records (:class:`OnnxSpec`)."""
 
-    def act(self, obs: np.ndarray, info: Any = None, deterministic: bool = True) -> np.ndarray:
+    def act(
+        self,
+        obs: np.ndarray,
+        info: Mapping[str, object] | RobotState | None = None,
+        deterministic: bool = True,
+    ) -> np.ndarray:
         """The deterministic decision: [k, A] for obs [O], [E, k, A] for obs [E, O].
 
         Takes what ``Policy.act`` takes (the chunked env's info, a mapping with

@@ -61,10 +61,10 @@ from ndp.hub import download, is_hub_ref
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
 from ndp.provenance import git_commit, installed_versions, portable_command, portable_path
-from ndp.rl.card import check_export_dir, write_card
+from ndp.rl.card import CardEvaluation, check_export_dir, write_card
 from ndp.rl.config import EVAL_SEED, TrainConfig, load_config
 from ndp.rl.exec_k import at_exec_k
-from ndp.rl.normalize import ObsNormalizer
+from ndp.rl.normalize import ObsNormalizer, RunningStats
 from ndp.rl.onnx_export import write_onnx_export
 from ndp.rl.onnx_policy import OnnxPolicy
 from ndp.runs import load_checkpoint
@@ -166,7 +166,7 @@ class Policy:
     def act(
         self,
         obs: np.ndarray,
-        info: Mapping[str, Any] | RobotState | None = None,
+        info: Mapping[str, object] | RobotState | None = None,
         deterministic: bool = True,
     ) -> np.ndarray:
         """The k sub-actions of one decision (``exec_k`` of them for an :meth:`at_exec_k` copy),
@@ -268,7 +268,7 @@ class Policy:
     def export(
         self,
         out_dir: str | Path,
-        evaluation: dict[str, Any] | None = None,
+        evaluation: CardEvaluation | None = None,
         format: str = "safetensors",
     ) -> Path:
         """Write ``policy.safetensors`` + ``policy.json`` + the model card ``README.md``
@@ -287,7 +287,7 @@ class Policy:
             return _write_export(self, Path(out_dir), evaluation)
 
 
-def _task_spec(cfg: TrainConfig, recorded: dict[str, Any] | None, source: str) -> TaskSchema:
+def _task_spec(cfg: TrainConfig, recorded: Mapping[str, object] | None, source: str) -> TaskSchema:
     """The task's row of the task table when the simulators import (``ndp.envs``), else the
     spec the export recorded (``PolicySpec``). With both, a recorded field that differs from
     the table's is warned about (the table's is used, as the env is built from it)."""
@@ -323,9 +323,9 @@ def _build(
     cfg: TrainConfig,
     obs_dim: int,
     model_state: dict[str, torch.Tensor],
-    obs_norm_state: dict[str, Any],
+    obs_norm_state: RunningStats,
     source: str = "policy",
-    recorded_spec: dict[str, Any] | None = None,
+    recorded_spec: Mapping[str, object] | None = None,
 ) -> Policy:
     spec = _task_spec(cfg, recorded_spec, source)
     model = build_actor_critic(obs_dim, spec, cfg.policy)
@@ -344,7 +344,7 @@ def _build(
     return Policy(cfg, spec, model, obs_norm)
 
 
-def _check_weights(want: dict[str, torch.Tensor], have: dict[str, Any], source: str) -> None:
+def _check_weights(want: dict[str, torch.Tensor], have: Mapping[str, object], source: str) -> None:
     """The saved weights match the network the config builds: names and shapes (one line
     naming the file and the first tensor that differs)."""
     missing = [k for k in want if k not in have]
@@ -568,7 +568,7 @@ def read_export_meta(path: Path) -> dict[str, Any]:
 def export_policy(
     path: str | Path,
     out_dir: str | Path,
-    evaluation: dict[str, Any] | None = None,
+    evaluation: CardEvaluation | None = None,
     format: str = "safetensors",
 ) -> Path:
     """Export the policy of a run (or re-export an export) to ``out_dir``; returns it
@@ -586,7 +586,7 @@ def export_policy(
     return load_policy(path).export(out_dir, evaluation, format)
 
 
-def cached_evaluation(run_dir: Path) -> dict[str, Any] | None:
+def cached_evaluation(run_dir: Path) -> CardEvaluation | None:
     """A run's cached deterministic evaluation (``eval-det-e<N>.json``, episode seeds 10,000
     on; the largest N) in the card's terms, or None."""
     import re
@@ -633,7 +633,7 @@ def _saved_by_eval(name: str) -> bool:
     return "-s" in name.removeprefix("eval-det-")
 
 
-def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | None = None) -> Path:
+def _write_export(policy: Policy, out_dir: Path, evaluation: CardEvaluation | None = None) -> Path:
     from safetensors.torch import save
 
     if policy.substeps != 1:
@@ -652,8 +652,8 @@ def _write_export(policy: Policy, out_dir: Path, evaluation: dict[str, Any] | No
 
 
 def export_meta(
-    policy: Policy, evaluation: dict[str, Any] | None
-) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    policy: Policy, evaluation: CardEvaluation | None
+) -> tuple[dict[str, Any], CardEvaluation | None]:
     """``(policy.json's fields, the evaluation the card reports)`` of an export of ``policy``:
     a re-export of an export given no ``evaluation`` keeps the source's results and commit (its
     weights are the same); the evaluation is recorded in ``policy.json`` too."""
@@ -670,8 +670,8 @@ def export_meta(
         # where it trained, without this machine's absolute path (ndp.provenance.portable_path)
         "config": {**policy.cfg.to_dict(), "run_dir": portable_path(policy.cfg.run_dir or ".")},
         "obs_norm": {
-            "mean": norm["mean"].tolist(),
-            "var": norm["var"].tolist(),
+            "mean": np.asarray(norm["mean"]).tolist(),
+            "var": np.asarray(norm["var"]).tolist(),
             "count": float(norm["count"]),
         },
         "versions": installed_versions(),
@@ -685,7 +685,7 @@ def export_meta(
     return meta, evaluation
 
 
-def card_evaluation(card: Path) -> dict[str, Any] | None:
+def card_evaluation(card: Path) -> CardEvaluation | None:
     """The evaluation an export's card reports (its front matter's ``success_rate``,
     ``episodes``, ``evaluation_command``), for exports written before ``policy.json`` held
     it; None without one."""
@@ -701,7 +701,7 @@ def card_evaluation(card: Path) -> dict[str, Any] | None:
         if m:
             found[key] = m.group(1).strip().strip('"')
     try:
-        out: dict[str, Any] = {
+        out: CardEvaluation = {
             "success": float(found["success_rate"]),
             "episodes": int(found["episodes"]),
         }

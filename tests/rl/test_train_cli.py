@@ -65,6 +65,24 @@ def test_help_of_one_algorithm_shows_only_its_options(capsys):
     assert "--sac-lr" in sac and "--td3-" not in sac
     assert "--sac-lr" in every and "--td3-lr" in every
     assert "Shown: the options --algo ppo reads" in ppo.replace("\n", " ").replace("│", " ")
+    for text in (ppo, sac, every):  # the run-directory options are listed, not only in prose
+        assert "--resume RUN_DIR" in text and "--config FILE" in text
+        assert "--overwrite " in text and "--no-overwrite" not in text  # a plain switch
+        assert "run options" in text
+
+
+def test_the_listed_run_flags_are_the_ones_train_parses(capsys):
+    """What help lists under "run options" is what ``train_command`` pops before the config:
+    each works on the command line (the pairs refused together are named)."""
+    from dataclasses import fields
+
+    from ndp.rl.cli import TrainFlags
+
+    assert [f.name for f in fields(TrainFlags)] == ["resume", "overwrite", "config"]
+    assert main(["rl", "train", "--overwrite", "--resume", "some/run"]) == 2
+    assert "--overwrite: cannot be combined with --resume" in capsys.readouterr().err
+    assert main(["rl", "train", "--config", "hp.yaml", "--resume", "some/run"]) == 2
+    assert "--config: a resumed run keeps its own config" in capsys.readouterr().err
 
 
 def test_a_learner_option_the_method_does_not_read_is_refused(tmp_path, capsys):

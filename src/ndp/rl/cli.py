@@ -17,7 +17,7 @@ import argparse
 import dataclasses
 import json
 import sys
-from typing import TypeAlias
+from typing import Annotated, TypeAlias
 
 from ndp.rl.config import EVAL_SEED, FRESH_EVAL_SEED, TrainConfig
 
@@ -494,8 +494,54 @@ def _help(rest: list[str], prog: str, config_file: str | None) -> None:
     algo, _ = pop_option(rest, "--algo")
     cls = help_config_class(algo) if algo is not None else TrainConfig
     what = f"the options --algo {algo} reads" if algo is not None else "every option"
-    parse_config(cls, rest, prog=prog, description=f"{train_description()} Shown: {what}.")
+    shown = with_run_flags(cls)
+    parse_config(shown, rest, prog=prog, description=f"{train_description()} Shown: {what}.")
     raise SystemExit(0)
+
+
+def _flag(metavar: str | None) -> object:
+    """Annotation: the option's metavar in help, or for ``metavar=None`` a plain on-switch
+    (no ``--no-`` twin); None where tyro, an extra, is absent."""
+    try:
+        import tyro.conf
+    except ImportError:  # pragma: no cover - the layer-only install prints no help
+        return None
+    return tyro.conf.FlagCreatePairsOff if metavar is None else tyro.conf.arg(metavar=metavar)
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainFlags:
+    """The options of ``ndp rl train`` that choose what happens to the run directory rather
+    than how the run trains (parsed by :func:`train_command` before the config; listed in
+    ``--help`` through :func:`with_run_flags`)."""
+
+    resume: Annotated[str | None, _flag("RUN_DIR")] = None
+    """Continue a killed or stopped run from its last checkpoint; the options are then taken
+    from its config.json and only --steps, --progress, --tensorboard, --vector, --env-workers
+    and --device may change."""
+    overwrite: Annotated[bool, _flag(None)] = False
+    """Replace the run in --run-dir (the files it removes are named; other files stay); not with
+    --resume."""
+    config: Annotated[str | None, _flag("FILE")] = None
+    """Start from a run's config.json or a hyperparameter file (JSON / YAML, sections nested;
+    configs/ has the headline's); the options given override it."""
+
+
+def with_run_flags(cls: type) -> type:
+    """``cls`` (a train config class) with :class:`TrainFlags` as a section ``run`` of its
+    help: what ``ndp rl train --help`` parses to print ``--resume``, ``--overwrite`` and
+    ``--config`` among the listed options. Only help uses it; runs never hold these fields."""
+    from ndp.runs.cli import cli
+
+    doc = "what happens to the run directory: continue it, replace it, or start from a file"
+    field = dataclasses.field(default_factory=TrainFlags)
+    return dataclasses.make_dataclass(
+        "TrainConfig",
+        [("run", Annotated[TrainFlags, cli(help=doc)], field)],
+        bases=(cls,),
+        frozen=True,
+        namespace={"__module__": cls.__module__, "__qualname__": "TrainConfig"},
+    )
 
 
 CONFIG_COMMANDS = {"rl train": train_command}

@@ -61,7 +61,7 @@ from ndp.experiments.report.csvs import csv_rows, write_csv
 from ndp.experiments.report.markdown import markdown, with_bc_table
 from ndp.experiments.report.paths import check_report_stem, report_stem, with_ext
 from ndp.experiments.report.plots import plot_all
-from ndp.experiments.report.provenance import LOST, provenance
+from ndp.experiments.report.provenance import LOST, ReportProvenance, provenance, stamp
 from ndp.experiments.report.runs import find_run_dirs, run_info
 from ndp.experiments.report.scope import Scope, check_args, report_budgets, scope, study_sections
 from ndp.experiments.rows import (
@@ -217,10 +217,10 @@ def _family_section(
     md: list[str],
     rl_cells: Sequence[Cell],
     expected: Sequence[int],
-    pairs: Sequence[Any],
+    pairs: Sequence[tuple[str, str]],
     pooled: bool,
     out: Path,
-    prov: dict[str, Any],
+    prov: ReportProvenance,
     holm_over: str = "all",
 ) -> list[Path]:
     """The registered family of pairwise tests, inserted into ``md`` before its CSV line, with
@@ -231,8 +231,7 @@ def _family_section(
     written = []
     if frows:
         path = out.with_name(out.name + "-family.csv")
-        stamp = {k: prov[k] for k in ("command", "commit", "date")}
-        write_csv(path, [{**r, **stamp} for r in frows])
+        write_csv(path, [{**r, **stamp(prov)} for r in frows])
         written.append(path)
     at = next((i for i, line in enumerate(md) if line.startswith("CSV:")), len(md))
     md[at:at] = fmd

@@ -45,7 +45,7 @@ def per_commit(infos: Sequence[RunInfo]) -> dict[str, int]:
 
 
 class ReportProvenance(TypedDict):
-    """A report's provenance (:func:`provenance`)."""
+    """A report's provenance (what :func:`ndp.experiments.report.provenance.provenance` returns)."""
 
     command: str
     commit: str

@@ -25,7 +25,7 @@ ended its task) for each finished run."""
 
 
 class Backend(Protocol):
-    """Where runs execute; a handle (:meth:`submit`) is opaque outside its backend."""
+    """Where runs execute; a handle (what ``submit`` returns) is opaque outside its backend."""
 
     name: str
     slots: int
@@ -86,7 +86,7 @@ class LocalBackend:
 
 
 def _futures(handles: Sequence[Hashable]) -> list[futures.Future[Outcome]]:
-    """The local backend's handles as what they are (its :meth:`LocalBackend.submit`'s)."""
+    """The local backend's handles as what they are (the futures its ``submit`` returns)."""
     return cast("list[futures.Future[Outcome]]", list(handles))
 
 
@@ -156,7 +156,7 @@ class RayBackend:
 
 
 def _refs(handles: Sequence[Hashable]) -> list[ObjectRef[Outcome]]:
-    """The Ray backend's handles as what they are (its :meth:`RayBackend.submit`'s)."""
+    """The Ray backend's handles as what they are (the object refs its ``submit`` returns)."""
     return cast("list[ObjectRef[Outcome]]", list(handles))
 
 

@@ -8,6 +8,7 @@ import datetime as dt
 from collections.abc import Sequence
 from typing import TypedDict
 
+from ndp.experiments.report.cells import CsvRow
 from ndp.experiments.rows import RunInfo
 from ndp.provenance import commit_in_history, fingerprint_text, git_commit
 
@@ -54,6 +55,20 @@ class ReportProvenance(TypedDict):
     run_environments: list[tuple[str, int]]
     n_runs: int
     runs_per_commit: dict[str, int]
+
+
+class ReportResult(ReportProvenance):
+    """What :func:`ndp.experiments.report.report` returns: its provenance, the numbers and the
+    paths it wrote."""
+
+    seeds: list[int]
+    budgets: list[int]
+    rows: list[CsvRow]
+    markdown: str
+    csv: str
+    section_csv: list[str]
+    png: list[str]
+    missing: list[tuple[str, str, list[int]]]
 
 
 def stamp(prov: ReportProvenance) -> dict[str, str]:

@@ -20,7 +20,7 @@ import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict
 
 from ndp.experiments.run_kinds import run_kind
 
@@ -252,7 +252,20 @@ def _pick(kind: str, requested: list[str] | None, known: list[str]) -> list[str]
     return list(requested)
 
 
-def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
+class SweepGrid(TypedDict):
+    """The sweep the options describe (:func:`build_grid`)."""
+
+    name: str
+    kind: str
+    tasks: list[str]
+    arms: list[Arm]
+    seeds: list[int]
+    steps: int
+    budgets: list[float] | None
+    notes: list[str]
+
+
+def build_grid(args: argparse.Namespace, extra: list[str]) -> SweepGrid:
     """The sweep the options describe, validated (ValueError before anything starts)."""
     from ndp.experiments.sweep import apply_overrides, check_tasks, parse_overrides
 
@@ -281,7 +294,7 @@ def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
     }
 
 
-_Grid = tuple[str, str, list[Any], list[str], list[int], int, "list[float] | None"]
+_Grid = tuple[str, str, "list[Arm]", list[str], list[int], int, "list[float] | None"]
 """(kind, name, arms, tasks, seeds, steps, budgets) of a sweep before its checks."""
 
 
@@ -467,7 +480,7 @@ def _unpack(archive: Path, runs_dir: Path) -> None:
 
 
 def _sweep_report(
-    args: argparse.Namespace, argv: list[str], g: dict[str, Any], jobs: Sequence[Job]
+    args: argparse.Namespace, argv: list[str], g: SweepGrid, jobs: Sequence[Job]
 ) -> None:
     """``--report OUT``: the report of the sweep's runs (missing seeds marked)."""
     from ndp.experiments.report import report

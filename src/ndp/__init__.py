@@ -34,9 +34,12 @@ simulators, trainers and tools are extras: ``[envs]`` (``make_env``), ``[rl]`` (
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ndp.checks import install_hint
+
+if TYPE_CHECKING:
+    from ndp.envs import ChunkedEnv
 
 __version__ = "0.1.0"
 """The source tree's version (``pyproject.toml``'s; a test keeps them equal). The installed
@@ -104,7 +107,7 @@ def make_env(
     observation: str = "full",
     reward: str = "dense",
     smooth_lambda: float | None = None,
-) -> Any:
+) -> ChunkedEnv:
     """The chunked env of a task: k sub-steps per decision (``k = 1``: plain per-step).
 
     Args:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 """The largest magnitude an observation may have: every runtime computes in float32 at some
@@ -79,15 +80,15 @@ class ObsRange:
         )
 
 
-def obs_range_of(mean: Any, var: Any, clip: float) -> ObsRange:
+def obs_range_of(mean: ArrayLike, var: ArrayLike, clip: float) -> ObsRange:
     """An :class:`ObsRange` from the normaliser's mean [O] and variance [O]."""
     m = np.asarray(mean, dtype=np.float64)
     return ObsRange(m, np.sqrt(np.asarray(var, dtype=np.float64) + 1e-8), float(clip))
 
 
 def check_act_inputs(
-    obs: Any,
-    info: Any,
+    obs: object,
+    info: object,
     *,
     obs_dim: int,
     dofs: int,
@@ -162,13 +163,13 @@ def check_act_inputs(
 
 
 def _state_mapping(
-    info: Any,
+    info: object,
     shape: tuple[int, ...],
     state_keys: tuple[str, str],
     needs_state: bool,
     starts_at_rest: bool,
     what: str,
-) -> Mapping[str, Any]:
+) -> Mapping[object, object]:
     """The robot state as a mapping with ``state_keys`` (a RobotState, None)."""
     ky, kdy = state_keys
     if isinstance(info, RobotState) or (

@@ -14,7 +14,10 @@ import functools
 import math
 import numbers
 import typing
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 
 def _numpy_bool(value: object) -> bool:
@@ -33,7 +36,7 @@ def check_flag(name: str, value: object) -> bool:
     return bool(value)
 
 
-def plain_number(value: Any) -> Any:
+def plain_number(value: object) -> object:
     """``value`` as a Python bool / int / float when it is a non-Python numeric scalar (numpy's
     ``bool_``, integers and floats); anything else unchanged."""
     if type(value) in (bool, int, float) or isinstance(value, (str, bytes)):
@@ -60,7 +63,7 @@ def _flag_fields(cls: type) -> dict[str, bool]:
     return out
 
 
-def plain_numbers(config: Any) -> None:
+def plain_numbers(config: DataclassInstance) -> None:
     """Replace every numeric-scalar field of a (frozen) dataclass by its Python number
     (:func:`plain_number`); tuples of numbers too. A NaN or infinite number in any field is
     refused here, naming the field (no config field of the package takes one), and so is a
@@ -82,9 +85,10 @@ def plain_numbers(config: Any) -> None:
             if isinstance(x, numbers.Real) and not isinstance(x, bool) and not math.isfinite(x):
                 raise ValueError(f"{f.name}: expected a finite number, got {x!r}")
         if isinstance(v, tuple):
-            new: Any = tuple(plain_number(x) for x in v)
-            if all(a is b for a, b in zip(new, v, strict=True)):
+            items = tuple(plain_number(x) for x in v)
+            if all(a is b for a, b in zip(items, v, strict=True)):
                 continue
+            new: object = items
         else:
             new = plain_number(v)
             if new is v:

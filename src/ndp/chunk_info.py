@@ -14,13 +14,14 @@ are named nowhere else. This module imports nothing heavy (no gymnasium, no torc
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 
-def _f(shape: tuple[str, ...], dtype: Any, doc: str) -> dict[str, Any]:
+def _f(shape: tuple[str, ...], dtype: type[np.generic], doc: str) -> dict[str, object]:
     """A :class:`ChunkInfo` field's metadata: its per-env shape in the symbols ``k``
     (sub-steps), ``k+1`` and ``D`` (DMP DoF), its dtype and what it is."""
     return {"shape": shape, "dtype": dtype, "doc": doc}
@@ -83,7 +84,7 @@ CHUNK_INFO_KEYS = tuple(f.name for f in dataclasses.fields(ChunkInfo))
 """Every key of a chunked step's info, in order."""
 
 
-def info_schema(k: int, dof: int) -> dict[str, tuple[tuple[int, ...], Any]]:
+def info_schema(k: int, dof: int) -> dict[str, tuple[tuple[int, ...], type[np.generic]]]:
     """Key -> (per-env shape, dtype) of :class:`ChunkInfo` for ``k`` sub-steps and ``dof`` DMP
     DoF (the shared arrays of :class:`ndp.envs.vector.WorkerVectorEnv`)."""
     size = {"k": int(k), "k+1": int(k) + 1, "D": int(dof)}
@@ -121,7 +122,9 @@ def frame_of_keys(position_key: str) -> str:
     raise ValueError(f"position_key: expected one of cmd_y0, dmp_y0, got {position_key!r}")
 
 
-def dmp_start(info: Any, frame: str, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def dmp_start(
+    info: Mapping[str, object], frame: str, n: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """The DMP start (y0, dy0) in ``frame`` from a chunked env's info (one env: [D] each) or a
     vector env's (``n`` envs: [n, D] each), as float64 arrays.
 

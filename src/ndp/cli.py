@@ -13,7 +13,6 @@ import importlib
 import sys
 from collections.abc import Callable, Sequence
 from types import ModuleType
-from typing import Any
 
 from ndp import version
 from ndp.checks import install_hint
@@ -39,7 +38,9 @@ def _missing_extra_message(command: str, extra: str, missing: str) -> str:
     )
 
 
-def _add_missing_extra(sub: Any, command: str, extra: str, missing: str) -> None:
+def _add_missing_extra(
+    sub: argparse._SubParsersAction[argparse.ArgumentParser], command: str, extra: str, missing: str
+) -> None:
     p = sub.add_parser(command, help=f"(needs the [{extra}] extra: not installed)")
     p.add_argument("args", nargs=argparse.REMAINDER)
 

@@ -16,6 +16,7 @@ read from an export).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any, Literal, Protocol
 
@@ -163,7 +164,7 @@ def spec_record(spec: TaskSchema) -> dict[str, Any]:
     """The ``"spec"`` record of ``policy.json`` for a task's schema (a ``TaskSpec`` row or a
     :class:`TaskSchema` read back): plain JSON values."""
 
-    def floats(xs: Any) -> list[float]:
+    def floats(xs: Iterable[float]) -> list[float]:
         return [float(x) for x in xs]
 
     return {
@@ -188,7 +189,7 @@ def spec_record(spec: TaskSchema) -> dict[str, Any]:
     }
 
 
-def check_record(record: Any, source: str = "spec") -> None:
+def check_record(record: object, source: str = "spec") -> None:
     """Check a ``"spec"`` record's fields, types and lengths (``ValueError``, one line)."""
     if not isinstance(record, dict):
         raise ValueError(f"{source}: expected an object, got {type(record).__name__}")

@@ -16,12 +16,16 @@ import importlib
 import json
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ndp.io import atomic_savefig, atomic_write_text, check_output_path
 
+if TYPE_CHECKING:
+    import torch
+    from matplotlib.axes import Axes
 
-def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
+
+def run_dmp_demo(out_dir: Path) -> dict[str, str | float]:
     """Plot DMP rollouts and a fit; returns a summary with the fit error."""
     import matplotlib
     import torch
@@ -45,7 +49,9 @@ def run_dmp_demo(out_dir: Path) -> dict[str, Any]:
     return {"figure": str(path), "fit_mse_px2": mse}
 
 
-def _random_weights(ax: Any, gen: Any, goal: Any, y0: Any) -> Any:
+def _random_weights(
+    ax: Axes, gen: torch.Generator, goal: torch.Tensor, y0: torch.Tensor
+) -> torch.Tensor:
     """Panel 1: six rollouts with random forcing weights (the first with none); returns the
     DMP's time axis for the other panels."""
     import torch
@@ -67,7 +73,7 @@ def _random_weights(ax: Any, gen: Any, goal: Any, y0: Any) -> Any:
     return torch.linspace(0, 1, cfg.n_out)
 
 
-def _only_g(ax: Any, goal: Any, y0: Any, t: Any) -> None:
+def _only_g(ax: Axes, goal: torch.Tensor, y0: torch.Tensor, t: torch.Tensor) -> None:
     """Panel 2: the goal-only DMP (a critically damped spring) at four a_z."""
     from ndp.dmp import DMPConfig, dmp_rollout
 
@@ -80,7 +86,9 @@ def _only_g(ax: Any, goal: Any, y0: Any, t: Any) -> None:
     ax.legend(fontsize=8)
 
 
-def _rbf_kinds(ax: Any, gen: Any, goal: Any, y0: Any, t: Any) -> None:
+def _rbf_kinds(
+    ax: Axes, gen: torch.Generator, goal: torch.Tensor, y0: torch.Tensor, t: torch.Tensor
+) -> None:
     """Panel 3: the same weights under every RBF kind."""
     import torch
 
@@ -96,7 +104,7 @@ def _rbf_kinds(ax: Any, gen: Any, goal: Any, y0: Any, t: Any) -> None:
     ax.legend(fontsize=8)
 
 
-def _fit(ax: Any, t: Any) -> float:
+def _fit(ax: Axes, t: torch.Tensor) -> float:
     """Panel 4: a least-squares fit of (g, w) to a drawn demonstration; returns its MSE."""
     import torch
 

@@ -28,6 +28,7 @@ import numpy as np
 from ndp.io import atomic_write_text
 
 if TYPE_CHECKING:
+    from ndp.experiments.report.cells import Cell
     from ndp.runs.session import Manifest
 
 
@@ -161,7 +162,7 @@ def det_numbers(rows: Sequence[dict[str, float]]) -> dict[str, Any]:
     }
 
 
-def has_det(cells: Sequence[Any]) -> bool:
+def has_det(cells: Sequence[Cell]) -> bool:
     """Whether any run of ``cells`` has a periodic deterministic evaluation."""
     return any(
         not math.isnan(n.get("det_area", math.nan)) for c in cells for n in c.numbers.values()

@@ -14,9 +14,15 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ndp.experiments.rows import CLONING_ROW, IMITATION_ROW, SUCCESS_ROW, ReportRow
+
+if TYPE_CHECKING:
+    from ndp.bc.train import BCConfig
+    from ndp.experiments.study import Arm
+    from ndp.il.cli import TrainCommand
+    from ndp.rl.config import TrainConfig
 
 EXTERNAL_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac", "sb3-td3")
 """Methods an arm can name besides the trainer's registered ones (``ndp.rl.methods``): the
@@ -72,7 +78,7 @@ def _start_or_resume(command: str, run: Path, start: list[str]) -> list[str]:
 
 
 def _rl_command(
-    task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
+    task: str, arm: Arm, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
     start = ["--task", task, "--algo", arm.algo, "--seed", str(seed), "--steps", str(steps),
              "--num-envs", str(num_envs), "--run-dir", str(run), "--no-progress",
@@ -80,11 +86,11 @@ def _rl_command(
     return _start_or_resume("rl train", run, start)
 
 
-def _rl_argv(task: str, arm: Any) -> list[str]:
+def _rl_argv(task: str, arm: Arm) -> list[str]:
     return ["--task", task, "--algo", arm.algo, *arm.args]
 
 
-def _rl_check(cfg: Any, task: str) -> None:
+def _rl_check(cfg: TrainConfig, task: str) -> None:
     from ndp.rl.config import resolve_config
 
     resolve_config(cfg)
@@ -103,7 +109,7 @@ def _il_algos() -> tuple[str, ...]:
 
 
 def _il_command(
-    task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
+    task: str, arm: Arm, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
     start = [*il_data_args(task), "--model", IL_METHODS[arm.algo], "--seed", str(seed),
              "--epochs", str(steps), "--run-dir", str(run), "--no-progress", "--no-tensorboard",
@@ -111,11 +117,11 @@ def _il_command(
     return _start_or_resume("il train", run, start)
 
 
-def _il_argv(task: str, arm: Any) -> list[str]:
+def _il_argv(task: str, arm: Arm) -> list[str]:
     return [*il_data_args(task), "--model", IL_METHODS[arm.algo], *arm.args]
 
 
-def _il_check(cfg: Any, task: str) -> None:
+def _il_check(cfg: TrainCommand, task: str) -> None:
     if cfg.config.data.source != "pendigits":
         return
     from ndp.il.train import DEFAULT_PENDIGITS
@@ -141,7 +147,7 @@ def _sb3_algos() -> tuple[str, ...]:
 
 
 def _sb3_command(
-    task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
+    task: str, arm: Arm, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
     cmd = [sys.executable, "-m", "ndp.sb3.runs", "--task", task,
            "--steps", str(steps), "--seed", str(seed), "--num-envs", str(num_envs),
@@ -166,7 +172,7 @@ def _bc_algos() -> tuple[str, ...]:
 
 
 def _bc_command(
-    task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
+    task: str, arm: Arm, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
     return [sys.executable, "-m", "ndp.experiments.sweep.bc_job", "--task", task, "--",
             "--model", BC_METHODS[arm.algo], "--seed", str(seed), "--epochs", str(steps),
@@ -174,11 +180,11 @@ def _bc_command(
             *arm.args]  # fmt: skip
 
 
-def _bc_argv(task: str, arm: Any) -> list[str]:
+def _bc_argv(task: str, arm: Arm) -> list[str]:
     return ["--model", BC_METHODS[arm.algo], *arm.args]
 
 
-def _bc_check(cfg: Any, task: str) -> None:
+def _bc_check(cfg: BCConfig, task: str) -> None:
     from ndp.bc.experts import expert_builder
 
     expert_builder(task)  # a task without a scripted expert has no demonstrations to clone
@@ -190,7 +196,7 @@ def _bc_check(cfg: Any, task: str) -> None:
 
 
 def _no_command(
-    task: str, arm: Any, seed: int, steps: int, run: Path, num_envs: int, vector: str
+    task: str, arm: Arm, seed: int, steps: int, run: Path, num_envs: int, vector: str
 ) -> list[str]:
     raise ValueError(f"arm {arm.label!r}: its run kind names no command")
 
@@ -199,11 +205,11 @@ def _no_algos() -> tuple[str, ...]:
     return ()
 
 
-def _no_argv(task: str, arm: Any) -> list[str]:
+def _no_argv(task: str, arm: Arm) -> list[str]:
     return []
 
 
-def _no_check(cfg: Any, task: str) -> None:
+def _no_check(cfg: object, task: str) -> None:
     return None
 
 
@@ -247,10 +253,10 @@ class RunKind:
     algos: Callable[[], Sequence[str]] = field(default=_no_algos)
     """The arm methods (``Arm.algo``) this kind trains (an arm's kind is the row that lists its
     method)."""
-    command: Callable[[str, Any, int, int, Path, int, str], list[str]] = field(default=_no_command)
+    command: Callable[[str, Arm, int, int, Path, int, str], list[str]] = field(default=_no_command)
     """``(task, arm, seed, budget, run dir, num_envs, vector) -> argv`` that starts the run, or
     resumes it from its checkpoint."""
-    argv: Callable[[str, Any], list[str]] = field(default=_no_argv)
+    argv: Callable[[str, Arm], list[str]] = field(default=_no_argv)
     """``(task, arm) -> the arm's options`` as ``prog`` parses them (the sweep's checks)."""
     check: Callable[[Any, str], None] = field(default=_no_check)
     """``(parsed config, task)``: further checks before anything runs (a ValueError naming the

@@ -133,7 +133,7 @@ def rollout_paths(
 
 def run_smoothness(
     run: str | Path, episodes: int = 10, seed: int = EVAL_SEED, dofs: slice | None = None
-) -> dict[str, Any]:
+) -> dict[str, float]:
     """Success, mean squared jerk and SPARC of a run's executed paths, means over episodes.
 
     ``dofs`` selects the coordinates measured (default: the task's arm coordinates, i.e. every

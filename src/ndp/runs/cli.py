@@ -17,7 +17,10 @@ import dataclasses
 import json
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 T = TypeVar("T")
 
@@ -27,7 +30,9 @@ try:  # tyro is needed only to parse command lines
     HIDDEN: Any = _conf.Suppress
     """Annotation: a derived field that is not an option (e.g. the head, which follows algo)."""
 
-    def cli(name: str | None = None, aliases: Sequence[str] = (), help: str | None = None) -> Any:
+    def cli(
+        name: str | None = None, aliases: Sequence[str] = (), help: str | None = None
+    ) -> object:
         """Annotation: the option's name (without ``--``), extra spellings (with ``--``) and
         help text (None: the field's docstring)."""
         return _conf.arg(name=name, aliases=tuple(aliases) or None, help=help)
@@ -35,7 +40,9 @@ try:  # tyro is needed only to parse command lines
 except ImportError:  # pragma: no cover - the layer-only install
     HIDDEN = None
 
-    def cli(name: str | None = None, aliases: Sequence[str] = (), help: str | None = None) -> Any:
+    def cli(
+        name: str | None = None, aliases: Sequence[str] = (), help: str | None = None
+    ) -> object:
         return None
 
 
@@ -119,7 +126,11 @@ def merge_config_dict(
     return out
 
 
-def changed_fields(old: Any, new: Any, prefix: str = "") -> list[str]:
+def changed_fields(
+    old: DataclassInstance | type[DataclassInstance],
+    new: DataclassInstance | type[DataclassInstance],
+    prefix: str = "",
+) -> list[str]:
     """Dotted names of the leaf fields whose values differ between two configs of one class."""
     out: list[str] = []
     for f in dataclasses.fields(old):

@@ -266,7 +266,7 @@ def seed_run(plan: RunPlan) -> None:
 
 
 def drive(
-    recipe: Recipe[L, Any],
+    recipe: Recipe[L, object],
     learner: L,
     session: RunSession,
     stop: int,
@@ -293,7 +293,7 @@ def drive(
 def _callbacks_stop(
     callbacks: Sequence[Callback],
     row: Row,
-    recipe: Recipe[L, Any],
+    recipe: Recipe[L, object],
     learner: L,
     session: RunSession,
 ) -> bool:

@@ -319,7 +319,7 @@ def run_commits(run_dir: str | Path) -> list[str]:
     )
 
 
-def provenance_sessions(run_dir: str | Path) -> list[Any]:
+def provenance_sessions(run_dir: str | Path) -> list[object]:
     """The session records of a run's provenance.json; empty when it is missing or
     unreadable."""
     try:

@@ -11,22 +11,28 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterable
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+    DataclassLike = DataclassInstance | type[DataclassInstance]
+    """What ``dataclasses.fields`` takes: a dataclass instance or class."""
 
 LOCATION_FIELDS = ("run_dir",)
 """Fields that say where the run is, not what it is: never compared on resume."""
 
 
 def config_differences(
-    saved: Any, new: Any, ignore: Iterable[str] = ()
-) -> list[tuple[str, Any, Any]]:
+    saved: DataclassInstance, new: DataclassInstance, ignore: Iterable[str] = ()
+) -> list[tuple[str, object, object]]:
     """``(dotted field, saved value, new value)`` for every field of two config dataclasses that
     differs, nested configs walked (``ppo.lr``), fields named in ``ignore`` (top level or
     dotted) and :data:`LOCATION_FIELDS` left out."""
     skip = set(ignore) | set(LOCATION_FIELDS)
-    out: list[tuple[str, Any, Any]] = []
+    out: list[tuple[str, object, object]] = []
 
-    def walk(a: Any, b: Any, prefix: str) -> None:
+    def walk(a: DataclassLike, b: DataclassLike, prefix: str) -> None:
         for f in dataclasses.fields(a):
             name = prefix + f.name
             if name in skip:
@@ -41,7 +47,9 @@ def config_differences(
     return out
 
 
-def check_resume(saved: Any, new: Any, safe: Iterable[str], where: object) -> None:
+def check_resume(
+    saved: DataclassInstance, new: DataclassInstance, safe: Iterable[str], where: object
+) -> None:
     """Refuse a resume whose config differs from the checkpoint's outside ``safe`` fields.
 
     Raises:

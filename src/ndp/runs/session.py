@@ -25,13 +25,20 @@ import random
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, TypedDict, runtime_checkable
 
 from ndp.io import atomic_write_text
 from ndp.runs import lock
 from ndp.runs.checkpoint import load_checkpoint, save_checkpoint
 from ndp.runs.layout import RunDir
 from ndp.runs.resume import check_resume
+
+if TYPE_CHECKING:
+    import numpy as np
+    import torch
+    from _typeshed import DataclassInstance
+    from numpy.typing import NDArray
+    from torch import Tensor
 
 MANIFEST_NAME = "run.json"
 """The run's manifest (:class:`Manifest`)."""
@@ -52,7 +59,15 @@ def seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
-def global_rng_state() -> dict[str, Any]:
+class RngState(TypedDict):
+    """The global generators' state, as saved in every checkpoint."""
+
+    torch: Tensor
+    numpy: dict[str, Any] | tuple[str, NDArray[np.uint32], int, int, float]
+    python: tuple[object, ...]
+
+
+def global_rng_state() -> RngState:
     """The global generators' state: ``{"torch", "numpy", "python"}`` (saved per checkpoint)."""
     import numpy as np
     import torch
@@ -64,7 +79,7 @@ def global_rng_state() -> dict[str, Any]:
     }
 
 
-def set_global_rng_state(state: dict[str, Any]) -> None:
+def set_global_rng_state(state: RngState) -> None:
     """Restore :func:`global_rng_state`'s output."""
     import numpy as np
     import torch
@@ -245,8 +260,8 @@ class RunSession:
         run_dir: str | Path,
         *,
         kind: str,
-        config: Any,
-        config_from_dict: Callable[[dict[str, Any]], Any],
+        config: DataclassInstance,
+        config_from_dict: Callable[[dict[str, Any]], DataclassInstance],
         safe_on_resume: Iterable[str],
         resume: bool,
         unit: str = "update",
@@ -324,7 +339,7 @@ class RunSession:
         write_manifest(self.run.path, manifest)
 
 
-def nonfinite_parameter(named: Iterable[tuple[str, Any]]) -> str | None:
+def nonfinite_parameter(named: Iterable[tuple[str, torch.Tensor]]) -> str | None:
     """The name of the first parameter holding NaN / Inf, else None."""
     import torch
 

@@ -35,7 +35,8 @@ Example::
 from __future__ import annotations
 
 import functools
-from typing import Any, SupportsFloat
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, SupportsFloat
 
 import numpy as np
 import torch
@@ -50,6 +51,7 @@ try:
     from stable_baselines3.common.distributions import DiagGaussianDistribution
     from stable_baselines3.common.policies import ActorCriticPolicy
     from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+    from stable_baselines3.common.type_aliases import Schedule
 except ModuleNotFoundError as _exc:  # name the extra that installs what is missing
     if (_exc.name or "").split(".")[0] not in ("stable_baselines3", "gymnasium"):
         raise
@@ -57,6 +59,13 @@ except ModuleNotFoundError as _exc:  # name the extra that installs what is miss
         f"{_exc}: ndp.sb3 needs the [sb3] extra ({install_hint('sb3')})",
         name=_exc.name,
     ) from _exc
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
+    from stable_baselines3.common.policies import BasePolicy
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from ndp.rl.policy import Policy
 
 import ndp
 from ndp.chunk_info import DMP_START_KEYS
@@ -117,7 +126,7 @@ class _RobotState(gym.Wrapper):
         )
         self._keys = STATE_KEYS[dmp_state]
 
-    def _dict(self, obs: Any, info: dict[str, Any]) -> dict[str, np.ndarray]:
+    def _dict(self, obs: object, info: Mapping[str, object]) -> dict[str, np.ndarray]:
         ky, kdy = self._keys
         if ky not in info or kdy not in info:
             raise ValueError(
@@ -134,8 +143,8 @@ class _RobotState(gym.Wrapper):
         return self._dict(obs, info), info
 
     def step(
-        self, action: Any
-    ) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool, dict[str, Any]]:
+        self, action: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], SupportsFloat, bool, bool, dict[str, object]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
         return self._dict(obs, info), reward, terminated, truncated, info
 
@@ -202,7 +211,7 @@ class NDPPolicy(ActorCriticPolicy):
         self,
         observation_space: spaces.Space[Any],
         action_space: spaces.Space[Any],
-        lr_schedule: Any,
+        lr_schedule: Schedule,
         task: str | None = None,
         ndp: dict[str, Any] | None = None,
         log_std_init: float = 0.0,
@@ -249,7 +258,7 @@ class NDPPolicy(ActorCriticPolicy):
         data.update(task=self.task, ndp=self.ndp)
         return data
 
-    def _build(self, lr_schedule: Any) -> None:
+    def _build(self, lr_schedule: Schedule) -> None:
         """The MLP extractor, the raw-parameter layer, the NDP head, the value layer, SB3's
         orthogonal initialisation and the optimiser."""
         from ndp.rl.config import TrainConfig, resolve_config
@@ -344,11 +353,11 @@ class NDPPolicy(ActorCriticPolicy):
 
     def predict(
         self,
-        observation: Any,
-        state: Any = None,
-        episode_start: Any = None,
+        observation: np.ndarray | dict[str, np.ndarray],
+        state: tuple[np.ndarray, ...] | None = None,
+        episode_start: np.ndarray | None = None,
         deterministic: bool = False,
-    ) -> tuple[np.ndarray, Any]:
+    ) -> tuple[np.ndarray, tuple[np.ndarray, ...] | None]:
         """SB3's ``predict``, its inputs checked first as every policy runtime checks them
         (:func:`ndp.act_inputs.check_act_inputs`: shapes, finite values, float32's range; one
         line naming ``obs`` or the state key, the index and what was expected)."""
@@ -378,7 +387,9 @@ class NDPPolicy(ActorCriticPolicy):
         return self._distribution(self.mlp_extractor.forward_actor(features), obs)
 
 
-def to_policy(model: Any, vec_normalize: Any = None) -> Any:
+def to_policy(
+    model: BaseAlgorithm | BasePolicy, vec_normalize: VecNormalize | None = None
+) -> Policy:
     """An SB3 model with :class:`NDPPolicy` as the package's :class:`ndp.rl.policy.Policy`,
     so that it exports (``.export(DIR)``: safetensors + JSON + card; ``format="onnx"``),
     evaluates and renders like a policy trained by ``ndp rl train``.
@@ -454,7 +465,9 @@ def _widths(seq: nn.Module) -> tuple[int, ...]:
     return tuple(m.out_features for m in seq.modules() if isinstance(m, nn.Linear))
 
 
-def _normaliser(vec_normalize: Any, obs_dim: int) -> tuple[np.ndarray, np.ndarray, float] | None:
+def _normaliser(
+    vec_normalize: VecNormalize | None, obs_dim: int
+) -> tuple[np.ndarray, np.ndarray, float] | None:
     """(mean [O], var [O], clip) of a VecNormalize's ``obs`` statistics; None without one."""
     if vec_normalize is None or not getattr(vec_normalize, "norm_obs", False):
         return None
@@ -464,8 +477,8 @@ def _normaliser(vec_normalize: Any, obs_dim: int) -> tuple[np.ndarray, np.ndarra
             f"vec_normalize: expected norm_obs_keys=['obs'] (a normalised robot state is not "
             f"where the robot is), got {keys}"
         )
-    rms = vec_normalize.obs_rms
-    rms = rms["obs"] if isinstance(rms, dict) else rms
+    stats = vec_normalize.obs_rms
+    rms = stats["obs"] if isinstance(stats, dict) else stats
     mean, var = np.asarray(rms.mean, dtype=np.float64), np.asarray(rms.var, dtype=np.float64)
     if mean.shape != (obs_dim,) or var.shape != (obs_dim,):
         raise ValueError(

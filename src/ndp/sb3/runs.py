@@ -50,10 +50,10 @@ import json
 import math
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
@@ -62,8 +62,14 @@ from ndp.rl.config import EVAL_SEED, PPOConfig
 from ndp.rl.sac.config import SACConfig
 from ndp.rl.td3.config import TD3Config
 from ndp.runs import MetricsLogger
-from ndp.runs.driver import RunPlan, run
+from ndp.runs.driver import Row, RunPlan, run
 from ndp.runs.session import LearnerDefaults, Manifest, RunSession
+
+if TYPE_CHECKING:
+    import gymnasium as gym
+    from stable_baselines3 import PPO, SAC, TD3
+    from stable_baselines3.common.base_class import BaseAlgorithm
+    from stable_baselines3.common.vec_env import VecEnv
 
 SB3_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac", "sb3-td3")
 """The methods this module trains (the ``sb3`` run kind's arms)."""
@@ -91,7 +97,9 @@ class EpisodeCounter:
         self.ret = np.zeros(num_envs)
         self.finished: list[tuple[float, float]] = []
 
-    def step(self, rewards: np.ndarray, dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
+    def step(
+        self, rewards: np.ndarray, dones: np.ndarray, infos: Sequence[Mapping[str, object]]
+    ) -> None:
         """One vector step: rewards [E] (raw, unnormalised), dones [E], infos (one per env; a
         chunked env's ``success_decision``, else ``success``)."""
         for i, info in enumerate(infos):
@@ -111,7 +119,7 @@ class EpisodeCounter:
         return len(eps), float(arr[:, 0].mean()), float(arr[:, 1].mean())
 
 
-def make_sb3_ppo(venv: Any, seed: int, num_envs: int) -> Any:
+def make_sb3_ppo(venv: VecEnv, seed: int, num_envs: int) -> PPO:
     """SB3 PPO with the supplement's settings (``PPOConfig`` defaults) on a normalised venv."""
     import torch
     from stable_baselines3 import PPO
@@ -190,7 +198,33 @@ SB3's SAC / TD3 itself
 steps the envs once and takes its gradient steps between)."""
 
 
-def make_sb3_sac(venv: Any, seed: int, num_envs: int) -> Any:
+class _OffPolicyKwargs(TypedDict):
+    """The keywords SB3's SAC and TD3 get alike here."""
+
+    learning_rate: float
+    buffer_size: int
+    learning_starts: int
+    batch_size: int
+    tau: float
+    gamma: float
+    train_freq: int
+    gradient_steps: int
+    seed: int
+    device: str
+    verbose: int
+
+
+def _off_policy_kwargs(c: SACConfig | TD3Config, seed: int, num_envs: int) -> _OffPolicyKwargs:
+    """SB3's SAC / TD3 keywords from our config ``c``: its lr, buffer, batch, tau and random
+    steps (SB3 counts env steps, num_envs per vector step), gamma 0.99, one gradient step per
+    env step (``num_envs`` after each vector step), on the CPU, quiet."""
+    return _OffPolicyKwargs(learning_rate=c.lr, buffer_size=c.buffer_size,
+                            learning_starts=c.random_steps, batch_size=c.batch_size, tau=c.tau,
+                            gamma=0.99, train_freq=1, gradient_steps=num_envs, seed=seed,
+                            device="cpu", verbose=0)  # fmt: skip
+
+
+def make_sb3_sac(venv: VecEnv, seed: int, num_envs: int) -> SAC:
     """SB3's SAC with the settings of ``ndp.rl.sac.config.SACConfig``'s defaults: buffer 1M,
     batch 256, lr 3e-4, tau 0.005, gamma 0.99, automatic temperature (initial 1), 256-256 ReLU,
     5,000 random env steps first, and one gradient step per env step (``gradient_steps`` =
@@ -201,23 +235,13 @@ def make_sb3_sac(venv: Any, seed: int, num_envs: int) -> Any:
     return SAC(
         "MlpPolicy",
         venv,
-        learning_rate=c.lr,
-        buffer_size=c.buffer_size,
-        learning_starts=c.random_steps,  # SB3 counts env steps (num_envs per vector step)
-        batch_size=c.batch_size,
-        tau=c.tau,
-        gamma=0.99,
-        train_freq=1,
-        gradient_steps=num_envs,
         ent_coef=f"auto_{c.init_alpha}",
-        seed=seed,
-        device="cpu",
-        verbose=0,
+        **_off_policy_kwargs(c, seed, num_envs),
         policy_kwargs={"net_arch": [256, 256]},
     )
 
 
-def make_sb3_td3(venv: Any, seed: int, num_envs: int) -> Any:
+def make_sb3_td3(venv: VecEnv, seed: int, num_envs: int) -> TD3:
     """SB3's TD3 with the settings of ``ndp.rl.td3.config.TD3Config``'s defaults (SB3's own
     defaults, but two): lr 1e-3, buffer 1M, batch 256, tau 0.005, gamma 0.99, policy delay 2,
     target policy noise 0.2 clipped at 0.5, 400-300 ReLU (SB3's default ``net_arch`` for TD3),
@@ -229,31 +253,23 @@ def make_sb3_td3(venv: Any, seed: int, num_envs: int) -> Any:
     from stable_baselines3.common.noise import NormalActionNoise
 
     c = TD3Config()
-    n_act = int(np.prod(venv.action_space.shape))
+    shape = venv.action_space.shape
+    assert shape is not None  # a Box action space
+    n_act = int(np.prod(shape))
     noise = NormalActionNoise(np.zeros(n_act), np.full(n_act, c.expl_noise))
     return TD3(
         "MlpPolicy",
         venv,
-        learning_rate=c.lr,
-        buffer_size=c.buffer_size,
-        learning_starts=c.random_steps,  # SB3 counts env steps (num_envs per vector step)
-        batch_size=c.batch_size,
-        tau=c.tau,
-        gamma=0.99,
-        train_freq=1,
-        gradient_steps=num_envs,
         action_noise=noise,
         policy_delay=c.policy_delay,
         target_policy_noise=c.target_noise,
         target_noise_clip=c.target_noise_clip,
-        seed=seed,
-        device="cpu",
-        verbose=0,
+        **_off_policy_kwargs(c, seed, num_envs),
         policy_kwargs={"net_arch": [400, 300]},
     )
 
 
-OFF_POLICY_REFERENCES: dict[str, Callable[[Any, int, int], Any]] = {
+OFF_POLICY_REFERENCES: dict[str, Callable[[VecEnv, int, int], BaseAlgorithm]] = {
     "sb3-sac": make_sb3_sac,
     "sb3-td3": make_sb3_td3,
 }
@@ -265,7 +281,7 @@ PER_STEP_METHODS = ("sb3-ppo", *OFF_POLICY_REFERENCES)
 """The methods on the per-step env (k = 1); the others run the chunked env."""
 
 
-def make_sb3_chunked(venv: Any, method: str, seed: int, k: int) -> Any:
+def make_sb3_chunked(venv: VecEnv, method: str, seed: int, k: int) -> PPO:
     """SB3 PPO for ``sb3-ndp`` / ``sb3-multi``: SB3's defaults but ``n_steps`` 128 and
     ``gamma`` 0.99 ** k (the same for both; they differ in the policy only)."""
     from stable_baselines3 import PPO
@@ -276,7 +292,7 @@ def make_sb3_chunked(venv: Any, method: str, seed: int, k: int) -> Any:
     return PPO(policy, venv, n_steps=128, gamma=0.99**k, seed=seed, device="cpu", verbose=0)
 
 
-def _env_maker(cfg: SB3RunConfig) -> Callable[[], Any]:
+def _env_maker(cfg: SB3RunConfig) -> Callable[[], gym.Env]:
     """A function building one env of the run (per-step env, or chunked one for k > 1)."""
     if cfg.method in PER_STEP_METHODS:
         from ndp.rl.envs import resolve_task
@@ -285,8 +301,8 @@ def _env_maker(cfg: SB3RunConfig) -> Callable[[], Any]:
         return lambda: h.make(horizon=cfg.horizon)
     import ndp.sb3  # binds ndp too (ndp.make_env)
 
-    def make() -> Any:
-        env = ndp.make_env(cfg.task, k=cfg.k, horizon=cfg.horizon)
+    def make() -> gym.Env:
+        env: gym.Env = ndp.make_env(cfg.task, k=cfg.k, horizon=cfg.horizon)
         if cfg.method == "sb3-ndp":
             env = ndp.sb3.with_robot_state(env, cfg.task)
         return env
@@ -294,7 +310,9 @@ def _env_maker(cfg: SB3RunConfig) -> Callable[[], Any]:
     return make
 
 
-def evaluate_sb3(model: Any, venv: Any, make: Callable[[], Any], episodes: int) -> dict[str, Any]:
+def evaluate_sb3(
+    model: BaseAlgorithm, venv: VecEnv, make: Callable[[], gym.Env], episodes: int
+) -> dict[str, float]:
     """The deterministic policy over ``episodes`` fresh episodes (reset seeds from
     :data:`ndp.rl.config.EVAL_SEED`), observations normalised by ``venv``'s frozen statistics
     (as they are where ``venv`` does not normalise: ``sb3-sac``, ``sb3-td3``): success at any
@@ -302,7 +320,8 @@ def evaluate_sb3(model: Any, venv: Any, make: Callable[[], Any], episodes: int) 
     from stable_baselines3.common.vec_env import VecNormalize
 
     norm = venv.normalize_obs if isinstance(venv, VecNormalize) else (lambda o: o)
-    venv.training = False
+    if isinstance(venv, VecNormalize):  # frozen statistics (the others have none)
+        venv.training = False
     env = make()
     succ, rets = [], []
     try:
@@ -505,7 +524,7 @@ class SB3Recipe:
                         reason="budget" if end else "")  # fmt: skip
 
     @contextlib.contextmanager
-    def log(self, learner: SB3Learner, session: RunSession) -> Iterator[Callable[[Any], None]]:
+    def log(self, learner: SB3Learner, session: RunSession) -> Iterator[Callable[[Row], None]]:
         with MetricsLogger(session.run.path, FIELDS, step="global_step",
                            tensorboard=False) as metrics:  # fmt: skip
             yield metrics.log

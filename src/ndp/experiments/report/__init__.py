@@ -45,7 +45,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from ndp.experiments.report import family
 from ndp.experiments.report.cells import (
@@ -61,7 +60,13 @@ from ndp.experiments.report.csvs import csv_rows, write_csv
 from ndp.experiments.report.markdown import markdown, with_bc_table
 from ndp.experiments.report.paths import check_report_stem, report_stem, with_ext
 from ndp.experiments.report.plots import plot_all
-from ndp.experiments.report.provenance import LOST, provenance
+from ndp.experiments.report.provenance import (
+    LOST,
+    ReportProvenance,
+    ReportResult,
+    provenance,
+    stamp,
+)
 from ndp.experiments.report.runs import find_run_dirs, run_info
 from ndp.experiments.report.scope import Scope, check_args, report_budgets, scope, study_sections
 from ndp.experiments.rows import (
@@ -141,7 +146,7 @@ def report(
     compare: Sequence[str] = (),
     compare_pooled: bool = False,
     compare_holm: str = "all",
-) -> dict[str, Any]:
+) -> ReportResult:
     """Write ``<out>.md``, ``<out>.csv`` and ``<out>-<task>.png`` (see the module doc).
 
     ``compare``: a registered family of tests, ``"A:B"`` pairs of method labels (A - B on each
@@ -184,7 +189,7 @@ def _write(
     cells: list[Cell], expected: list[int], sc: Scope, out: Path, command: str, title: str,
     plots: bool, eval_episodes: int, budgets: Sequence[float] | None,
     pairs: Sequence[tuple[str, str]], pooled: bool, holm_over: str = "all",
-) -> dict[str, Any]:  # fmt: skip
+) -> ReportResult:  # fmt: skip
     """The numbers of the cells, then every output of :func:`report` (its return value)."""
     tables = split_tables(cells)
     rl_cells, il_cells, bc_cells = tables["success"], tables["imitation"], tables["cloning"]
@@ -217,10 +222,10 @@ def _family_section(
     md: list[str],
     rl_cells: Sequence[Cell],
     expected: Sequence[int],
-    pairs: Sequence[Any],
+    pairs: Sequence[tuple[str, str]],
     pooled: bool,
     out: Path,
-    prov: dict[str, Any],
+    prov: ReportProvenance,
     holm_over: str = "all",
 ) -> list[Path]:
     """The registered family of pairwise tests, inserted into ``md`` before its CSV line, with
@@ -231,8 +236,7 @@ def _family_section(
     written = []
     if frows:
         path = out.with_name(out.name + "-family.csv")
-        stamp = {k: prov[k] for k in ("command", "commit", "date")}
-        write_csv(path, [{**r, **stamp} for r in frows])
+        write_csv(path, [{**r, **stamp(prov)} for r in frows])
         written.append(path)
     at = next((i for i, line in enumerate(md) if line.startswith("CSV:")), len(md))
     md[at:at] = fmd

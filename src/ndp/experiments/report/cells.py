@@ -16,6 +16,10 @@ import numpy as np
 from ndp.experiments.rows import RunInfo
 from ndp.experiments.run_kinds import run_kind
 
+CsvRow = dict[str, str | float]
+"""One row of a report's CSV (:func:`ndp.experiments.report.csvs.write_csv`): column -> text or a
+number (an int or a bool is a number here too)."""
+
 
 class MissingSeedsError(ValueError):
     """Cells of the report lack seeds (the message names them)."""
@@ -44,6 +48,17 @@ class Cell:
     def n_seeds_cell(self) -> str:
         """The table's ``n`` cell: seeds that ran, and the missing ones in bold."""
         return f"{len(self.runs)}" + (f" **{self.marker()}**" if self.missing else "")
+
+
+def seed_values(cell: Cell | None, key: str, seeds: Sequence[int]) -> list[float]:
+    """The number ``key`` of each of ``seeds`` that ``cell`` has and that is not NaN (none
+    without a cell)."""
+    out = []
+    for s in seeds:
+        n = cell.numbers.get(s) if cell is not None else None
+        if n is not None and not math.isnan(float(n[key])):
+            out.append(float(n[key]))
+    return out
 
 
 def fmt_stat(m: float, s: float, n: int, digits: int = 2) -> str:

@@ -31,13 +31,17 @@ import itertools
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ndp.experiments.report import stats
+from ndp.experiments.report.cells import Cell, CsvRow, seed_values
 from ndp.experiments.report.readings import interval
 from ndp.io import atomic_savefig
+
+if TYPE_CHECKING:
+    from ndp.experiments.studies.base import Condition
 
 METRICS = (
     ("area", "success area"),
@@ -53,7 +57,7 @@ DET_METRICS = (
 """The periodic deterministic evaluation's numbers, first where the runs have them."""
 
 
-def metrics_of(cells: Sequence[Any]) -> tuple[tuple[tuple[str, str], ...], str]:
+def metrics_of(cells: Sequence[Cell]) -> tuple[tuple[tuple[str, str], ...], str]:
     """(the numbers the tables give, the headline key): the deterministic ones first where any
     run has them; the deterministic area is the headline only where every run has it (a study
     whose older runs trained without periodic evaluation keeps the training-episode area as
@@ -68,11 +72,13 @@ ORDER = ("ndp", "ppo-multi", "ppo")
 """The paper's ordering of the methods, best first."""
 
 
-def _name(cond: Any) -> str:
+def _name(cond: Condition) -> str:
     return f"{cond.name} (UNEQUAL)" if cond.unequal else cond.name
 
 
-def _with_overrides(cond: Any, by: dict[tuple[str, str], Any], tasks: Sequence[str]) -> Any:
+def _with_overrides(
+    cond: Condition, by: dict[tuple[str, str], Cell], tasks: Sequence[str]
+) -> Condition:
     """A condition whose arm differs per task (``Condition.overrides``) as one with a combined
     label per overridden method, e.g. ``ppo-v1 / faucet-open-v3: ppo-v1-fixed``, entered in
     ``by`` for every task (the tables then need no per-task lookup)."""
@@ -99,23 +105,14 @@ def _ci(v: Sequence[float], lo: float, hi: float) -> str:
     return "-" if not len(v) else f"{np.mean(v):.2f} [{lo:.2f}, {hi:.2f}]"
 
 
-def _values(cell: Any, key: str, seeds: Sequence[int]) -> list[float]:
-    out = []
-    for s in seeds:
-        n = cell.numbers.get(s) if cell is not None else None
-        if n is not None and not math.isnan(n[key]):
-            out.append(float(n[key]))
-    return out
-
-
 def conditions_section(
-    cells: Sequence[Any],
-    conditions: Sequence[Any],
+    cells: Sequence[Cell],
+    conditions: Sequence[Condition],
     seeds: Sequence[int],
     out: Path,
     foot: str,
     plots: bool = True,
-) -> tuple[list[str], list[dict[str, Any]], list[Path]]:
+) -> tuple[list[str], list[CsvRow], list[Path]]:
     """(Markdown lines, CSV rows, figures) of the conditions of a study (see the module doc).
 
     Args:
@@ -131,7 +128,7 @@ def conditions_section(
     conditions = [_with_overrides(cond, by, tasks) for cond in conditions]
     metrics, head = metrics_of(cells)
     md = _intro(conditions, dict(metrics)[head])
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     waiting: dict[str, list[str]] = {}
     for task in tasks:
         tmd, trows = _task_section(task, by, conditions, seeds, metrics, head, waiting)
@@ -158,7 +155,7 @@ def conditions_section(
     return md, rows, pngs
 
 
-def _intro(conditions: Sequence[Any], head_name: str) -> list[str]:
+def _intro(conditions: Sequence[Condition], head_name: str) -> list[str]:
     """The section's title, what a condition is, and each condition with its arms."""
     md = [
         "## Conditions",
@@ -178,9 +175,10 @@ def _intro(conditions: Sequence[Any], head_name: str) -> list[str]:
 
 
 def _task_section(
-    task: str, by: dict[tuple[str, str], Any], conditions: Sequence[Any], seeds: Sequence[int],
-    metrics: Sequence[tuple[str, str]], head: str, waiting: dict[str, list[str]],
-) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+    task: str, by: dict[tuple[str, str], Cell], conditions: Sequence[Condition],
+    seeds: Sequence[int], metrics: Sequence[tuple[str, str]], head: str,
+    waiting: dict[str, list[str]],
+) -> tuple[list[str], list[CsvRow]]:  # fmt: skip
     """One task's condition x method table and its permutation tests (conditions with every
     arm on the task); the conditions with only some arms there are added to ``waiting``."""
     present = [cond for cond in conditions if all((task, lb) in by for _, lb in cond.methods)]
@@ -198,7 +196,7 @@ def _task_section(
         + f" | {head_name}: t-interval |",
         "|---" * (5 + len(metrics)) + "|",
     ]
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     for cond in present:
         for m, lb in cond.methods:
             line, row = _task_row(task, cond, m, lb, by.get((task, lb)), seeds, metrics, head)
@@ -211,23 +209,23 @@ def _task_section(
 
 
 def _task_row(
-    task: str, cond: Any, m: str, lb: str, cell: Any, seeds: Sequence[int],
+    task: str, cond: Condition, m: str, lb: str, cell: Cell | None, seeds: Sequence[int],
     metrics: Sequence[tuple[str, str]], head: str,
-) -> tuple[str, dict[str, Any]]:  # fmt: skip
+) -> tuple[str, CsvRow]:  # fmt: skip
     """One method's row of a task table (Markdown line, CSV row): each metric's mean and
     bootstrap interval, and the headline's t-interval."""
     vals = []
-    row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
+    row: CsvRow = {"condition": cond.name, "unequal": cond.unequal,
                            "task": task, "method": m, "arm": lb}  # fmt: skip
     n = 0
     for key, _ in metrics:
-        v = _values(cell, key, seeds)
+        v = seed_values(cell, key, seeds)
         n = max(n, len(v))
         lo, hi = stats.bootstrap_ci(v) if v else (math.nan, math.nan)
         vals.append(_ci(v, lo, hi))
-        row.update({f"{key}_mean": np.mean(v) if v else math.nan,
+        row.update({f"{key}_mean": float(np.mean(v)) if v else math.nan,
                     f"{key}_ci_low": lo, f"{key}_ci_high": hi})  # fmt: skip
-    v = _values(cell, head, seeds)
+    v = seed_values(cell, head, seeds)
     tlo, thi = stats.t_interval(v) if v else (math.nan, math.nan)
     vals.append("-" if not v else f"[{tlo:.2f}, {thi:.2f}]")
     row.update({f"{head}_t_low": tlo, f"{head}_t_high": thi})
@@ -236,18 +234,19 @@ def _task_row(
 
 
 def _full_groups(
-    by: dict[tuple[str, str], Any], conditions: Sequence[Any], tasks: Sequence[str],
+    by: dict[tuple[str, str], Cell], conditions: Sequence[Condition], tasks: Sequence[str],
     seeds: Sequence[int], head: str,
-) -> dict[tuple[str, ...], list[Any]]:  # fmt: skip
+) -> dict[tuple[str, ...], list[Condition]]:  # fmt: skip
     """The conditions whose every arm has every seed on the same tasks (two or more), grouped
     by those tasks (each group is read over its own full tasks)."""
-    groups: dict[tuple[str, ...], list[Any]] = {}
+    groups: dict[tuple[str, ...], list[Condition]] = {}
     for cond in conditions:
         full = tuple(
             t
             for t in tasks
             if all(
-                len(_values(by.get((t, lb)), head, seeds)) == len(seeds) for _, lb in cond.methods
+                len(seed_values(by.get((t, lb)), head, seeds)) == len(seeds)
+                for _, lb in cond.methods
             )
         )
         if len(full) >= 2:
@@ -256,10 +255,10 @@ def _full_groups(
 
 
 def _over_groups(
-    by: dict[tuple[str, str], Any], groups: dict[tuple[str, ...], list[Any]],
-    conditions: Sequence[Any], seeds: Sequence[int], metrics: Sequence[tuple[str, str]],
+    by: dict[tuple[str, str], Cell], groups: dict[tuple[str, ...], list[Condition]],
+    conditions: Sequence[Condition], seeds: Sequence[int], metrics: Sequence[tuple[str, str]],
     head: str,
-) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+) -> tuple[list[str], list[CsvRow]]:  # fmt: skip
     """Per group of :func:`_full_groups`: the summary over its tasks and the stratified
     permutation tests (Markdown lines, CSV rows)."""
     if not groups:
@@ -267,7 +266,7 @@ def _over_groups(
     methods = list(dict.fromkeys(m for cond in conditions for m, _ in cond.methods))
     head_name = dict(metrics)[head]
     md: list[str] = []
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     for full, conds in groups.items():
         over, rows_g = _over_tasks(by, conds, methods, list(full), seeds, metrics, head)
         md += over
@@ -279,16 +278,20 @@ def _over_groups(
 
 
 def _matrix(
-    by: dict[tuple[str, str], Any], label: str, key: str, tasks: Sequence[str], seeds: Sequence[int]
+    by: dict[tuple[str, str], Cell],
+    label: str,
+    key: str,
+    tasks: Sequence[str],
+    seeds: Sequence[int],
 ) -> np.ndarray:
     return np.array([[by[(t, label)].numbers[s][key] for t in tasks] for s in seeds], float)
 
 
 def _over_tasks(
-    by: dict[tuple[str, str], Any], conditions: Sequence[Any], methods: Sequence[str],
+    by: dict[tuple[str, str], Cell], conditions: Sequence[Condition], methods: Sequence[str],
     full: Sequence[str], seeds: Sequence[int], metrics: Sequence[tuple[str, str]] = METRICS,
     head: str = "area",
-) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+) -> tuple[list[str], list[CsvRow]]:  # fmt: skip
     """The summary of ``conditions`` over the tasks ``full``: per condition and method the IQM
     of each metric and the optimality gap, then the probability of improvement of NDP over
     each other method and whether the paper's ordering holds (Markdown lines, CSV rows)."""
@@ -304,7 +307,7 @@ def _over_tasks(
         + f" | optimality gap, {head_name} |",
         "|---" * (3 + len(metrics)) + "|",
     ]
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     iqm_head: dict[tuple[str, str], float] = {}
     for cond in conditions:
         for m, lb in cond.methods:
@@ -324,15 +327,15 @@ def _over_tasks(
 
 
 def _iqm_row(
-    by: dict[tuple[str, str], Any], cond: Any, m: str, lb: str, full: Sequence[str],
+    by: dict[tuple[str, str], Cell], cond: Condition, m: str, lb: str, full: Sequence[str],
     seeds: Sequence[int], metrics: Sequence[tuple[str, str]], head: str,
     iqm_head: dict[tuple[str, str], float],
-) -> tuple[str, dict[str, Any]]:  # fmt: skip
+) -> tuple[str, CsvRow]:  # fmt: skip
     """One method's row over tasks (Markdown line, CSV row): each metric's IQM with its
     stratified-bootstrap interval and the headline's optimality gap; the headline's IQM is
     recorded in ``iqm_head``."""
     vals = []
-    row: dict[str, Any] = {"condition": cond.name, "unequal": cond.unequal,
+    row: CsvRow = {"condition": cond.name, "unequal": cond.unequal,
                            "task": "IQM over tasks", "method": m, "arm": lb,
                            "n_seeds": len(seeds)}  # fmt: skip
     for key, _ in metrics:
@@ -357,10 +360,10 @@ def _iqm_row(
 
 
 def _improvement(
-    by: dict[tuple[str, str], Any], conditions: Sequence[Any], others: Sequence[str],
+    by: dict[tuple[str, str], Cell], conditions: Sequence[Condition], others: Sequence[str],
     full: Sequence[str], seeds: Sequence[int], metrics: Sequence[tuple[str, str]], head: str,
     iqm_head: dict[tuple[str, str], float],
-) -> tuple[list[str], list[dict[str, Any]]]:  # fmt: skip
+) -> tuple[list[str], list[CsvRow]]:  # fmt: skip
     """P(NDP > other) per condition and shown metric, and whether the paper's ordering holds
     in the headline's IQM (Markdown lines, CSV rows)."""
     head_name = dict(metrics)[head]
@@ -375,7 +378,7 @@ def _improvement(
         "| condition | " + " | ".join(heads) + " | paper's ordering |",
         "|---" * (2 + len(heads)) + "|",
     ]
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     for cond in conditions:
         lab = dict(cond.methods)
         if "ndp" not in lab:
@@ -409,9 +412,9 @@ def _improvement(
 
 
 def _pairwise(
-    by: dict[tuple[str, str], Any], conditions: Sequence[Any], tasks: Sequence[str],
+    by: dict[tuple[str, str], Cell], conditions: Sequence[Condition], tasks: Sequence[str],
     seeds: Sequence[int], head: str,
-) -> list[dict[str, Any]]:  # fmt: skip
+) -> list[CsvRow]:  # fmt: skip
     """For every condition and pair of its methods (table order) with every seed on ``tasks``:
     the mean difference of ``head`` over the tasks, its stratified permutation p-values
     (two-sided, and one-sided of "A > B" and "B > A"; :func:`stats.permutation_tests`) and the
@@ -424,7 +427,7 @@ def _pairwise(
         arms = [
             (m, lb)
             for m, lb in cond.methods
-            if all(len(_values(by.get((t, lb)), head, seeds)) == n for t in tasks)
+            if all(len(seed_values(by.get((t, lb)), head, seeds)) == n for t in tasks)
         ]
         family = []
         for (ma, la), (mb, lb) in itertools.combinations(arms, 2):
@@ -438,7 +441,7 @@ def _pairwise(
     return rows
 
 
-def with_holm(family: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def with_holm(family: list[CsvRow]) -> list[CsvRow]:
     """The rows of one family of pairwise tests (:func:`_difference` rows), each given its
     Holm-adjusted two-sided p (``p_holm``), the family's size (``holm_m``) and the
     convention's word (``significant``: Holm p <= :data:`stats.ALPHA`); returns ``family``."""
@@ -466,20 +469,21 @@ SIGNIFICANCE_NOTE = (
 smallest p the seeds allow)."""
 
 
-def significance(r: dict[str, Any]) -> str:
+def significance(r: CsvRow) -> str:
     """The convention's word for one pairwise row: ``**A > B**`` / ``**B > A**`` (names from
     its ``method``, "A vs B") where Holm p <= alpha, else ``not significant``."""
     if not r.get("significant"):
         return "not significant"
-    a, b = r["method"].split(" vs ", 1)
-    return f"**{a} > {b}**" if r["diff_mean"] > 0 else f"**{b} > {a}**"
+    a, b = str(r["method"]).split(" vs ", 1)
+    return f"**{a} > {b}**" if float(r["diff_mean"]) > 0 else f"**{b} > {a}**"
 
 
-def pvalue_cells(r: dict[str, Any]) -> str:
+def pvalue_cells(r: CsvRow) -> str:
     """The p columns of a pairwise row: two-sided p, Holm p (m), the convention's word, both
     one-sided p, the test."""
-    return (f"{_p(r['p_two_sided'])} | {_p(r['p_holm'])} ({r['holm_m']}) | {significance(r)} "
-            f"| {_p(r['p_a_greater'])} | {_p(r['p_b_greater'])} | {r['p_method']}")  # fmt: skip
+    keys = ("p_two_sided", "p_holm", "p_a_greater", "p_b_greater")
+    two, holm, a_gt, b_gt = (_p(float(r[k])) for k in keys)
+    return f"{two} | {holm} ({r['holm_m']}) | {significance(r)} | {a_gt} | {b_gt} | {r['p_method']}"
 
 
 P_HEADS = ("p (two-sided) | Holm p (m) | Holm p <= 0.05 | one-sided p(A > B) | "
@@ -487,7 +491,7 @@ P_HEADS = ("p (two-sided) | Holm p (m) | Holm p <= 0.05 | one-sided p(A > B) | "
 """The headings of :func:`pvalue_cells`."""
 
 
-def _pairwise_md(rows: Sequence[dict[str, Any]], title: str) -> list[str]:
+def _pairwise_md(rows: Sequence[CsvRow], title: str) -> list[str]:
     if not rows:
         return []
     floor = "With 3 + 3 seeds on one task the smallest one-sided p is 0.05, two-sided 0.1."
@@ -502,13 +506,13 @@ def _pairwise_md(rows: Sequence[dict[str, Any]], title: str) -> list[str]:
     ]
     for r in rows:
         cond = f"{r['condition']} (UNEQUAL)" if r["unequal"] else r["condition"]
-        ci = interval(r["diff_t_low"], r["diff_t_high"])
+        ci = interval(float(r["diff_t_low"]), float(r["diff_t_high"]))
         md.append(f"| {cond} | {r['method']} | {r['diff_mean']:+.3f} | {ci} | {pvalue_cells(r)} |")
     return [*md, ""]
 
 
 def _profiles(
-    by: dict[tuple[str, str], Any], groups: dict[tuple[str, ...], list[Any]],
+    by: dict[tuple[str, str], Cell], groups: dict[tuple[str, ...], list[Condition]],
     seeds: Sequence[int], head: str, head_name: str, out: Path, foot: str,
 ) -> Path:  # fmt: skip
     """``<out>-profiles.png``: rliable performance profiles (the fraction of runs over the
@@ -551,7 +555,7 @@ def _profiles(
 
 
 def _plot(
-    rows: Sequence[dict[str, Any]], conditions: Sequence[Any], out: Path, foot: str,
+    rows: Sequence[CsvRow], conditions: Sequence[Condition], out: Path, foot: str,
     metrics: Sequence[tuple[str, str]] = METRICS,
 ) -> Path:  # fmt: skip
     """``<out>-conditions.png``: IQM with its interval per condition and method, one panel per
@@ -603,7 +607,7 @@ PAIRWISE_MAX_METHODS = 8
 would print 190 per task and number): the report says so and how to narrow it."""
 
 
-def _difference(x: np.ndarray, y: np.ndarray) -> dict[str, Any]:
+def _difference(x: np.ndarray, y: np.ndarray) -> CsvRow:
     """Runs ``x`` [n_a, tasks] against ``y`` [n_b, tasks]: the mean difference over tasks, its
     Welch 95% t-interval (NaN with a single run on a side), the permutation p-values
     (two-sided, and one-sided of each direction; all stratified by task) and how they were
@@ -617,13 +621,13 @@ def _difference(x: np.ndarray, y: np.ndarray) -> dict[str, Any]:
     }  # fmt: skip
 
 
-def _pair_row(task: str, key: str, a: str, b: str, x: np.ndarray, y: np.ndarray) -> dict[str, Any]:
+def _pair_row(task: str, key: str, a: str, b: str, x: np.ndarray, y: np.ndarray) -> CsvRow:
     """One pairwise row: runs ``x`` [n_a, tasks] of method ``a`` against ``y`` [n_b, tasks]."""
     return {"task": task, "metric": key, "method": f"{a} vs {b}", "n_a": len(x), "n_b": len(y),
             **_difference(x, y)}  # fmt: skip
 
 
-def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, Any]]]:
+def pairwise_section(cells: Sequence[Cell]) -> tuple[list[str], list[CsvRow]]:
     """For a report without conditions: on every task, each pair of its methods (table order)
     with two runs or more each, the difference of the headline number (the deterministic
     success area where the runs have it, and the training-episode area always), its Welch
@@ -637,7 +641,7 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
     metrics, headline = metrics_of(cells)
     keys = [headline] + (["area"] if headline != "area" else [])
     names = dict(metrics)
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     crowded: list[str] = []
     tasks = list(dict.fromkeys(c.task for c in cells))
     for task in tasks:
@@ -646,7 +650,7 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
             crowded.append(f"{task} ({len(here)} methods)")
             continue
         for key in keys:
-            vals = {c.label: _values(c, key, sorted(c.numbers)) for c in here}
+            vals = {c.label: seed_values(c, key, sorted(c.numbers)) for c in here}
             usable = [c for c in here if len(vals[c.label]) >= 2]
             family = []
             for a, b in itertools.combinations(usable, 2):
@@ -666,9 +670,9 @@ def pairwise_section(cells: Sequence[Any]) -> tuple[list[str], list[dict[str, An
     md = [*left_out, *_pairwise_head()]
     for r in rows:
         md.append(
-            f"| {r['task']} | {names.get(r['metric'], r['metric'])} | {r['method']} "
+            f"| {r['task']} | {names.get(str(r['metric']), r['metric'])} | {r['method']} "
             f"| {r['n_a']} + {r['n_b']} | {r['diff_mean']:+.3f} "
-            f"| {interval(r['diff_t_low'], r['diff_t_high'])} | {pvalue_cells(r)} |"
+            f"| {interval(float(r['diff_t_low']), float(r['diff_t_high']))} | {pvalue_cells(r)} |"
         )
     return [*md, ""], rows
 
@@ -693,9 +697,7 @@ def _pairwise_head() -> list[str]:
     ]
 
 
-def _pooled_pairs(
-    cells: Sequence[Any], tasks: Sequence[str], keys: Sequence[str]
-) -> list[dict[str, Any]]:
+def _pooled_pairs(cells: Sequence[Cell], tasks: Sequence[str], keys: Sequence[str]) -> list[CsvRow]:
     """Rows over every task for each pair of methods present on all of ``tasks``: each
     method's runs are its seeds with a number on every task (2 or more)."""
     by = {(c.task, c.label): c for c in cells if c.numbers}

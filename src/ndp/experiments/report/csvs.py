@@ -8,9 +8,9 @@ import io
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-from ndp.experiments.report.cells import Cell
+from ndp.experiments.report.cells import Cell, CsvRow
+from ndp.experiments.report.provenance import ReportProvenance, stamp
 from ndp.experiments.run_kinds import run_kind
 from ndp.io import atomic_write_text
 
@@ -20,11 +20,11 @@ def csv_rows(
     il_cells: Sequence[Cell],
     budgets: Sequence[int],
     expected: Sequence[int],
-    prov: dict[str, Any],
-) -> list[dict[str, Any]]:
+    prov: ReportProvenance,
+) -> list[CsvRow]:
     rows = []
     for c in [*rl_cells, *il_cells]:
-        r: dict[str, Any] = {
+        r: CsvRow = {
             "task": c.task,
             "method": c.label,
             "algo": c.algo,
@@ -38,13 +38,11 @@ def csv_rows(
         for name, key in keys:
             m, s, _ = c.stat(key)
             r[f"{name}_mean"], r[f"{name}_std"] = m, s
-        rows.append(
-            {**r, "command": prov["command"], "commit": prov["commit"], "date": prov["date"]}
-        )
+        rows.append({**r, **stamp(prov)})
     return rows
 
 
-def write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:
+def write_csv(path: Path, rows: Sequence[CsvRow]) -> None:
     cols: list[str] = []
     for r in rows:
         cols += [k for k in r if k not in cols]

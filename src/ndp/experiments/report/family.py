@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
 from ndp.experiments.report import paired
+from ndp.experiments.report.cells import Cell, CsvRow
 from ndp.experiments.report.conditions import (
     P_HEADS,
     SIGNIFICANCE_NOTE,
@@ -59,12 +59,12 @@ def parse_pairs(specs: Sequence[str]) -> list[tuple[str, str]]:
 
 
 def family_section(
-    cells: Sequence[Any],
+    cells: Sequence[Cell],
     seeds: Sequence[int],
     pairs: Sequence[tuple[str, str]],
     pooled: bool = False,
     holm_over: str = "all",
-) -> tuple[list[str], list[dict[str, Any]]]:
+) -> tuple[list[str], list[CsvRow]]:
     """The family of ``pairs`` on every task of ``cells`` (and over all tasks with ``pooled``).
 
     Per row: the mean difference A - B of the headline number, its Welch 95% t-interval, the
@@ -89,23 +89,7 @@ def family_section(
     names = dict(metrics)
     runs = ArmRuns(cells, seeds)
     tasks = list(dict.fromkeys(c.task for c in cells))
-    family: list[dict[str, Any]] = []
-    for a, b in pairs:
-        per_task: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        for task in tasks:
-            x, y = runs.values(task, a, key), runs.values(task, b, key)
-            if x is None or y is None:
-                continue
-            per_task[task] = (x, y)
-            row = _row(task, a, b, x[:, None], y[:, None], key)
-            row.update(_paired_cols(paired.paired_sign_flip(x, y) if len(x) >= 2 else None))
-            family.append(row)
-        if pooled and len(per_task) >= 2 and len(per_task) == len(tasks):
-            xs = np.stack([v[0] for v in per_task.values()], axis=1)  # [seeds, tasks]
-            ys = np.stack([v[1] for v in per_task.values()], axis=1)
-            row = _row(ALL_TASKS, a, b, xs, ys, key)
-            row.update(_paired_cols(paired.paired_pooled(per_task)))
-            family.append(row)
+    family = [r for a, b in pairs for r in _pair_rows(runs, tasks, a, b, key, pooled)]
     missing = sorted(runs.waiting)
     if not family:
         return [f"Family: no pair has runs of every seed ({', '.join(missing) or 'none'}).", ""], []
@@ -124,23 +108,47 @@ def family_section(
     return _markdown(family, names, missing, pooled, holm_over), family
 
 
+def _pair_rows(
+    runs: ArmRuns, tasks: Sequence[str], a: str, b: str, key: str, pooled: bool
+) -> list[CsvRow]:
+    """The rows of the pair ``a`` - ``b``: one per task where both arms have every seed, and
+    with ``pooled`` one over all tasks where that is every task (two or more)."""
+    rows = []
+    per_task: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for task in tasks:
+        x, y = runs.values(task, a, key), runs.values(task, b, key)
+        if x is None or y is None:
+            continue
+        per_task[task] = (x, y)
+        row = _row(task, a, b, x[:, None], y[:, None], key)
+        row.update(_paired_cols(paired.paired_sign_flip(x, y) if len(x) >= 2 else None))
+        rows.append(row)
+    if pooled and len(per_task) >= 2 and len(per_task) == len(tasks):
+        xs = np.stack([v[0] for v in per_task.values()], axis=1)  # [seeds, tasks]
+        ys = np.stack([v[1] for v in per_task.values()], axis=1)
+        row = _row(ALL_TASKS, a, b, xs, ys, key)
+        row.update(_paired_cols(paired.paired_pooled(per_task)))
+        rows.append(row)
+    return rows
+
+
 HOLM_OVER = ("all", "pooled", "tasks")
 """Values of ``family_section(holm_over=...)`` / ``ndp report --compare-holm``."""
 
 
-def _in_family(row: dict[str, Any], holm_over: str) -> bool:
+def _in_family(row: CsvRow, holm_over: str) -> bool:
     pooled = row["task"] == ALL_TASKS
     return holm_over == "all" or (holm_over == "pooled") == pooled
 
 
-def _row(task: str, a: str, b: str, x: np.ndarray, y: np.ndarray, key: str) -> dict[str, Any]:
+def _row(task: str, a: str, b: str, x: np.ndarray, y: np.ndarray, key: str) -> CsvRow:
     """One test: runs ``x`` [n, tasks] of ``a`` against ``y`` [n, tasks] of ``b``."""
     return {"task": task, "metric": key, "method": f"{a} vs {b}", "a": a, "b": b,
             "n_a": len(x), "n_b": len(y), "mean_a": float(x.mean(0).mean()),
             "mean_b": float(y.mean(0).mean()), **_difference(x, y)}  # fmt: skip
 
 
-def _paired_cols(r: paired.PairedResult | None) -> dict[str, Any]:
+def _paired_cols(r: paired.PairedResult | None) -> CsvRow:
     """The paired test's columns (None: one seed, no paired test: NaN)."""
     if r is None:
         return {"p_paired": math.nan, "paired_pairs": 1, "paired_method": "one seed: none"}
@@ -148,7 +156,7 @@ def _paired_cols(r: paired.PairedResult | None) -> dict[str, Any]:
 
 
 def _markdown(
-    family: Sequence[dict[str, Any]],
+    family: Sequence[CsvRow],
     names: dict[str, str],
     missing: Sequence[str],
     pooled: bool,
@@ -161,8 +169,9 @@ def _markdown(
         "tasks": "each pair on each task; the rows over all tasks are descriptions (no Holm p)",
     }[holm_over]
     which = f"all {m} rows of this table" if m == len(family) else f"the {m} tested rows"
+    metric = names.get(str(family[0]["metric"]), "the area")
     md = [
-        f"Registered family ({m} tests: {scope}): {names.get(family[0]['metric'], 'the area')}, "
+        f"Registered family ({m} tests: {scope}): {metric}, "
         "A - B with its Welch 95% t-interval; unpaired permutation test over runs (labels "
         "exchanged between the two arms' runs, stratified by task over all tasks); the paired "
         "sign-flip p over the seeds both arms ran is beside it and does not replace it. "
@@ -176,7 +185,7 @@ def _markdown(
         md.append(
             f"| {r['task']} | {r['method']} | {r['n_a']} + {r['n_b']} | {r['mean_a']:.3f} "
             f"| {r['mean_b']:.3f} | {r['diff_mean']:+.3f} "
-            f"| {interval(r['diff_t_low'], r['diff_t_high'])} "
+            f"| {interval(float(r['diff_t_low']), float(r['diff_t_high']))} "
             f"| {pvalue_cells(r) if r['holm_m'] else _described(r)} "
             f"| {r['p_paired']:.3g} ({r['paired_method']}) |"
         )
@@ -186,7 +195,7 @@ def _markdown(
     return md
 
 
-def _described(r: dict[str, Any]) -> str:
+def _described(r: CsvRow) -> str:
     """The p columns of a row outside the family: its tests, no Holm p and no verdict."""
     return (f"{r['p_two_sided']:.3g} | - (description) | - | {r['p_a_greater']:.3g} "
             f"| {r['p_b_greater']:.3g} | {r['p_method']}")  # fmt: skip

@@ -7,14 +7,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from ndp.experiments.report.cells import Cell, fmt_stat
 from ndp.experiments.report.conditions import metrics_of
 from ndp.experiments.report.paths import with_ext
-from ndp.experiments.report.provenance import commits_text, provenance_lines
+from ndp.experiments.report.provenance import ReportProvenance, commits_text, provenance_lines
 from ndp.experiments.rows import DET_KEYS, has_det
 from ndp.rl.config import EVAL_SEED
 
@@ -52,7 +51,7 @@ def markdown(
     il_cells: Sequence[Cell],
     budgets: Sequence[int],
     expected: Sequence[int],
-    prov: dict[str, Any],
+    prov: ReportProvenance,
     pngs: Sequence[Path],
     out: Path,
     eval_episodes: int = 0,
@@ -72,7 +71,7 @@ def markdown(
 
 
 def header_lines(
-    title: str, prov: dict[str, Any], expected: Sequence[int], cells: Sequence[Cell]
+    title: str, prov: ReportProvenance, expected: Sequence[int], cells: Sequence[Cell]
 ) -> list[str]:
     """Title, command, commits, environments and seeds; a WARNING when ``cells`` lack seeds."""
     md = [

@@ -36,11 +36,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from pathlib import Path
 
 import numpy as np
 
 from ndp.experiments.report import stats
+from ndp.experiments.report.cells import Cell, CsvRow
 from ndp.experiments.report.readings import ArmRuns, compare_test
 from ndp.rl.sac.health import Q_RUNAWAY, q_runaway
 from ndp.runs import read_metrics
@@ -62,7 +63,7 @@ OTHERS = (("sac", "SAC (k = 1)"), (CHUNK, "chunked SAC (k = 5)"), ("ndp-k5", "ND
 """Reading C's opponents of NDP-SAC: (arm, name)."""
 
 
-def _critic(r: ArmRuns, rows: list[dict[str, Any]]) -> tuple[list[str], str | None]:
+def _critic(r: ArmRuns, rows: list[CsvRow]) -> tuple[list[str], str | None]:
     """Reading A: (Markdown lines, the kept arm or None while it waits)."""
     means = {inp: r.mean(CRITIC_TASK, arm) for inp, arm in CRITIC_ARMS.items()}
     if any(math.isnan(v) for v in means.values()):
@@ -93,7 +94,7 @@ def _pair(
     return compare_test(x, y)
 
 
-def _head(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
+def _head(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[CsvRow]) -> list[str]:
     """Reading B: NDP-SAC against chunked SAC."""
     got = _pair(r, tasks, ndp, CHUNK)
     if got is None:
@@ -121,7 +122,7 @@ def _head(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]
     ]
 
 
-def _stands(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
+def _stands(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[CsvRow]) -> list[str]:
     """Reading C: NDP-SAC against every other learner of the table."""
     md = [
         f"**C. Where NDP-SAC (`{ndp}`) stands** (mean det. area over {', '.join(tasks)}). "
@@ -153,7 +154,7 @@ def _stands(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any
     return [*md, ""]
 
 
-def _lift(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[dict[str, Any]]) -> list[str]:
+def _lift(r: ArmRuns, tasks: Sequence[str], ndp: str, rows: list[CsvRow]) -> list[str]:
     """Reading D: the learner x action-space interaction (description only)."""
     parts = [r.mean(t, a) - r.mean(t, b) for t in tasks
              for a, b in ((ndp, "ndp-k5"), (CHUNK, "ppo-multi-k5"))]  # fmt: skip
@@ -177,7 +178,7 @@ LN_ARMS = {"ndp-sac-ln-k5": "ndp-sac-k5", "sac-chunk-ln-k5": CHUNK}
 """Reading E's arms (LayerNorm critics) and their plain-critic counterparts."""
 
 
-def _layer_norm(r: ArmRuns, rows: list[dict[str, Any]]) -> list[str]:
+def _layer_norm(r: ArmRuns, rows: list[CsvRow]) -> list[str]:
     """Reading E (post-hoc): the DMP head with LayerNorm critics on push-v3."""
     ndp, chunk = LN_ARMS
     if not set(LN_ARMS) & r.labels:  # optional arms: no runs is no wait
@@ -207,9 +208,7 @@ def _layer_norm(r: ArmRuns, rows: list[dict[str, Any]]) -> list[str]:
     ]
 
 
-def critic_health(
-    cells: Sequence[Any], reading: bool = False
-) -> tuple[list[str], list[dict[str, Any]]]:
+def critic_health(cells: Sequence[Cell], reading: bool = False) -> tuple[list[str], list[CsvRow]]:
     """(Markdown lines, CSV rows) of the critic diagnostic: per run that logs ``sac/q``, its
     peak value estimate against the largest mean episode return of the run
     (:func:`ndp.rl.sac.health.q_runaway`),
@@ -239,7 +238,7 @@ def critic_health(
     return _critic_md(rows, md_rows, reading), rows
 
 
-def _critic_row(c: Any, seed: int, path: Any) -> dict[str, Any] | None:
+def _critic_row(c: Cell, seed: int, path: Path) -> CsvRow | None:
     """One run's critic numbers (peak Q, its step, the return scale, alpha), or None for a run
     without a readable log or without ``sac/q``."""
     try:
@@ -264,7 +263,7 @@ def _critic_row(c: Any, seed: int, path: Any) -> dict[str, Any] | None:
             "verdict": "diverged" if diverged else "ok"}  # fmt: skip
 
 
-def _critic_md(rows: list[dict[str, Any]], md_rows: list[str], reading: bool) -> list[str]:
+def _critic_md(rows: list[CsvRow], md_rows: list[str], reading: bool) -> list[str]:
     """The critic-health section around its table rows."""
     bad = [f"{r['task']} {r['item']}" for r in rows if r["verdict"] == "diverged"]
     why = ("The numbers of the reading above." if reading else
@@ -290,8 +289,8 @@ def _critic_md(rows: list[dict[str, Any]], md_rows: list[str], reading: bool) ->
 
 
 def off_policy_readings(
-    cells: Sequence[Any], seeds: Sequence[int]
-) -> tuple[list[str], list[dict[str, Any]]]:
+    cells: Sequence[Cell], seeds: Sequence[int]
+) -> tuple[list[str], list[CsvRow]]:
     """(Markdown lines, CSV rows) of the ``off-policy`` study's readings (the module doc).
 
     Args:
@@ -316,7 +315,7 @@ def off_policy_readings(
             "p cannot reach 0.05 (one seed per task: 0.5 on a task, 0.25 over two).",
             "",
         ]
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     lines, kept = _critic(r, rows)
     md += lines
     ndp = kept or CRITIC_ARMS["params"]
@@ -336,8 +335,8 @@ STABILISED = {"plain": "ndp-sac-k5", "layer-norm": "ndp-sac-ln-k5"}
 
 
 def critic_study_readings(
-    cells: Sequence[Any], seeds: Sequence[int]
-) -> tuple[list[str], list[dict[str, Any]]]:
+    cells: Sequence[Cell], seeds: Sequence[int]
+) -> tuple[list[str], list[CsvRow]]:
     """(Markdown lines, CSV rows) of the ``sac-critic`` study's reading (written 2026-12-05,
     before its runs; docs/offpolicy.md, "Critic health"): does a LayerNorm critic stop NDP-SAC's
     runaway on push-v3?
@@ -363,7 +362,7 @@ def critic_study_readings(
             if hit:
                 diverged[key].append(hit[0]["verdict"] == "diverged")
     md = ['## Pre-registered reading (docs/offpolicy.md, "Critic health")', ""]
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     n = len(seeds)
     if any(len(v) < n for v in diverged.values()):
         have = ", ".join(f"{STABILISED[k]} {len(v)} of {n}" for k, v in diverged.items())

@@ -7,18 +7,18 @@ import re
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from ndp.experiments.report.cells import Cell
 from ndp.experiments.report.markdown import task_grid
+from ndp.experiments.report.provenance import ReportProvenance, figure_foot
 from ndp.experiments.rows import has_det
 from ndp.io import atomic_savefig
 
 
 def plot_all(
-    rl_cells: Sequence[Cell], il_cells: Sequence[Cell], out: Path, prov: dict[str, Any]
+    rl_cells: Sequence[Cell], il_cells: Sequence[Cell], out: Path, prov: ReportProvenance
 ) -> list[Path]:
     """Every figure of a report: per task its deterministic-evaluation curves (where runs have
     them), its training-success curves (RL) or test-MSE curves (imitation), each
@@ -29,7 +29,7 @@ def plot_all(
     import matplotlib
 
     matplotlib.use("Agg")
-    foot = f"{prov['command']}  |  commit {prov['commit']}  |  {prov['date']}"
+    foot = figure_foot(prov)
     foot_lines = textwrap.wrap(foot, 150) or [""]
     meta = {"Description": foot, "Software": "ndp report"}
     panels: list[tuple[Sequence[Cell], str, str, str]] = [
@@ -53,7 +53,9 @@ def plot_all(
     return paths
 
 
-def _curves(tcells: Sequence[Cell], curve_key: str, grid: np.ndarray) -> list[tuple[Cell, Any]]:
+def _curves(
+    tcells: Sequence[Cell], curve_key: str, grid: np.ndarray
+) -> list[tuple[Cell, list[np.ndarray]]]:
     """Per cell with the curve: (the cell, its runs' curves interpolated on ``grid``)."""
     out = []
     for c in tcells:

@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Sequence
-from typing import Any
+from typing import TypedDict
 
+from ndp.experiments.report.cells import CsvRow
 from ndp.experiments.rows import RunInfo
 from ndp.provenance import commit_in_history, fingerprint_text, git_commit
 
@@ -44,7 +45,43 @@ def per_commit(infos: Sequence[RunInfo]) -> dict[str, int]:
     return dict(sorted(count.items()))
 
 
-def provenance_lines(prov: dict[str, Any]) -> list[str]:
+class ReportProvenance(TypedDict):
+    """A report's provenance (what :func:`ndp.experiments.report.provenance.provenance` returns)."""
+
+    command: str
+    commit: str
+    date: str
+    run_commits: list[str]
+    run_environments: list[tuple[str, int]]
+    n_runs: int
+    runs_per_commit: dict[str, int]
+
+
+class ReportResult(ReportProvenance):
+    """What :func:`ndp.experiments.report.report` returns: its provenance, the numbers and the
+    paths it wrote."""
+
+    seeds: list[int]
+    budgets: list[int]
+    rows: list[CsvRow]
+    markdown: str
+    csv: str
+    section_csv: list[str]
+    png: list[str]
+    missing: list[tuple[str, str, list[int]]]
+
+
+def stamp(prov: ReportProvenance) -> dict[str, str]:
+    """The columns every row of a report's CSVs ends with: command, commit and date."""
+    return {"command": prov["command"], "commit": prov["commit"], "date": prov["date"]}
+
+
+def figure_foot(prov: ReportProvenance) -> str:
+    """The line under every figure of a report: command, commit and date."""
+    return f"{prov['command']}  |  commit {prov['commit']}  |  {prov['date']}"
+
+
+def provenance_lines(prov: ReportProvenance) -> list[str]:
     """The header's lines on the runs' environments, and a MIXED warning when the runs were
     trained at several commits or under several environment fingerprints."""
     envs: list[tuple[str, int]] = prov.get("run_environments", [])
@@ -74,7 +111,7 @@ def provenance_lines(prov: dict[str, Any]) -> list[str]:
     return lines
 
 
-def provenance(command: str, runs: Sequence[RunInfo]) -> dict[str, Any]:
+def provenance(command: str, runs: Sequence[RunInfo]) -> ReportProvenance:
     """A report's provenance: ``command``, this checkout's commit and the date, and of the
     ``runs`` (the finished runs it reads) their commits, environments and count."""
     return {

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection, Sequence
-from typing import Any
 
 import numpy as np
 
 from ndp.experiments.report import stats
+from ndp.experiments.report.cells import Cell
 
 HEAD = "det_area"
 """The number the readings read, unless a reading names another."""
@@ -28,7 +28,7 @@ class ArmRuns:
     """
 
     def __init__(
-        self, cells: Sequence[Any], seeds: Sequence[int], conditional: Collection[str] = ()
+        self, cells: Sequence[Cell], seeds: Sequence[int], conditional: Collection[str] = ()
     ) -> None:
         self.by = {(c.task, c.label): c for c in cells}
         self.labels = {c.label for c in cells if c.numbers}

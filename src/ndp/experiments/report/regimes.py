@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.report import stats
+from ndp.experiments.report.cells import Cell, CsvRow
 from ndp.experiments.report.readings import HEAD, ArmRuns, compare_test, fmt, interval
 
 KS = (5, 10, 20)
@@ -71,9 +72,7 @@ ALPHA = 0.05
 """Reading 1: the stratified permutation p below which NDP's best is "above"."""
 
 
-def regimes_readings(
-    cells: Sequence[Any], seeds: Sequence[int]
-) -> tuple[list[str], list[dict[str, Any]]]:
+def regimes_readings(cells: Sequence[Cell], seeds: Sequence[int]) -> tuple[list[str], list[CsvRow]]:
     """(Markdown lines, CSV rows) of the readings of ``ndp-regimes`` (see the module doc).
 
     Args:
@@ -90,7 +89,7 @@ def regimes_readings(
         "seeds waits for them.",
         "",
     ]
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     md += _best_arms(r, tasks, rows)
     md += _metric(r, tasks, rows)
     md += compression(r, tasks, rows, number="4")
@@ -100,8 +99,8 @@ def regimes_readings(
 
 
 def regimes_1m_readings(
-    cells: Sequence[Any], seeds: Sequence[int]
-) -> tuple[list[str], list[dict[str, Any]]]:
+    cells: Sequence[Cell], seeds: Sequence[int]
+) -> tuple[list[str], list[CsvRow]]:
     """(Markdown lines, CSV rows) of ``ndp-regimes-1m``'s reading 8: reading 4's rule at 1M
     env steps, and NDP against PPO-multi at each k (permutation p, one-sided of each direction
     and two-sided with Holm's correction over the three k)."""
@@ -114,7 +113,7 @@ def regimes_1m_readings(
         + (" One seed: a direction, not a result." if len(seeds) == 1 else ""),
         "",
     ]
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     md += compression(r, tasks, rows, number="8")
     md += [
         "NDP against PPO-multi at each k: the one-sided p of each direction (as registered), "
@@ -153,7 +152,7 @@ def regimes_1m_readings(
     return md + r.waiting_line("this reading waits"), rows
 
 
-def _k_ranking(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+def _k_ranking(r: ArmRuns, tasks: Sequence[str], rows: list[CsvRow]) -> list[str]:
     """Reading 8's ranking of k per method by mean area over ``tasks`` (to set beside the
     300k study's ranking, which lives in another runs directory)."""
     out = []
@@ -182,7 +181,7 @@ def _best(r: ArmRuns, task: str, pool: Sequence[str]) -> tuple[str, float] | Non
     return lb, means[lb]
 
 
-def _best_arms(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+def _best_arms(r: ArmRuns, tasks: Sequence[str], rows: list[CsvRow]) -> list[str]:
     md = [
         "**1-2. Does NDP's structure help?** Per task the best arm of each method by mean area "
         "(NDP over k, noise and the stale rule; PPO-multi likewise; PPO white or AR(1)):",
@@ -233,7 +232,7 @@ def _best_arms(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> 
     return md
 
 
-def _metric(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+def _metric(r: ArmRuns, tasks: Sequence[str], rows: list[CsvRow]) -> list[str]:
     gaps: dict[str, list[float]] = {"ndp": [], "ppo-multi": []}
     for m in gaps:
         for k in KS:
@@ -254,9 +253,7 @@ def _metric(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> lis
     ]  # fmt: skip
 
 
-def compression(
-    r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]], number: str
-) -> list[str]:
+def compression(r: ArmRuns, tasks: Sequence[str], rows: list[CsvRow], number: str) -> list[str]:
     """Reading 4 (8 at 1M): per larger k, the change of NDP's and PPO-multi's area from k = 5
     (mean over ``tasks``, and per task)."""
     md = [
@@ -309,7 +306,7 @@ CHANGES = (
 """Readings 5 and 6 (and the tuned arm): (change, method, arm, its reference arm)."""
 
 
-def _changes(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+def _changes(r: ArmRuns, tasks: Sequence[str], rows: list[CsvRow]) -> list[str]:
     md = [
         "**5-6. Exploration and the stale rule**: change of the area against the same method's "
         "white-noise arm at the same k (arms not run are left out):",
@@ -343,7 +340,7 @@ def _changes(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> li
     return [*md, ""]
 
 
-def _best_k(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> list[str]:
+def _best_k(r: ArmRuns, tasks: Sequence[str], rows: list[CsvRow]) -> list[str]:
     areas = {k: float(np.mean([r.mean(t, f"ndp-k{k}") for t in tasks])) for k in KS}
     if any(math.isnan(v) for v in areas.values()):
         return ["**7. Best k**: waits for NDP's white-noise k arms.", ""]
@@ -360,8 +357,8 @@ def _best_k(r: ArmRuns, tasks: Sequence[str], rows: list[dict[str, Any]]) -> lis
 
 
 def mt50_attribution_readings(
-    cells: Sequence[Any], seeds: Sequence[int]
-) -> tuple[list[str], list[dict[str, Any]]]:
+    cells: Sequence[Cell], seeds: Sequence[int]
+) -> tuple[list[str], list[CsvRow]]:
     """(Markdown lines, CSV rows) of ``mt50-attribution``'s reading (see the module doc)."""
     r = ArmRuns(cells, seeds, CONDITIONAL)
     tasks = list(dict.fromkeys(c.task for c in cells))
@@ -376,7 +373,7 @@ def mt50_attribution_readings(
         "other) | one-sided p(other > NDP) | p (two-sided) | Holm p | test |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     verdict = None
     found: list[tuple[str, str, Any]] = []  # (number, other, (d, lo, hi, test) or None)
     for key, name in ((HEAD, "det. success area"), ("final", "final success (any step)")):

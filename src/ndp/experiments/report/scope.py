@@ -11,9 +11,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ndp.experiments.report.cells import Cell
+from ndp.experiments.report.cells import Cell, CsvRow
 from ndp.experiments.report.conditions import conditions_section, pairwise_section
 from ndp.experiments.report.csvs import write_csv
+from ndp.experiments.report.provenance import ReportProvenance, figure_foot, stamp
 from ndp.experiments.report.runs import find_run_dirs, run_info
 from ndp.experiments.report.selection import selection_section
 from ndp.experiments.rows import RunInfo
@@ -113,7 +114,7 @@ def study_sections(
     sc: Scope,
     expected: Sequence[int],
     out: Path,
-    prov: dict[str, Any],
+    prov: ReportProvenance,
     plots: bool,
 ) -> tuple[list[Path], list[Path]]:
     """A study's own sections, inserted into ``md`` in place: its conditions and readings
@@ -123,14 +124,14 @@ def study_sections(
     conditions, selection = sc.conditions, sc.selection
     extra_csv: list[Path] = []
 
-    def write(suffix: str, rows: Sequence[dict[str, Any]]) -> None:
+    def write(suffix: str, rows: Sequence[CsvRow]) -> None:
         path = out.with_name(out.name + suffix)
-        write_csv(path, [{**r, **{k: prov[k] for k in ("command", "commit", "date")}}
+        write_csv(path, [{**r, **stamp(prov)}
                           for r in rows])  # fmt: skip
         extra_csv.append(path)
 
     if conditions:
-        foot = f"{prov['command']}  |  commit {prov['commit']}  |  {prov['date']}"
+        foot = figure_foot(prov)
         cmd, crows, cpngs = conditions_section(
             tables["success"], conditions, expected, out, foot, plots
         )

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ndp.experiments.report import stats
+from ndp.experiments.report.cells import Cell, CsvRow, seed_values
 from ndp.experiments.run_kinds import il_data_args
 from ndp.il.config import DataConfig
 
@@ -28,7 +29,7 @@ FLOOR_N = (10, 20, 30)
 """Numbers of basis functions of the floor rows (30: the models' DMP)."""
 
 
-def data_config(task: str) -> Any:
+def data_config(task: str) -> DataConfig:
     """The ``DataConfig`` of an imitation study's "task" (a data set name, as
     :func:`ndp.experiments.run_kinds.il_data_args` reads it)."""
     args = il_data_args(task)
@@ -39,28 +40,19 @@ def data_config(task: str) -> Any:
     return DataConfig(**kw)
 
 
-def _vals(cell: Any, key: str, seeds: Sequence[int]) -> list[float]:
-    out = []
-    for s in seeds:
-        n = cell.numbers.get(s) if cell is not None else None
-        if n is not None and not math.isnan(float(n[key])):
-            out.append(float(n[key]))
-    return out
-
-
-def _capped(cell: Any, seeds: Sequence[int]) -> str:
+def _capped(cell: Cell | None, seeds: Sequence[int]) -> str:
     """`` (cap k/n)`` where k of the cell's n seeds reached the epoch cap (not stopped by
     patience), else ``""``."""
-    k = len(seeds) - int(sum(_vals(cell, "stopped_early", seeds)))
+    k = len(seeds) - int(sum(seed_values(cell, "stopped_early", seeds)))
     return f" (cap {k}/{len(seeds)})" if k else ""
 
 
 def selection_section(
-    cells: Sequence[Any],
+    cells: Sequence[Cell],
     selection: Sequence[tuple[str, tuple[str, ...]]],
     seeds: Sequence[int],
     floor: bool = True,
-) -> tuple[list[str], list[dict[str, Any]]]:
+) -> tuple[list[str], list[CsvRow]]:
     """(Markdown lines, CSV rows) of the selection (see the module docstring).
 
     Args:
@@ -73,7 +65,7 @@ def selection_section(
     by = {(c.task, c.label): c for c in cells}
     tasks = list(dict.fromkeys(c.task for c in cells))
     md = list(_HEAD)
-    rows: list[dict[str, Any]] = []
+    rows: list[CsvRow] = []
     for task in tasks:
         for model, labels in selection:
             line, row = _selected(by, task, model, labels, list(seeds))
@@ -109,31 +101,31 @@ _HEAD = (
 
 
 def _selected(
-    by: dict[tuple[str, str], Any], task: str, model: str, labels: Sequence[str],
+    by: dict[tuple[str, str], Cell], task: str, model: str, labels: Sequence[str],
     expected: list[int],
-) -> tuple[str, dict[str, Any] | None]:  # fmt: skip
+) -> tuple[str, CsvRow | None]:  # fmt: skip
     """One model's row on one data set: the arm with the lowest mean validation MSE and its
     numbers (Markdown line, CSV row; no row when no seed has every arm finished)."""
     # The arms are compared on the seeds every one of them has finished (all of
     # `seeds` once the study is complete; fewer, marked MISSING, in a report with
     # --allow-missing), so no arm wins on a seed the others have not run.
-    seeds = [s for s in expected if all(_vals(by.get((task, lb)), "val", [s])
+    seeds = [s for s in expected if all(seed_values(by.get((task, lb)), "val", [s])
                                         for lb in labels)]  # fmt: skip
     if not seeds:
         return (f"| {task} | {model} | - | 0 | - | - | - | - | - | no seed that "
                 "every arm has finished yet |"), None  # fmt: skip
-    cands = [(float(np.mean(_vals(by.get((task, lb)), "val", seeds))), lb)
+    cands = [(float(np.mean(seed_values(by.get((task, lb)), "val", seeds))), lb)
              for lb in labels]  # fmt: skip
     gone = [s for s in expected if s not in seeds]
     n_cell = f"{len(seeds)}" + (f" **MISSING seeds {' '.join(map(str, gone))}**"
                                 if gone else "")  # fmt: skip
     best_val, lb = min(cands)
     cell = by[(task, lb)]
-    test = _vals(cell, "mse", seeds)
+    test = seed_values(cell, "mse", seeds)
     lo, hi = stats.bootstrap_ci(test) if test else (math.nan, math.nan)
-    ep = _vals(cell, "best_epoch", seeds)
-    wall = _vals(cell, "wall_s", seeds)
-    stopped = int(sum(_vals(cell, "stopped_early", seeds)))
+    ep = seed_values(cell, "best_epoch", seeds)
+    wall = seed_values(cell, "wall_s", seeds)
+    stopped = int(sum(seed_values(cell, "stopped_early", seeds)))
     others = (
         ", ".join(
             f"`{b}` {a:.3g}{_capped(by[(task, b)], seeds)}" for a, b in sorted(cands) if b != lb
@@ -154,7 +146,7 @@ def _selected(
                   "wall_s": float(np.mean(wall))}  # fmt: skip
 
 
-def _floor_rows(task: str) -> tuple[list[str], list[dict[str, Any]]]:
+def _floor_rows(task: str) -> tuple[list[str], list[CsvRow]]:
     """The DMP floor rows of a data set (least-squares fits to every test trajectory)."""
     from ndp.il.floor import dmp_floor
 

@@ -24,7 +24,10 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
+
+if TYPE_CHECKING:
+    from ndp.experiments.study import Arm
 
 
 @dataclass(frozen=True)
@@ -44,7 +47,7 @@ class ArmSpec:
     tasks: tuple[str, ...] = ()
     """The tasks the arm runs on (``Arm.tasks``); empty: every task of the study."""
 
-    def arm(self) -> Any:
+    def arm(self) -> Arm:
         """The :class:`ndp.experiments.study.Arm` of this spec."""
         from ndp.experiments.study import Arm
 

@@ -1,8 +1,4 @@
-"""Imitation: behaviour cloning on the robot tasks and digit writing (docs/experiments.md).
-
-Each entry of :data:`STUDIES` is one study of ``ndp sweep``; add a study by adding an entry
-here (:mod:`ndp.experiments.studies` collects them).
-"""
+"""Imitation: behaviour cloning on the robot tasks and digit writing (docs/experiments.md)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,5 @@
 """Why NDP loses: the action map's conditioning, the chunk basis, and rewards that favour
-trajectories (docs/rl-mechanism.md).
-
-Each entry of :data:`STUDIES` is one study of ``ndp sweep``; add a study by adding an entry
-here (:mod:`ndp.experiments.studies` collects them).
-"""
+trajectories (docs/rl-mechanism.md)."""
 
 from __future__ import annotations
 

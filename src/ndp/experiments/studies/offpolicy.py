@@ -1,8 +1,4 @@
-"""Off-policy learners (SAC, chunked SAC, NDP-SAC) and NDP-SAC's critic (docs/offpolicy.md).
-
-Each entry of :data:`STUDIES` is one study of ``ndp sweep``; add a study by adding an entry
-here (:mod:`ndp.experiments.studies` collects them).
-"""
+"""Off-policy learners (SAC, chunked SAC, NDP-SAC) and NDP-SAC's critic (docs/offpolicy.md)."""
 
 from __future__ import annotations
 

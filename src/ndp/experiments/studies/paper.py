@@ -1,9 +1,5 @@
 """The paper's studies: its five tasks, MT50, the Throw ablations, the NDP head ablation and
-MT50's attribution re-run.
-
-Each entry of :data:`STUDIES` is one study of ``ndp sweep``; add a study by adding an entry
-here (:mod:`ndp.experiments.studies` collects them).
-"""
+MT50's attribution re-run."""
 
 from __future__ import annotations
 

@@ -1,9 +1,5 @@
 """Where NDP's structure can win: evaluation, exploration, chunk size, and NDP's own settings
-(docs/rl-regimes.md).
-
-Each entry of :data:`STUDIES` is one study of ``ndp sweep``; add a study by adding an entry
-here (:mod:`ndp.experiments.studies` collects them).
-"""
+(docs/rl-regimes.md)."""
 
 from __future__ import annotations
 

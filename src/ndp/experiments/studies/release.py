@@ -1,8 +1,4 @@
-"""The 2021 release's conditions: one at a time, at 1M env steps, explained (docs/rl-release.md).
-
-Each entry of :data:`STUDIES` is one study of ``ndp sweep``; add a study by adding an entry
-here (:mod:`ndp.experiments.studies` collects them).
-"""
+"""The 2021 release's conditions: one at a time, at 1M env steps, explained (docs/rl-release.md)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,4 @@
-"""Checks against Stable-Baselines3: its PPO and SAC beside ours, and NDPPolicy inside its PPO.
-
-Each entry of :data:`STUDIES` is one study of ``ndp sweep``; add a study by adding an entry
-here (:mod:`ndp.experiments.studies` collects them).
-"""
+"""Checks against Stable-Baselines3: its PPO and SAC beside ours, and NDPPolicy inside its PPO."""
 
 from __future__ import annotations
 

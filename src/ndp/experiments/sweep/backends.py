@@ -8,13 +8,38 @@ from __future__ import annotations
 import dataclasses
 import os
 import signal
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 from concurrent import futures
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 from ndp.checks import install_hint
-from ndp.experiments.sweep.jobs import STOP_GRACE_S, Job
+from ndp.experiments.sweep.jobs import STOP_GRACE_S, Job, Outcome
 from ndp.experiments.sweep.runner import _STOP, _stop_all, execute
+
+if TYPE_CHECKING:
+    from ray import ObjectRef
+
+Settled = list[tuple[Hashable, "Outcome | BaseException"]]
+"""What a backend's wait / interrupt returns: (handle, the run's outcome or the error that
+ended its task) for each finished run."""
+
+
+class Backend(Protocol):
+    """Where runs execute; a handle (what ``submit`` returns) is opaque outside its backend."""
+
+    name: str
+    slots: int
+
+    def describe(self) -> str: ...
+
+    def submit(self, job: Job) -> Hashable: ...
+
+    def wait(self, handles: Sequence[Hashable], timeout: float) -> Settled: ...
+
+    def interrupt(self, handles: Sequence[Hashable]) -> Settled: ...
+
+    def close(self) -> None: ...
+
 
 # ----------------------------------------------------------------------------- backends
 
@@ -32,12 +57,13 @@ class LocalBackend:
     def describe(self) -> str:
         return f"local, {self.slots} at once"
 
-    def submit(self, job: Job) -> Any:
+    def submit(self, job: Job) -> Hashable:
         return self.pool.submit(execute, job)
 
-    def wait(self, handles: Sequence[Any], timeout: float) -> list[tuple[Any, Any]]:
-        done, _ = futures.wait(handles, timeout=timeout, return_when=futures.FIRST_COMPLETED)
-        out = []
+    def wait(self, handles: Sequence[Hashable], timeout: float) -> Settled:
+        done, _ = futures.wait(_futures(handles), timeout=timeout,
+                               return_when=futures.FIRST_COMPLETED)  # fmt: skip
+        out: Settled = []
         for h in done:
             try:
                 out.append((h, h.result()))
@@ -45,18 +71,23 @@ class LocalBackend:
                 out.append((h, exc))
         return out
 
-    def interrupt(self, handles: Sequence[Any]) -> list[tuple[Any, Any]]:
+    def interrupt(self, handles: Sequence[Hashable]) -> Settled:
         _stop_all(signal.SIGINT)
         try:
-            futures.wait(handles, timeout=STOP_GRACE_S + 10)
+            futures.wait(_futures(handles), timeout=STOP_GRACE_S + 10)
         except KeyboardInterrupt:  # a second Ctrl-C: kill (the checkpoints stay)
             _stop_all(signal.SIGKILL)
-            futures.wait(handles)
+            futures.wait(_futures(handles))
         return self.wait(handles, 0) if handles else []
 
     def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
         _STOP.clear()
+
+
+def _futures(handles: Sequence[Hashable]) -> list[futures.Future[Outcome]]:
+    """The local backend's handles as what they are (the futures its ``submit`` returns)."""
+    return cast("list[futures.Future[Outcome]]", list(handles))
 
 
 class RayBackend:
@@ -88,38 +119,45 @@ class RayBackend:
     def describe(self) -> str:
         return f"ray ({self.where}), {self.slots} at once"
 
-    def submit(self, job: Job) -> Any:
+    def submit(self, job: Job) -> Hashable:
         # the task may run on another node, in another directory: an absolute run directory
         return self.remote.remote(dataclasses.replace(job, run_dir=job.run_dir.absolute()))
 
-    def _get(self, h: Any) -> Any:
+    def _get(self, h: Hashable) -> Outcome | BaseException:
         try:
-            return self.ray.get(h)
+            return self.ray.get(_refs([h])[0])
         except Exception as exc:  # TaskCancelledError, WorkerCrashedError, RayTaskError, ...
             return exc
 
-    def wait(self, handles: Sequence[Any], timeout: float) -> list[tuple[Any, Any]]:
+    def wait(self, handles: Sequence[Hashable], timeout: float) -> Settled:
         if not handles:
             return []
-        ready, rest = self.ray.wait(list(handles), num_returns=1, timeout=timeout)
+        ready, rest = self.ray.wait(_refs(handles), num_returns=1, timeout=timeout)
         if ready and rest:
             more, _ = self.ray.wait(rest, num_returns=len(rest), timeout=0)
             ready += more
         return [(h, self._get(h)) for h in ready]
 
-    def interrupt(self, handles: Sequence[Any]) -> list[tuple[Any, Any]]:
+    def interrupt(self, handles: Sequence[Hashable]) -> Settled:
         for h in handles:
-            self.ray.cancel(h)  # KeyboardInterrupt in the task: its trainer gets one SIGINT
+            self.ray.cancel(
+                _refs([h])[0]
+            )  # KeyboardInterrupt in the task: its trainer gets one SIGINT
         try:
-            self.ray.wait(list(handles), num_returns=len(handles), timeout=STOP_GRACE_S + 10)
+            self.ray.wait(_refs(handles), num_returns=len(handles), timeout=STOP_GRACE_S + 10)
         except KeyboardInterrupt:
             for h in handles:
-                self.ray.cancel(h, force=True)
+                self.ray.cancel(_refs([h])[0], force=True)
         return [(h, self._get(h)) for h in handles]
 
     def close(self) -> None:
         if self.started:
             self.ray.shutdown()
+
+
+def _refs(handles: Sequence[Hashable]) -> list[ObjectRef[Outcome]]:
+    """The Ray backend's handles as what they are (the object refs its ``submit`` returns)."""
+    return cast("list[ObjectRef[Outcome]]", list(handles))
 
 
 def default_workers() -> int:
@@ -130,7 +168,7 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
-def make_backend(backend: str, workers: int | None = None, address: str | None = None) -> Any:
+def make_backend(backend: str, workers: int | None = None, address: str | None = None) -> Backend:
     """'local' or 'ray' (``address``: an existing cluster)."""
     if backend == "local":
         if address:

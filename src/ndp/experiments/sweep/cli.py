@@ -18,10 +18,15 @@ from __future__ import annotations
 import argparse
 import shlex
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, TypedDict
 
 from ndp.experiments.run_kinds import run_kind
+
+if TYPE_CHECKING:
+    from ndp.experiments.study import Arm
+    from ndp.experiments.sweep.jobs import Job
 
 SWEEP_DESCRIPTION = (
     "Run a grid of training runs: a named STUDY, or --tasks x --methods x --seeds x overrides "
@@ -247,7 +252,20 @@ def _pick(kind: str, requested: list[str] | None, known: list[str]) -> list[str]
     return list(requested)
 
 
-def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
+class SweepGrid(TypedDict):
+    """The sweep the options describe (:func:`build_grid`)."""
+
+    name: str
+    kind: str
+    tasks: list[str]
+    arms: list[Arm]
+    seeds: list[int]
+    steps: int
+    budgets: list[float] | None
+    notes: list[str]
+
+
+def build_grid(args: argparse.Namespace, extra: list[str]) -> SweepGrid:
     """The sweep the options describe, validated (ValueError before anything starts)."""
     from ndp.experiments.sweep import apply_overrides, check_tasks, parse_overrides
 
@@ -276,7 +294,7 @@ def build_grid(args: argparse.Namespace, extra: list[str]) -> dict[str, Any]:
     }
 
 
-_Grid = tuple[str, str, list[Any], list[str], list[int], int, "list[float] | None"]
+_Grid = tuple[str, str, "list[Arm]", list[str], list[int], int, "list[float] | None"]
 """(kind, name, arms, tasks, seeds, steps, budgets) of a sweep before its checks."""
 
 
@@ -332,8 +350,8 @@ def _plain_grid(args: argparse.Namespace) -> _Grid:
 
 
 def _trainable(
-    arms: list[Any], tasks: list[str], name: str, skip: bool, notes: list[str]
-) -> list[Any]:
+    arms: list[Arm], tasks: list[str], name: str, skip: bool, notes: list[str]
+) -> list[Arm]:
     """The arms whose options the trainer knows; with ``skip`` the others are left out (and
     noted), else the first is refused (UnknownOptionError). ValueError when none is left."""
     from ndp.experiments.sweep import UnknownOptionError, check_arms
@@ -356,7 +374,7 @@ def _trainable(
     return kept
 
 
-def _pack(jobs: Any, out: Path, unfinished: bool = False) -> None:
+def _pack(jobs: Sequence[Job], out: Path, unfinished: bool = False) -> None:
     """Write the finished runs of ``jobs`` to the archive ``out`` (``--pack``), and with
     ``unfinished`` those that have a checkpoint to resume from (``--pack-unfinished``)."""
     from ndp.experiments.study import is_finished
@@ -461,7 +479,9 @@ def _unpack(archive: Path, runs_dir: Path) -> None:
           "there, left as they are", flush=True)  # fmt: skip
 
 
-def _sweep_report(args: argparse.Namespace, argv: list[str], g: dict[str, Any], jobs: Any) -> None:
+def _sweep_report(
+    args: argparse.Namespace, argv: list[str], g: SweepGrid, jobs: Sequence[Job]
+) -> None:
     """``--report OUT``: the report of the sweep's runs (missing seeds marked)."""
     from ndp.experiments.report import report
     from ndp.experiments.studies import get_study
@@ -560,7 +580,7 @@ CONFIG_COMMANDS = {"sweep": sweep_command, "report": report_command}
 """Commands that parse their own options (see ndp.cli)."""
 
 
-def add_subparser(sub: Any) -> None:
+def add_subparser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register ``sweep`` and ``report`` for ``ndp --help`` (parsed by CONFIG_COMMANDS)."""
     sub.add_parser("sweep", help="run a study or a grid of runs (local pool or Ray), resumable")
     sub.add_parser("report", help="tables and learning curves from run directories")

@@ -11,11 +11,11 @@ import json
 import sys
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TextIO
 
-from ndp.experiments.sweep.backends import make_backend
+from ndp.experiments.sweep.backends import Backend, make_backend
 from ndp.experiments.sweep.checks import check_plan
 from ndp.experiments.sweep.jobs import BUSY_POLL_S, FAILED_NAME, Job, Outcome, SweepResult
 from ndp.experiments.sweep.progress import Progress, _hms
@@ -80,11 +80,11 @@ class _Loop:
         self.index = {j.run_dir: i for i, j in enumerate(jobs)}
         self.outcomes: list[Outcome | None] = [None] * len(jobs)
         self.queue: deque[tuple[Job, int]] = deque((j, 1) for j in jobs)
-        self.inflight: dict[Any, tuple[Job, int]] = {}
+        self.inflight: dict[Hashable, tuple[Job, int]] = {}
         self.aside: dict[Path, tuple[float, Job, int, Outcome]] = {}  # next poll time
         self.interrupted = False
 
-    def settle(self, h: Any, res: Any) -> None:
+    def settle(self, h: Hashable, res: Outcome | BaseException) -> None:
         """Record what the run of handle ``h`` came to: busy (put aside), failed (retried
         while attempts are left) or its outcome."""
         job, attempt = self.inflight.pop(h)
@@ -109,7 +109,7 @@ class _Loop:
             _write_failed(res)
         self.progress.finished(res)
 
-    def step(self, be: Any) -> None:
+    def step(self, be: Backend) -> None:
         """One turn: requeue the busy runs due for a poll (once the queue is out), submit while
         slots are free, settle what finished (or sleep until the next poll)."""
         if not self.queue:  # this sweep's own work is out: poll the runs others train
@@ -131,7 +131,7 @@ class _Loop:
             time.sleep(max(0.05, min(self.progress.timeout(), next_due - time.time())))
         self.progress.tick()
 
-    def stop(self, be: Any) -> None:
+    def stop(self, be: Backend) -> None:
         """Interrupted: stop the running trainers at their last checkpoint; the runs busy
         elsewhere keep their 'busy' outcome (not ours to stop)."""
         self.progress.note(

@@ -8,6 +8,7 @@ rule, curves) and :mod:`ndp.experiments.sweep` (the runner), so neither imports 
 
 from __future__ import annotations
 
+import argparse
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -52,7 +53,9 @@ def run_grid(
     return [j.run_dir for j in grid]
 
 
-def add_study_arguments(parser: Any, runs_dir: str, out: str, steps: int) -> None:
+def add_study_arguments(
+    parser: argparse.ArgumentParser, runs_dir: str, out: str, steps: int
+) -> None:
     """The options every study command shares (seeds, budget, jobs, directories, extras)."""
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--steps", type=int, default=steps, help="env-step budget per run")
@@ -72,7 +75,7 @@ def add_study_arguments(parser: Any, runs_dir: str, out: str, steps: int) -> Non
 
 
 def run_study(
-    args: Any,
+    args: argparse.Namespace,
     tasks: Sequence[str],
     arms: Sequence[Arm],
     title: str,

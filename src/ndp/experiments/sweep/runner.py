@@ -16,7 +16,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
 from ndp.experiments.study import (
     _check_arm,
@@ -179,7 +179,7 @@ def execute(job: Job) -> Outcome:
         lock.close()
 
 
-def _spawn(cmd: list[str], fh: Any, lock: Any) -> subprocess.Popen[bytes] | None:
+def _spawn(cmd: list[str], fh: IO[bytes], lock: _RunLock) -> subprocess.Popen[bytes] | None:
     """Start the trainer in its own session, its output to ``fh``, holding the run's lock
     (registered for :func:`_stop_all`); None when the sweep is stopping (nothing started)."""
     with _LIVE_LOCK:

@@ -150,7 +150,8 @@ def _floor_rows(task: str) -> tuple[list[str], list[CsvRow]]:
     """The DMP floor rows of a data set (least-squares fits to every test trajectory)."""
     from ndp.il.floor import dmp_floor
 
-    md, rows = [], []
+    md: list[str] = []
+    rows: list[CsvRow] = []
     for r in dmp_floor(data_config(task), FLOOR_N):
         m = r["mse_px2"]
         md.append(

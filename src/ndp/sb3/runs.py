@@ -69,6 +69,7 @@ if TYPE_CHECKING:
     import gymnasium as gym
     from stable_baselines3 import PPO, SAC, TD3
     from stable_baselines3.common.base_class import BaseAlgorithm
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import VecEnv
 
 SB3_METHODS = ("sb3-ppo", "sb3-ndp", "sb3-multi", "sb3-sac", "sb3-td3")
@@ -117,6 +118,16 @@ class EpisodeCounter:
             return 0, math.nan, math.nan
         arr = np.array(eps)
         return len(eps), float(arr[:, 0].mean()), float(arr[:, 1].mean())
+
+
+def silent_logger() -> Logger:
+    """An SB3 logger that writes nothing. SB3's default (``verbose=0`` and no
+    ``tensorboard_log``) makes a new folder ``$TMPDIR/SB3-<date-time>`` on every ``learn()``
+    call and never removes it; an SB3 run here calls ``learn`` once per metrics row, so it
+    would leave one folder per row behind."""
+    from stable_baselines3.common.logger import Logger
+
+    return Logger(folder=None, output_formats=[])
 
 
 def make_sb3_ppo(venv: VecEnv, seed: int, num_envs: int) -> PPO:
@@ -426,6 +437,7 @@ class SB3Learner(LearnerDefaults):
             keys = ["obs"] if cfg.method == "sb3-ndp" else None
             self.venv = VecNormalize(raw_venv, gamma=0.99**kk, norm_obs_keys=keys)
             self.model = make_sb3_chunked(self.venv, cfg.method, cfg.seed, kk)
+        self.model.set_logger(silent_logger())  # the run writes its own metrics.csv
         self.step = 0
         self.rollout = rollout_decisions(cfg)
         self.budget = rollouts(cfg)

@@ -74,9 +74,18 @@ def test_command_line_errors_name_the_argument(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("method", ["sb3-ndp", "sb3-multi"])
-def test_a_chunked_sb3_run_logs_env_steps_evaluates_and_reports(method, tmp_path, threads_restored):
+def test_a_chunked_sb3_run_logs_env_steps_evaluates_and_reports(
+    method, tmp_path, threads_restored, monkeypatch
+):
+    import tempfile
+
+    tmp = tmp_path / "tmp"  # where SB3's default logger would make a folder per learn() call
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
     run = tmp_path / "runs" / f"point-mass-{method}-s0"
     train_sb3("point-mass", 2000, 0, run, num_envs=2, method=method, eval_episodes=2)
+    assert not [p.name for p in tmp.iterdir() if p.name.startswith("SB3-")]  # nothing left behind
     rows = read_metrics(run)
     # one row per rollout: 128 decisions x 2 envs x k env steps
     assert [r["global_step"] for r in rows] == [128 * 2 * SB3_K, 2 * 128 * 2 * SB3_K]

@@ -323,6 +323,30 @@ def _other_task_env(root: Path) -> Any:
         env.close()
 
 
+def _spoiled_checkpoint(root: Path, name: str, spoil: Callable[[dict], None]) -> Path:
+    """A copy of the trained run whose checkpoint ``spoil`` changed (a key removed, a NaN)."""
+    import torch
+
+    out = root / name
+    if not out.exists():
+        shutil.copytree(root / "rl", out)
+        ckpt = torch.load(out / "checkpoint.pt", map_location="cpu", weights_only=False)
+        spoil(ckpt)
+        torch.save(ckpt, out / "checkpoint.pt")
+    return out
+
+
+def _nan_weight(ckpt: dict) -> None:
+    weight = next(v for v in ckpt["model"].values() if v.is_floating_point())
+    weight.view(-1)[0] = float("nan")
+
+
+def _meta_layer(root: Path) -> object:
+    from ndp.dmp import DMPLayer
+
+    return DMPLayer(device="meta")
+
+
 def _cases() -> list[Case]:
     rl = lambda r: str(r / "rl")  # noqa: E731
     protect_rl = ["rl/config.json", "rl/checkpoint.pt", "rl/metrics.csv"]
@@ -524,6 +548,20 @@ def _cases() -> list[Case]:
              "error", api=True),
         Case("register_task(negative horizon)", lambda r: _register(r, horizon=-1), "error",
              api=True),
+        # checkpoints checked against their schema on load (file and key named)
+        Case("rl resume from a checkpoint without its optimiser state", lambda r: _cli(["rl",
+             "train", "--resume", str(_spoiled_checkpoint(r, "ckpt-noopt",
+             lambda c: c.pop("optimizer")))]), "error",
+             lambda res: "checkpoint.pt: optimizer: missing" in res[1]),
+        Case("rl resume from a checkpoint with NaN in a weight", lambda r: _cli(["rl", "train",
+             "--resume", str(_spoiled_checkpoint(r, "ckpt-nan", _nan_weight))]), "error",
+             lambda res: "holds NaN/Inf" in res[1] and "checkpoint.pt: model." in res[1]),
+        Case("rl resume from a checkpoint of a newer schema", lambda r: _cli(["rl", "train",
+             "--resume", str(_spoiled_checkpoint(r, "ckpt-v99",
+             lambda c: c.update(schema_version=99)))]), "error",
+             lambda res: "is newer than" in res[1]),
+        # a layer asked for a device it does not hold parameters on
+        Case("DMPLayer(device='meta')", _meta_layer, "error", api=True),
         # a policy in another task's env
         Case("run_episode(a point-mass policy in the 3-D point mass)", _other_task_env, "error",
              api=True),

@@ -222,6 +222,31 @@ def _third_party_imports(path: Path, top_level_only: bool) -> set[str]:
     return {m for m in found if m not in sys.stdlib_module_names and m not in ("ndp", "__future__")}
 
 
+TYPE_ONLY = ("_typeshed", "typing_extensions")
+"""Modules the type checker brings (typeshed's stub-only ``_typeshed``; ``typing_extensions``,
+which mypy requires), allowed only inside ``if TYPE_CHECKING:`` (never imported at run time)."""
+
+
+def _only_when_type_checking(path: Path, mod: str) -> bool:
+    """Whether every import of ``mod`` in ``path`` sits inside an ``if TYPE_CHECKING:`` block."""
+    tree = ast.parse(path.read_text())
+    guarded = {
+        id(n)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.If)
+        and ast.unparse(node.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING")
+        for stmt in node.body
+        for n in ast.walk(stmt)
+    }
+    imports = [
+        n
+        for n in ast.walk(tree)
+        if (isinstance(n, ast.ImportFrom) and (n.module or "").partition(".")[0] == mod)
+        or (isinstance(n, ast.Import) and any(a.name.partition(".")[0] == mod for a in n.names))
+    ]
+    return bool(imports) and all(id(n) in guarded for n in imports)
+
+
 def test_every_third_party_import_is_declared():
     project = _project()
     named = {_req_name(r)[0] for r in project["dependencies"]}
@@ -231,6 +256,8 @@ def test_every_third_party_import_is_declared():
     undeclared = {}
     for f in sorted((SRC / "ndp").rglob("*.py")):
         for mod in _third_party_imports(f, top_level_only=False):
+            if mod in TYPE_ONLY and _only_when_type_checking(f, mod):
+                continue
             names = {_canon(d) for d in dists.get(mod, [mod])}
             if not names & named:
                 undeclared[str(f.relative_to(SRC))] = mod

@@ -32,6 +32,7 @@ from ndp.checks import check_int, check_positive, plain_numbers
 from ndp.policies.config import PolicyConfig
 from ndp.rl.methods import METHODS, SETTINGS, Method, settings_sections
 from ndp.runs.cli import cli
+from ndp.runs.tracking import check_track
 
 EVAL_SEED = 10_000
 """Reset seed of the first evaluation episode (episodes ``EVAL_SEED .. EVAL_SEED + N - 1``) for
@@ -79,6 +80,7 @@ class ChunkOptions(TypedDict):
 SAFE_ON_RESUME = (
     "progress",
     "tensorboard",
+    "track",
     "steps",
     "vector",
     "env_workers",
@@ -240,6 +242,9 @@ class RunConfig:
     """Episodes per periodic deterministic evaluation (0: off)."""
     tensorboard: bool = True
     """Write TensorBoard event files besides the CSV."""
+    track: str = "none"
+    """Also log every metrics row to an experiment tracker: 'none' or 'wandb' (Weights & Biases,
+    the [track] extra; offline in RUN/wandb unless WANDB_MODE says otherwise; ndp.runs.tracking)."""
     progress: bool = True
     """Show a progress bar."""
     torch_threads: int = 1
@@ -266,6 +271,7 @@ class RunConfig:
         check_int("eval_every", self.eval_every, 0)
         check_int("eval_episodes", self.eval_episodes, 0)
         check_int("torch_threads", self.torch_threads, 1)
+        check_track(self.track)
         if self.horizon is not None:
             check_int("horizon", self.horizon, 1)
         if self.reward_version not in ("v1", "v2"):

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ndp.runs import MetricsLogger
+from ndp.runs.tracking import make_trackers
 
 if TYPE_CHECKING:
     from ndp.rl.config import TrainConfig
@@ -69,6 +70,7 @@ class TrainProgress:
             tensorboard=cfg.tensorboard,
             resume_index=update if resumed else None,
             resume_step=global_step if resumed else None,
+            trackers=make_trackers(cfg.track, run_dir, cfg.to_dict()),
         )
         self.bar = tqdm(
             total=self.steps,

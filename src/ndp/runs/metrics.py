@@ -16,6 +16,7 @@ from typing import Any
 
 from ndp.runs.layout import LEGACY_METRICS_NAMES, METRICS_NAME, TB_DIR
 from ndp.runs.signals import deferred_stops
+from ndp.runs.tracking import Tracker, finite_row
 
 
 def metrics_path(run_dir: str | Path) -> Path:
@@ -68,6 +69,8 @@ class MetricsLogger:
         resume_step: the x-axis value of the checkpoint resumed from.
         filename, tb_dir: the CSV's file name and the TensorBoard folder inside ``run_dir``
             (other than the defaults only for a second log, e.g. behaviour cloning before RL).
+        trackers: where each row also goes (:mod:`ndp.runs.tracking`, e.g. W&B), at the
+            ``step`` column's value; closed with the logger.
     """
 
     def __init__(
@@ -80,8 +83,10 @@ class MetricsLogger:
         resume_step: int | None = None,
         filename: str = METRICS_NAME,
         tb_dir: str = TB_DIR,
+        trackers: Sequence[Tracker] = (),
     ) -> None:
         self.columns = tuple(columns)
+        self._trackers = tuple(trackers)
         if step not in self.columns:
             raise ValueError(f"step: {step!r} is not one of the columns")
         self.index, self.step = self.columns[0], step
@@ -132,12 +137,18 @@ class MetricsLogger:
                     if not (isinstance(v, float) and math.isnan(v)):
                         self._tb.add_scalar(name, float(v), x)
                 self._tb.flush()
+            if self._trackers:
+                values = finite_row(metrics, (self.index, self.step))
+                for tracker in self._trackers:
+                    tracker.log(values, int(metrics[self.step]))
 
     def close(self) -> None:
-        """Flush and close."""
+        """Flush and close (the trackers too)."""
         self._file.close()
         if self._tb is not None:
             self._tb.close()
+        for tracker in self._trackers:
+            tracker.close()
 
     def __enter__(self) -> MetricsLogger:
         return self

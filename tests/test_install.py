@@ -272,3 +272,10 @@ def test_core_packages_import_only_the_core_at_module_level(pkg):
         if extra:
             bad[str(f.relative_to(SRC))] = sorted(extra)
     assert not bad, f"module-level imports outside the core install: {bad}"
+
+
+def test_the_project_links_are_https_and_name_the_paper_and_the_release():
+    urls = _project()["urls"]
+    assert all(u.startswith("https://") for u in urls.values()), urls
+    assert "https://arxiv.org/abs/2012.02788" in urls.values()
+    assert any("github.com/shikharbahl/neural-dynamic-policies" in u for u in urls.values())

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 import ndp
+from ndp.checks import check_int
 from ndp.experiments.report import find_run_dirs, run_info
 from ndp.experiments.run_kinds import run_kind
 from ndp.io import atomic_write_text
@@ -182,8 +183,7 @@ def smoothness_of_runs(
     """
     import json
 
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
+    check_int("episodes", episodes, 1)
     rows = []
     for path in find_run_dirs(paths):
         info = run_info(path)

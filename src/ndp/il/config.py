@@ -241,12 +241,7 @@ class TrainConfig:
             raise ValueError(
                 f"val_split: expected one of {', '.join(VAL_SPLITS)}, got {self.val_split!r}"
             )
-        if (
-            isinstance(self.patience, bool)
-            or not isinstance(self.patience, int)
-            or self.patience < 0
-        ):
-            raise ValueError(f"patience: expected an integer >= 0, got {self.patience!r}")
+        check_int("patience", self.patience, 0)
         if self.patience > 0 and self.val_fraction == 0:
             raise ValueError("patience: early stopping needs a validation split (--val-fraction)")
         if not self.run_dir:

@@ -57,6 +57,7 @@ from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
+from ndp.checks import check_int
 from ndp.io import atomic_write_text
 from ndp.rl.config import EVAL_SEED, PPOConfig
 from ndp.rl.sac.config import SACConfig
@@ -192,9 +193,7 @@ class SB3RunConfig:
             )
         for name, low in (("steps", 1), ("seed", 0), ("num_envs", 1), ("k", 1),
                           ("eval_episodes", 0)):  # fmt: skip
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
+            check_int(name, getattr(self, name), low)
         if self.method in PER_STEP_METHODS and self.k != 1:
             raise ValueError(f"k: {self.method} runs one env step per decision, got k={self.k}")
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ndp.checks import check_int
 from ndp.experiments.report.cells import Cell, CsvRow
 from ndp.experiments.report.conditions import conditions_section, pairwise_section
 from ndp.experiments.report.csvs import write_csv
@@ -100,8 +101,7 @@ def check_args(
     for b in budgets or ():
         if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b <= 0:
             raise ValueError(f"budgets: expected env steps > 0, got {b!r}")
-    if isinstance(eval_episodes, bool) or not isinstance(eval_episodes, int) or eval_episodes < 0:
-        raise ValueError(f"eval_episodes: expected an integer >= 0, got {eval_episodes!r}")
+    check_int("eval_episodes", eval_episodes, 0)
     bad = [x for x in seeds or () if isinstance(x, bool) or not isinstance(x, int) or x < 0]
     if bad:
         raise ValueError(f"seeds: expected integers >= 0, got {bad}")

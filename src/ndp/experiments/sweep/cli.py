@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TypedDict
 
+from ndp.checks import check_int
 from ndp.experiments.run_kinds import run_kind
 
 if TYPE_CHECKING:
@@ -458,10 +459,9 @@ def sweep_command(argv: list[str]) -> int:
 
 def _check_sweep_args(args: argparse.Namespace) -> None:
     """The sweep's own options that need no study (ValueError naming the option)."""
-    if args.jobs is not None and args.jobs < 1:
-        raise ValueError(f"--jobs: expected an integer >= 1, got {args.jobs}")
-    if args.retries < 0:
-        raise ValueError(f"--retries: expected an integer >= 0, got {args.retries}")
+    if args.jobs is not None:
+        check_int("--jobs", args.jobs, 1)
+    check_int("--retries", args.retries, 0)
     if args.pack_unfinished and args.pack is None:
         raise ValueError("--pack-unfinished: only with --pack ARCHIVE")
     if args.address and args.backend != "ray":

@@ -287,9 +287,6 @@ OFF_POLICY_REFERENCES: dict[str, Callable[[VecEnv, int, int], BaseAlgorithm]] = 
 run on the per-step env without normalisation, one metrics row per :data:`SB3_SAC_ROLLOUT`
 env steps, with one gradient step per env step (studies ``sac-vs-sb3``, ``td3-vs-sb3``)."""
 
-PER_STEP_METHODS = ("sb3-ppo", *OFF_POLICY_REFERENCES)
-"""The methods on the per-step env (k = 1); the others run the chunked env."""
-
 
 def make_sb3_chunked(venv: VecEnv, method: str, seed: int, k: int) -> PPO:
     """SB3 PPO for ``sb3-ndp`` / ``sb3-multi``: SB3's defaults but ``n_steps`` 128 and
@@ -302,9 +299,88 @@ def make_sb3_chunked(venv: VecEnv, method: str, seed: int, k: int) -> PPO:
     return PPO(policy, venv, n_steps=128, gamma=0.99**k, seed=seed, device="cpu", verbose=0)
 
 
+@dataclass(frozen=True)
+class SB3Method:
+    """How the run kind builds one SB3 method: its env, the wrapper of its vector env, its model
+    and the decisions of one rollout (one ``metrics.csv`` row). :data:`SB3_METHOD_ROWS` holds
+    one per method of :data:`SB3_METHODS`; the run reads the row, never the method's name."""
+
+    per_step: bool
+    """The per-step env (k = 1); otherwise the chunked env, k env steps per decision."""
+    robot_state: bool
+    """The chunked env with the DMP's start in the observation (``ndp.sb3.with_robot_state``,
+    what ``NDPPolicy`` reads)."""
+    wrap: Callable[[VecEnv, SB3RunConfig], VecEnv]
+    """The vector env the model trains on (normalisation, or none)."""
+    make: Callable[[VecEnv, SB3RunConfig], BaseAlgorithm]
+    """The model on the wrapped vector env."""
+    rollout: Callable[[SB3RunConfig], int]
+    """Decisions (over all envs) per rollout."""
+
+
+def _ppo_venv(venv: VecEnv, cfg: SB3RunConfig) -> VecEnv:
+    """``sb3-ppo``'s normalisation: the supplement's settings (``PPOConfig``)."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    p = PPOConfig()
+    return VecNormalize(venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
+
+
+def _chunked_venv(venv: VecEnv, cfg: SB3RunConfig) -> VecEnv:
+    """The chunked methods' normalisation at the decision's discount 0.99 ** k (``sb3-ndp``:
+    the observation key only, the robot state stays raw)."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    keys = ["obs"] if SB3_METHOD_ROWS[cfg.method].robot_state else None
+    return VecNormalize(venv, gamma=0.99**cfg.k, norm_obs_keys=keys)
+
+
+def _off_policy_row(make: Callable[[VecEnv, int, int], BaseAlgorithm]) -> SB3Method:
+    """An off-policy reference: the per-step env, no normalisation (off-policy's usual
+    setting), one row per :data:`SB3_SAC_ROLLOUT` env steps."""
+    return SB3Method(
+        per_step=True,
+        robot_state=False,
+        wrap=lambda venv, cfg: venv,
+        make=lambda venv, cfg: make(venv, cfg.seed, cfg.num_envs),
+        rollout=lambda cfg: SB3_SAC_ROLLOUT,
+    )
+
+
+def _chunked_row(robot_state: bool) -> SB3Method:
+    """``sb3-ndp`` (``robot_state``: NDPPolicy) or ``sb3-multi`` (MlpPolicy) on the chunked env,
+    128 decisions per env per rollout."""
+    return SB3Method(
+        per_step=False,
+        robot_state=robot_state,
+        wrap=_chunked_venv,
+        make=lambda venv, cfg: make_sb3_chunked(venv, cfg.method, cfg.seed, cfg.k),
+        rollout=lambda cfg: 128 * cfg.num_envs,
+    )
+
+
+SB3_METHOD_ROWS: dict[str, SB3Method] = {
+    "sb3-ppo": SB3Method(
+        per_step=True,
+        robot_state=False,
+        wrap=_ppo_venv,
+        make=lambda venv, cfg: make_sb3_ppo(venv, cfg.seed, cfg.num_envs),
+        rollout=lambda cfg: PPOConfig().steps_per_update // cfg.num_envs * cfg.num_envs,
+    ),
+    "sb3-ndp": _chunked_row(robot_state=True),
+    "sb3-multi": _chunked_row(robot_state=False),
+    **{name: _off_policy_row(make) for name, make in OFF_POLICY_REFERENCES.items()},
+}
+"""One :class:`SB3Method` per method of :data:`SB3_METHODS` (a test checks they agree)."""
+
+PER_STEP_METHODS = tuple(name for name, row in SB3_METHOD_ROWS.items() if row.per_step)
+"""The methods on the per-step env (k = 1); the others run the chunked env."""
+
+
 def _env_maker(cfg: SB3RunConfig) -> Callable[[], gym.Env]:
     """A function building one env of the run (per-step env, or chunked one for k > 1)."""
-    if cfg.method in PER_STEP_METHODS:
+    row = SB3_METHOD_ROWS[cfg.method]
+    if row.per_step:
         from ndp.rl.envs import resolve_task
 
         h = resolve_task(cfg.task)
@@ -313,7 +389,7 @@ def _env_maker(cfg: SB3RunConfig) -> Callable[[], gym.Env]:
 
     def make() -> gym.Env:
         env: gym.Env = ndp.make_env(cfg.task, k=cfg.k, horizon=cfg.horizon)
-        if cfg.method == "sb3-ndp":
+        if row.robot_state:
             env = ndp.sb3.with_robot_state(env, cfg.task)
         return env
 
@@ -393,10 +469,7 @@ def train_sb3(
 
 def rollout_decisions(cfg: SB3RunConfig) -> int:
     """Decisions (SB3 steps, over all envs) per rollout of the method's PPO."""
-    if cfg.method in OFF_POLICY_REFERENCES:
-        return SB3_SAC_ROLLOUT
-    per_env = PPOConfig().steps_per_update // cfg.num_envs if cfg.method == "sb3-ppo" else 128
-    return per_env * cfg.num_envs
+    return SB3_METHOD_ROWS[cfg.method].rollout(cfg)
 
 
 def rollouts(cfg: SB3RunConfig) -> int:
@@ -418,24 +491,12 @@ class SB3Learner(LearnerDefaults):
         from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
         self.cfg, self.session = cfg, session
-        kk = cfg.k
+        row = SB3_METHOD_ROWS[cfg.method]
         self.make = make = _env_maker(cfg)
         raw_venv = DummyVecEnv([make for _ in range(cfg.num_envs)])
         raw_venv.seed(cfg.seed)
-        self.venv: Any
-        if cfg.method in OFF_POLICY_REFERENCES:  # off-policy's usual setting: no normalisation
-            self.venv = raw_venv
-            self.model = OFF_POLICY_REFERENCES[cfg.method](self.venv, cfg.seed, cfg.num_envs)
-        elif cfg.method == "sb3-ppo":
-            p = PPOConfig()
-            self.venv = VecNormalize(
-                raw_venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward
-            )
-            self.model = make_sb3_ppo(self.venv, cfg.seed, cfg.num_envs)
-        else:
-            keys = ["obs"] if cfg.method == "sb3-ndp" else None
-            self.venv = VecNormalize(raw_venv, gamma=0.99**kk, norm_obs_keys=keys)
-            self.model = make_sb3_chunked(self.venv, cfg.method, cfg.seed, kk)
+        self.venv: Any = row.wrap(raw_venv, cfg)
+        self.model = row.make(self.venv, cfg)
         self.model.set_logger(silent_logger())  # the run writes its own metrics.csv
         self.step = 0
         self.rollout = rollout_decisions(cfg)

@@ -322,3 +322,31 @@ def test_no_figure_is_written_but_through_atomic_savefig():
         if ".savefig(" in line
     ]
     assert calls == []
+
+
+@pytest.mark.parametrize("sig,code,name", [(signal.SIGINT, 130, "SIGINT"),
+                                           (signal.SIGTERM, 143, "SIGTERM")])  # fmt: skip
+def test_a_stop_while_ndp_is_still_being_imported_is_one_line(sig, code, name):
+    """The console script's entry (``_ndp_cli``) sets its handlers before importing ``ndp``: a
+    stop that arrives while ``ndp`` and its commands are imported (simulated: right after the
+    entry's import, during a slow import) ends in one line, never a traceback."""
+    script = (f"import _ndp_cli, os, time; os.kill(os.getpid(), {int(sig)}); time.sleep(30); "
+              "import ndp.cli")  # fmt: skip
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=60)  # fmt: skip
+    assert res.returncode == code
+    assert res.stderr == f"ndp: stopped by {name} (exit {code})\n"
+
+
+def test_the_console_script_enters_through_the_early_handlers():
+    import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    project = tomllib.loads((root / "pyproject.toml").read_text())
+    assert project["project"]["scripts"]["ndp"] == "_ndp_cli:main"
+    assert "_ndp_cli" in project["tool"]["setuptools"]["py-modules"]
+    # the entry leaves ndp.cli's own handlers in charge once a command runs
+    res = subprocess.run([sys.executable, "-c", "import sys, _ndp_cli; sys.argv[1:] = "
+                          "['--version']; raise SystemExit(_ndp_cli.main())"],
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert res.returncode == 0 and res.stdout.startswith("ndp ")

@@ -17,12 +17,9 @@ import argparse
 import dataclasses
 import json
 import sys
-from typing import Annotated, TypeAlias
+from typing import Annotated
 
 from ndp.rl.config import EVAL_SEED, FRESH_EVAL_SEED, TrainConfig
-
-_SubParsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
-"""What ``ArgumentParser.add_subparsers()`` returns: where sub-commands are registered."""
 
 TRAIN_NOTES = (
     "Unset NDP fields come "
@@ -55,7 +52,9 @@ def train_description() -> str:
     )
 
 
-def add_subparser(sub: _SubParsers) -> None:
+# the public signature unsubscripted (as ndp.il.cli's): the API reference evaluates it at run
+# time, where argparse's class is not generic
+def add_subparser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``rl`` with sub-commands ``train``, ``methods``, ``eval``, ``export``,
     ``fit-basis``, ``render`` and ``diagnose``."""
     rl = sub.add_parser(
@@ -73,7 +72,7 @@ def add_subparser(sub: _SubParsers) -> None:
         add(rl_sub)
 
 
-def _add_eval(rl_sub: _SubParsers) -> None:
+def _add_eval(rl_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """``ndp rl eval RUN_DIR``: success over N episodes, per mode and ``--exec-k``."""
     ev = rl_sub.add_parser("eval", help="success of a trained run over N episodes")
     ev.add_argument("run_dir", metavar="RUN_DIR")
@@ -111,7 +110,7 @@ def _add_eval(rl_sub: _SubParsers) -> None:
     ev.set_defaults(func=_cmd_eval)
 
 
-def _add_export(rl_sub: _SubParsers) -> None:
+def _add_export(rl_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """``ndp rl export RUN_DIR OUT_DIR``: a trained run's policy as safetensors or ONNX."""
     ex = rl_sub.add_parser(
         "export",
@@ -131,7 +130,7 @@ def _add_export(rl_sub: _SubParsers) -> None:
     ex.set_defaults(func=_cmd_export)
 
 
-def _add_push(rl_sub: _SubParsers) -> None:
+def _add_push(rl_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """``ndp rl push SOURCE ORG/NAME``: upload a policy to the Hugging Face Hub."""
     pu = rl_sub.add_parser(
         "push",
@@ -145,7 +144,7 @@ def _add_push(rl_sub: _SubParsers) -> None:
     pu.set_defaults(func=_cmd_push)
 
 
-def _add_fit_basis(rl_sub: _SubParsers) -> None:
+def _add_fit_basis(rl_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """``ndp rl fit-basis RUN_DIR... --out FILE``: PPO-multi's 'pca' chunk basis."""
     fb = rl_sub.add_parser(
         "fit-basis",
@@ -173,7 +172,7 @@ def _add_fit_basis(rl_sub: _SubParsers) -> None:
     fb.set_defaults(func=_cmd_fit_basis)
 
 
-def _add_render(rl_sub: _SubParsers) -> None:
+def _add_render(rl_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """``ndp rl render RUN_DIR``: an mp4 of a trained run (or two, side by side)."""
     rd = rl_sub.add_parser("render", help="render a trained run to mp4")
     rd.add_argument("run_dir", metavar="RUN_DIR")
@@ -219,7 +218,7 @@ def _add_render(rl_sub: _SubParsers) -> None:
     rd.set_defaults(func=_cmd_render)
 
 
-def _add_diagnose(rl_sub: _SubParsers) -> None:
+def _add_diagnose(rl_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """``ndp rl diagnose``: the handicap or (``--jacobian``) conditioning diagnostic."""
     dg = rl_sub.add_parser(
         "diagnose",

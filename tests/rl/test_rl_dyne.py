@@ -63,13 +63,22 @@ def test_embedding_prediction_loss_falls_and_decoder_reconstructs(tmp_path):
     cfg = _cfg(tmp_path, dyne=dataclasses.replace(FAST, embed_updates=1000, decoder_updates=1000))
     opened = _open(cfg)
     lr = opened.learner
+    seen = {}
+    fit = lr._fit_embedding
+
+    def spy():  # the exploration data as the fit at the end of the exploration phase sees it
+        seen["data"] = [np.concatenate(x) for x in zip(*lr._explore_data, strict=True)]
+        seen["stats"] = fit()
+        return seen["stats"]
+
+    lr._fit_embedding = spy
     try:
         for _ in range(lr.n_explore):
-            lr._explore_iteration()
-        data = [np.concatenate(x) for x in zip(*lr._explore_data, strict=True)]
-        stats = lr._fit_embedding()
+            row = lr.iterate()  # the loop's iterations; the last one fits the embedding
     finally:
         opened.close()
+    data, stats = seen["data"], seen["stats"]
+    assert row["dyne/embed_loss"] == stats["embed_loss"] and lr.embedded
     s0, act, delta = (torch.as_tensor(x, dtype=torch.float32) for x in data)
     assert act.shape[1:] == (5, 2) and s0.shape[1] == delta.shape[1] == 4
     assert stats["sequences"] >= 350  # 2000 env steps = 400 chunks, the full ones

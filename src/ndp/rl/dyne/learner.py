@@ -30,6 +30,12 @@ the policy (``model``: actor + head with the frozen decoder, the keys of
 replay buffer (filled part), RNGs and counters: ``--resume`` continues with all of them; only
 the simulator states are not saved (every env starts a new episode, as for PPO).
 
+Both phases run on the off-policy learners' collection loop
+(:class:`ndp.rl.offpolicy.loop.OffPolicyLearner`, as SAC and TD3): the exploration phase is
+:meth:`DyneLearner.act` (random action sequences) and :meth:`DyneLearner.store` (the chunks
+kept for the embedding), the embedding's fit :meth:`DyneLearner.end_iteration`, the TD3 step
+:meth:`DyneLearner.gradient_step` on Dyn-E's own replay (:data:`DYNE_REPLAY_FIELDS`).
+
 Observations enter TD3 unnormalised (as in the original); the checkpoint's ``obs_norm`` holds
 identity statistics so that ``ndp rl eval`` / ``render`` / ``export`` feed the policy exactly
 what it trained on (clipped to +- ``clip_obs``).

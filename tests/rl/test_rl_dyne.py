@@ -57,6 +57,16 @@ def test_dyne_is_registered_with_the_td3_actor():
     assert TrainConfig.from_dict(d).dyne == DyneConfig()
 
 
+def test_dyne_runs_on_the_shared_off_policy_loop():
+    from ndp.rl.dyne.learner import DyneLearner
+    from ndp.rl.offpolicy.loop import OffPolicyLearner
+
+    assert issubclass(DyneLearner, OffPolicyLearner)
+    # no collection loop of its own: env stepping, replay insertion and evaluation are the loop's
+    for name in ("iterate", "_decide", "_start"):
+        assert getattr(DyneLearner, name) is getattr(OffPolicyLearner, name), name
+
+
 def test_embedding_prediction_loss_falls_and_decoder_reconstructs(tmp_path):
     # measured (seeds 0, 1): prediction loss 0.36 over the first 10% of the steps -> 0.13,
     # cycle and predicted-effect errors 0.001, displacement error 0.08-0.11 of its spread

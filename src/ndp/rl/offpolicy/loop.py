@@ -200,7 +200,8 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
         self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
         self.high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
         self.rng = np.random.default_rng(self.cfg.seed)
-        frame = frame or self.cfg.policy.dmp_state
+        if frame is None:
+            frame = self.cfg.policy.dmp_state
         assert frame is not None  # resolve_config fills it from the task's preset
         self.frame: str = frame
         self.update = 0

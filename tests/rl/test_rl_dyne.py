@@ -57,19 +57,38 @@ def test_dyne_is_registered_with_the_td3_actor():
     assert TrainConfig.from_dict(d).dyne == DyneConfig()
 
 
+def test_dyne_runs_on_the_shared_off_policy_loop():
+    from ndp.rl.dyne.learner import DyneLearner
+    from ndp.rl.offpolicy.loop import OffPolicyLearner
+
+    assert issubclass(DyneLearner, OffPolicyLearner)
+    # no collection loop of its own: env stepping, replay insertion and evaluation are the loop's
+    for name in ("iterate", "_decide", "_start"):
+        assert getattr(DyneLearner, name) is getattr(OffPolicyLearner, name), name
+
+
 def test_embedding_prediction_loss_falls_and_decoder_reconstructs(tmp_path):
     # measured (seeds 0, 1): prediction loss 0.36 over the first 10% of the steps -> 0.13,
     # cycle and predicted-effect errors 0.001, displacement error 0.08-0.11 of its spread
     cfg = _cfg(tmp_path, dyne=dataclasses.replace(FAST, embed_updates=1000, decoder_updates=1000))
     opened = _open(cfg)
     lr = opened.learner
+    seen = {}
+    fit = lr._fit_embedding
+
+    def spy():  # the exploration data as the fit at the end of the exploration phase sees it
+        seen["data"] = [np.concatenate(x) for x in zip(*lr._explore_data, strict=True)]
+        seen["stats"] = fit()
+        return seen["stats"]
+
+    lr._fit_embedding = spy
     try:
         for _ in range(lr.n_explore):
-            lr._explore_iteration()
-        data = [np.concatenate(x) for x in zip(*lr._explore_data, strict=True)]
-        stats = lr._fit_embedding()
+            row = lr.iterate()  # the loop's iterations; the last one fits the embedding
     finally:
         opened.close()
+    data, stats = seen["data"], seen["stats"]
+    assert row["dyne/embed_loss"] == stats["embed_loss"] and lr.embedded
     s0, act, delta = (torch.as_tensor(x, dtype=torch.float32) for x in data)
     assert act.shape[1:] == (5, 2) and s0.shape[1] == delta.shape[1] == 4
     assert stats["sequences"] >= 350  # 2000 env steps = 400 chunks, the full ones

@@ -30,6 +30,12 @@ the policy (``model``: actor + head with the frozen decoder, the keys of
 replay buffer (filled part), RNGs and counters: ``--resume`` continues with all of them; only
 the simulator states are not saved (every env starts a new episode, as for PPO).
 
+Both phases run on the off-policy learners' collection loop
+(:class:`ndp.rl.offpolicy.loop.OffPolicyLearner`, as SAC and TD3): the exploration phase is
+:meth:`DyneLearner.act` (random action sequences) and :meth:`DyneLearner.store` (the chunks
+kept for the embedding), the embedding's fit :meth:`DyneLearner.end_iteration`, the TD3 step
+:meth:`DyneLearner.gradient_step` on Dyn-E's own replay (:data:`DYNE_REPLAY_FIELDS`).
+
 Observations enter TD3 unnormalised (as in the original); the checkpoint's ``obs_norm`` holds
 identity statistics so that ``ndp rl eval`` / ``render`` / ``export`` feed the policy exactly
 what it trained on (clipped to +- ``clip_obs``).
@@ -40,7 +46,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import time
 from typing import Any
 
 import numpy as np
@@ -48,25 +53,21 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from ndp.chunk_info import dmp_start, dmp_start_keys
 from ndp.nets.mlp import MLP
 from ndp.policies import build_actor_critic
 from ndp.policies.dyne import ActionDecoder, DyneHead, SequenceEmbedding
-from ndp.rl import envs as rl_envs
 from ndp.rl.config import TrainConfig
 from ndp.rl.dyne import DYNE_METRICS
 from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.logger import METRICS
 from ndp.rl.methods import section, with_section
 from ndp.rl.normalize import ObsNormalizer
-from ndp.rl.offpolicy.state import OffPolicyState, Part
+from ndp.rl.offpolicy.loop import Decision, LoopBudget, OffPolicyLearner, mean_of
+from ndp.rl.offpolicy.state import Part
 from ndp.rl.optim import soft_update
-from ndp.rl.periodic_eval import PeriodicEvaluator
-from ndp.rl.progress import episode_charts
 from ndp.rl.replay import RingReplay
 from ndp.runs.checkpoint import INT, FiniteTensor, Spec
 from ndp.runs.session import (
-    CountsUpdates,
     RunSession,
     TrainingDivergedError,
     checkpoint_due,
@@ -300,14 +301,11 @@ def dyne_replay(capacity: int, obs_dim: int, latent_dim: int, k: int) -> RingRep
     return RingReplay(int(capacity), shapes)
 
 
-def _robot_state(info: dict[str, Any], n: int) -> np.ndarray:
-    """The measured robot positions and velocities now [E, 2 D] (the next chunk's start)."""
-    return np.concatenate(dmp_start(info, "measured", n), axis=1)
-
-
 # --------------------------------------------------------------------------- learner
-class DyneLearner(OffPolicyState, CountsUpdates):
-    """Dyn-E on the shared run infrastructure (see the module docstring).
+class DyneLearner(OffPolicyLearner):
+    """Dyn-E on the shared off-policy loop (:class:`ndp.rl.offpolicy.loop.OffPolicyLearner`;
+    see the module docstring): the exploration phase and TD3 in the latent are the loop's
+    ``act`` / ``store`` / ``gradient_step``, the embedding's fit its ``end_iteration``.
 
     An :class:`ndp.rl.run.RLLearner`: the run driver opens the run, seeds, restores and
     drives it.
@@ -320,19 +318,13 @@ class DyneLearner(OffPolicyState, CountsUpdates):
     section = "dyne"
 
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
-        task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
         cfg = resolve_dyne_config(cfg)
         check_budget(cfg)  # before any env is built
-        self.cfg, self.spec = cfg, task.spec
-        self.session = session
-        self.run = self.session.run
-        self.rng = np.random.default_rng(cfg.seed)
+        d = self.settings = _dyne(cfg)
+        # no random steps of the loop's own: Dyn-E's phases are its act's (start_steps included)
+        self._open_loop(cfg, session, LoopBudget(0, d.batch_size, d.updates_per_step))
         self.gen = torch.Generator().manual_seed(cfg.seed)
-
-        self.k, self.E = cfg.k, cfg.num_envs
-        self.T = cfg.decisions_per_env
         self.n_explore = explore_iterations(cfg)
-        self.envs, self.obs_dim = rl_envs.run_envs(cfg, task)
         self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         head = self.model.head
         assert isinstance(head, DyneHead)
@@ -347,35 +339,21 @@ class DyneLearner(OffPolicyState, CountsUpdates):
         self.actor_target = copy.deepcopy(self.model.actor)
         for net in (self.critic_target, self.actor_target):
             net.requires_grad_(False)
-        d = _dyne(cfg)
         self.actor_opt = torch.optim.Adam(self.model.actor.parameters(), lr=d.actor_lr, fused=True)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=d.critic_lr, fused=True)
-        self.replay = dyne_replay(d.replay_size, self.obs_dim, self.L, self.k)
-        # identity statistics: TD3 sees raw observations (clipped), as eval will
-        self.obs_norm = ObsNormalizer(self.obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
-        self.evaluator = PeriodicEvaluator(cfg, self.spec)
-        self.low = np.asarray(self.spec.action_low, dtype=np.float64)
-        self.high = np.asarray(self.spec.action_high, dtype=np.float64)
-        self.update = 0
-        self.global_step = 0
+        self._critic_params = list(self.critic.parameters())
+        # identity statistics: TD3 sees raw observations (clipped), as eval will; the robot
+        # state of the exploration data is the measured one
+        self._open_collection(dyne_replay(d.replay_size, self.obs_dim, self.L, self.k),
+                              ObsNormalizer(self.obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs),
+                              "measured")  # fmt: skip
+        self._low = np.asarray(self.spec.action_low, dtype=np.float64)
+        self._high = np.asarray(self.spec.action_high, dtype=np.float64)
         self.rl_steps = 0  # env steps of the TD3 phase
-        self.grad_steps = 0
-        self.update_debt = 0.0
         self.embed_stats: dict[str, float] = {}
         self.embedded = False
         self._explore_data: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-        self._tracker = rl_envs.EpisodeTracker(self.E)
-        self._started = False  # the envs are reset at the first iteration, after any restore
-
-    def _start(self) -> None:
-        """Reset the envs, one seed per env from the iteration the run continues at
-        (gymnasium types VectorEnv.reset's seed as one int; its vector envs and
-        ndp.envs.vector take a list)."""
-        seeds = rl_envs.env_seeds(self.cfg.seed, self.E, epoch=self.update)
-        obs, info = self.envs.reset(seed=seeds)  # type: ignore[arg-type]
-        self._obs = np.asarray(obs, dtype=np.float64).reshape(self.E, self.obs_dim)
-        self._state = _robot_state(info, self.E)
-        self._started = True
+        self._fitted: dict[str, float] = {}  # the fit's statistics, in its iteration's row
 
     # ----------------------------------------------------------------------- state
     def parts(self) -> dict[str, Part]:
@@ -429,62 +407,63 @@ class DyneLearner(OffPolicyState, CountsUpdates):
             self.update == self.n_explore or checkpoint_due(self.update, every, last)
         )
 
-    def _diverged(self, what: str) -> TrainingDivergedError:
-        return self.session.diverged(what, self.update)
-
     # ----------------------------------------------------------------------- acting
+    def _exploring(self) -> bool:
+        """Whether the current iteration collects the embedding's data."""
+        return self.update < self.n_explore
 
-    def _step(
-        self, act: np.ndarray, episodes: list[tuple[float, float, float, float, float]]
-    ) -> tuple[Any, ...]:
-        next_obs, _, term, trunc, infos = self.envs.step(act.astype(np.float32))
-        term = np.asarray(term, dtype=bool)
-        trunc = np.asarray(trunc, dtype=bool)
-        done = term | trunc
-        E, k = self.E, self.k
-        sub_r, live, mask = rl_envs.decision_rewards(infos, done, E, k)
-        self._tracker.add(infos, done, sub_r, live, mask, episodes)
-        nxt = np.asarray(next_obs, dtype=np.float64).reshape(E, self.obs_dim)
-        final = nxt.copy()
-        if done.any() and "final_obs" in infos:
-            for i in np.flatnonzero(done):
-                final[i] = np.asarray(infos["final_obs"][i], dtype=np.float64).reshape(-1)
-        self._obs = nxt
-        self._state = _robot_state(infos, E)
-        return infos, done, term, sub_r, mask, final
+    def act(
+        self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, explore: bool
+    ) -> tuple[torch.Tensor, dict[str, np.ndarray]]:
+        """The exploration phase: uniformly random k-action sequences (column ``actions``,
+        for the embedding). Then latents [E, L] (column ``z``): uniformly random during
+        ``start_steps``, else the actor's plus N(0, (expl_noise max_latent)^2), clipped to the
+        latent range; decoded into k actions clipped to the bounds. ``explore`` is unused
+        (the loop has no random steps of its own for Dyn-E)."""
+        if self._exploring():
+            a = self.rng.uniform(self._low, self._high, size=(self.E, self.k, self.spec.action_dim))
+            return torch.as_tensor(a.astype(np.float32)), {"actions": a}
+        z = self._latent(obs)
+        a = self.head.decode(torch.from_numpy(z)).numpy().astype(np.float64)
+        a = np.clip(a, self._low, self._high)
+        return torch.as_tensor(a.astype(np.float32)), {"z": z}
 
-    def _explore_iteration(self) -> dict[str, Any]:
-        """T decisions of uniformly random k-action sequences; keeps the full chunks."""
-        if not self._started:
-            self._start()
-        E, k, A = self.E, self.k, self.spec.action_dim
-        episodes: list[tuple[float, float, float, float, float]] = []
-        executed = 0
-        for _ in range(self.T):
-            act = self.rng.uniform(self.low, self.high, size=(E, k, A))
-            s0 = self._state
-            infos, done, _, _, mask, _ = self._step(act, episodes)
-            # the measured robot state after the chunk (the finished episode's where one ended)
-            end = np.concatenate(
-                [
-                    np.asarray(rl_envs.step_info(infos, done, key), dtype=np.float64).reshape(E, -1)
-                    for key in dmp_start_keys("measured")
-                ],
-                axis=1,
-            )
-            full = mask.sum(1) == k
-            self._explore_data.append((s0[full], act[full], (end - s0)[full]))
-            executed += int(mask.sum())
-        return {"episodes": episodes, "executed": executed}
+    def _latent(self, obs: torch.Tensor) -> np.ndarray:
+        """Latents [E, L] for the next decision (random during start_steps, else actor +
+        exploration noise, clipped to the latent range)."""
+        m = float(self.head.max_latent)
+        if self.rl_steps < self.settings.start_steps:
+            return self.rng.uniform(-m, m, size=(self.E, self.L)).astype(np.float32)
+        z = self.head.latent(self.model.actor(obs)).numpy()
+        noise = self.rng.normal(0.0, self.settings.expl_noise * m, size=z.shape)
+        return np.clip(z + noise, -m, m).astype(np.float32)
+
+    def store(self, d: Decision) -> None:
+        """The exploration phase keeps the full chunks (measured robot state at the start,
+        the k actions, the state change); the TD3 phase adds one replay row per env
+        (:data:`DYNE_REPLAY_FIELDS`) and counts its env steps."""
+        if self._exploring():
+            s0 = np.concatenate((d.y0, d.dy0), axis=1)
+            end = np.concatenate((d.next_y0, d.next_dy0), axis=1)
+            full = d.mask.sum(1) == self.k
+            self._explore_data.append((s0[full], d.columns["actions"][full], (end - s0)[full]))
+            return
+        self.replay.add(obs=d.obs, z=d.columns["z"], rew=d.sub_rewards, mask=d.mask,
+                        next_obs=d.next_obs, term=d.terminated.astype(np.float32))  # fmt: skip
+        self.rl_steps += int(d.mask.sum())
+
+    # ----------------------------------------------------------------------- learning
+    def end_iteration(self) -> None:
+        """After the last exploration iteration: fit the embedding (its row shows the fit)."""
+        self._fitted = self._fit_embedding() if self.update + 1 == self.n_explore else {}
 
     def _fit_embedding(self) -> dict[str, float]:
         s0, act, delta = (
             torch.as_tensor(np.concatenate(x), dtype=torch.float32)
             for x in zip(*self._explore_data, strict=True)
         )
-        stats = train_embedding(
-            self.embedding, self.head.decoder, s0, act, delta, _dyne(self.cfg), self.gen
-        )
+        stats = train_embedding(self.embedding, self.head.decoder, s0, act, delta, self.settings,
+                                self.gen)  # fmt: skip
         with torch.no_grad():
             self.head.max_latent.fill_(stats["max_latent"])
         self._explore_data = []
@@ -493,61 +472,16 @@ class DyneLearner(OffPolicyState, CountsUpdates):
         self.embed_stats = stats
         return stats
 
-    def _act(self, obs_n: np.ndarray) -> np.ndarray:
-        """Latents [E, L] for the next decision (random during start_steps, else actor +
-        exploration noise, clipped to the latent range)."""
-        m = float(self.head.max_latent)
-        if self.rl_steps < _dyne(self.cfg).start_steps:
-            return self.rng.uniform(-m, m, size=(self.E, self.L)).astype(np.float32)
-        with torch.no_grad():
-            z = self.head.latent(self.model.actor(torch.from_numpy(obs_n))).numpy()
-        noise = self.rng.normal(0.0, _dyne(self.cfg).expl_noise * m, size=z.shape)
-        return np.clip(z + noise, -m, m).astype(np.float32)
+    def evaluate(self, before: int, last: bool) -> dict[str, float]:
+        """The periodic evaluation, once the embedding is fitted (before it there is no
+        policy to evaluate)."""
+        return super().evaluate(before, last) if self.embedded else {}
 
-    def _rl_iteration(self) -> dict[str, Any]:
-        if not self._started:
-            self._start()
-        episodes: list[tuple[float, float, float, float, float]] = []
-        executed = 0
-        losses: dict[str, list[float]] = {"critic": [], "actor": [], "q": []}
-        t_update = 0.0
-        d = _dyne(self.cfg)
-        for _ in range(self.T):
-            obs_n = self.obs_norm(self._obs)
-            z = self._act(obs_n)
-            with torch.no_grad():
-                act = self.head.decode(torch.from_numpy(z)).numpy().astype(np.float64)
-            act = np.clip(act, self.low, self.high)
-            if not np.isfinite(act).all():
-                raise self._diverged("non-finite actions (check the observations)")
-            _, _, term, sub_r, mask, final = self._step(act, episodes)
-            self.replay.add(
-                obs=obs_n,
-                z=z,
-                rew=sub_r,
-                mask=mask,
-                next_obs=self.obs_norm(final),
-                term=term.astype(np.float32),
-            )
-            n = int(mask.sum())
-            executed += n
-            self.rl_steps += n
-            if self.replay.size < d.batch_size:
-                continue
-            self.update_debt += d.updates_per_step * n
-            t0 = time.perf_counter()
-            while self.update_debt >= 1.0:
-                self.update_debt -= 1.0
-                self._td3_step(losses)
-            t_update += time.perf_counter() - t0
-        return {"episodes": episodes, "executed": executed, "losses": losses, "t_update": t_update}
-
-    # ----------------------------------------------------------------------- TD3
-    def _td3_step(self, losses: dict[str, list[float]]) -> None:
-        d, k = _dyne(self.cfg), self.k
-        gamma = self.cfg.ppo.gamma
+    def gradient_step(self, b: dict[str, torch.Tensor]) -> dict[str, float]:
+        """One TD3 critic step in the latent (the k-step target from the sub-rewards and the
+        mask); the actor and the targets every ``policy_delay``-th one."""
+        d, k, gamma = self.settings, self.k, self.gamma
         m = self.head.max_latent
-        b = self.replay.sample(d.batch_size, self.rng)
         with torch.no_grad():
             noise = (torch.randn_like(b["z"]) * (d.target_noise * m)).clamp(
                 -d.target_noise_clip * m, d.target_noise_clip * m
@@ -562,90 +496,37 @@ class DyneLearner(OffPolicyState, CountsUpdates):
             y = ret + boot * torch.minimum(q1t, q2t)
         q1, q2 = self.critic(b["obs"], b["z"])
         critic_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)
-        if not bool(torch.isfinite(critic_loss)):
-            raise self._diverged(f"non-finite critic loss ({float(critic_loss.detach())})")
-        self.critic_opt.zero_grad()
-        critic_loss.backward()  # type: ignore[no-untyped-call]  # Tensor.backward is unannotated
-        self.critic_opt.step()
-        self.grad_steps += 1
-        losses["critic"].append(float(critic_loss.detach()))
-        losses["q"].append(float(q1.detach().mean()))
-        if self.grad_steps % d.policy_delay == 0:
-            self.critic.requires_grad_(False)
-            actor_loss = -self.critic.first(
-                b["obs"], self.head.latent(self.model.actor(b["obs"]))
-            ).mean()
-            if not bool(torch.isfinite(actor_loss)):
-                raise self._diverged(f"non-finite actor loss ({float(actor_loss.detach())})")
-            self.actor_opt.zero_grad()
-            actor_loss.backward()  # type: ignore[no-untyped-call]  # Tensor.backward: unannotated
-            self.actor_opt.step()
-            self.critic.requires_grad_(True)
-            losses["actor"].append(float(actor_loss.detach()))
+        self._step(self.critic_opt, critic_loss, "critic")
+        out = {"critic": float(critic_loss.detach()), "q": float(q1.detach().mean())}
+        if (self.grad_steps + 1) % d.policy_delay == 0:  # the loop counts the step after
+            with self._critics_frozen():
+                z = self.head.latent(self.model.actor(b["obs"]))
+                actor_loss = -self.critic.first(b["obs"], z).mean()
+                self._step(self.actor_opt, actor_loss, "actor")
+            out["actor"] = float(actor_loss.detach())
             soft_update(self.critic_target, self.critic, d.tau)
             soft_update(self.actor_target, self.model.actor, d.tau)
+        return out
 
-    # ----------------------------------------------------------------------- loop
-    def iterate(self) -> dict[str, float]:
-        """One iteration (exploration, then the embedding fit once, or TD3); returns its row.
-
-        Raises:
-            TrainingDivergedError: NaN / Inf in a loss or parameter.
-        """
-        t0 = time.perf_counter()
-        exploring = self.update < self.n_explore
-        if exploring:
-            batch = self._explore_iteration()
-            t_update = 0.0
-        else:
-            batch = self._rl_iteration()
-            t_update = batch["t_update"]
-        t1 = time.perf_counter()
-        embed: dict[str, float] = {}
-        if exploring and self.update + 1 == self.n_explore:
-            embed = self._fit_embedding()
-        t2 = time.perf_counter()
-        self.update += 1
-        before, self.global_step = self.global_step, self.global_step + batch["executed"]
-        row = self._metrics(batch, embed, t1 - t0 - t_update, t_update + t2 - t1)
-        last = self.update >= self.cfg.num_updates
-        if self.embedded:  # before the embedding is fitted there is no policy to evaluate
-            row.update(self.evaluator.maybe(before, self.global_step, last, self.model,
-                                            self.obs_norm))  # fmt: skip
-        return row
-
-    def _metrics(
-        self, batch: dict[str, Any], embed: dict[str, float], t_roll: float, t_upd: float
-    ) -> dict[str, float]:
-        losses = batch.get("losses", {})
-
-        def _mean(key: str) -> float:
-            v = losses.get(key, [])
-            return float(np.mean(v)) if v else math.nan
-
+    def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
+        """Dyn-E's columns of the row: TD3's (NaN during exploration), the embedding's fit
+        (its iteration only), the replay and the gradient steps."""
+        in_rl = self.update > self.n_explore  # the loop has counted this iteration
         m = float(self.head.max_latent) if self.embedded else math.nan
-        in_rl = "losses" in batch
         return {
-            "update": self.update,
-            "global_step": self.global_step,
-            **episode_charts(batch["episodes"]),
-            "charts/env_steps_per_s": batch["executed"] / max(t_roll + t_upd, 1e-9),
-            "charts/learning_rate": _dyne(self.cfg).critic_lr if in_rl else math.nan,
-            "losses/policy": _mean("actor"),
-            "losses/value": _mean("critic"),
-            "policy/std": _dyne(self.cfg).expl_noise * m if in_rl else math.nan,
-            "time/rollout_s": t_roll,
-            "time/update_s": t_upd,
-            "dyne/embed_loss": embed.get("embed_loss", math.nan),
-            "dyne/embed_kl": embed.get("embed_kl", math.nan),
-            "dyne/decoder_loss": embed.get("decoder_loss", math.nan),
-            "dyne/q": _mean("q"),
+            "charts/learning_rate": self.settings.critic_lr if in_rl else math.nan,
+            "losses/policy": mean_of(losses, "actor"),
+            "losses/value": mean_of(losses, "critic"),
+            "policy/std": self.settings.expl_noise * m if in_rl else math.nan,
+            "dyne/embed_loss": self._fitted.get("embed_loss", math.nan),
+            "dyne/embed_kl": self._fitted.get("embed_kl", math.nan),
+            "dyne/decoder_loss": self._fitted.get("decoder_loss", math.nan),
+            "dyne/q": mean_of(losses, "q"),
             "dyne/replay": float(self.replay.size),
             "dyne/gradient_steps": float(self.grad_steps),
         }
 
     def close(self) -> None:
         """Close the environments (training and evaluation) and release the run."""
-        self.envs.close()
-        self.evaluator.close()
+        super().close()
         self.session.close()

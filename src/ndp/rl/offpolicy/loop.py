@@ -1,19 +1,25 @@
-"""The off-policy collection loop shared by the SAC family (:mod:`ndp.rl.sac`) and TD3
-(:mod:`ndp.rl.td3`): env stepping over decisions of k env steps, the chunk return and its
-bootstrap weight, replay insertion, the random steps before learning, the gradient-step budget,
-the periodic evaluation and the metrics row.
+"""The off-policy collection loop shared by the SAC family (:mod:`ndp.rl.sac`: SAC, chunked
+SAC, NDP-SAC), TD3 (:mod:`ndp.rl.td3`) and Dyn-E (:mod:`ndp.rl.dyne`): env stepping over
+decisions of k env steps, the chunk return and its bootstrap weight, replay insertion, the
+random steps before learning, the gradient-step budget, the periodic evaluation and the
+metrics row.
 
 One iteration (E envs, T decisions per env, k sub-steps, A actions, O observations)::
 
-    obs [E, O], robot state y0, dy0 [E, D] --algorithm.act--> actions [E, k, A] + the
-    algorithm's replay columns --ChunkedEnv x E--> sub-rewards [E, k], mask [E, k] -->
-    chunk return, bootstrap weight --> replay (one row per decision) --> once random_steps env
-    steps have run and the replay holds a batch: updates_per_step x (executed env steps)
-    gradient steps (algorithm.gradient_step on a replay batch)
+    obs [E, O] (through obs_norm), robot state y0, dy0 [E, D] --algorithm.act--> actions
+    [E, k, A] + the algorithm's replay columns --ChunkedEnv x E--> sub-rewards [E, k], mask
+    [E, k] --algorithm.store (default: chunk return, bootstrap weight)--> replay (one row per
+    decision) --> once random_steps env steps have run and the replay holds a batch:
+    updates_per_step x (executed env steps) gradient steps (algorithm.gradient_step on a
+    replay batch) --> algorithm.end_iteration --> the row (algorithm.algorithm_metrics,
+    algorithm.evaluate)
 
 A learner subclasses :class:`OffPolicyLearner` and supplies only the algorithm's part
 (:class:`OffPolicyAlgorithm`: acting, one gradient step, its metrics and its state); the run
-driver (:mod:`ndp.runs.driver`) opens, seeds, restores, drives and checkpoints it.
+driver (:mod:`ndp.runs.driver`) opens, seeds, restores, drives and checkpoints it. Dyn-E uses
+the hooks too: its exploration phase acts with random action sequences, its ``store`` keeps
+them for the embedding (then its own replay rows: the latent, the sub-rewards and the mask),
+its ``end_iteration`` fits the embedding, and its ``evaluate`` waits for the fitted embedding.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ import contextlib
 import math
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
@@ -36,6 +43,7 @@ from ndp.rl.offpolicy.returns import bootstrap_discount, chunk_return
 from ndp.rl.offpolicy.state import OffPolicyState
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
+from ndp.rl.replay import RingReplay
 from ndp.runs.session import CountsUpdates, RunSession, TrainingDivergedError
 
 REPLAY_COLUMNS = ("obs", "y0", "dy0", "ret", "discount", "next_obs", "next_y0", "next_dy0")
@@ -62,6 +70,43 @@ class LoopSettings(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class LoopBudget:
+    """The loop's budget (:class:`LoopSettings`) for a learner whose settings name it
+    otherwise (Dyn-E: no random steps of the loop's own)."""
+
+    random_steps: int
+    batch_size: int
+    updates_per_step: float
+
+
+@dataclass(frozen=True)
+class Decision:
+    """One decision of every env, as the loop hands it to ``store`` (E envs)."""
+
+    obs: np.ndarray
+    """The observations the algorithm acted on [E, O] (float32, through ``obs_norm``)."""
+    y0: np.ndarray
+    """The robot state at the decision's start [E, D] (float64, the loop's ``frame``)."""
+    dy0: np.ndarray
+    """Its velocity [E, D]."""
+    columns: dict[str, np.ndarray]
+    """The algorithm's replay columns (``act``'s second value)."""
+    sub_rewards: np.ndarray
+    """The k sub-rewards [E, k] (0 after an episode's end)."""
+    mask: np.ndarray
+    """The executed sub-steps [E, k] (1 / 0)."""
+    terminated: np.ndarray
+    """Episodes that terminated inside the decision [E] (bool; a truncation is not one)."""
+    next_obs: np.ndarray
+    """The observations after the decision [E, O] (float32, through ``obs_norm``; the final
+    one where an episode ended)."""
+    next_y0: np.ndarray
+    """The robot state after the decision [E, D] (the finished episode's where one ended)."""
+    next_dy0: np.ndarray
+    """Its velocity [E, D]."""
+
+
 class OffPolicyAlgorithm(Protocol):
     """The algorithm-specific part of an off-policy learner (what :class:`OffPolicyLearner`
     calls)."""
@@ -70,8 +115,9 @@ class OffPolicyAlgorithm(Protocol):
         self, obs: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, explore: bool
     ) -> tuple[torch.Tensor, dict[str, np.ndarray]]:
         """One decision of every env from obs [E, O], y0 / dy0 [E, D] (no gradient):
-        ``explore`` False means the random steps (act uniformly at random). Returns the actions
-        [E, k, A] inside the task's bounds and the algorithm's replay columns ({name: [E, w]})."""
+        ``explore`` False means the random steps (act uniformly at random; an algorithm with
+        phases of its own, Dyn-E, decides itself). Returns the actions [E, k, A] (float32)
+        inside the task's bounds and the algorithm's replay columns ({name: [E, w]})."""
         ...
 
     def gradient_step(self, batch: dict[str, torch.Tensor]) -> dict[str, float]:
@@ -84,17 +130,32 @@ class OffPolicyAlgorithm(Protocol):
         the iteration's gradient-step values."""
         ...
 
+    def store(self, d: Decision) -> None:
+        """Insert one decision of every env into the replay (:class:`OffPolicyLearner`'s:
+        the chunk return and bootstrap weight with the loop's and the algorithm's columns)."""
+        ...
+
+    def end_iteration(self) -> None:
+        """Work after an iteration's decisions, timed as update time (none by default)."""
+        ...
+
+    def evaluate(self, before: int, last: bool) -> dict[str, float]:
+        """The periodic evaluation's columns of the row (the evaluator's by default)."""
+        ...
+
 
 class OffPolicyLearner(OffPolicyState, CountsUpdates):
     """The collection loop of an off-policy learner over decisions of k env steps (see the
     module docstring). A subclass calls :meth:`_open_loop` (envs) before building its
-    networks, then :meth:`_open_replay` (replay, evaluator, generator), and implements
+    networks, then :meth:`_open_replay` (replay, evaluator, generator; or
+    :meth:`_open_collection` with its own replay), and implements
     :class:`OffPolicyAlgorithm`, and names its checkpoint's parts
     (:class:`ndp.rl.offpolicy.state.OffPolicyState`).
 
     Attributes set by the loop: ``cfg``, ``spec``, ``session``, ``run``, ``k``, ``E``, ``T``,
-    ``gamma``, ``envs``, ``obs_dim``, ``replay``, ``obs_norm`` (identity statistics: the
-    observations enter unnormalised), ``evaluator``, ``low`` / ``high`` [A] (action bounds),
+    ``gamma``, ``envs``, ``obs_dim``, ``replay``, ``obs_norm`` (what the observations pass
+    through before ``act`` and the replay; by default disabled: they enter unnormalised),
+    ``evaluator``, ``low`` / ``high`` [A] (action bounds),
     ``rng`` (numpy, seeded with the run's seed: random actions and replay batches), ``frame``,
     ``update``, ``global_step``, ``grad_steps``, ``update_debt``.
     """
@@ -118,18 +179,29 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
 
     def _open_replay(self, capacity: int, dims: dict[str, int]) -> None:
         """The replay (``capacity`` decisions; the loop's columns plus the algorithm's
-        ``dims``), the identity observation statistics, the periodic evaluator, the action
-        bounds, the generator and the counters."""
+        ``dims``), then the rest of :meth:`_open_collection`."""
         D = int(self.spec.dmp_dofs)
         cols = {"obs": self.obs_dim, "next_obs": self.obs_dim, **dims,
                 "y0": D, "dy0": D, "next_y0": D, "next_dy0": D}  # fmt: skip
-        self.replay = DecisionReplay(capacity, cols)
-        self.obs_norm = ObsNormalizer(self.obs_dim, self.cfg.ppo.clip_obs, enabled=False)
+        self._open_collection(DecisionReplay(capacity, cols))
+
+    def _open_collection(
+        self, replay: RingReplay, obs_norm: ObsNormalizer | None = None, frame: str | None = None
+    ) -> None:
+        """The replay (``replay``: one an algorithm's ``store`` fills), the observation
+        statistics (default: disabled, the observations enter unnormalised), the periodic
+        evaluator, the action bounds, the generator, the robot state's frame (default: the
+        policy's ``dmp_state``) and the counters."""
+        self.replay = replay
+        if obs_norm is None:
+            obs_norm = ObsNormalizer(self.obs_dim, self.cfg.ppo.clip_obs, enabled=False)
+        self.obs_norm = obs_norm
         self.evaluator = PeriodicEvaluator(self.cfg, self.spec)
         self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
         self.high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
         self.rng = np.random.default_rng(self.cfg.seed)
-        frame = self.cfg.policy.dmp_state
+        if frame is None:
+            frame = self.cfg.policy.dmp_state
         assert frame is not None  # resolve_config fills it from the task's preset
         self.frame: str = frame
         self.update = 0
@@ -180,7 +252,7 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
     # ----------------------------------------------------------------------- learning
     def iterate(self) -> dict[str, float]:
         """T decisions per env, with ``updates_per_step`` gradient steps per env step once the
-        random steps are done; returns the iteration's metrics row.
+        random steps are done, then :meth:`end_iteration`; returns the iteration's metrics row.
 
         Raises:
             TrainingDivergedError: NaN / Inf in an action, a loss or a parameter.
@@ -188,40 +260,12 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
         if not self._started:
             self._start()
         t0 = time.perf_counter()
-        E, k = self.E, self.k
         episodes: list[tuple[float, float, float, float, float]] = []
         losses: dict[str, list[float]] = {}
         executed, t_update = 0, 0.0
         for _ in range(self.T):
-            obs = torch.as_tensor(self._obs, dtype=torch.float32)
-            y0 = torch.as_tensor(self._y0, dtype=torch.float32)
-            dy0 = torch.as_tensor(self._dy0, dtype=torch.float32)
-            with torch.no_grad():
-                acting = self.global_step + executed >= self.random_steps
-                act, columns = self.act(obs, y0, dy0, acting)
-            if not bool(torch.isfinite(act).all()):
-                raise self.session.diverged("non-finite actions (check the observations)",
-                                            self.update)  # fmt: skip
-            nxt, _, term, trunc, infos = self.envs.step(act.numpy())
-            term = np.asarray(term, dtype=bool)
-            done = term | np.asarray(trunc, dtype=bool)
-            sub_r, live, mask = rl_envs.decision_rewards(infos, done, E, k)
-            self._tracker.add(infos, done, sub_r, live, mask, episodes)
-            ret, n = chunk_return(torch.as_tensor(sub_r), torch.as_tensor(mask), self.gamma)
-            discount = bootstrap_discount(n, torch.as_tensor(term, dtype=n.dtype), self.gamma)
-            nxt = np.asarray(nxt, dtype=np.float64).reshape(E, self.obs_dim)
-            final = nxt.copy()
-            if done.any() and "final_obs" in infos:
-                for i in np.flatnonzero(done):
-                    final[i] = np.asarray(infos["final_obs"][i], dtype=np.float64).reshape(-1)
-            next_y0, next_dy0 = self._next_start(infos, done)
-            self.replay.add(obs=self._obs, y0=self._y0, dy0=self._dy0, **columns,
-                            ret=ret.numpy(), discount=discount.numpy(), next_obs=final,
-                            next_y0=next_y0, next_dy0=next_dy0)  # fmt: skip
-            n_exec = int(mask.sum())
+            n_exec = self._decide(self.global_step + executed >= self.random_steps, episodes)
             executed += n_exec
-            self._obs = nxt
-            self._y0, self._dy0 = rl_envs.decision_start(infos, E, self.frame)
             if (
                 self.global_step + executed >= self.random_steps
                 and self.replay.size >= self.batch_size
@@ -235,6 +279,9 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
                     self.grad_steps += 1
                     self.update_debt -= 1.0
                 t_update += time.perf_counter() - t1
+        t1 = time.perf_counter()
+        self.end_iteration()
+        t_update += time.perf_counter() - t1
         self.update += 1
         before, self.global_step = self.global_step, self.global_step + executed
         wall = time.perf_counter() - t0
@@ -248,9 +295,55 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
             "time/update_s": t_update,
             **self.algorithm_metrics(losses),
         }
-        last = self.update >= self.cfg.num_updates
-        row.update(self.evaluator.maybe(before, self.global_step, last, self.model, self.obs_norm))
+        row.update(self.evaluate(before, self.update >= self.cfg.num_updates))
         return row
+
+    def _decide(
+        self, acting: bool, episodes: list[tuple[float, float, float, float, float]]
+    ) -> int:
+        """One decision of every env: act (``acting`` False: the random steps), step the envs,
+        hand the :class:`Decision` to :meth:`store`; returns the env steps it executed."""
+        E, k = self.E, self.k
+        obs = self.obs_norm(self._obs)
+        y0 = torch.as_tensor(self._y0, dtype=torch.float32)
+        dy0 = torch.as_tensor(self._dy0, dtype=torch.float32)
+        with torch.no_grad():
+            act, columns = self.act(torch.as_tensor(obs), y0, dy0, acting)
+        if not bool(torch.isfinite(act).all()):
+            raise self._diverged("non-finite actions (check the observations)")
+        nxt, _, term, trunc, infos = self.envs.step(act.numpy())
+        term = np.asarray(term, dtype=bool)
+        done = term | np.asarray(trunc, dtype=bool)
+        sub_r, live, mask = rl_envs.decision_rewards(infos, done, E, k)
+        self._tracker.add(infos, done, sub_r, live, mask, episodes)
+        nxt = np.asarray(nxt, dtype=np.float64).reshape(E, self.obs_dim)
+        final = nxt.copy()
+        if done.any() and "final_obs" in infos:
+            for i in np.flatnonzero(done):
+                final[i] = np.asarray(infos["final_obs"][i], dtype=np.float64).reshape(-1)
+        next_y0, next_dy0 = self._next_start(infos, done)
+        self.store(Decision(obs, self._y0, self._dy0, columns, sub_r, mask, term,
+                            self.obs_norm(final), next_y0, next_dy0))  # fmt: skip
+        self._obs = nxt
+        self._y0, self._dy0 = rl_envs.decision_start(infos, E, self.frame)
+        return int(mask.sum())
+
+    def store(self, d: Decision) -> None:
+        """:meth:`OffPolicyAlgorithm.store`: one replay row per env with the chunk return and
+        its bootstrap weight (the loop's :data:`REPLAY_COLUMNS` and the algorithm's)."""
+        ret, n = chunk_return(torch.as_tensor(d.sub_rewards), torch.as_tensor(d.mask), self.gamma)
+        discount = bootstrap_discount(n, torch.as_tensor(d.terminated, dtype=n.dtype), self.gamma)
+        self.replay.add(obs=d.obs, y0=d.y0, dy0=d.dy0, **d.columns, ret=ret.numpy(),
+                        discount=discount.numpy(), next_obs=d.next_obs, next_y0=d.next_y0,
+                        next_dy0=d.next_dy0)  # fmt: skip
+
+    def end_iteration(self) -> None:
+        """:meth:`OffPolicyAlgorithm.end_iteration` (nothing by default)."""
+
+    def evaluate(self, before: int, last: bool) -> dict[str, float]:
+        """:meth:`OffPolicyAlgorithm.evaluate`: the periodic evaluator's columns when an
+        evaluation is due between ``before`` and ``global_step`` (or ``last``)."""
+        return self.evaluator.maybe(before, self.global_step, last, self.model, self.obs_norm)
 
     def _diverged(self, what: str) -> TrainingDivergedError:
         return self.session.diverged(what, self.update)

@@ -540,8 +540,9 @@ class NDPHead(ActionHead):
             if self._any_absolute:
                 dy0_dmp = dy0_dmp.masked_fill_(absolute, 0.0)
         v = weights * (goal - y0).unsqueeze(-1) if self.dmp.config.scale_by_goal else weights
-        u = torch.cat((v, torch.stack((goal, y0, dy0_dmp), dim=-1)), dim=-1)
-        if self.dmp.check_finite and not bool(torch.isfinite(u.sum())):
+        state = (goal.unsqueeze(-1), y0.unsqueeze(-1), dy0_dmp.unsqueeze(-1))
+        u = torch.cat((v, *state), dim=-1)  # [B, D, N + 3]
+        if self.dmp.check_finite and not math.isfinite(float(u.sum())):
             check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0_dmp)
             raise FloatingPointError("inputs: expected finite values, their sum overflows")
         actions = torch.bmm(u.transpose(0, 1), action_map).permute(1, 2, 0)  # [B, k, D]

@@ -417,3 +417,19 @@ def test_mlp_forward_falls_back_to_the_module_off_its_plain_form():
         with torch.no_grad():
             assert torch.equal(mlp_forward(mlp, x), mlp(x))
         assert mlp_forward(mlp, x).requires_grad
+
+
+@pytest.mark.parametrize(
+    ("xd", "sd"), [(torch.float32, torch.float32), (torch.float64, torch.float64),
+                   (torch.float32, torch.float64)]
+)  # fmt: skip
+def test_the_no_grad_log_prob_equals_the_autograd_one_bit_for_bit(xd, sd):
+    torch.manual_seed(2)
+    x, mean = (torch.randn(6, 5, 3, dtype=xd) * 7 for _ in range(2))
+    x[0, 0, 0] = float("nan")
+    log_std = (torch.randn(3, dtype=sd) * 3).requires_grad_(True)
+    ref = diag_gaussian_log_prob(x, mean, log_std).detach()
+    with torch.no_grad():
+        fast = diag_gaussian_log_prob(x, mean, log_std)
+    assert fast.dtype == ref.dtype and torch.equal(fast.nan_to_num(), ref.nan_to_num())
+    assert torch.equal(fast.isnan(), ref.isnan())

@@ -55,7 +55,7 @@ from ndp.policies.base import (  # registers every built-in head first
 )
 from ndp.policies.base import register_head as register_head
 from ndp.policies.conditioning import raw_jacobian, whitening_transform
-from ndp.policies.distributions import ParamGaussian, SubActionGaussian
+from ndp.policies.distributions import ParamGaussian, SubActionGaussian, scalar_like
 from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
 from ndp.policies.squashed import SquashedActionHead as SquashedActionHead  # the SAC family's
 from ndp.policies.squashed import SquashedNDPHead as SquashedNDPHead  # heads, registered there
@@ -536,7 +536,7 @@ class NDPHead(ActionHead):
         if self.start_at_rest:
             dy0_dmp = torch.zeros_like(y0)
         else:
-            dy0_dmp = dy0 * (self.decision_dt / self.dmp.config.tau)
+            dy0_dmp = dy0 * scalar_like(self.decision_dt / self.dmp.config.tau, dy0)
             if self._any_absolute:
                 dy0_dmp = dy0_dmp.masked_fill_(absolute, 0.0)
         v = weights * (goal - y0).unsqueeze(-1) if self.dmp.config.scale_by_goal else weights

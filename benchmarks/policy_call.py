@@ -5,7 +5,8 @@ The call a rollout makes each decision (``ndp.rl.onpolicy.trainer.Trainer.decide
 ``Trainer.collect`` calls): the policy's distribution (NDP: the DMP head decoding goal and
 weights into k sub-actions through its fused action map), its exploration wrapper, a sample,
 its log-prob, the value, the actions inside their bounds and their finite check, and the
-head's diagnostics; batch = ``--num-envs`` (4), no gradient, one thread.
+head's diagnostics (kept per decision, averaged once per rollout of T decisions, as
+``Trainer.collect`` does); batch = ``--num-envs`` (4), no gradient, one thread.
 Measured on the networks of a run opened through the run driver (``ndp.rl.run.open_run``,
 untrained weights; the cost does not depend on them). Per env step it is the call divided by k
 (5 for NDP and PPO-multi, 1 for PPO).
@@ -33,7 +34,7 @@ from ndp.experiments.provenance import git_commit
 def call_ms(method: str, task: str, num_envs: int, calls: int, repeats: int) -> dict[str, float]:
     """Median (over ``repeats``) ms per decision call of ``method``, and its k."""
     from ndp.rl.config import TrainConfig
-    from ndp.rl.onpolicy.trainer import Trainer
+    from ndp.rl.onpolicy.trainer import Trainer, mean_of_means
     from ndp.rl.run import open_run
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -56,10 +57,16 @@ def call_ms(method: str, task: str, num_envs: int, calls: int, repeats: int) -> 
             y0, dy0 = tr.decision_start()  # the envs reset: the state a decision starts from
             obs = torch.randn(num_envs, tr.obs_dim)
 
+            kept: dict[str, list[torch.Tensor]] = {}
+
             def one() -> None:
                 d = tr.decide(obs, y0, dy0)
-                for v in d.aux.values():
-                    float(v.mean())
+                for key, v in d.aux.items():  # kept per decision, reduced once per rollout
+                    rows = kept.setdefault(key, [])
+                    rows.append(v)
+                    if len(rows) == tr.T:
+                        mean_of_means(rows)
+                        rows.clear()
 
             for _ in range(calls // 10):
                 one()

@@ -368,3 +368,68 @@ def test_ablation_switches_train_through_the_cli(tmp_path, flag):
     assert main(["rl", "train", "--task", "point-mass", "--steps", "520", "--steps-per-update",
                  "512", "--minibatches", "4", "--vector", "sync", "--run-dir", str(tmp_path / "r"),
                  "--no-progress", "--no-tensorboard", flag]) == 0  # fmt: skip
+
+
+@pytest.mark.parametrize("task", ["push-v3", "throw", "point-mass"])
+@pytest.mark.parametrize(
+    "opts",
+    [
+        {},
+        {"mean_clip": True},
+        {"forcing": "goal"},
+        {"absolute_mode": "dmp"},
+        {"dmp_velocity": "zero"},
+        {"param_map": "linear"},
+        {"param_noise": True},
+    ],
+)
+def test_the_no_grad_decode_and_forward_equal_the_autograd_ones_bit_for_bit(task, opts):
+    """Rollouts (no autograd) take the head's short form of the fused map and the MLPs' layer
+    functions: the same bits as the update's path, diagnostics included."""
+    spec = get_task_spec(task)
+    torch.manual_seed(1)
+    ac = build_actor_critic(spec.obs_dim, spec, _cfg("ndp", **opts))
+    obs = 3.0 * torch.randn(7, spec.obs_dim)
+    y0 = torch.randn(7, spec.dmp_dofs) * 0.3
+    dy0 = torch.randn(7, spec.dmp_dofs)
+    with torch.no_grad():
+        raw, v = ac.actor.net(obs), ac.critic.net(obs)  # the modules themselves
+        dist, aux = ac.distribution(obs, y0, dy0)
+        assert torch.equal(ac.value(obs), v)
+        actions, goal, weights = ac.head.decode(raw, y0, dy0)
+        loose = ac.head.decode(raw, y0, dy0, bounded=False)
+    ref = ac.head.decode(raw, y0, dy0)  # autograd on: the update's form
+    ref_loose = ac.head.decode(raw, y0, dy0, bounded=False)
+    for a, b in zip((actions, goal, weights, *loose), (*ref, *ref_loose), strict=True):
+        assert torch.equal(a, b.detach())
+    assert torch.equal(aux["goal_norm"], (ref[1] - y0).norm(dim=-1))
+    assert torch.equal(aux["weight_norm"], ref[2].detach().flatten(1).norm(dim=-1))
+    assert torch.equal(dist.mean, raw if ac.head.param_noise else actions)
+
+
+def test_mlp_forward_falls_back_to_the_module_off_its_plain_form():
+    """mlp_forward calls the module itself with autograd on, or for a LayerNorm / GELU MLP."""
+    from ndp.nets.mlp import MLP
+    from ndp.policies.actor_critic import mlp_forward
+
+    x = torch.randn(5, 6)
+    for mlp in (MLP(6, (8,), 3, "relu"), MLP(6, (8,), 3, layer_norm=True), MLP(6, (8,), 3, "gelu")):
+        with torch.no_grad():
+            assert torch.equal(mlp_forward(mlp, x), mlp(x))
+        assert mlp_forward(mlp, x).requires_grad
+
+
+@pytest.mark.parametrize(
+    ("xd", "sd"), [(torch.float32, torch.float32), (torch.float64, torch.float64),
+                   (torch.float32, torch.float64)]
+)  # fmt: skip
+def test_the_no_grad_log_prob_equals_the_autograd_one_bit_for_bit(xd, sd):
+    torch.manual_seed(2)
+    x, mean = (torch.randn(6, 5, 3, dtype=xd) * 7 for _ in range(2))
+    x[0, 0, 0] = float("nan")
+    log_std = (torch.randn(3, dtype=sd) * 3).requires_grad_(True)
+    ref = diag_gaussian_log_prob(x, mean, log_std).detach()
+    with torch.no_grad():
+        fast = diag_gaussian_log_prob(x, mean, log_std)
+    assert fast.dtype == ref.dtype and torch.equal(fast.nan_to_num(), ref.nan_to_num())
+    assert torch.equal(fast.isnan(), ref.isnan())

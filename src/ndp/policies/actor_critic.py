@@ -6,7 +6,9 @@ from typing import TYPE_CHECKING
 
 import torch
 from torch import nn
+from torch.nn import functional as F
 
+from ndp.dmp.integrate import recording
 from ndp.nets.mlp import MLP
 from ndp.policies.base import ActionHead, HeadOutput
 from ndp.policies.config import PolicyConfig
@@ -56,12 +58,34 @@ class ActorCritic(nn.Module):
         self, obs: torch.Tensor, y0: torch.Tensor | None = None, dy0: torch.Tensor | None = None
     ) -> HeadOutput:
         """Exploration distribution over the decision's k sub-actions, plus head diagnostics."""
-        return self.head.distribution(self.actor(obs), y0, dy0)
+        return self.head.distribution(mlp_forward(self.actor, obs), y0, dy0)
 
     def value(self, obs: torch.Tensor) -> torch.Tensor:
         """k value estimates [B, k] (one per sub-step of the decision)."""
-        v: torch.Tensor = self.critic(obs)
-        return v
+        return mlp_forward(self.critic, obs)
+
+
+_ACTIVATIONS = {"tanh": torch.tanh, "relu": torch.relu}
+"""The hidden activations :func:`mlp_forward` applies as functions (what their modules call)."""
+
+
+def mlp_forward(mlp: MLP, x: torch.Tensor) -> torch.Tensor:
+    """``mlp(x)``; without autograd (rollouts), a plain MLP's layers as the functions their
+    modules call (``F.linear``, the activation), without the per-module call overhead: the
+    same values."""
+    act = _ACTIVATIONS.get(mlp.activation.lower()) if isinstance(mlp, MLP) else None
+    if act is None or mlp.layer_norm or torch.is_grad_enabled() or recording():
+        out: torch.Tensor = mlp(x)
+        return out
+    for m in mlp.net._modules.values():
+        if type(m) is nn.Linear:
+            p = m._parameters
+            w = p["weight"]
+            assert w is not None  # (an nn.Linear's)
+            x = F.linear(x, w, p["bias"])
+        else:
+            x = act(x)
+    return x
 
 
 def build_actor_critic(obs_dim: int, spec: TaskSchema, cfg: PolicyConfig) -> ActorCritic:

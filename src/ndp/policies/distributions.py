@@ -19,6 +19,8 @@ from typing import Protocol
 
 import torch
 
+from ndp.dmp.integrate import recording
+
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
@@ -36,7 +38,25 @@ def diag_gaussian_log_prob(
         [...]: ``sum_a -0.5 ((x - mean) / std)^2 - log std - 0.5 log(2 pi)``.
     """
     z = (x - mean) * torch.exp(-log_std)
-    return (-0.5 * z.pow(2) - log_std - _HALF_LOG_2PI).sum(-1)
+    if torch.is_grad_enabled() or recording():
+        return (-0.5 * z.pow(2) - log_std - _HALF_LOG_2PI).sum(-1)
+    # no autograd (rollouts): the same operations, the numbers as tensors (z * z is pow(z, 2))
+    q = scalar_like(-0.5, z) * (z * z) - log_std
+    return (q - scalar_like(_HALF_LOG_2PI, q)).sum(-1)
+
+
+_SCALARS: dict[tuple[float, torch.dtype, torch.device], torch.Tensor] = {}
+
+
+def scalar_like(value: float, like: torch.Tensor) -> torch.Tensor:
+    """``value`` as a 0-dim tensor of ``like``'s dtype and device (cached, not to be written):
+    the number a Python scalar operand of an operation on ``like`` becomes, without that
+    conversion on every call. Not while ``torch.export`` / ``torch.compile`` record."""
+    key = (value, like.dtype, like.device)
+    t = _SCALARS.get(key)
+    if t is None:
+        t = _SCALARS[key] = torch.tensor(value, dtype=like.dtype, device=like.device)
+    return t
 
 
 def diag_gaussian_entropy(log_std: torch.Tensor, shape: torch.Size) -> torch.Tensor:

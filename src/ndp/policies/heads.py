@@ -55,7 +55,7 @@ from ndp.policies.base import (  # registers every built-in head first
 )
 from ndp.policies.base import register_head as register_head
 from ndp.policies.conditioning import raw_jacobian, whitening_transform
-from ndp.policies.distributions import ParamGaussian, SubActionGaussian
+from ndp.policies.distributions import ParamGaussian, SubActionGaussian, scalar_like
 from ndp.policies.dyne import DyneHead  # Dyn-E: latent -> frozen decoder -> k actions
 from ndp.policies.squashed import SquashedActionHead as SquashedActionHead  # the SAC family's
 from ndp.policies.squashed import SquashedNDPHead as SquashedNDPHead  # heads, registered there
@@ -347,6 +347,9 @@ class NDPHead(ActionHead):
             self.register_buffer("action_low", low.to(torch.float32).clone(), persistent=False)
             self.register_buffer("action_high", high.to(torch.float32).clone(), persistent=False)
         self.param_map = "linear" if param_map == "whitened" else param_map
+        # decode's no-autograd form (_decode_no_grad): the fused map, bounds of goal and weights
+        self._fast_ok = self._fused and not self.only_g and param_map != "whitened"
+        self._no_grad_cache: tuple[tuple[object, ...], tuple[torch.Tensor, ...]] | None = None
         self.n_mapped = self.dmp_dofs + n_w  # the raw outputs that become g and w (D + D N)
         self.whitening_rank = 0
         if param_map == "whitened":  # computed once on the linear map, then a saved buffer
@@ -383,6 +386,7 @@ class NDPHead(ActionHead):
         )
         self.register_buffer("direct", direct_t, persistent=False)
         self._any_direct = bool(direct_t.any())
+        self._any_absolute = bool(self.absolute_goal.any())
 
     def _load_from_state_dict(
         self, state_dict: dict[str, object], prefix: str, *args: object, **kwargs: object
@@ -502,6 +506,8 @@ class NDPHead(ActionHead):
         ``dmp`` chunk basis of PPO-multi)."""
         if not self._fused:
             return self.decode_reference(raw, y0, dy0, bounded)
+        if self._fast_ok and not torch.is_grad_enabled() and not recording():
+            return self._decode_no_grad(raw, y0, dy0, bounded)
         goal, weights, dy0_dmp = self._goal_weights_dy0(raw, y0, dy0, bounded)
         cfg = self.dmp.config
         v = weights * (goal - y0).unsqueeze(-1) if cfg.scale_by_goal else weights
@@ -513,6 +519,50 @@ class NDPHead(ActionHead):
         if self.mean_clip:
             actions = torch.maximum(torch.minimum(actions, self.action_high), self.action_low)
         return actions, goal, weights
+
+    def _decode_no_grad(
+        self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, bounded: bool
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """:meth:`decode`'s fused map without autograd (rollouts): the same elementwise
+        operations on the same values, fewer of them (one bound and one scale for goal and
+        weights, the absolute goals' centre chosen before the one addition); equal bits."""
+        d, n = self.dmp_dofs, self.n_basis
+        scale, absolute, centre, action_map = self._no_grad_constants()
+        p = raw[:, : d + d * n]
+        gw = (torch.tanh(p) if bounded and self.param_map == "tanh" else p) * scale
+        base = torch.where(absolute, centre, y0) if self._any_absolute else y0
+        goal = base + gw[:, :d]
+        weights = gw[:, d:].view(raw.shape[0], d, n)
+        if self.start_at_rest:
+            dy0_dmp = torch.zeros_like(y0)
+        else:
+            dy0_dmp = dy0 * scalar_like(self.decision_dt / self.dmp.config.tau, dy0)
+            if self._any_absolute:
+                dy0_dmp = dy0_dmp.masked_fill_(absolute, 0.0)
+        v = weights * (goal - y0).unsqueeze(-1) if self.dmp.config.scale_by_goal else weights
+        state = (goal.unsqueeze(-1), y0.unsqueeze(-1), dy0_dmp.unsqueeze(-1))
+        u = torch.cat((v, *state), dim=-1)  # [B, D, N + 3]
+        if self.dmp.check_finite and not math.isfinite(float(u.sum())):
+            check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0_dmp)
+            raise FloatingPointError("inputs: expected finite values, their sum overflows")
+        actions = torch.bmm(u.transpose(0, 1), action_map).permute(1, 2, 0)  # [B, k, D]
+        if self.mean_clip:
+            actions = torch.maximum(torch.minimum(actions, self.action_high), self.action_low)
+        return actions, goal, weights
+
+    def _no_grad_constants(self) -> tuple[torch.Tensor, ...]:
+        """``(scale [D + D N]`` (goal_scale, then each DoF's weight_scale N times),
+        ``absolute_goal, goal_center, action_map)``, rebuilt when a buffer is replaced
+        (``.to``, ``.double``)."""
+        bufs = self._buffers
+        names = ("goal_scale", "weight_scale", "absolute_goal", "goal_center", "action_map")
+        key = tuple(bufs[name] for name in names)
+        cached = self._no_grad_cache
+        if cached is None or any(a is not b for a, b in zip(cached[0], key, strict=True)):
+            scale = torch.cat((self.goal_scale, self.weight_scale.repeat_interleave(self.n_basis)))
+            consts = (scale, self.absolute_goal, self.goal_center, self.action_map)
+            cached = self._no_grad_cache = (key, consts)
+        return cached[1]
 
     def decode_reference(
         self, raw: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor, bounded: bool = True
@@ -611,9 +661,10 @@ class NDPHead(ActionHead):
         mean_actions, goal, weights = self.decode(raw, y0, dy0)
         aux: dict[str, torch.Tensor] = {}
         if not torch.is_grad_enabled():  # diagnostics of rollouts only (not in the update)
+            norm = torch.linalg.vector_norm  # what Tensor.norm(dim=-1) calls
             aux = {
-                "goal_norm": (goal - y0).norm(dim=-1),
-                "weight_norm": weights.flatten(1).norm(dim=-1),
+                "goal_norm": norm(goal - y0, dim=-1),
+                "weight_norm": norm(weights.flatten(1), dim=-1),
             }
         if self.param_noise:
 

@@ -378,3 +378,27 @@ def test_update_on_cuda_rollout_on_cpu(tmp_path):
             assert torch.equal(a.cpu(), actor[name])  # the rollout acts with the updated policy
     finally:
         opened.close()
+
+
+@pytest.mark.parametrize("algo", ["ndp", "ppo-multi"])
+def test_decide_refuses_non_finite_inputs_and_actions(tmp_path, algo):
+    """A NaN observation stops the rollout: as a non-finite DMP input (NDP's head checks its
+    inputs first) or as non-finite actions; an Inf robot state as a non-finite goal."""
+    opened = open_run(_cfg(tmp_path, algo=algo))
+    try:
+        tr = opened.learner
+        y0, dy0 = tr.decision_start()
+        obs = torch.zeros(tr.num_envs, tr.obs_dim)
+        d = tr.decide(obs, y0, dy0)
+        assert bool(((d.act >= tr.low) & (d.act <= tr.high)).all())
+        obs[1, 0] = float("nan")
+        what = "non-finite DMP input" if algo == "ndp" else "non-finite actions"
+        with pytest.raises(TrainingDivergedError, match=what):
+            tr.decide(obs, y0, dy0)
+        if algo == "ndp":
+            y0 = y0.clone()
+            y0[0, 0] = float("inf")
+            with pytest.raises(TrainingDivergedError, match=r"the rollout \(goal: expected finite"):
+                tr.decide(torch.zeros_like(obs), y0, dy0)
+    finally:
+        opened.close()

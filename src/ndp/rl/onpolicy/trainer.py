@@ -133,6 +133,8 @@ class Trainer(CountsUpdates):
         self.ret_norm = ReturnNormalizer(cfg.num_envs, p.gamma, p.clip_reward, p.norm_return)
         self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
         self.high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
+        # low <= high: one clamp is the minimum-then-maximum clip, bit for bit (decide)
+        self._one_clamp = bool((self.low <= self.high).all())
         self.update = 0
         self.global_step = 0
         self.evaluator = PeriodicEvaluator(cfg, self.spec)
@@ -205,8 +207,13 @@ class Trainer(CountsUpdates):
             z = dist.sample()
             logp = dist.log_prob(z)
             values = self.rollout_model.value(obs_n)
-            act = torch.maximum(torch.minimum(dist.actions(z), self.high), self.low)
-        if not bool(torch.isfinite(act).all()):
+            act = dist.actions(z)
+            if self._one_clamp:
+                act = torch.clamp(act, self.low, self.high)
+            else:
+                act = torch.maximum(torch.minimum(act, self.high), self.low)
+        # a finite sum: every action is finite (one reduction; the exact test only otherwise)
+        if not math.isfinite(float(act.sum())) and not bool(torch.isfinite(act).all()):
             raise self._diverged("non-finite actions (check the observations)")
         if self._release_ratio:  # store the executed a_0 at every sub-step (the release's)
             z, logp = release_first_held(z, logp)
@@ -299,8 +306,8 @@ class Trainer(CountsUpdates):
         mask_b = np.zeros((T, E, k))
         end_b = np.zeros((T, E))
         episodes: list[tuple[float, float, float, float, float]] = []
-        goal_norms: list[float] = []
-        weight_norms: list[float] = []
+        goal_norms: list[torch.Tensor] = []  # the head's diagnostics [E] per decision
+        weight_norms: list[torch.Tensor] = []
         ctrl = dict.fromkeys(CTRL_INFO, 0.0)
         executed = 0
         per_decision = False
@@ -319,8 +326,8 @@ class Trainer(CountsUpdates):
                 carry_b[t] = carry
             val_b[t] = values.numpy()
             if "goal_norm" in aux:
-                goal_norms.append(float(aux["goal_norm"].mean()))
-                weight_norms.append(float(aux["weight_norm"].mean()))
+                goal_norms.append(aux["goal_norm"])
+                weight_norms.append(aux["weight_norm"])
 
             r_n, mask, done = self._step_envs(act, dist, z, ctrl, episodes)
             rew_b[t], mask_b[t], end_b[t] = r_n, mask, done
@@ -344,8 +351,8 @@ class Trainer(CountsUpdates):
             "mask": torch.as_tensor(mask_b.reshape(n, k), dtype=torch.float32),
             "episodes": episodes,
             "executed": executed,
-            "goal_norm": float(np.mean(goal_norms)) if goal_norms else math.nan,
-            "weight_norm": float(np.mean(weight_norms)) if weight_norms else math.nan,
+            "goal_norm": mean_of_means(goal_norms),
+            "weight_norm": mean_of_means(weight_norms),
             "ctrl": ctrl,
             "per_decision": per_decision,
             "carry": None if carry_b is None else carry_b.reshape(n, -1),
@@ -552,6 +559,14 @@ class Trainer(CountsUpdates):
         self.envs.close()
         self.evaluator.close()
         self.session.close()
+
+
+def mean_of_means(rows: list[torch.Tensor]) -> float:
+    """The mean over decisions of each decision's mean diagnostic (rows [E] each; NaN for
+    none): one row-wise mean of the stacked rows, the same float32 means as one per row."""
+    if not rows:
+        return math.nan
+    return float(np.mean(torch.stack(rows).mean(dim=1).double().numpy()))
 
 
 def explained_variance(returns: torch.Tensor, values: torch.Tensor, mask: torch.Tensor) -> float:

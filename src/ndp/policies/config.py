@@ -6,7 +6,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Annotated, Any
 
-from ndp.checks import plain_numbers
+from ndp.checks import check_int, plain_numbers
 from ndp.runs.cli import HIDDEN
 
 if TYPE_CHECKING:
@@ -111,12 +111,12 @@ class NDPHeadConfig:
 
     def __post_init__(self) -> None:
         plain_numbers(self)
-        if self.n_basis is not None and (isinstance(self.n_basis, bool) or self.n_basis < 1):
-            raise ValueError(f"n_basis: expected an integer >= 1, got {self.n_basis!r}")
+        if self.n_basis is not None:
+            check_int("n_basis", self.n_basis, 1)
         if self.a_z is not None and not self.a_z > 0:
             raise ValueError(f"a_z: expected a number > 0, got {self.a_z!r}")
-        if self.dmp_steps is not None and (isinstance(self.dmp_steps, bool) or self.dmp_steps < 1):
-            raise ValueError(f"dmp_steps: expected an integer >= 1, got {self.dmp_steps!r}")
+        if self.dmp_steps is not None:
+            check_int("dmp_steps", self.dmp_steps, 1)
         for name in ("goal_scale", "weight_scale"):
             v = getattr(self, name)
             if v is not None and not v > 0:
@@ -251,8 +251,8 @@ class PolicyConfig:
         if self.head not in HEAD_BUILDERS:
             raise ValueError(f"head: expected one of {', '.join(HEAD_BUILDERS)}, got {self.head!r}")
         k = self.k
-        if k is not None and (isinstance(k, bool) or not isinstance(k, int) or k < 1):
-            raise ValueError(f"k: expected an integer >= 1, got {k!r}")
+        if k is not None:
+            check_int("k", k, 1)
         if self.head in SINGLE_STEP_HEADS and k not in (None, 1):
             raise ValueError(f"k: the {self.head!r} head runs one action per decision, got k={k}")
         if self.hidden is not None and (not self.hidden or any(int(h) < 1 for h in self.hidden)):

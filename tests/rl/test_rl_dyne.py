@@ -114,6 +114,7 @@ def test_embedding_prediction_loss_falls_and_decoder_reconstructs(tmp_path):
     assert 1.0 < stats["max_latent"] < 10.0
 
 
+@pytest.mark.slow  # a learning check (~10 s alone, a minute beside other work): make test-slow
 def test_td3_in_the_latent_improves_on_point_mass_fast(tmp_path):
     """Small budget (6000 env steps, 2000 of them exploration; ~10 s): TD3 beats the random
     exploration phase clearly."""

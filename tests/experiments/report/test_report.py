@@ -257,12 +257,20 @@ def _release_runs(root, seeds=(0, 1, 2)):
                     csv.writer(fh).writerows(rows)
 
 
-def test_report_of_a_study_with_conditions(tmp_path):
+@pytest.fixture(scope="module")
+def release_report(tmp_path_factory):
+    """One report of the release-conditions fixture runs (a minute beside other work), read by
+    the two tests below: (the report's result, the folder of its outputs)."""
+    tmp_path = tmp_path_factory.mktemp("release-report")
     runs = tmp_path / "runs"
     _release_runs(runs)
-    out = tmp_path / "out" / "rc"
-    res = report([runs], out, "ndp report runs --study release-conditions",
+    res = report([runs], tmp_path / "out" / "rc", "ndp report runs --study release-conditions",
                  study="release-conditions")  # fmt: skip
+    return res, tmp_path
+
+
+def test_report_of_a_study_with_conditions(release_report):
+    res, tmp_path = release_report
     md = (tmp_path / "out" / "rc.md").read_text()
     assert "**release-goals (UNEQUAL)**" in md and "## Conditions" in md
     # per task: NDP under fixed goals 0.90 at any step, 0.45 at the final step, every seed
@@ -378,15 +386,11 @@ def test_selection_compares_a_models_arms_on_the_seeds_they_all_finished(tmp_pat
         ("ndp", "0 1"), ("cnn-dmp", "0 1 2")]  # fmt: skip
 
 
-def test_conditions_report_per_task_arms_permutation_tests_and_gap(tmp_path):
+def test_conditions_report_per_task_arms_permutation_tests_and_gap(release_report):
     """The corrected release-goals condition takes PPO's arm per task (faucet-open: the
     fixed-goal arm); every pair of methods gets exact permutation p-values per task and pooled;
     the over-tasks table gives rliable's optimality gap; a profiles figure is written."""
-    runs = tmp_path / "runs"
-    _release_runs(runs)
-    out = tmp_path / "out" / "rc"
-    res = report([runs], out, "ndp report runs --study release-conditions",
-                 study="release-conditions")  # fmt: skip
+    res, tmp_path = release_report
     md = (tmp_path / "out" / "rc.md").read_text()
     assert "ppo = `ppo-v1 / faucet-open-v3: ppo-v1-fixed`" in md
     rows = list(csv.DictReader((tmp_path / "out" / "rc-conditions.csv").open()))

@@ -105,6 +105,7 @@ STUDIES: tuple[Study, ...] = (
         arms=_mechanism_arms,
         steps=300_000,
         conditions=_mechanism_conditions(),
+        readings="ndp.experiments.report.mechanism:mechanism_readings",
     ),
 )
 """This module's studies, in ``ndp sweep --list`` order."""

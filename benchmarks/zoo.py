@@ -12,6 +12,13 @@ replaced only after the new one is complete. A grid that does not cover every po
 index already lists is refused (``--replace-index`` drops those), as is one without any runs.
 
     python benchmarks/zoo.py --runs-dir RUNS --out zoo
+    python benchmarks/zoo.py --runs-dir RUNS OTHER_RUNS --rule best-method --always ndp \
+        --tasks push-v3 throw --methods ndp ppo-multi ppo sac --seeds 0 1 2 --out zoo
+
+``--rule best-method`` publishes per task only the method with the highest mean deterministic
+success area over ``--seeds`` (the studies' metric; every seed finished), and the methods of
+``--always``; each row keeps its seed context (every candidate's per-seed areas, mean and IQM),
+and the card says "seed i of n; n-seed IQM X".
     python benchmarks/zoo.py --cards --out zoo     # only README.md files and policy.json specs
 
 Each policy also gets its model card (``OUT/<policy>/README.md``, Hugging Face format:
@@ -42,15 +49,24 @@ PUBLISH_SEED = 20_000
 """First episode seed of the published evaluation (disjoint from the selection's)."""
 
 
-def pick_best(runs: Path, task: str, method: str, seeds: list[int], episodes: int) -> Any:
+def find_run(runs: list[Path], task: str, method: str, seed: int) -> Path | None:
+    """The run ``<task>-<method>-s<seed>`` in the first of ``runs`` that holds it, or None."""
+    for root in runs:
+        run = root / f"{task}-{method}-s{seed}"
+        if run.is_dir():
+            return run
+    return None
+
+
+def pick_best(runs: list[Path], task: str, method: str, seeds: list[int], episodes: int) -> Any:
     """(seed, run, selection success) of the best finished run, or None when none finished."""
     from ndp.experiments.report import det_success
     from ndp.experiments.study import is_finished
 
     best = None
     for seed in seeds:
-        run = runs / f"{task}-{method}-s{seed}"
-        if not run.is_dir() or not is_finished(run, kind="rl"):
+        run = find_run(runs, task, method, seed)
+        if run is None or not is_finished(run, kind="rl"):
             continue
         s = det_success(run, episodes)
         if best is None or s > best[2]:
@@ -58,9 +74,58 @@ def pick_best(runs: Path, task: str, method: str, seeds: list[int], episodes: in
     return best
 
 
+def det_areas(runs: list[Path], task: str, method: str, seeds: list[int]) -> dict[int, float]:
+    """Each seed's deterministic success area (the studies' metric: the mean of the periodic
+    deterministic evaluations, ``ndp.experiments.rows.det_numbers``); empty unless every seed
+    has a finished run with evaluations."""
+    import math
+
+    from ndp.experiments.rows import det_numbers
+    from ndp.experiments.study import is_finished
+    from ndp.runs import read_metrics
+
+    out = {}
+    for seed in seeds:
+        run = find_run(runs, task, method, seed)
+        if run is None or not is_finished(run, kind="rl"):
+            return {}
+        area = det_numbers(read_metrics(run))["det_area"]
+        if math.isnan(area):
+            return {}
+        out[seed] = float(area)
+    return out
+
+
+def choose_methods(
+    runs: list[Path], task: str, methods: list[str], seeds: list[int], always: list[str]
+) -> tuple[list[str], dict[str, Any]]:
+    """The methods published for ``task`` under the best-method rule: the one with the highest
+    mean deterministic success area over ``seeds`` among ``methods`` that have every seed
+    (ties: the earlier in ``methods``), then those of ``always`` that have runs; and the
+    context of the choice (each candidate's per-seed areas, mean and IQM)."""
+    from ndp.experiments.report import stats
+
+    context: dict[str, Any] = {}
+    for m in methods:
+        areas = det_areas(runs, task, m, seeds)
+        if areas:
+            v = list(areas.values())
+            context[m] = {"det_area": areas, "mean": float(sum(v) / len(v)),
+                          "iqm": stats.iqm([[a] for a in v])}  # fmt: skip
+    if not context:
+        return [], context
+    best = max(context, key=lambda m: (context[m]["mean"], -methods.index(m)))
+    chosen = [best, *(m for m in always if m != best and m in context)]
+    return chosen, context
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--runs-dir", help="the study's run directories (not with --cards)")
+    p.add_argument(
+        "--runs-dir",
+        nargs="+",
+        help="folders of the study's run directories, searched in order (not with --cards)",
+    )
     p.add_argument(
         "--cards",
         action="store_true",
@@ -70,6 +135,21 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tasks", nargs="+", default=list(TASKS))
     p.add_argument("--methods", nargs="+", default=list(METHODS))
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    p.add_argument(
+        "--rule",
+        choices=("every-method", "best-method"),
+        default="every-method",
+        help="every-method: a policy per task x method; best-method: per task only the method "
+        "with the highest mean deterministic success area over --seeds (every seed needed), "
+        "plus --always",
+    )
+    p.add_argument(
+        "--always",
+        nargs="*",
+        default=[],
+        metavar="METHOD",
+        help="with --rule best-method: methods published on every task beside the best one",
+    )
     p.add_argument("--select-episodes", type=int, default=20)
     p.add_argument("--episodes", type=int, default=50)
     p.add_argument(
@@ -104,9 +184,13 @@ def main(argv: list[str] | None = None) -> int:
         args.tasks = check_tasks(args.tasks)
     except ValueError as exc:
         p.error(f"--tasks: {exc}")
-    runs, out = Path(args.runs_dir), Path(args.out)
-    if not runs.is_dir():
-        p.error(f"--runs-dir: {runs} is not a directory")
+    runs, out = [Path(r) for r in args.runs_dir], Path(args.out)
+    for r in runs:
+        if not r.is_dir():
+            p.error(f"--runs-dir: {r} is not a directory")
+    unknown = [m for m in args.always if m not in args.methods]
+    if unknown:
+        p.error(f"--always: {', '.join(unknown)} not among --methods ({' '.join(args.methods)})")
     index = out / "zoo.json"
     earlier = json.loads(index.read_text())["policies"] if index.is_file() else []
     grid = {(t, m) for t in args.tasks for m in args.methods}
@@ -117,12 +201,30 @@ def main(argv: list[str] | None = None) -> int:
             f"({', '.join(outside)}); name their tasks and methods too, or pass --replace-index "
             "to drop them"
         )
-    found = [(t, m) for t, m in sorted(grid) if any(runs.glob(f"{t}-{m}-s*/metrics.csv"))]
+    found = [
+        (t, m) for t, m in sorted(grid) for r in runs if any(r.glob(f"{t}-{m}-s*/metrics.csv"))
+    ]
     if not found:
         p.error(
             f"--runs-dir: no runs of {' / '.join(args.tasks)} x {' / '.join(args.methods)} in "
-            f"{runs} (expected RUNS/<task>-<method>-s<seed>); nothing written"
+            f"{' '.join(map(str, runs))} (expected RUNS/<task>-<method>-s<seed>); nothing written"
         )
+
+    plan = {}
+    for task in args.tasks:
+        publish, context = choose_methods(runs, task, args.methods, args.seeds, args.always)
+        plan[task] = (list(args.methods) if args.rule == "every-method" else publish, context)
+    dropped = [
+        r["policy"]
+        for r in earlier
+        if (r["task"], r["method"]) in grid and r["method"] not in plan[r["task"]][0]
+    ]
+    if dropped and not args.replace_index:
+        p.error(
+            f"--rule {args.rule}: {index} lists policies this rule does not choose "
+            f"({', '.join(dropped)}); pass --replace-index to drop them"
+        )
+    outside += dropped
 
     import torch
 
@@ -137,7 +239,8 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[dict[str, Any]] = []
     left_out: list[str] = []
     for task in args.tasks:
-        for method in args.methods:
+        publish, context = plan[task]
+        for method in publish:
             best = pick_best(runs, task, method, args.seeds, args.select_episodes)
             if best is None:
                 kept = [r for r in earlier if (r["task"], r["method"]) == (task, method)]
@@ -168,6 +271,11 @@ def main(argv: list[str] | None = None) -> int:
                    "selection_success": sel, "success": ev["success_any"],
                    "success_final": ev["success_final"],
                    "episode_return": ev["episode_return"]}  # fmt: skip
+            if method in context:
+                row["seed_context"] = {"seeds": args.seeds, **context[method],
+                                       "candidates": {m: round(c["mean"], 4)
+                                                      for m, c in context.items()},
+                                       "best_method": publish[0] == method}  # fmt: skip
             rows.append(row)
             print(f"[zoo] {name}: seed {seed}, selection {sel:.2f}, published "
                   f"{ev['success_any']:.2f}", flush=True)  # fmt: skip
@@ -176,7 +284,7 @@ def main(argv: list[str] | None = None) -> int:
     cmd = "python benchmarks/zoo.py " + " ".join(argv if argv is not None else sys.argv[1:])
     meta = {"command": cmd, "commit": git_commit(), "date": time.strftime("%Y-%m-%d"),
             "select_episodes": args.select_episodes, "episodes": args.episodes,
-            "min_success": args.min_success, "policies": rows,
+            "min_success": args.min_success, "rule": args.rule, "policies": rows,
             "not_published": left_out}  # fmt: skip
     atomic_write_text(out / "zoo.json", json.dumps(meta, indent=2) + "\n")
     md = zoo_readme(meta)
@@ -198,14 +306,20 @@ def zoo_readme(meta: dict[str, Any]) -> str:
         "directories on the development machine; each row names its source run and training "
         "commit).",
         "",
-        'Load one with `ndp.load_policy("zoo:<policy>")` (or `ndp rl eval zoo/<policy>`, '
-        "`ndp rl render zoo/<policy>` in a checkout); the policies ship with the package "
-        "(`ndp.zoo.list()`), each with its model card (`<policy>/README.md`); the format is in "
-        'docs/policies.md, "Trained policies". '
-        f"Each is the seed with the best deterministic success over {meta['select_episodes']} "
-        f"episodes (seeds {SELECT_SEED:,} on) of its task x method; **success** is measured "
-        f"again from the export over {meta['episodes']} other episodes (seeds {PUBLISH_SEED:,} "
-        "on), deterministic, success at any step; its 95% interval (Wilson) is in the card.",
+        (
+            'Load one with `ndp.load_policy("zoo:<policy>")` (or `ndp rl eval zoo/<policy>`, '
+            "`ndp rl render zoo/<policy>` in a checkout); the policies ship with the package "
+            "(`ndp.zoo.list()`), each with its model card (`<policy>/README.md`); the format is "
+            'in docs/policies.md, "Trained policies". '
+        )
+        + _rule_text(meta)
+        + (
+            f"Each is the seed with the best deterministic success over "
+            f"{meta['select_episodes']} episodes (seeds {SELECT_SEED:,} on) of its task x method; "
+            f"**success** is measured again from the export over {meta['episodes']} other "
+            f"episodes (seeds {PUBLISH_SEED:,} on), deterministic, success at any step; its 95% "
+            "interval (Wilson) is in the card."
+        ),
         "",
         "| policy | task | method | seed | env steps | trained at | selection success | "
         "success | final success | return |",
@@ -225,6 +339,35 @@ def zoo_readme(meta: dict[str, Any]) -> str:
     return "\n".join(md) + "\n"
 
 
+def _rule_text(meta: dict[str, Any]) -> str:
+    """The README's sentence on which methods a task publishes (``meta['rule']``)."""
+    if meta.get("rule") != "best-method":
+        return "Every task x method of the grid with a finished run is published. "
+    return (
+        "Per task, the method with the highest mean deterministic success area (the mean of "
+        "the periodic deterministic evaluations: the studies' metric) over the grid's seeds, "
+        "every seed finished, is published (the rule, not a hand choice; each row's "
+        "`seed_context` in zoo.json lists every candidate's mean), with the methods named "
+        "always. "
+    )
+
+
+def seed_context_text(row: dict[str, Any]) -> str:
+    """ "seed i of n; n-seed IQM X (mean Y), this seed Z" for a row with ``seed_context``."""
+    c = row.get("seed_context")
+    if not c:
+        return ""
+    n, area = len(c["seeds"]), c["det_area"]
+    own = area.get(str(row["seed"]), area.get(row["seed"]))
+    best = " the best method of its task by this rule;" if c.get("best_method") else ""
+    return (
+        f"Seed {row['seed']} of {n} ({', '.join(map(str, c['seeds']))});{best} deterministic "
+        f"success area: {n}-seed IQM {c['iqm']:.2f}, mean {c['mean']:.2f}"
+        + (f", this seed {own:.2f}" if own is not None else "")
+        + "."
+    )
+
+
 def card_evaluation(row: dict[str, Any], meta: dict[str, Any]) -> dict[str, Any]:
     """A zoo policy's published evaluation in the card's terms (``ndp.rl.card``)."""
     return {
@@ -240,8 +383,8 @@ def card_evaluation(row: dict[str, Any], meta: dict[str, Any]) -> dict[str, Any]
             f"{meta['select_episodes']} episodes (seeds {SELECT_SEED:,} on: "
             f"{row['selection_success']:.2f}) among its study's runs ({row.get('source_run')}); "
             "the success above is measured again from the export on other episodes, so it is "
-            "not the maximum it was selected by."
-        ),
+            "not the maximum it was selected by. " + seed_context_text(row)
+        ).strip(),
         "zoo": True,
     }
 

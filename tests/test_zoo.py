@@ -124,6 +124,45 @@ def test_zoo_script_refuses_bad_grids_before_writing_anything(tmp_path, capsys):
     assert (out / "throw-ppo").is_dir()
 
 
+def _fake_run(root: Path, name: str, evals: list[float]) -> None:
+    """A finished RL run directory whose periodic deterministic evaluations are ``evals``."""
+    d = root / name
+    d.mkdir(parents=True)
+    manifest = {"kind": "rl", "task": name.split("-")[0], "label": "x", "seed": 0,
+                "budget": 100, "unit": "env_steps", "done": 100, "finished": True,
+                "reason": "budget"}  # fmt: skip
+    (d / "run.json").write_text(json.dumps(manifest))
+    lines = ["update,global_step,eval/success_any"]
+    lines += [f"{i + 1},{(i + 1) * 10},{v}" for i, v in enumerate(evals)]
+    (d / "metrics.csv").write_text("\n".join(lines) + "\n")
+
+
+def test_the_best_method_rule_picks_the_highest_mean_area_and_needs_every_seed(tmp_path):
+    zoo = _zoo_script()
+    a, b = tmp_path / "a", tmp_path / "b"
+    # ndp: areas 0.2 / 0.4 (mean 0.3); ppo: 0.5 / 0.3 (mean 0.4), its seed 1 in a second folder
+    _fake_run(a, "throw-ndp-s0", [0.0, 0.4])
+    _fake_run(a, "throw-ndp-s1", [0.4, 0.4])
+    _fake_run(a, "throw-ppo-s0", [0.5, 0.5])
+    _fake_run(b, "throw-ppo-s1", [0.2, 0.4])
+    # sac lacks seed 1: not a candidate
+    _fake_run(b, "throw-sac-s0", [1.0, 1.0])
+    chosen, ctx = zoo.choose_methods([a, b], "throw", ["ndp", "ppo", "sac"], [0, 1], ["ndp"])
+    assert chosen == ["ppo", "ndp"]
+    assert set(ctx) == {"ndp", "ppo"}
+    assert ctx["ppo"]["mean"] == pytest.approx(0.4)
+    assert ctx["ndp"]["det_area"] == {0: pytest.approx(0.2), 1: pytest.approx(0.4)}
+    # the card's sentence names the seed, the seed count, the IQM and this seed's area
+    row = {"seed": 1, "seed_context": {"seeds": [0, 1], **ctx["ndp"], "best_method": False}}
+    text = zoo.seed_context_text(row)
+    assert text.startswith("Seed 1 of 2 (0, 1);") and "this seed 0.40" in text
+    assert "2-seed IQM 0.30" in text and "best method" not in text
+    # seed 0 alone: ppo 0.5 against ndp 0.2; a task without runs chooses nothing
+    chosen, _ = zoo.choose_methods([a, b], "throw", ["ppo", "ndp"], [0], [])
+    assert chosen == ["ppo"]
+    assert zoo.choose_methods([a], "push-v3", ["ndp"], [0], ["ndp"]) == ([], {})
+
+
 WHEEL_SCRIPT = r"""
 import sys
 

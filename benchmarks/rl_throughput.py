@@ -86,14 +86,14 @@ def torque_task(task: str) -> str:
     return torque_variant(get_task_spec(task)).name
 
 
-def _raw_loop(task: str, steps: int, num_envs: int, seed: int) -> float:
+def _raw_loop(task: str, steps: int, num_envs: int, seed: int, backend: str = "metaworld") -> float:
     """Steps/s of a plain random-action loop over ``num_envs`` envs in this process."""
     import torch
 
     from ndp.rl.envs import resolve_task
 
     torch.set_num_threads(1)
-    h = resolve_task(task)
+    h = resolve_task(task, backend=backend)
     envs = [h.make() for _ in range(num_envs)]
     for i, e in enumerate(envs):
         e.reset(seed=seed + i)
@@ -112,17 +112,24 @@ def _raw_loop(task: str, steps: int, num_envs: int, seed: int) -> float:
     return steps / w
 
 
-def _raw_worker(task: str, steps: int, num_envs: int, seed: int, barrier, out) -> None:
+def _raw_worker(
+    task: str, steps: int, num_envs: int, seed: int, barrier, out, backend: str = "metaworld"
+) -> None:
     barrier.wait()
-    out.put(_raw_loop(task, steps, num_envs, seed))
+    out.put(_raw_loop(task, steps, num_envs, seed, backend))
 
 
-def bench_raw_parallel(task: str, steps: int, num_envs: int, seed: int, procs: int) -> float:
+def bench_raw_parallel(
+    task: str, steps: int, num_envs: int, seed: int, procs: int, backend: str = "metaworld"
+) -> float:
     """Summed steps/s of ``procs`` processes stepping at the same time."""
     ctx = mp.get_context("spawn")
     barrier, out = ctx.Barrier(procs), ctx.Queue()
     ps = [
-        ctx.Process(target=_raw_worker, args=(task, steps, num_envs, seed + 100 * i, barrier, out))
+        ctx.Process(
+            target=_raw_worker,
+            args=(task, steps, num_envs, seed + 100 * i, barrier, out, backend),
+        )
         for i in range(procs)
     ]
     for p in ps:
@@ -134,15 +141,24 @@ def bench_raw_parallel(task: str, steps: int, num_envs: int, seed: int, procs: i
 
 
 def bench_ours(
-    task: str, algo: str, steps: int, num_envs: int, seed: int, vector: str
+    task: str,
+    algo: str,
+    steps: int,
+    num_envs: int,
+    seed: int,
+    vector: str,
+    backend: str = "metaworld",
+    live: bool = False,
 ) -> dict[str, float]:
     """Wall steps/s of a training run, and its mean rollout / update seconds per update.
 
-    Dyn-E: one exploration iteration and a short embedding fit first (not timed), then
-    ``steps`` env steps of TD3 (timed)."""
+    ``backend``: the simulator (``TrainConfig.backend``); ``live``: the live reward at every
+    sub-step (``stale_world=False``; EnvPool serves only that). Dyn-E: one exploration iteration
+    and a short embedding fit first (not timed), then ``steps`` env steps of TD3 (timed)."""
     import dataclasses
 
-    from ndp.rl.config import DyneConfig, TrainConfig
+    from ndp.rl.config import TrainConfig
+    from ndp.rl.dyne.config import DyneConfig
     from ndp.rl.run import open_run
     from ndp.rl.sac.config import SACConfig
     from ndp.runs import read_metrics
@@ -159,6 +175,8 @@ def bench_ours(
             tensorboard=False,
             vector=vector,
             eval_every=0,  # the periodic deterministic evaluation is timed on its own: EVAL
+            backend=backend,
+            **({"stale_world": False} if live else {}),
         )
         if algo == "dyne":
             cfg = dataclasses.replace(
@@ -234,12 +252,33 @@ def bench_sb3_sac(task: str, steps: int, num_envs: int, seed: int) -> float:
     return rate
 
 
+def split_method(method: str) -> tuple[str, bool, bool, bool]:
+    """(base method, sync, envpool, live) of a row name ``<base>[-live][-envpool][-sync]``:
+    ``-sync`` one process, ``-envpool`` the EnvPool backend (live reward implied), ``-live`` the
+    live reward on the metaworld backend (the comparison row of an EnvPool one)."""
+    sync = method.endswith("-sync")
+    method = method.removesuffix("-sync")
+    envpool = method.endswith("-envpool")
+    method = method.removesuffix("-envpool")
+    live = envpool or method.endswith("-live")
+    return method.removesuffix("-live"), sync, envpool, live
+
+
 def measure(
     method: str, task: str, steps: int, num_envs: int, seed: int, cores: int
 ) -> dict[str, float]:
     import torch
 
     torch.set_num_threads(1)
+    base, sync, envpool, live = split_method(method)
+    if (envpool or live) and base in ("raw-1", "raw-N", *OURS):
+        backend = "envpool" if envpool else "metaworld"
+        if base == "raw-1":
+            return {"wall": _raw_loop(task, steps, num_envs, seed, backend)}
+        if base == "raw-N":
+            return {"wall": bench_raw_parallel(task, steps, num_envs, seed, cores, backend)}
+        vector = "sync" if sync else "auto"
+        return bench_ours(task, base, steps, num_envs, seed, vector, backend, live)
     if method == "raw-1":
         return {"wall": _raw_loop(task, steps, num_envs, seed)}
     if method == "raw-1-vices":
@@ -268,7 +307,9 @@ def main(argv: list[str] | None = None) -> int:
         nargs="+",
         default=None,
         help="subset of: raw-1 raw-N ppo ppo-multi ndp dyne <m>-sync vices vices-sync "
-        "raw-1-vices sb3-dummy sb3-subproc sac sac-chunk ndp-sac sb3-sac",
+        "raw-1-vices sb3-dummy sb3-subproc sac sac-chunk ndp-sac sb3-sac; EnvPool rows "
+        "<m>-envpool[-sync] and raw-1-envpool raw-N-envpool (live reward), with their metaworld "
+        "comparison <m>-live[-sync]",
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="write <out>.json and <out>.md")
@@ -324,6 +365,12 @@ def main(argv: list[str] | None = None) -> int:
         if "ndp" in res and "raw-1" in res:
             res["ndp"]["minutes_1M"] = 1e6 / res["ndp"]["wall"] / 60
             res["raw-1"]["minutes_1M"] = 1e6 / res["raw-1"]["wall"] / 60
+        for m, v in res.items():  # the EnvPool rows: 1M-step wall time, and against their raw
+            base, _, envpool, live = split_method(m)
+            if live and base in OURS:
+                v["minutes_1M"] = 1e6 / v["wall"] / 60
+                if envpool and "raw-N-envpool" in res:
+                    v["vs_raw-N-envpool"] = v["wall"] / res["raw-N-envpool"]["wall"]
         results[task] = res
     cmd = "python benchmarks/rl_throughput.py " + " ".join(
         argv if argv is not None else sys.argv[1:]
@@ -377,6 +424,20 @@ def main(argv: list[str] | None = None) -> int:
                     "",
                     f"1M env steps: NDP training {res['ndp']['minutes_1M']:.1f} min, "
                     f"one core only stepping the env {res['raw-1']['minutes_1M']:.1f} min.",
+                ]
+            timed = [(m, v) for m, v in res.items() if split_method(m)[3] and "minutes_1M" in v]
+            if timed:
+                lines += [
+                    "",
+                    "Live reward (EnvPool rows and their metaworld comparison): 1M env steps "
+                    + ", ".join(f"{m} {v['minutes_1M']:.1f} min" for m, v in timed)
+                    + "; against EnvPool's own raw-N: "
+                    + ", ".join(
+                        f"{m} {v['vs_raw-N-envpool']:.2f}"
+                        for m, v in timed
+                        if "vs_raw-N-envpool" in v
+                    )
+                    + ".",
                 ]
             lines.append("")
         args.out.with_suffix(".md").write_text("\n".join(lines))

@@ -257,18 +257,14 @@ def _study(data: dict[str, Any]) -> Study:
 
 
 def _toml() -> ModuleType:
-    """The TOML reader: the standard library's ``tomllib`` (Python >= 3.11), or on Python 3.10
-    ``tomli``, the same parser under its first name (pytest installs it there)."""
+    """The TOML reader, the standard library's ``tomllib`` (Python >= 3.11; on Python 3.10, where
+    the package otherwise runs, the study files cannot be read: ModuleNotFoundError saying so)."""
     try:
         import tomllib
     except ModuleNotFoundError:  # Python 3.10
-        try:
-            import tomli as tomllib
-        except ModuleNotFoundError:
-            raise ModuleNotFoundError(
-                "the study files are TOML: reading them needs Python >= 3.11 (tomllib) or, on "
-                "Python 3.10, the tomli package (pip install tomli)"
-            ) from None
+        raise ModuleNotFoundError(
+            "the study files (ndp.experiments.studies, TOML) need Python >= 3.11 (tomllib)"
+        ) from None
     reader: ModuleType = tomllib
     return reader
 

@@ -1,18 +1,24 @@
-"""The study registry: one entry per study in its family's module, the --list order kept, and
-readings as entry points resolved when called."""
+"""The study registry: one study per data file, the --list order kept, and readings as entry
+points resolved when called."""
 
 from __future__ import annotations
 
 import pytest
 
 from ndp.experiments import studies
-from ndp.experiments.studies import FAMILIES, LIST_ORDER, STUDIES, get_study, resolve
+from ndp.experiments.studies import LIST_ORDER, STUDIES, get_study, resolve
+from ndp.experiments.studies.loader import load_study, study_files
 
 
-def test_every_family_entry_is_registered_once_in_list_order():
-    names = [s.name for f in FAMILIES for s in f.STUDIES]
+def test_every_file_is_registered_once_in_list_order():
+    names = [load_study(f).name for f in study_files()]
     assert sorted(names) == sorted(STUDIES)
     assert list(STUDIES) == [n for n in LIST_ORDER if n in STUDIES]
+
+
+def test_get_study_names_the_close_studies():
+    with pytest.raises(ValueError, match="unknown study 'ndp-regime'; close names: ndp-regimes"):
+        get_study("ndp-regime")
 
 
 def test_readings_entry_points_resolve_to_the_report_functions():

@@ -1,64 +1,59 @@
 """The named studies of ``ndp sweep STUDY`` (docs/experiments.md describes each).
 
-Each study is a declarative :class:`Study` entry (its tasks, arms, seeds, budget, conditions,
-selection and readings) in the ``STUDIES`` tuple of one module per study family:
+Each study is data: one TOML file, ``data/<name>.toml`` in this package, holding its tasks (or
+a named task set), arms, seeds, budget, conditions, selection and readings entry point.
+:mod:`ndp.experiments.studies.loader` reads the files into the :class:`Study`,
+:class:`ArmSpec` and :class:`Condition` objects the sweep and the report read (a malformed
+file is refused at import, with one line naming the file and the key), and
+:mod:`ndp.experiments.studies.registry` collects them in :data:`STUDIES`.
 
-- :mod:`ndp.experiments.studies.paper`: the paper's five tasks, MT50, the ablations;
-- :mod:`ndp.experiments.studies.release`: the 2021 release's conditions;
-- :mod:`ndp.experiments.studies.sb3`: the checks against Stable-Baselines3;
-- :mod:`ndp.experiments.studies.offpolicy`: SAC, chunked SAC, NDP-SAC;
-- :mod:`ndp.experiments.studies.regimes` and :mod:`ndp.experiments.studies.mechanism`:
-  where NDP can win and why it loses;
-- :mod:`ndp.experiments.studies.imitation`: behaviour cloning and digit writing.
+- :mod:`ndp.experiments.studies.base`: what a study is (the dataclasses, :func:`resolve`);
+- :mod:`ndp.experiments.studies.loader`: the file format, the checks, the named task sets;
+- :mod:`ndp.experiments.studies.registry`: :data:`STUDIES`, :data:`LIST_ORDER`,
+  :func:`get_study`;
+- :mod:`ndp.experiments.studies.constants`: names for parts of the files that code and tests
+  read (the release's option bundles, the regimes' k values, the task lists, ...), read from
+  the data or checked against it by the tests.
 
-Adding a study is one entry in one of those tuples (:data:`LIST_ORDER` places it in
-``ndp sweep --list``; a study it does not name comes after those it names, in module order).
-A study's readings are an entry point ``"module:function"`` resolved when the report calls
-them (:func:`resolve`), so no study module imports the report or the sweep, and importing
-this package imports neither torch nor a simulator.
+Adding a study is one file in ``data/`` (:data:`LIST_ORDER` places it in ``ndp sweep --list``;
+a study it does not name comes after those it names, in file name order). A study's readings
+are an entry point ``"module:function"`` resolved when the report calls them (:func:`resolve`),
+so no study imports the report or the sweep, and importing this package imports neither torch
+nor a simulator.
 """
 
 from __future__ import annotations
 
-import difflib
-
-from ndp.experiments.studies import imitation, mechanism, offpolicy, paper, regimes, release, sb3
 from ndp.experiments.studies.base import ArmSpec, Condition, Readings, Study, resolve
-from ndp.experiments.studies.imitation import (
+from ndp.experiments.studies.constants import (
+    AR1_CORR,
     BC_DEMOS,
     BC_TASKS,
     CONVERGED_ARGS,
     CONVERGED_LRS,
     CONVERGED_MODELS,
     DIGITS_TASKS,
-    HEAD_LRS,
-    HEADS,
-)
-from ndp.experiments.studies.mechanism import LIVE, MECHANISM_BASES, MECHANISM_TASKS
-from ndp.experiments.studies.offpolicy import (
-    OFF_POLICY_CONDITIONS,
-    OFF_POLICY_TASKS,
-    OFF_POLICY_UTD1,
-)
-from ndp.experiments.studies.paper import (
-    HEAD_ABLATION_COMMANDED,
-    MT50_ATTRIBUTION_TASKS,
-    PAPER_FIVE_TASKS,
-    THROW_DEFAULTS,
-)
-from ndp.experiments.studies.regimes import (
-    AR1_CORR,
-    NDP_SETTINGS_AXES,
-    PARAM_NOISE_DISPLACEMENT,
-    PARAM_NOISE_LOG_STD,
-    REGIME_1M_ARMS,
-    REGIME_KS,
-    REGIME_TASKS,
-)
-from ndp.experiments.studies.release import (
     EXPLAINED_CONDITIONS,
     EXPLAINED_TASKS,
     FIRST_HELD,
+    HEAD_ABLATION_COMMANDED,
+    HEAD_LRS,
+    HEADS,
+    LIVE,
+    MECHANISM_BASES,
+    MECHANISM_TASKS,
+    MT50_ATTRIBUTION_TASKS,
+    NDP_SETTINGS_AXES,
+    OFF_POLICY_CONDITIONS,
+    OFF_POLICY_TASKS,
+    OFF_POLICY_UTD1,
+    PAPER_FIVE_TASKS,
+    PARAM_NOISE_DISPLACEMENT,
+    PARAM_NOISE_LOG_STD,
+    PPO_VS_SB3_TASKS,
+    REGIME_1M_ARMS,
+    REGIME_KS,
+    REGIME_TASKS,
     RELEASE_1M_CONDITIONS,
     RELEASE_1M_TASKS,
     RELEASE_ALL_MW,
@@ -69,65 +64,17 @@ from ndp.experiments.studies.release import (
     RELEASE_RATIO,
     RELEASE_TASKS,
     RELEASE_V1,
+    THROW_DEFAULTS,
+    k_args,
 )
-from ndp.experiments.studies.sb3 import PPO_VS_SB3_TASKS
-
-FAMILIES = (paper, release, sb3, offpolicy, regimes, mechanism, imitation)
-"""The study modules, each with a ``STUDIES`` tuple of :class:`Study` entries."""
-
-LIST_ORDER = (
-    "paper-five",
-    "mt50",
-    "ablations",
-    "release-conditions",
-    "ndp-head-ablation",
-    "ppo-vs-sb3",
-    "sac-vs-sb3",
-    "td3-vs-sb3",
-    "off-policy",
-    "sac-critic",
-    "sb3-ndp",
-    "release-goals-1m",
-    "release-explained",
-    "ndp-regimes",
-    "ndp-mechanism",
-    "ndp-regimes-1m",
-    "ndp-settings",
-    "il-robot",
-    "digits-data",
-    "mt50-attribution",
-    "digits-head",
-    "digits-converged",
+from ndp.experiments.studies.loader import (
+    DATA_DIR,
+    TASK_SETS,
+    load_studies,
+    load_study,
+    register_task_set,
 )
-"""The order of ``ndp sweep --list`` (and of :data:`STUDIES`)."""
-
-
-def _registry() -> dict[str, Study]:
-    """Every family's studies by name, in :data:`LIST_ORDER` then module order."""
-    found: dict[str, Study] = {}
-    for family in FAMILIES:
-        for s in family.STUDIES:
-            if s.name in found:
-                raise ValueError(f"name: study {s.name!r} is defined twice ({family.__name__})")
-            found[s.name] = s
-    ranked = sorted(
-        found, key=lambda n: LIST_ORDER.index(n) if n in LIST_ORDER else len(LIST_ORDER)
-    )
-    return {n: found[n] for n in ranked}
-
-
-STUDIES: dict[str, Study] = _registry()
-"""Name -> :class:`Study`."""
-
-
-def get_study(name: str) -> Study:
-    """The named study (unknown: ValueError naming it and the close names)."""
-    if name in STUDIES:
-        return STUDIES[name]
-    close = difflib.get_close_matches(name, list(STUDIES), n=3, cutoff=0.4)
-    hint = f"; close names: {', '.join(close)}" if close else ""
-    raise ValueError(f"study: unknown study {name!r}{hint} (known: {', '.join(STUDIES)})")
-
+from ndp.experiments.studies.registry import LIST_ORDER, STUDIES, get_study
 
 __all__ = [
     "AR1_CORR",
@@ -136,10 +83,10 @@ __all__ = [
     "CONVERGED_ARGS",
     "CONVERGED_LRS",
     "CONVERGED_MODELS",
+    "DATA_DIR",
     "DIGITS_TASKS",
     "EXPLAINED_CONDITIONS",
     "EXPLAINED_TASKS",
-    "FAMILIES",
     "FIRST_HELD",
     "HEADS",
     "HEAD_ABLATION_COMMANDED",
@@ -171,11 +118,16 @@ __all__ = [
     "RELEASE_TASKS",
     "RELEASE_V1",
     "STUDIES",
+    "TASK_SETS",
     "THROW_DEFAULTS",
     "ArmSpec",
     "Condition",
     "Readings",
     "Study",
     "get_study",
+    "k_args",
+    "load_studies",
+    "load_study",
+    "register_task_set",
     "resolve",
 ]

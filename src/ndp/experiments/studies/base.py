@@ -8,6 +8,20 @@ grid (``--tasks``, ``--arms``, ``--seeds``, ``--steps`` narrow or change it) and
 tabulates it. Importing this module imports neither torch nor a simulator: the arms and the
 task lists are built when a sweep asks for them (:meth:`Study.arm_specs`, :meth:`Study.task_list`).
 
+The named studies are data: one TOML file each, ``data/<name>.toml``, read into these classes
+by :mod:`ndp.experiments.studies.loader` (tests and plugins may still build a :class:`Study`
+in Python, with callables for its tasks and arms). Every arm is written out in its file, one
+``[[arms]]`` table each, also where a loop generated the arms before (the regimes' k values,
+the ablations' values, the digit studies' model x head x learning-rate grids): the file is
+then the grid that runs, option for option, a changed arm is a changed line in a review, and
+there is no second language (a generator form and its expansion rules) to learn and to check.
+The longest lists (ndp-regimes, 23 arms; digits-head, 18) stay readable as tables. The values
+that generated them are named in :mod:`ndp.experiments.studies.constants`, and
+``tests/experiments/studies/test_data.py`` rebuilds those grids from them and compares them
+with the files. Only a task list that needs code (Meta-World's 50 names, asked of metaworld)
+is not written out: it is a named task set (``task_set = "metaworld"``,
+:data:`ndp.experiments.studies.loader.TASK_SETS`), built when the sweep asks for the tasks.
+
 Arms that need something this version may lack:
 
 - ``pending_method`` arms (VICES, Dyn-E and their ablations, registered now) join their study

@@ -14,6 +14,7 @@ import functools
 import math
 import numbers
 import typing
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -129,6 +130,17 @@ def check_int(name: str, value: object, low: int = 0, note: str = "") -> int:
         more = f" {note}" if note else ""
         raise ValueError(f"{name}: expected an integer >= {low}{more}, got {value!r}")
     return int(value)
+
+
+def check_choice(name: str, value: object, choices: Sequence[str]) -> str:
+    """``value`` as one of ``choices`` (strings).
+
+    Raises:
+        ValueError: ``"<name>: expected one of <a, b, ...>, got <value!r>"``.
+    """
+    if value not in choices:
+        raise ValueError(f"{name}: expected one of {', '.join(choices)}, got {value!r}")
+    return str(value)
 
 
 def check_positive(name: str, value: object) -> float:

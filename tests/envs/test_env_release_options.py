@@ -65,7 +65,7 @@ def test_v1_reward_is_metaworlds_v1_and_success_stays_v2():
 
 
 def test_reward_version_and_fixed_goal_refused_with_a_clear_message():
-    with pytest.raises(ValueError, match=r"reward_version: expected 'v1' or 'v2', got 'v3'"):
+    with pytest.raises(ValueError, match=r"reward_version: expected one of v1, v2, got 'v3'"):
         make_env("push-v3", reward_version="v3")
     with pytest.raises(ValueError, match=r"reward_version: 'v1' exists for Meta-World tasks"):
         make_env("throw", reward_version="v1")
@@ -126,7 +126,7 @@ def test_release9_observation_is_hand_object_goal_and_trains(tmp_path):
     # envs, no periodic evaluation, one small update
     train(TrainConfig(task="push-v3", algo="ndp", observation="release9", steps=200,
                       num_envs=2, vector="sync", run_dir=str(run), eval_every=0,
-                      ppo=PPOConfig(steps_per_update=260, minibatches=2),
+                      steps_per_update=260, ppo=PPOConfig(minibatches=2),
                       progress=False, tensorboard=False))  # fmt: skip
     pol = load_policy(run)
     env = pol.make_env()

@@ -135,7 +135,7 @@ def test_a_new_family_is_one_registration_and_everything_works_on_it(slider, tmp
         run = tmp_path / algo
         cfg = TrainConfig(task="slider", algo=algo, steps=400, seed=0, run_dir=str(run),
                           progress=False, tensorboard=False, vector="sync",
-                          ppo=PPOConfig(steps_per_update=200, minibatches=2))  # fmt: skip
+                          steps_per_update=200, ppo=PPOConfig(minibatches=2))  # fmt: skip
         metrics = train(cfg)
         assert metrics["update"] == 2
         out = evaluate(run, episodes=2)

@@ -155,8 +155,8 @@ def _tiny(tmp_path, name: str, **kw) -> TrainConfig:
         eval_episodes=4, run_dir=str(tmp_path / name), progress=False, tensorboard=False, **kw,
     )  # fmt: skip
     d = cfg.to_dict()
-    fast = {"steps_per_update": 400, "minibatches": 4, "epochs": 2}
-    return TrainConfig.from_dict({**d, "ppo": {**d["ppo"], **fast}})
+    fast = {"minibatches": 4, "epochs": 2}
+    return TrainConfig.from_dict({**d, "steps_per_update": 400, "ppo": {**d["ppo"], **fast}})
 
 
 def _same(a: float, b: float) -> bool:

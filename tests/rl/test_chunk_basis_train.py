@@ -21,7 +21,7 @@ from ndp.runs import load_checkpoint, read_metrics
 
 ZOO = Path(__file__).resolve().parents[2] / "zoo"
 K = 10  # point-mass: n_basis 6, so 7 columns need k >= 7
-TINY = PPOConfig(steps_per_update=400, minibatches=2, epochs=2, lr=1e-3)
+TINY = PPOConfig(minibatches=2, epochs=2, lr=1e-3)  # with steps_per_update=400
 
 
 def _train(run: Path, steps: int = 800, **policy) -> dict:
@@ -34,6 +34,7 @@ def _train(run: Path, steps: int = 800, **policy) -> dict:
         progress=False,
         tensorboard=False,
         vector="sync",
+        steps_per_update=400,
         ppo=TINY,
         policy=PolicyConfig.from_dict({"k": K, **policy}),
     )

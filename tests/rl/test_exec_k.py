@@ -30,7 +30,7 @@ from ndp.rl.run import train
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-FAST = PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3)
+FAST = PPOConfig(minibatches=4, lr=1e-3)  # with steps_per_update=512
 
 
 def constant_policy(task: str, algo: str, scale: float = 0.3, **policy: object) -> Policy:
@@ -46,7 +46,7 @@ def constant_policy(task: str, algo: str, scale: float = 0.3, **policy: object) 
         out.weight.zero_()
         out.bias.copy_(scale * (2 * torch.rand(out.bias.shape, generator=gen) - 1))
     model.eval()
-    obs_norm = ObsNormalizer(spec.obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
+    obs_norm = ObsNormalizer(spec.obs_dim, cfg.clip_obs, cfg.norm_obs)
     return Policy(cfg, spec, model, obs_norm)
 
 
@@ -69,7 +69,8 @@ def toy_run(tmp_path_factory):
     run = tmp_path_factory.mktemp("execk") / "toy"
     train(
         TrainConfig(task="point-mass", algo="ndp", steps=2000, num_envs=4, run_dir=str(run),
-                    progress=False, tensorboard=False, ppo=FAST, vector="sync")
+                    progress=False, tensorboard=False, steps_per_update=512, ppo=FAST,
+                    vector="sync")
     )  # fmt: skip
     return run
 
@@ -287,7 +288,7 @@ def test_cli_list_and_benchmark_table(tmp_path, capsys):
     train(
         TrainConfig(task="push-v3", algo="ndp", steps=520, num_envs=2, run_dir=str(run),
                     progress=False, tensorboard=False, vector="sync",
-                    ppo=PPOConfig(steps_per_update=512, minibatches=4))
+                    steps_per_update=512, ppo=PPOConfig(minibatches=4))
     )  # fmt: skip
     capsys.readouterr()
     argv = ["rl", "eval", str(run), "--episodes", "1", "--mode", "deterministic"]

@@ -269,7 +269,7 @@ def test_card_and_progress_report_the_env_steps_trained_not_the_request(tmp_path
 
     cfg = TrainConfig(task="point-mass", algo="ppo", steps=300, num_envs=2, vector="sync",
                       run_dir=str(tmp_path / "run"), progress=False, tensorboard=False,
-                      eval_every=0, ppo=PPOConfig(steps_per_update=512, minibatches=2))  # fmt: skip
+                      eval_every=0, steps_per_update=512, ppo=PPOConfig(minibatches=2))  # fmt: skip
     train(cfg)
     trained = cfg.num_updates * cfg.env_steps_per_update
     assert trained == 512 != cfg.steps

@@ -114,7 +114,7 @@ def _fresh(task: str, algo: str, seed: int = 0, **policy_kw) -> Policy:
     with torch.no_grad():
         for p in model.actor.parameters():
             p.normal_(0.0, 0.5)
-    norm = ObsNormalizer(spec.obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
+    norm = ObsNormalizer(spec.obs_dim, cfg.clip_obs, cfg.norm_obs)
     rng = np.random.default_rng(seed)
     norm.rms.mean = rng.normal(0.0, 0.5, spec.obs_dim)
     norm.rms.var = rng.uniform(0.05, 2.0, spec.obs_dim)

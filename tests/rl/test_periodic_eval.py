@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -21,8 +22,7 @@ def _run(tmp_path, name: str, algo: str = "ndp", **kw) -> list[dict[str, float]]
         run_dir=str(tmp_path / name), progress=False, tensorboard=False,
         **kw,
     )  # fmt: skip
-    cfg = TrainConfig.from_dict({**cfg.to_dict(), "ppo": {**cfg.to_dict()["ppo"],
-                                 "steps_per_update": 400}})  # fmt: skip
+    cfg = dataclasses.replace(cfg, steps_per_update=400)
     train(cfg)
     return read_metrics(tmp_path / name)
 

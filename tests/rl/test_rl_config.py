@@ -23,10 +23,10 @@ from ndp.rl.run import open_run
 def test_resolved_defaults_are_the_supplements():
     cfg = resolve_config(TrainConfig(task="push-v3", algo="ndp"))
     p, pol = cfg.ppo, cfg.policy
-    assert (p.lr, p.adam_eps, p.gamma, p.gae_lambda) == (3e-4, 1e-5, 0.99, 0.95)
+    assert (p.lr, p.adam_eps, cfg.gamma, p.gae_lambda) == (3e-4, 1e-5, 0.99, 0.95)
     assert (p.ent_coef, p.vf_coef, p.max_grad_norm) == (0.0, 0.5, 0.5)
-    assert (p.epochs, p.minibatches, p.clip, p.steps_per_update) == (10, 32, 0.1, 2048)
-    assert p.norm_obs and p.norm_return
+    assert (p.epochs, p.minibatches, p.clip, cfg.steps_per_update) == (10, 32, 0.1, 2048)
+    assert cfg.norm_obs and cfg.clip_obs == 10.0 and p.norm_return
     assert pol.hidden == (100, 100) and pol.activation == "tanh"
     assert pol.head == "ndp" and pol.k == 5 and pol.ndp.dmp_steps == 35
     assert (pol.ndp.n_basis, pol.ndp.a_z) == (NDP_PRESETS["push-v3"].n_basis, 10.0)
@@ -78,7 +78,7 @@ def test_cli_parses_every_field_flat_and_roundtrips():
             "--clip-value-loss", "--dmp-state", "measured"]  # fmt: skip
     cfg = parse_config(TrainConfig, args, prog="ndp rl train")
     assert cfg.task == "soccer-v3" and cfg.algo == "ppo-multi" and cfg.policy.k == 3
-    assert cfg.ppo.lr == 1e-3 and not cfg.ppo.norm_obs and cfg.ppo.epochs == 10
+    assert cfg.ppo.lr == 1e-3 and not cfg.norm_obs and cfg.ppo.epochs == 10
     assert cfg.policy.hidden == (64, 64) and cfg.horizon is None
     assert cfg.policy.ndp.goal_scale == 2.0 and cfg.ppo.clip_value_loss
     assert cfg.policy.dmp_state == "measured"
@@ -126,8 +126,10 @@ def _no_env(*a, **k):
         ({"policy": {"k": 0}}, "k"),
         ({"policy": {"n_basis": 0}}, "n_basis"),
         ({"ppo": {"clip": 0.0}}, "clip"),
-        ({"ppo": {"gamma": 1.5}}, "gamma"),
-        ({"reward_version": "v3"}, "reward_version: expected 'v1' or 'v2'"),
+        ({"gamma": 1.5}, "gamma: expected a number in \\[0, 1\\]"),
+        ({"ppo": {"gamma": 1.5}}, "gamma"),  # the layout of configs written before
+        ({"steps_per_update": 0}, "steps_per_update"),
+        ({"reward_version": "v3"}, "reward_version: expected one of v1, v2, got 'v3'"),
         ({"task": "throw", "reward_version": "v1"}, "reward_version: 'v1' exists for Meta-World"),
         ({"task": "assembly-v3", "reward_version": "v1"}, "reward_version: assembly-v3's v1"),
         ({"goals": "one"}, "goals: expected one of random, per-seed, release, as-release"),
@@ -139,8 +141,8 @@ def test_bad_input_fails_before_any_env(monkeypatch, tmp_path, kwargs, match):
     with pytest.raises(ValueError, match=match):
         if "policy" in kwargs:
             kwargs = {"policy": PolicyConfig.from_dict(kwargs["policy"])}
-        if "ppo" in kwargs:
-            kwargs = {"ppo": PPOConfig(**kwargs["ppo"])}
+        if "ppo" in kwargs:  # a config.json's section (an older layout's too: from_dict)
+            open_run(TrainConfig.from_dict({"run_dir": str(tmp_path), **kwargs}))
         open_run(TrainConfig(run_dir=str(tmp_path), **kwargs))
 
 
@@ -333,7 +335,7 @@ def test_ndp_head_options_given_to_ppo_are_named_on_the_command_line(tmp_path, c
 
 def test_options_of_another_learner_are_named_not_dropped():
     from ndp.rl.config import LEARNER_SECTIONS, unused_method_options
-    from ndp.rl.methods import METHODS
+    from ndp.rl.methods import METHOD_RUN_FIELDS, METHODS
     from ndp.rl.sac.config import SACConfig
 
     def unused(algo, **sections):
@@ -341,14 +343,25 @@ def test_options_of_another_learner_are_named_not_dropped():
 
     assert unused("ppo", sac=SACConfig(lr=1e-3)) == ["sac.lr=0.001"]
     assert unused("ndp", ppo=PPOConfig(lr=1e-4)) == []
-    # SAC reads PPO's discount, observation clip and iteration size, and nothing else of it
-    assert unused("sac", ppo=PPOConfig(gamma=0.95, steps_per_update=1024)) == []
+    # the run's discount, iteration size and observation clip are every method's; PPO's
+    # section is PPO's alone; the observation normaliser is read by PPO and Dyn-E, not SAC
+    run_fields = {"gamma": 0.95, "steps_per_update": 1024, "clip_obs": 5.0}
+    for algo in ("sac", "td3", "dyne", "ppo"):
+        assert unused(algo, **run_fields) == []
     assert unused("sac", ppo=PPOConfig(clip=0.2)) == ["ppo.clip=0.2"]
     assert unused("dyne", sac=SACConfig(tau=0.01)) == ["sac.tau=0.01"]
+    assert unused("sac", norm_obs=False) == unused("td3", norm_obs=False) == ["norm_obs=False"]
+    assert unused("dyne", norm_obs=False) == unused("ndp", norm_obs=False) == []
+    # no off-policy learner reads PPO's section (or a field of it)
+    for m in METHODS.values():
+        if m.learner is not None:
+            assert not [r for r in m.reads if r.split(".")[0] == "ppo"], m.name
     # every method's list names real sections and fields
     for m in METHODS.values():
         for entry in m.reads:
             section, _, name = entry.partition(".")
+            if section in METHOD_RUN_FIELDS:
+                continue
             assert section in LEARNER_SECTIONS, (m.name, entry)
             if name:
                 fields = {f.name for f in dataclasses.fields(getattr(TrainConfig(), section))}

@@ -12,7 +12,7 @@ import torch
 
 from ndp.cli import main as ndp_main
 from ndp.rl import envs as rl_envs
-from ndp.rl.config import PPOConfig, TrainConfig, resolve_config
+from ndp.rl.config import TrainConfig, resolve_config
 from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.methods import METHODS, POLICY_CHECKPOINT_KEYS
 from ndp.runs import load_checkpoint, read_metrics
@@ -22,7 +22,7 @@ FAST = DyneConfig(explore_steps=2000, embed_updates=600, decoder_updates=600, up
 
 
 def _cfg(tmp_path, name="r", task="point-mass", steps=6000, dyne=FAST, **kw):
-    kw.setdefault("ppo", PPOConfig(steps_per_update=500))
+    kw.setdefault("steps_per_update", 500)
     return TrainConfig(
         task=task,
         algo="dyne",
@@ -140,7 +140,7 @@ def test_td3_in_the_latent_improves_on_point_mass_fast(tmp_path):
 def test_td3_in_the_latent_solves_point_mass(tmp_path):
     """Default Dyn-E settings, 20k env steps (5k exploration): measured success 1.0 from about
     10k env steps on; 2-3 min."""
-    cfg = _cfg(tmp_path, steps=20_000, dyne=DyneConfig(), ppo=PPOConfig(steps_per_update=1000))
+    cfg = _cfg(tmp_path, steps=20_000, dyne=DyneConfig(), steps_per_update=1000)
     opened = _open(cfg)
     try:
         opened.train()
@@ -286,7 +286,7 @@ def test_smoke_real_tasks(tmp_path, task, record_actions):
     dyne = DyneConfig(explore_steps=100, embed_updates=20, decoder_updates=20,
                       updates_per_step=0.2, batch_size=16)  # fmt: skip
     cfg = _cfg(tmp_path, task=task, steps=300, dyne=dyne, num_envs=2, horizon=25,
-               ppo=PPOConfig(steps_per_update=100))  # fmt: skip
+               steps_per_update=100)  # fmt: skip
     opened = _open(cfg)
     lr = opened.learner
     try:
@@ -358,7 +358,7 @@ def test_exploration_preset_is_at_most_a_sixth_of_the_budget():
 def test_a_td3_phase_shorter_than_one_batch_is_refused():
     import dataclasses
 
-    from ndp.rl.config import PPOConfig, TrainConfig
+    from ndp.rl.config import TrainConfig
     from ndp.rl.dyne import check_budget
     from ndp.rl.dyne.config import DyneConfig
 
@@ -367,7 +367,7 @@ def test_a_td3_phase_shorter_than_one_batch_is_refused():
         algo="dyne",
         steps=4000,
         num_envs=2,
-        ppo=PPOConfig(steps_per_update=200),
+        steps_per_update=200,
         dyne=DyneConfig(explore_steps=200),
     )
     check_budget(cfg)  # 19 TD3 iterations of 40 decisions: 760 >= 100

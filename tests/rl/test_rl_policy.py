@@ -13,7 +13,7 @@ import ndp
 from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.rl.run import train
 
-FAST = PPOConfig(steps_per_update=512, minibatches=4)
+FAST = PPOConfig(minibatches=4)  # with steps_per_update=512
 
 
 @pytest.fixture(scope="module")
@@ -29,6 +29,7 @@ def push_run(tmp_path_factory):
             progress=False,
             tensorboard=False,
             vector="sync",
+            steps_per_update=512,
             ppo=FAST,
         )
     )

@@ -133,7 +133,7 @@ def test_resume_refuses_run_changing_options_and_extends_steps(tmp_path, capsys)
     assert "nothing to do" in capsys.readouterr().err
     # an option that would change the run is refused by name
     assert ndp_main(["rl", "train", "--resume", str(run), "--lr", "1e-2"]) == 2
-    assert "['ppo.lr']" in capsys.readouterr().err
+    assert "ppo.lr: 0.0003 in the checkpoint, 0.01 now" in capsys.readouterr().err
     # extending the budget continues the same run
     assert ndp_main(["rl", "train", "--resume", str(run), "--steps", "1024", "--no-progress"]) == 0
     state = ck.load_checkpoint(run / "checkpoint.pt")

@@ -24,7 +24,8 @@ def test_smoke_real_tasks(tmp_path, task, algo, record_actions):
         run_dir=str(tmp_path / "r"),
         progress=False,
         tensorboard=False,
-        ppo=PPOConfig(steps_per_update=100, minibatches=2, epochs=2),
+        steps_per_update=100,
+        ppo=PPOConfig(minibatches=2, epochs=2),
     )
     opened = open_run(cfg)
     tr = opened.learner

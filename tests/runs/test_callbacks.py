@@ -77,7 +77,7 @@ def test_an_rl_run_stops_at_its_first_evaluation_that_reaches_the_threshold(tmp_
     from ndp.rl.run import resume, train
 
     cfg = TrainConfig(task="point-mass", algo="ndp", steps=2080, num_envs=2,
-                      ppo=PPOConfig(steps_per_update=260, minibatches=2),
+                      steps_per_update=260, ppo=PPOConfig(minibatches=2),
                       run_dir=str(tmp_path / "rl"), progress=False, tensorboard=False,
                       vector="sync", eval_every=520, eval_episodes=1)  # fmt: skip
     rec = Recorder(budget=8)

@@ -182,7 +182,8 @@ def test_ppo_and_dyne_runs_write_run_json_and_finish_it(tmp_path, algo):
         progress=False,
         tensorboard=False,
         vector="sync",
-        ppo=PPOConfig(steps_per_update=256, minibatches=2),
+        steps_per_update=256,
+        ppo=PPOConfig(minibatches=2),
         **extra,
     )
     opened = open_run(cfg)
@@ -238,6 +239,6 @@ def test_one_train_call_resolves_its_config_once(tmp_path, monkeypatch):
     monkeypatch.setattr(trainer_module, "resolve_config", counting)
     cfg = TrainConfig(task="point-mass", algo="ndp", steps=256, run_dir=str(tmp_path / "r"),
                       progress=False, tensorboard=False, vector="sync",
-                      ppo=PPOConfig(steps_per_update=256, minibatches=2))  # fmt: skip
+                      steps_per_update=256, ppo=PPOConfig(minibatches=2))  # fmt: skip
     trainer_module.train(cfg, overwrite=True)
     assert calls == ["ndp"]

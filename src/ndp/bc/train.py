@@ -215,7 +215,7 @@ class CloningLearner(LearnerDefaults):
             self.model,
             FlatAdam(model, lr=p.lr, eps=p.adam_eps),
             self.obs_norm,
-            ReturnNormalizer(self.rl_cfg.num_envs, p.gamma, p.clip_reward, p.norm_return),
+            ReturnNormalizer(self.rl_cfg.num_envs, self.rl_cfg.gamma, p.clip_reward, p.norm_return),
             update=0,
             global_step=0,
             obs_dim=int(self.obs.shape[1]),
@@ -349,8 +349,7 @@ class CloningRecipe:
         obs_dim = demos.obs.shape[1]
         model = build_actor_critic(obs_dim, spec, rl_cfg.policy)
         k = rl_cfg.k
-        p = rl_cfg.ppo
-        obs_norm = ObsNormalizer(obs_dim, p.clip_obs, p.norm_obs)
+        obs_norm = ObsNormalizer(obs_dim, rl_cfg.clip_obs, rl_cfg.norm_obs)
         obs_norm.rms.update(demos.obs)
         obs_norm.rms.var = np.maximum(obs_norm.rms.var, cfg.obs_std_floor**2)
         commanded = rl_cfg.policy.dmp_state == "commanded"

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import NamedTuple, TypeVar
 
 import numpy as np
@@ -94,6 +94,21 @@ def _check_tensor(name: str, t: object, ndim: int, shape_doc: str) -> torch.Tens
     return t
 
 
+class DMPInputs(NamedTuple):
+    """A rollout's inputs after :func:`validate_inputs` (one value through the integrators)."""
+
+    goal: torch.Tensor
+    """g [B, D]."""
+    weights: torch.Tensor
+    """w [B, D, N] (zeros where omitted with ``only_g``)."""
+    y0: torch.Tensor
+    """Start position [B, D]."""
+    dy0: torch.Tensor
+    """Start velocity [B, D] (zeros where omitted)."""
+    a_z: torch.Tensor | None
+    """Per-sample spring constants [B, D], or None (the config's)."""
+
+
 def validate_inputs(
     cfg: DMPConfig,
     goal: torch.Tensor,
@@ -101,7 +116,7 @@ def validate_inputs(
     y0: torch.Tensor,
     dy0: torch.Tensor | None,
     a_z: torch.Tensor | None = None,
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor | None]:
+) -> DMPInputs:
     """Check shapes, dtypes and devices; fill defaults.
 
     Args:
@@ -112,7 +127,8 @@ def validate_inputs(
         a_z: ``None``, or per-sample spring constants [B], [B, 1] or [B, D].
 
     Returns:
-        (goal, weights, y0, dy0, a_z) with weights zero-filled if omitted and a_z as [B, D].
+        :class:`DMPInputs` (goal, weights, y0, dy0, a_z) with weights zero-filled if omitted
+        and a_z as [B, D].
 
     Raises:
         ValueError: naming the offending argument and the expected shape.
@@ -151,7 +167,7 @@ def validate_inputs(
         if a_z.ndim != 2 or a_z.shape[0] != b or a_z.shape[1] not in (1, d):
             raise ValueError(f"a_z: expected shape [B], [B, 1] or [B, D], got {tuple(a_z.shape)}")
         a_z = a_z.to(goal.dtype).expand(b, d)
-    return goal, weights, y0, dy0, a_z
+    return DMPInputs(goal, weights, y0, dy0, a_z)
 
 
 def spring_constants(
@@ -187,12 +203,6 @@ def check_finite(**tensors: torch.Tensor | None) -> None:
             raise FloatingPointError(f"{name}: expected finite values, found NaN or Inf")
 
 
-def loop_basis(cfg: DMPConfig, goal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Basis centres and widths [N] in the dtype and on the device of ``goal`` (step loops)."""
-    c, h = basis_centres(cfg.n_basis, cfg.a_x, goal.dtype)
-    return c.to(goal.device), h.to(goal.device)
-
-
 def canonical_phases(cfg: DMPConfig) -> Iterator[float]:
     """The canonical system's phase x after each of the ``cfg.steps`` Euler steps (x_0 = 1)."""
     tau, dt, a_x = cfg.tau, cfg.step_dt, cfg.a_x
@@ -200,6 +210,28 @@ def canonical_phases(cfg: DMPConfig) -> Iterator[float]:
     for _ in range(cfg.steps):
         x = x - a_x * x / tau * dt
         yield x
+
+
+def phase_basis(
+    cfg: DMPConfig,
+    like: torch.Tensor,
+    basis: Callable[[torch.Tensor, torch.Tensor, torch.Tensor, str], torch.Tensor] = rbf,
+) -> Iterator[tuple[float, torch.Tensor]]:
+    """The step loops' phase and basis values: ``(x_t, basis(x_t) [N])`` for t = 1..T, in the
+    dtype and on the device of ``like`` (``basis``: :func:`ndp.dmp.basis.rbf` or
+    :func:`ndp.dmp.basis.normalised_rbf`; centres and widths computed once)."""
+    dtype, device = like.dtype, like.device
+    c, h = basis_centres(cfg.n_basis, cfg.a_x, dtype)
+    c, h = c.to(device), h.to(device)
+    for x in canonical_phases(cfg):
+        yield x, basis(torch.tensor(x, dtype=dtype, device=device), c, h, cfg.rbf)
+
+
+def reported(cfg: DMPConfig, *series: list[torch.Tensor]) -> tuple[torch.Tensor, ...]:
+    """Each per-step list (step 0..T) stacked at the reported steps (every ``subsample``-th)
+    along dim 1: [B, n_out, ...]."""
+    sl = slice(None, None, cfg.subsample)
+    return tuple(torch.stack(s[sl], dim=1) for s in series)
 
 
 # --------------------------------------------------------------------------------------------
@@ -228,26 +260,17 @@ def dmp_rollout_reference(
         :class:`DMPTrajectory` with fields [B, steps // subsample + 1, D].
     """
     cfg = cfg or DMPConfig()
-    return _reference(cfg, *validate_inputs(cfg, goal, weights, y0, dy0, a_z))
+    return _reference(cfg, validate_inputs(cfg, goal, weights, y0, dy0, a_z))
 
 
-def _reference(
-    cfg: DMPConfig,
-    goal: torch.Tensor,
-    weights: torch.Tensor,
-    y0: torch.Tensor,
-    dy0: torch.Tensor,
-    a_z_t: torch.Tensor | None,
-) -> DMPTrajectory:
-    dtype, device = goal.dtype, goal.device
+def _reference(cfg: DMPConfig, inputs: DMPInputs) -> DMPTrajectory:
+    goal, weights, y0, dy0, a_z_t = inputs
     az, bz = spring_constants(cfg, a_z_t)
     tau, dt = cfg.tau, cfg.step_dt
-    c, h = loop_basis(cfg, goal)
     y = y0
     z = tau * dy0
     pos, vel, acc = [y0], [dy0], [torch.zeros_like(y0)]
-    for x in canonical_phases(cfg):
-        psi = rbf(torch.tensor(x, dtype=dtype, device=device), c, h, cfg.rbf)  # [N]
+    for x, psi in phase_basis(cfg, goal):  # psi [N]
         if cfg.only_g:
             f = torch.zeros_like(y0)
         else:
@@ -258,10 +281,7 @@ def _reference(
         pos.append(y)
         vel.append(z / tau)
         acc.append(dz / tau)
-    sl = slice(None, None, cfg.subsample)
-    return DMPTrajectory(
-        torch.stack(pos[sl], dim=1), torch.stack(vel[sl], dim=1), torch.stack(acc[sl], dim=1)
-    )
+    return DMPTrajectory(*reported(cfg, pos, vel, acc))
 
 
 # --------------------------------------------------------------------------------------------
@@ -336,8 +356,7 @@ def dmp_rollout_fast(
     fields are views of one [3, B, n_out, D]-strided buffer (call ``.contiguous()`` if needed).
     """
     cfg = cfg or DMPConfig()
-    goal, weights, y0, dy0, _ = validate_inputs(cfg, goal, weights, y0, dy0)
-    return _fast(cfg, goal, weights, y0, dy0)
+    return DMPTrajectory(*_fast(cfg, validate_inputs(cfg, goal, weights, y0, dy0)))
 
 
 def _map_tensor(
@@ -353,13 +372,7 @@ def _map_tensor(
 
 
 def _fast_packed(
-    cfg: DMPConfig,
-    goal: torch.Tensor,
-    weights: torch.Tensor,
-    y0: torch.Tensor,
-    dy0: torch.Tensor,
-    check: bool,
-    map_f64: np.ndarray | None = None,
+    cfg: DMPConfig, inputs: DMPInputs, check: bool, map_f64: np.ndarray | None = None
 ) -> tuple[torch.Tensor, torch.Tensor, bool]:
     """(u [B * D, N + 3] packed inputs, m [N + 3, 3 * n_out] map, whether the outputs still
     need their own finite check) of the linear-map path.
@@ -371,6 +384,7 @@ def _fast_packed(
     reduction and one host sync per call); above it the outputs are checked after the product.
     While a call is recorded (:func:`recording`) the callers pass ``check=False``.
     """
+    goal, weights, y0, dy0, _ = inputs
     m = _map_tensor(cfg, goal, map_f64)
     b, d = goal.shape
     n = cfg.n_basis
@@ -404,20 +418,20 @@ def _map_gain(cfg: DMPConfig) -> float:
 
 def _fast(
     cfg: DMPConfig,
-    goal: torch.Tensor,
-    weights: torch.Tensor,
-    y0: torch.Tensor,
-    dy0: torch.Tensor,
+    inputs: DMPInputs,
     check: bool = False,
     map_f64: np.ndarray | None = None,
-) -> DMPTrajectory:
-    u, m, check_out = _fast_packed(cfg, goal, weights, y0, dy0, check, map_f64)
-    b, d = goal.shape
-    out = (u @ m).view(b, d, 3, cfg.n_out).permute(2, 0, 3, 1)
+    parts: int = 3,
+) -> tuple[torch.Tensor, ...]:
+    """The linear-map path's first ``parts`` outputs (3: positions, velocities and
+    accelerations; 1: positions only, one third of the map), each [B, n_out, D]."""
+    u, m, check_out = _fast_packed(cfg, inputs, check, map_f64)
+    b, d = inputs.goal.shape
+    n = cfg.n_out
+    out = (u @ m[:, : parts * n]).view(b, d, parts, n).permute(2, 0, 3, 1)
     if check_out:
         _check_outputs(out)
-    pos, vel, acc = out.unbind(0)
-    return DMPTrajectory(pos, vel, acc)
+    return tuple(out.unbind(0))
 
 
 def _check_outputs(out: torch.Tensor) -> None:
@@ -428,23 +442,6 @@ def _check_outputs(out: torch.Tensor) -> None:
             "outputs: the rollout is not finite although its inputs are (goal / weights too "
             f"large for {out.dtype}); scale the inputs down or use float64"
         )
-
-
-def _fast_positions(
-    cfg: DMPConfig,
-    goal: torch.Tensor,
-    weights: torch.Tensor,
-    y0: torch.Tensor,
-    dy0: torch.Tensor,
-    check: bool = False,
-    map_f64: np.ndarray | None = None,
-) -> torch.Tensor:
-    u, m, check_out = _fast_packed(cfg, goal, weights, y0, dy0, check, map_f64)
-    b, d = goal.shape
-    pos = (u @ m[:, : cfg.n_out]).view(b, d, cfg.n_out).transpose(1, 2)
-    if check_out:
-        _check_outputs(pos)
-    return pos
 
 
 def dmp_rollout(
@@ -481,32 +478,27 @@ def dmp_rollout(
         :class:`DMPTrajectory`, each field [B, steps // subsample + 1, D].
     """
     cfg = cfg or DMPConfig()
-    check = check and not recording()
     if method not in ("auto", "fast", "loop"):
         raise ValueError(f"method: expected 'auto', 'fast' or 'loop', got {method!r}")
     if cfg.learn_az and a_z is None:
         raise ValueError("a_z: expected a per-sample tensor because cfg.learn_az is True")
     if not cfg.learn_az and a_z is not None:
         raise ValueError("a_z: per-sample a_z given but cfg.learn_az is False")
-    goal, weights, y0, dy0, a_z = validate_inputs(cfg, goal, weights, y0, dy0, a_z)
-    check = check and not goal.is_meta
-    if check and (cfg.learn_az or method == "loop"):
-        check_finite(goal=goal, weights=weights, y0=y0, dy0=dy0, a_z=a_z)
-    if cfg.learn_az:
-        if method == "fast":
-            raise ValueError("method: 'fast' needs a fixed a_z; use 'loop' or 'auto' with learn_az")
-        lo, hi = cfg.az_range
-        assert a_z is not None  # checked above
-        traj = _reference(cfg, goal, weights, y0, dy0, a_z.clamp(lo, hi))
-        if check:
-            _check_outputs(traj.pos)
-        return traj
-    if method == "loop":
-        traj = _reference(cfg, goal, weights, y0, dy0, None)
-        if check:
-            _check_outputs(traj.pos)
-        return traj
-    return _fast(cfg, goal, weights, y0, dy0, check, linear_map)
+    inputs = validate_inputs(cfg, goal, weights, y0, dy0, a_z)
+    check = check and not recording() and not inputs.goal.is_meta
+    loop = cfg.learn_az or method == "loop"
+    if check and loop:
+        check_finite(**inputs._asdict())
+    if not loop:
+        return DMPTrajectory(*_fast(cfg, inputs, check, linear_map))
+    if method == "fast":
+        raise ValueError("method: 'fast' needs a fixed a_z; use 'loop' or 'auto' with learn_az")
+    if inputs.a_z is not None:  # learn_az: clamped to its range
+        inputs = inputs._replace(a_z=inputs.a_z.clamp(*cfg.az_range))
+    traj = _reference(cfg, inputs)
+    if check:
+        _check_outputs(traj.pos)
+    return traj
 
 
 def dmp_positions(
@@ -523,9 +515,8 @@ def dmp_positions(
     linear map: for callers that need no velocities or accelerations, e.g. the RL head);
     ``check`` and ``linear_map`` as for :func:`dmp_rollout`."""
     cfg = cfg or DMPConfig()
-    check = check and not recording()
     if cfg.learn_az:
         raise ValueError("cfg: dmp_positions needs a fixed a_z (learn_az False)")
-    goal, weights, y0, dy0, _ = validate_inputs(cfg, goal, weights, y0, dy0)
-    check = check and not goal.is_meta
-    return _fast_positions(cfg, goal, weights, y0, dy0, check, linear_map)
+    inputs = validate_inputs(cfg, goal, weights, y0, dy0)
+    check = check and not recording() and not inputs.goal.is_meta
+    return _fast(cfg, inputs, check, linear_map, parts=1)[0]

@@ -21,13 +21,7 @@ import torch
 
 from ndp.dmp.basis import normalised_rbf
 from ndp.dmp.config import DMPConfig
-from ndp.dmp.integrate import (
-    canonical_phases,
-    euler_step,
-    loop_basis,
-    spring_constants,
-    validate_inputs,
-)
+from ndp.dmp.integrate import euler_step, phase_basis, reported, spring_constants, validate_inputs
 
 
 def dmp_sensitivities(
@@ -49,10 +43,8 @@ def dmp_sensitivities(
     """
     cfg = cfg or DMPConfig()
     goal, weights, y0, dy0, a_z_t = validate_inputs(cfg, goal, weights, y0, dy0, a_z)
-    dtype, device = goal.dtype, goal.device
     az, bz = spring_constants(cfg, a_z_t)
     tau, dt = cfg.tau, cfg.step_dt
-    c, h = loop_basis(cfg, goal)
     az_w = az.unsqueeze(-1) if isinstance(az, torch.Tensor) else az
     bz_w = bz.unsqueeze(-1) if isinstance(bz, torch.Tensor) else bz
 
@@ -61,8 +53,7 @@ def dmp_sensitivities(
     g_y = torch.zeros_like(goal)
     g_z = torch.zeros_like(goal)
     out_w, out_g = [w_y], [g_y]
-    for x in canonical_phases(cfg):
-        phi = normalised_rbf(torch.tensor(x, dtype=dtype, device=device), c, h, cfg.rbf)
+    for x, phi in phase_basis(cfg, goal, normalised_rbf):
         if cfg.only_g:
             df_dw = torch.zeros_like(weights)
             df_dg = torch.zeros_like(goal)
@@ -78,5 +69,5 @@ def dmp_sensitivities(
         g_y, g_z, _ = euler_step(g_y, g_z, 1.0, df_dg, az, bz, tau, dt, cfg.forcing)
         out_w.append(w_y)
         out_g.append(g_y)
-    sl = slice(None, None, cfg.subsample)
-    return torch.stack(out_w[sl], dim=1), torch.stack(out_g[sl], dim=1)
+    dy_dw, dy_dg = reported(cfg, out_w, out_g)
+    return dy_dw, dy_dg

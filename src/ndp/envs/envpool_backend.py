@@ -40,7 +40,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike
 
-from ndp.checks import install_hint
+from ndp.checks import check_choice, install_hint
 from ndp.envs import envpool_tasks
 from ndp.envs.base import NDPEnv
 
@@ -72,9 +72,7 @@ def check_backend_name(value: object) -> str:
     Raises:
         ValueError: anything else (named in the message).
     """
-    if value not in BACKENDS:
-        raise ValueError(f"backend: expected one of {', '.join(BACKENDS)}, got {value!r}")
-    return str(value)
+    return check_choice("backend", value, BACKENDS)
 
 
 def envpool_task_id(task: str) -> str:

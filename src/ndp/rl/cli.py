@@ -389,26 +389,20 @@ def train_command(argv: list[str]) -> int:
 
 
 def _resume_run(resume_dir: str, rest: list[str], prog: str) -> dict[str, float]:
-    """``--resume RUN_DIR``: continue the run with the options that may change on a resume
-    (refusing the others). Its metrics, or an empty dict (said on stderr) when its budget is
-    already spent."""
-    from ndp.rl.config import SAFE_ON_RESUME, load_config
+    """``--resume RUN_DIR``: continue the run with the options given over its saved config
+    (``config.json``, read once here); the run driver refuses, naming each field with both
+    values, an option that would change the run (:func:`ndp.rl.run.resume_run`). Its metrics,
+    or an empty dict (said on stderr) when its budget is already spent."""
+    from ndp.rl.config import load_config
     from ndp.runs import RunDir
-    from ndp.runs.cli import changed_fields, parse_config
+    from ndp.runs.cli import parse_config
 
     saved = load_config(RunDir(resume_dir).config)
     saved = dataclasses.replace(saved, run_dir=str(resume_dir))
     cfg = parse_config(TrainConfig, rest, prog=prog, description=train_description(), default=saved)
-    changed = changed_fields(saved, cfg)
-    refused = [f for f in changed if f not in SAFE_ON_RESUME]
-    if refused:
-        raise ValueError(
-            f"resume: these options would change the run and are refused: {refused} "
-            f"(only {list(SAFE_ON_RESUME)} may change; start a new run for the others)"
-        )
-    from ndp.rl.run import resume
+    from ndp.rl.run import resume_run
 
-    metrics = resume(resume_dir, **{f: getattr(cfg, f) for f in changed})
+    metrics = resume_run(cfg)
     if not metrics:
         print(
             f"ndp: nothing to do: {resume_dir} has finished its budget; --resume "
@@ -457,9 +451,10 @@ def config_from_file(path: str) -> TrainConfig:
     Raises:
         ValueError: an unreadable file or an unknown field (one line naming ``config``).
     """
+    from ndp.rl.config import current_layout
     from ndp.runs.cli import merge_config_dict, read_config_file
 
-    data = read_config_file(path)
+    data = current_layout(read_config_file(path))  # an older config.json's layout too
     if data.pop("run_dir", None) is not None:
         print(f"ndp: note: --config {path}: its run_dir is not reused (a new run directory)",
               file=sys.stderr)  # fmt: skip
@@ -474,8 +469,8 @@ def unread_learner_message(algo: str, options: list[str]) -> str:
     from ndp.rl.methods import METHODS
 
     parts = []
-    for opt in options:
-        section = opt.split(".", 1)[0]
+    for opt in options:  # "sac.lr=0.001", or a run field's "norm_obs=False"
+        section = opt.split("=", 1)[0].split(".", 1)[0]
         readers = [m.name for m in METHODS.values() if section in m.reads]
         parts.append(f"{opt} (read by --algo {' / '.join(readers) or 'none'})")
     return (

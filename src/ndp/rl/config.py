@@ -1,8 +1,11 @@
 """Typed configuration of an RL run, its resolution against a task, and its argparse CLI.
 
-A run is one :class:`TrainConfig` holding a :class:`PPOConfig` (the shared on-policy trainer's),
-a :class:`ndp.policies.PolicyConfig` and one settings section per registered learner
-(``ndp.rl.methods.register_learner``; this module names none of them). ``TrainConfig`` is
+A run is one :class:`TrainConfig`: the run's own fields (:class:`RunConfig`: task, method,
+budget, envs, and what every learner reads: the discount ``gamma``, the update's size
+``steps_per_update``, the observation normaliser), a :class:`PPOConfig` (the shared on-policy
+trainer's settings, read by the on-policy methods only), a :class:`ndp.policies.PolicyConfig`
+and one settings section per registered learner (``ndp.rl.methods.register_learner``; this
+module names none of them). ``TrainConfig`` is
 built here from :class:`RunConfig` (the run's own fields) and the registered sections, once,
 when this module is imported. Every field has a docstring, which becomes its ``--help`` text:
 ``ndp rl train`` is this dataclass tree parsed by tyro (:mod:`ndp.runs.cli`), one flat
@@ -28,9 +31,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, TypedDict, cast
 
-from ndp.checks import check_int, check_positive, plain_numbers
+from ndp.checks import check_choice, check_int, check_positive, plain_numbers
 from ndp.policies.config import PolicyConfig
-from ndp.rl.methods import METHODS, SETTINGS, Method, settings_sections
+from ndp.rl.methods import METHOD_RUN_FIELDS, METHODS, SETTINGS, Method, settings_sections
 from ndp.runs.cli import cli
 from ndp.runs.tracking import check_track
 
@@ -93,16 +96,26 @@ SAFE_ON_RESUME = (
 rounding only; the periodic evaluation draws nothing from the training stream)."""
 
 
+def _check_unit_interval(name: str, value: object) -> None:
+    """``value`` is a number in [0, 1] (a discount, GAE's lambda).
+
+    Raises:
+        ValueError: ``"<name>: expected a number in [0, 1], got <value!r>"``.
+    """
+    if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
+        raise ValueError(f"{name}: expected a number in [0, 1], got {value!r}")
+
+
 @dataclass(frozen=True)
 class PPOConfig:
-    """PPO with GAE; defaults from the paper's supplement."""
+    """PPO with GAE; defaults from the paper's supplement. Only the on-policy methods read this
+    section; the discount, the update's size and the observation normaliser are the run's
+    (:class:`RunConfig`), read by every learner."""
 
     lr: float = 3e-4
     """Adam learning rate."""
     adam_eps: float = 1e-5
     """Adam epsilon."""
-    gamma: float = 0.99
-    """Discount per env step (sub-step)."""
     gae_lambda: float = 0.95
     """GAE lambda per env step (sub-step)."""
     ent_coef: float = 0.0
@@ -120,18 +133,12 @@ class PPOConfig:
     clip_value_loss: bool = False
     """Clip the value update around the rollout's values with ``clip`` (the release's PPO code
     base does; the supplement does not list it and SB3 does not use it; it slows learning)."""
-    steps_per_update: int = 2048
-    """Env steps (sub-steps) collected per update, over all envs (rounded up to k * num_envs)."""
-    norm_obs: bool = True
-    """Normalise observations with running mean / std."""
     norm_return: bool = True
     """Scale rewards by the running std of the discounted return."""
     norm_adv: bool = True
     """Normalise advantages (to mean 0, std 1 over executed sub-steps)."""
     adv_norm_scope: str = "rollout"
     """Where advantages are normalised: over the whole 'rollout' or per 'minibatch' (SB3)."""
-    clip_obs: float = 10.0
-    """Clip normalised observations to +- this."""
     clip_reward: float = 10.0
     """Clip normalised rewards to +- this."""
     anneal_lr: bool = False
@@ -145,17 +152,13 @@ class PPOConfig:
             "vf_coef",
             "max_grad_norm",
             "clip",
-            "clip_obs",
             "clip_reward",
         ):
             check_positive(name, getattr(self, name))
-        for name in ("gamma", "gae_lambda"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
-                raise ValueError(f"{name}: expected a number in [0, 1], got {v!r}")
+        _check_unit_interval("gae_lambda", self.gae_lambda)
         if not (isinstance(self.ent_coef, (int, float)) and self.ent_coef >= 0):
             raise ValueError(f"ent_coef: expected a number >= 0, got {self.ent_coef!r}")
-        for name in ("epochs", "minibatches", "steps_per_update"):
+        for name in ("epochs", "minibatches"):
             check_int(name, getattr(self, name), 1)
         if self.adv_norm_scope not in ("rollout", "minibatch"):
             raise ValueError(
@@ -252,6 +255,27 @@ class RunConfig:
     device: str = "cpu"
     """torch device of the PPO update ('cpu', 'cuda', 'cuda:1', ...); the rollout always acts
     on the CPU beside the simulators (with a copy of the policy refreshed after each update)."""
+    # The run's own learning fields: the problem every learner solves and the shape of its
+    # iterations, read by every method (config.json held them under "ppo" before; from_dict
+    # reads them there: MOVED_FROM_PPO).
+    gamma: float = 0.99
+    """Discount per env step (sub-step): part of the problem (the return every learner
+    maximises), so one field of the run, read by every method (PPO's GAE and return
+    normalisation, the off-policy learners' chunk return and bootstrap)."""
+    steps_per_update: int = 2048
+    """Env steps (sub-steps) collected per update, over all envs (rounded up to k * num_envs):
+    the run's iteration, every method's (PPO's rollout; an off-policy learner's collection
+    between two metrics rows). The budget counts updates of this size (run.json, checkpoints,
+    --checkpoint-every)."""
+    norm_obs: bool = True
+    """Normalise observations with running mean / std: the observation normaliser of the run's
+    policy (its statistics are saved with the policy, and eval, export and ndp.load_policy read
+    it). The on-policy methods and Dyn-E read it; the SAC family and TD3 learn on the raw
+    observations (their normaliser stays disabled) and refuse --no-norm-obs
+    (ndp.rl.methods.METHOD_RUN_FIELDS)."""
+    clip_obs: float = 10.0
+    """Clip normalised observations to +- this (the run's observation normaliser, as
+    norm_obs)."""
     ppo: PPOConfig = field(default_factory=PPOConfig)
     """PPO hyperparameters."""
     policy: PolicyConfig = field(default_factory=PolicyConfig)
@@ -265,6 +289,9 @@ class RunConfig:
         if not isinstance(self.task, str) or not self.task:
             raise ValueError(f"task: expected a task name, got {self.task!r}")
         check_int("steps", self.steps, 1)
+        check_int("steps_per_update", self.steps_per_update, 1)
+        _check_unit_interval("gamma", self.gamma)
+        check_positive("clip_obs", self.clip_obs)
         check_int("seed", self.seed, 0)
         check_int("num_envs", self.num_envs, 1)
         check_int("checkpoint_every", self.checkpoint_every, 1)
@@ -274,8 +301,7 @@ class RunConfig:
         check_track(self.track)
         if self.horizon is not None:
             check_int("horizon", self.horizon, 1)
-        if self.reward_version not in ("v1", "v2"):
-            raise ValueError(f"reward_version: expected 'v1' or 'v2', got {self.reward_version!r}")
+        check_choice("reward_version", self.reward_version, ("v1", "v2"))
         if self.goals == "fixed":  # the old name of 'per-seed' (configs and arms written before)
             object.__setattr__(self, "goals", "per-seed")
         if self.goals not in GOALS:
@@ -283,16 +309,13 @@ class RunConfig:
                 f"goals: expected one of {', '.join(GOALS)} ('fixed' = 'per-seed'), "
                 f"got {self.goals!r}"
             )
-        if self.execution not in EXECUTIONS:
-            raise ValueError(
-                f"execution: expected one of {', '.join(EXECUTIONS)}, got {self.execution!r}"
-            )
-        if self.reward not in REWARDS:
-            raise ValueError(f"reward: expected one of {', '.join(REWARDS)}, got {self.reward!r}")
-        if self.backend not in BACKENDS:
-            raise ValueError(
-                f"backend: expected one of {', '.join(BACKENDS)}, got {self.backend!r}"
-            )
+        for name, choices in (
+            ("execution", EXECUTIONS),
+            ("reward", REWARDS),
+            ("backend", BACKENDS),
+            ("first_held_ratio", FIRST_HELD_RATIOS),
+        ):
+            check_choice(name, getattr(self, name), choices)
         if self.smooth_lambda is not None:
             if self.reward != "smooth":
                 raise ValueError(
@@ -302,11 +325,6 @@ class RunConfig:
             v = self.smooth_lambda
             if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 0:
                 raise ValueError(f"smooth_lambda: expected a finite number >= 0, got {v!r}")
-        if self.first_held_ratio not in FIRST_HELD_RATIOS:
-            raise ValueError(
-                f"first_held_ratio: expected one of {', '.join(FIRST_HELD_RATIOS)}, "
-                f"got {self.first_held_ratio!r}"
-            )
         if self.first_held_ratio == "release" and self.execution != "first-held":
             raise ValueError(
                 "first_held_ratio: 'release' scores the executed first sub-action and needs "
@@ -337,7 +355,7 @@ class RunConfig:
     @property
     def decisions_per_env(self) -> int:
         """Decisions each env makes per update: ceil(steps_per_update / (k * num_envs))."""
-        return math.ceil(self.ppo.steps_per_update / (self.k * self.num_envs))
+        return math.ceil(self.steps_per_update / (self.k * self.num_envs))
 
     @property
     def env_steps_per_update(self) -> int:
@@ -385,8 +403,9 @@ class RunConfig:
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> TrainConfig:
-        """Inverse of :meth:`to_dict` (unknown keys raise ValueError)."""
-        d = dict(d)
+        """Inverse of :meth:`to_dict` (unknown keys raise ValueError); also reads every
+        earlier layout (:func:`current_layout`: the run fields once under ``"ppo"``)."""
+        d = current_layout(d)
         pol = dict(d.pop("policy", {}))
         # configs written before the per-task frame preset always hold these two keys; older
         # ones (without them) ran the fixed default of their time, the commanded frame at rest
@@ -401,6 +420,39 @@ class RunConfig:
             return TrainConfig(ppo=ppo, policy=policy, **sections, **d)
         except TypeError as exc:
             raise ValueError(f"config: {exc}") from None
+
+
+MOVED_FROM_PPO = ("gamma", "steps_per_update", "norm_obs", "clip_obs")
+"""The run's fields that ``config.json`` (and a ``--config`` file, an export's
+``policy.json``) held under ``"ppo"`` before they became the run's own: every learner reads
+them, PPO's section holds only PPO's settings."""
+
+
+def current_layout(d: dict[str, Any]) -> dict[str, Any]:
+    """A config dict (a run's ``config.json``, an export's, a ``--config`` file's fields) in
+    this version's layout: the fields of :data:`MOVED_FROM_PPO` found under ``"ppo"`` moved to
+    the top level (a new dict; the sections copied, not changed in place).
+
+    Raises:
+        ValueError: a field given both at the top level and under ``"ppo"`` with two values.
+    """
+    d = dict(d)
+    ppo = d.get("ppo")
+    if not isinstance(ppo, dict) or not any(name in ppo for name in MOVED_FROM_PPO):
+        return d
+    ppo = dict(ppo)
+    for name in MOVED_FROM_PPO:
+        if name not in ppo:
+            continue
+        value = ppo.pop(name)
+        if name in d and d[name] != value:
+            raise ValueError(
+                f"config: {name} is given twice, {d[name]!r} and ppo.{name}={value!r} (it is "
+                f"the run's own field now: give it once, at the top level)"
+            )
+        d[name] = value
+    d["ppo"] = ppo
+    return d
 
 
 def _train_config() -> type[RunConfig]:
@@ -652,13 +704,17 @@ shared on-policy trainer's ``ppo`` and every registered learner's."""
 
 def unused_method_options(cfg: TrainConfig) -> list[str]:
     """The learner settings set away from their defaults that ``cfg.algo`` does not read
-    (``--algo ppo --sac-lr 1e-3``, ``--algo sac --clip 0.1``): ``["sac.lr=0.001", ...]``; empty
-    when none. Accepted and not used, like :func:`unused_head_options` (a sweep's overrides
-    span every arm); ``ndp rl train`` names them in a note."""
+    (``--algo ppo --sac-lr 1e-3``, ``--algo sac --clip 0.1``, ``--algo sac --no-norm-obs``):
+    ``["sac.lr=0.001", ...]``, a run field of :data:`ndp.rl.methods.METHOD_RUN_FIELDS` by its
+    name (``"norm_obs=False"``); empty when none. ``ndp rl train`` refuses them."""
     method = METHODS.get(cfg.algo)
     if method is None:
         return []
-    out = []
+    out = [
+        f"{name}={getattr(cfg, name)!r}"
+        for name in METHOD_RUN_FIELDS
+        if name not in method.reads and getattr(cfg, name) != getattr(RunConfig, name)
+    ]
     for section in LEARNER_SECTIONS:
         if section in method.reads:
             continue

@@ -33,7 +33,8 @@ def demo_config(out_dir: Path, quick: bool = True) -> TrainConfig:
         task="point-mass",
         steps=30_000,
         progress=False,
-        ppo=PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3),
+        steps_per_update=512,
+        ppo=PPOConfig(minibatches=4, lr=1e-3),
     )
 
 

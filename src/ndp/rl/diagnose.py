@@ -96,7 +96,7 @@ def _fresh_of(cfg: TrainConfig, spec: TaskSchema) -> Policy:
     (which learns the observation statistics during a diagnostic rollout, as in training)."""
     torch.manual_seed(cfg.seed)
     model = build_actor_critic(spec.obs_dim, spec, cfg.policy)
-    return Policy(cfg, spec, model, ObsNormalizer(spec.obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs))
+    return Policy(cfg, spec, model, ObsNormalizer(spec.obs_dim, cfg.clip_obs, cfg.norm_obs))
 
 
 def _policy(

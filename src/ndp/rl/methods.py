@@ -47,9 +47,12 @@ if TYPE_CHECKING:
     from ndp.runs.session import RunSession
     from ndp.schema import TaskSchema
 
-OFF_POLICY_PPO_READS = ("ppo.gamma", "ppo.clip_obs", "ppo.steps_per_update")
-"""The ``ppo`` fields the off-policy learners share with PPO: the discount, the observation
-clip and the env steps per iteration (their metrics row)."""
+METHOD_RUN_FIELDS = ("norm_obs",)
+"""The run's fields (``ndp.rl.config.RunConfig``) that not every method reads: a method reads
+one where its :attr:`Method.reads` names it (the on-policy methods and Dyn-E normalise their
+observations; the SAC family and TD3 learn on raw ones), and ``ndp rl train`` refuses one set
+for a method that does not, as it refuses a learner section's option. Every other run field
+(the discount, the update's size, the observation clip, ...) is every method's."""
 
 PolicyChanges = dict[str, object]
 """A method's ``PolicyConfig`` changes, by field name (the NDP head's fields flat, as
@@ -157,11 +160,13 @@ class Method:
     (:class:`ndp.rl.onpolicy.trainer.Trainer`)."""
     hint: str = "Try a smaller learning rate or check the task's reward / actions."
     """What to try after the run diverges (ends the divergence error's message)."""
-    reads: tuple[str, ...] = ("ppo",)
+    reads: tuple[str, ...] = ("ppo", "norm_obs")
     """The learner settings of :class:`ndp.rl.config.TrainConfig` this method reads: a
-    section (``"ppo"``, ``"sac"``, ``"dyne"``) or one field of it (``"ppo.gamma"``). An option of
-    a section it does not read, set on the command line, is named in a note
-    (:func:`ndp.rl.config.unused_method_options`) instead of being dropped without a word."""
+    section (``"ppo"``, ``"sac"``, ``"dyne"``), one field of it (``"ppo.lr"``), or a run field
+    of :data:`METHOD_RUN_FIELDS` (``"norm_obs"``). An option of a section or such a field it
+    does not read, set on the command line, is refused
+    (:func:`ndp.rl.config.unused_method_options`) instead of being dropped without a word. The
+    run's other fields (``gamma``, ``steps_per_update``, ...) every method reads."""
 
     def __post_init__(self) -> None:
         if isinstance(self.learner, str):
@@ -397,6 +402,24 @@ def networks(policy: PolicyConfig, hidden: tuple[int, ...], activation: str) -> 
     if policy.activation is None:
         out["activation"] = activation
     return out
+
+
+def with_networks(
+    hidden: tuple[int, ...], activation: str, *, k: int | None = None, dmp: bool = False
+) -> Callable[[PolicyConfig, TaskSpec], PolicyChanges]:
+    """The resolution (:attr:`Method.resolve`) of a method with networks of its own (the
+    off-policy learners): the NDP head's task presets (``dmp``: :func:`resolve_ndp`) or no DMP
+    (:func:`no_dmp`), the networks ``hidden`` / ``activation`` where the config leaves them at
+    None (:func:`networks`), and ``k`` where given (1: one action per decision)."""
+
+    def resolve(policy: PolicyConfig, spec: TaskSpec) -> PolicyChanges:
+        head = resolve_ndp(policy, spec) if dmp else no_dmp(policy, spec)
+        return {**head, **networks(policy, hidden, activation), **({} if k is None else {"k": k})}
+
+    what = "the NDP head's presets" if dmp else "no DMP"
+    hid = "-".join(map(str, hidden))
+    resolve.__doc__ = f"{what}, {hid} {activation} networks" + ("" if k is None else f", k = {k}")
+    return resolve
 
 
 BUILTIN_LEARNERS = ("ndp.rl.dyne", "ndp.rl.sac", "ndp.rl.td3")

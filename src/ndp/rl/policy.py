@@ -339,7 +339,7 @@ def _build(
                 f"{source}: obs_norm.{key}: expected {obs_dim} finite values, got shape "
                 f"{list(v.shape)}"
             )
-    obs_norm = ObsNormalizer(obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
+    obs_norm = ObsNormalizer(obs_dim, cfg.clip_obs, cfg.norm_obs)
     obs_norm.load_state_dict(obs_norm_state)
     return Policy(cfg, spec, model, obs_norm)
 

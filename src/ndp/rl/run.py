@@ -37,6 +37,7 @@ __all__ = [
     "check_budget_not_below",
     "open_run",
     "resume",
+    "resume_run",
     "rl_manifest",
     "say_budget",
     "train",
@@ -90,11 +91,11 @@ def say_budget(cfg: TrainConfig) -> None:
     updates of ``env_steps_per_update`` (itself ``steps_per_update`` rounded up to
     ``k * num_envs``); where that changes the number, stderr says what will be trained."""
     trained = cfg.num_updates * cfg.env_steps_per_update
-    if trained != cfg.steps or cfg.env_steps_per_update != cfg.ppo.steps_per_update:
+    if trained != cfg.steps or cfg.env_steps_per_update != cfg.steps_per_update:
         print(
             f"ndp: budget: --steps {cfg.steps:,} trains {trained:,} env steps: "
             f"{cfg.num_updates:,} update(s) of {cfg.env_steps_per_update:,} env steps "
-            f"(--steps-per-update {cfg.ppo.steps_per_update:,} rounded up to whole decisions of "
+            f"(--steps-per-update {cfg.steps_per_update:,} rounded up to whole decisions of "
             f"k={cfg.k} x num_envs={cfg.num_envs})"
             + (
                 "; counted in sub-step slots: an episode that ends inside a decision executes "
@@ -220,18 +221,28 @@ def resume(
         run_dir: a directory written by :func:`train`.
         max_updates: stop after this many more updates.
         **overrides: fields of :data:`SAFE_ON_RESUME` (``steps`` extends the budget); any
-            other field is refused with its name.
+            other field is refused (:func:`resume_run`).
     """
     run_dir = Path(run_dir)
     cfg = load_config(RunDir(run_dir).config)
-    refused = sorted(set(overrides) - set(SAFE_ON_RESUME))
-    if refused:
-        raise ValueError(
-            f"resume: these options would change the run and are refused: {refused} (only "
-            f"{list(SAFE_ON_RESUME)} may change; start a new run for the others)"
-        )
-    cfg = dataclasses.replace(cfg, run_dir=str(run_dir), **overrides)
-    RunDir(run_dir).open_for_resume()
-    return run(
-        RLRecipe(resolve_config(cfg)), resume=True, max_steps=max_updates, callbacks=callbacks
-    )
+    unknown = sorted(set(overrides) - {f.name for f in dataclasses.fields(cfg)})
+    if unknown:
+        raise ValueError(f"resume: no such options {unknown} (may change: {list(SAFE_ON_RESUME)})")
+    changed = dataclasses.replace(cfg, run_dir=str(run_dir), **overrides)
+    return resume_run(changed, max_updates, callbacks)
+
+
+def resume_run(
+    cfg: TrainConfig, max_updates: int | None = None, callbacks: Sequence[Callback] | None = None
+) -> Row:
+    """Continue the run in ``cfg.run_dir`` with ``cfg``: its saved config (``config.json``,
+    read once by the caller) with what the resume changes. The run driver compares it with the
+    checkpoint's config (:func:`ndp.runs.resume.check_resume`), the one check of a resume: a
+    field outside :data:`SAFE_ON_RESUME` that differs is refused, naming each field with both
+    values, before anything is built.
+
+    Raises:
+        ValueError: a refused change; FileNotFoundError: no checkpoint to resume from.
+    """
+    return run(RLRecipe(resolve_config(cfg)), resume=True, max_steps=max_updates,
+               callbacks=callbacks)  # fmt: skip

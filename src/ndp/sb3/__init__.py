@@ -405,7 +405,7 @@ def to_policy(
             widths (``net_arch``), an activation the package has no name for, or a VecNormalize
             that normalises more than ``obs`` (one line naming the argument).
     """
-    from ndp.rl.config import PPOConfig, TrainConfig, resolve_config
+    from ndp.rl.config import RunConfig, TrainConfig, resolve_config
     from ndp.rl.envs import resolve_task
     from ndp.rl.policy import Policy
 
@@ -436,7 +436,8 @@ def to_policy(
             task=pol.task,
             algo="ndp",
             policy=policy_cfg,
-            ppo=PPOConfig(norm_obs=norm is not None, clip_obs=norm[2] if norm else 10.0),
+            norm_obs=norm is not None,
+            clip_obs=norm[2] if norm else RunConfig.clip_obs,
         )
     )
     spec = resolve_task(cfg.task).spec
@@ -445,7 +446,7 @@ def to_policy(
     state = _state_from_sb3(pol, net.k)
     net.load_state_dict(state)
     net.eval()
-    obs_norm = ObsNormalizer(obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs)
+    obs_norm = ObsNormalizer(obs_dim, cfg.clip_obs, cfg.norm_obs)
     if norm is not None:
         obs_norm.load_state_dict({"mean": norm[0], "var": norm[1], "count": 1.0})
     return Policy(

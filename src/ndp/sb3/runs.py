@@ -1,10 +1,11 @@
 """Stable-Baselines3 references on this package's tasks, logged like ``ndp rl train``.
 
 - ``sb3-ppo``: the reference trainer of ``benchmarks/ppo_vs_sb3.py`` (study ``ppo-vs-sb3``):
-  SB3's PPO with the supplement's hyperparameters (those of ``ndp.rl.config.PPOConfig``'s
-  defaults; SB3's own value loss, i.e. no value clip, advantages normalised per mini-batch) on
-  the same per-step env this package's PPO trains on (``ndp.envs.make_env``; Meta-World random
-  goals at every reset), ``DummyVecEnv`` + ``VecNormalize`` (observations and returns, clip 10).
+  SB3's PPO with the supplement's hyperparameters (the defaults of ``ndp.rl.config.PPOConfig``
+  and of the run's ``gamma``, ``steps_per_update`` and ``clip_obs``; SB3's own value loss, i.e.
+  no value clip, advantages normalised per mini-batch) on the same per-step env this package's
+  PPO trains on (``ndp.envs.make_env``; Meta-World random goals at every reset),
+  ``DummyVecEnv`` + ``VecNormalize`` (observations and returns, clip 10).
 - ``sb3-ndp`` and ``sb3-multi`` (study ``sb3-ndp``): SB3's PPO on the chunked env
   ``ndp.make_env(task, k=SB3_K)`` (one SB3 step is one decision of k env steps, its reward the
   sum of the k sub-step rewards), the same settings for both: SB3's default networks ([64, 64]
@@ -59,7 +60,7 @@ import numpy as np
 
 from ndp.checks import check_int
 from ndp.io import atomic_write_text
-from ndp.rl.config import EVAL_SEED, PPOConfig
+from ndp.rl.config import EVAL_SEED, PPOConfig, RunConfig
 from ndp.rl.sac.config import SACConfig
 from ndp.rl.td3.config import TD3Config
 from ndp.runs import MetricsLogger
@@ -137,7 +138,7 @@ def make_sb3_ppo(venv: VecEnv, seed: int, num_envs: int) -> PPO:
     from stable_baselines3 import PPO
 
     p = PPOConfig()
-    n_steps = p.steps_per_update // num_envs
+    n_steps = RunConfig.steps_per_update // num_envs
     return PPO(
         "MlpPolicy",
         venv,
@@ -145,7 +146,7 @@ def make_sb3_ppo(venv: VecEnv, seed: int, num_envs: int) -> PPO:
         n_steps=n_steps,
         batch_size=n_steps * num_envs // p.minibatches,
         n_epochs=p.epochs,
-        gamma=p.gamma,
+        gamma=RunConfig.gamma,
         gae_lambda=p.gae_lambda,
         clip_range=p.clip,
         ent_coef=p.ent_coef,
@@ -319,11 +320,14 @@ class SB3Method:
 
 
 def _ppo_venv(venv: VecEnv, cfg: SB3RunConfig) -> VecEnv:
-    """``sb3-ppo``'s normalisation: the supplement's settings (``PPOConfig``)."""
+    """``sb3-ppo``'s normalisation: the supplement's settings (the run's ``gamma`` and
+    ``clip_obs``, ``PPOConfig``'s ``clip_reward``)."""
     from stable_baselines3.common.vec_env import VecNormalize
 
     p = PPOConfig()
-    return VecNormalize(venv, gamma=p.gamma, clip_obs=p.clip_obs, clip_reward=p.clip_reward)
+    return VecNormalize(
+        venv, gamma=RunConfig.gamma, clip_obs=RunConfig.clip_obs, clip_reward=p.clip_reward
+    )
 
 
 def _chunked_venv(venv: VecEnv, cfg: SB3RunConfig) -> VecEnv:
@@ -365,7 +369,7 @@ SB3_METHOD_ROWS: dict[str, SB3Method] = {
         robot_state=False,
         wrap=_ppo_venv,
         make=lambda venv, cfg: make_sb3_ppo(venv, cfg.seed, cfg.num_envs),
-        rollout=lambda cfg: PPOConfig().steps_per_update // cfg.num_envs * cfg.num_envs,
+        rollout=lambda cfg: RunConfig.steps_per_update // cfg.num_envs * cfg.num_envs,
     ),
     "sb3-ndp": _chunked_row(robot_state=True),
     "sb3-multi": _chunked_row(robot_state=False),

@@ -110,13 +110,13 @@ def test_a_chunked_sb3_run_logs_env_steps_evaluates_and_reports(
 def test_each_sb3_method_is_one_row_and_the_rows_give_the_old_settings():
     """The run reads a method's row (env, wrapper, model, rollout), never its name: one row per
     method, and the settings each method had before the table."""
-    from ndp.rl.config import PPOConfig
+    from ndp.rl.config import RunConfig
     from ndp.sb3.runs import PER_STEP_METHODS, SB3_METHOD_ROWS, SB3_SAC_ROLLOUT, rollout_decisions
 
     assert tuple(SB3_METHOD_ROWS) == SB3_METHODS
     assert set(PER_STEP_METHODS) == {"sb3-ppo", "sb3-sac", "sb3-td3"}
     assert [m for m, row in SB3_METHOD_ROWS.items() if row.robot_state] == ["sb3-ndp"]
     cfg = lambda m: SB3RunConfig("push-v3", 1000, method=m, k=1 if m in PER_STEP_METHODS else 5)  # noqa: E731
-    assert rollout_decisions(cfg("sb3-ppo")) == PPOConfig().steps_per_update
+    assert rollout_decisions(cfg("sb3-ppo")) == RunConfig.steps_per_update
     assert rollout_decisions(cfg("sb3-ndp")) == rollout_decisions(cfg("sb3-multi")) == 128 * 4
     assert rollout_decisions(cfg("sb3-sac")) == rollout_decisions(cfg("sb3-td3")) == SB3_SAC_ROLLOUT

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from ndp.rl.config import PPOConfig, TrainConfig
+from ndp.rl.config import TrainConfig
 from ndp.rl.dyne.config import DyneConfig
 from ndp.rl.run import open_run, resume
 from ndp.rl.sac.config import SACConfig
@@ -22,7 +22,7 @@ from ndp.runs.checkpoint import SCHEMA_VERSION
 def _open(tmp_path, algo, **kw):
     cfg = TrainConfig(task="point-mass", algo=algo, steps=400, seed=0,
                       run_dir=str(tmp_path / algo), progress=False, tensorboard=False,
-                      vector="sync", num_envs=2, ppo=PPOConfig(steps_per_update=100),
+                      vector="sync", num_envs=2, steps_per_update=100,
                       eval_every=0, checkpoint_every=1, **kw)  # fmt: skip
     return open_run(cfg)
 

@@ -75,7 +75,8 @@ def _cfg(tmp_path, **kw):
         "tensorboard": False,
         "vector": "sync",
         "execution": "first-held",
-        "ppo": PPOConfig(steps_per_update=500, minibatches=2, lr=1e-3),
+        "steps_per_update": 500,
+        "ppo": PPOConfig(minibatches=2, lr=1e-3),
     }
     return TrainConfig(**{**base, **kw})
 

@@ -19,7 +19,7 @@ from ndp.rl.onpolicy.trainer import TrainingDivergedError
 from ndp.rl.run import open_run, train
 from ndp.runs import load_checkpoint, read_metrics
 
-FAST = PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3)
+FAST = PPOConfig(minibatches=4, lr=1e-3)  # with steps_per_update=512 (_cfg)
 
 
 def _cfg(tmp_path, name="run", **kw):
@@ -31,6 +31,7 @@ def _cfg(tmp_path, name="run", **kw):
         "run_dir": str(tmp_path / name),
         "progress": False,
         "tensorboard": False,
+        "steps_per_update": 512,
         "ppo": FAST,
         "vector": "sync",
     }
@@ -176,7 +177,7 @@ def test_param_noise_uses_one_decision_level_advantage(tmp_path, monkeypatch):
         return real(new_logp, old_logp, adv, mask, clip)
 
     monkeypatch.setattr(trainer_mod, "policy_loss", spy)
-    ppo = PPOConfig(steps_per_update=512, minibatches=1, epochs=1, lr=1e-3)
+    ppo = PPOConfig(minibatches=1, epochs=1, lr=1e-3)
     opened = open_run(
         _cfg(tmp_path, ppo=ppo, policy=PolicyConfig(ndp=NDPHeadConfig(param_noise=True)))
     )
@@ -230,8 +231,9 @@ def test_every_head_gets_the_advantage_its_distribution_asks_for(tmp_path, monke
 
     monkeypatch.setattr(trainer_mod, "policy_loss", spy_pl)
     monkeypatch.setattr(trainer_mod, "gaussian_policy_loss", spy_gl)
-    ppo = PPOConfig(steps_per_update=256, minibatches=1, epochs=1)
-    opened = open_run(_cfg(tmp_path, algo=algo, task=task, ppo=ppo, num_envs=2, steps=256))
+    ppo = PPOConfig(minibatches=1, epochs=1)
+    opened = open_run(_cfg(tmp_path, algo=algo, task=task, ppo=ppo, num_envs=2, steps=256,
+                           steps_per_update=256))  # fmt: skip
     tr = opened.learner
     try:
         batch = tr.collect()
@@ -262,7 +264,7 @@ def test_minibatch_advantage_normalisation(tmp_path, monkeypatch):
         return real(mean, log_std, z, old_logp, adv, mask, clip)
 
     monkeypatch.setattr(trainer_mod, "gaussian_policy_loss", spy)
-    ppo = PPOConfig(steps_per_update=512, minibatches=4, epochs=1, adv_norm_scope="minibatch")
+    ppo = PPOConfig(minibatches=4, epochs=1, adv_norm_scope="minibatch")
     opened = open_run(_cfg(tmp_path, algo="ppo", ppo=ppo))
     tr = opened.learner
     try:
@@ -315,7 +317,7 @@ def test_cli_train_eval_render(tmp_path, capsys):
 def test_worker_vector_env_gives_the_sync_rollout(tmp_path, task, algo):
     """Same seed, same initial policy: env workers (2 workers x 2 envs, shared memory) give
     the same rollout as the one-process sync env, episode ends and autoresets included."""
-    ppo = PPOConfig(steps_per_update=600 if algo == "ndp" else 400, minibatches=4)
+    ppo = PPOConfig(minibatches=4)
     batches = []
     for vector in ("sync", "workers"):
         cfg = _cfg(
@@ -324,6 +326,7 @@ def test_worker_vector_env_gives_the_sync_rollout(tmp_path, task, algo):
             task=task,
             algo=algo,
             horizon=30,
+            steps_per_update=600 if algo == "ndp" else 400,
             ppo=ppo,
             vector=vector,
             env_workers=2 if vector == "workers" else None,

@@ -136,7 +136,7 @@ def test_config_refuses_bad_values_naming_the_field():
 
 
 def test_first_learning_decision_by_hand():
-    from ndp.rl.sac.learner import first_learning_decision
+    from ndp.rl.offpolicy.loop import first_learning_decision
 
     # 4 envs, k = 1: 5,000 random steps take 1,250 rounds (the last is round 1,249); a batch of
     # 256 is in after 64 rounds, so the random steps decide
@@ -184,13 +184,13 @@ def test_a_sac_run_that_could_never_learn_is_refused_before_its_folder(
 
 
 def _open(tmp_path, algo, task="point-mass", **kw):
-    from ndp.rl.config import PPOConfig, TrainConfig
+    from ndp.rl.config import TrainConfig
     from ndp.rl.run import open_run
 
     sac = SACConfig(**{"random_steps": 100, "batch_size": 32, **kw.pop("sac", {})})
     cfg = TrainConfig(task=task, algo=algo, steps=kw.pop("steps", 400), seed=0,
                       run_dir=str(tmp_path / algo), progress=False, tensorboard=False,
-                      vector="sync", num_envs=2, ppo=PPOConfig(steps_per_update=100), sac=sac,
+                      vector="sync", num_envs=2, steps_per_update=100, sac=sac,
                       eval_every=0, **kw)  # fmt: skip
     return open_run(cfg)
 

@@ -72,6 +72,15 @@ ALPHA = 0.05
 """Reading 1: the stratified permutation p below which NDP's best is "above"."""
 
 
+def _start(
+    cells: Sequence[Cell], seeds: Sequence[int], title: str
+) -> tuple[ArmRuns, list[str], list[str]]:
+    """The readings' start: the arms' runs (the conditional arms optional), the tasks in the
+    cells' order, and the section's first lines (``## <title> (docs/rl-regimes.md)``, blank)."""
+    r = ArmRuns(cells, seeds, CONDITIONAL)
+    return r, list(dict.fromkeys(c.task for c in cells)), [f"## {title} (docs/rl-regimes.md)", ""]
+
+
 def regimes_readings(cells: Sequence[Cell], seeds: Sequence[int]) -> tuple[list[str], list[CsvRow]]:
     """(Markdown lines, CSV rows) of the readings of ``ndp-regimes`` (see the module doc).
 
@@ -79,11 +88,8 @@ def regimes_readings(cells: Sequence[Cell], seeds: Sequence[int]) -> tuple[list[
         cells: the report's RL cells (``task``, ``label``, ``numbers`` per seed).
         seeds: the seeds every arm should have.
     """
-    r = ArmRuns(cells, seeds, CONDITIONAL)
-    tasks = list(dict.fromkeys(c.task for c in cells))
-    md = [
-        "## Pre-registered readings (docs/rl-regimes.md)",
-        "",
+    r, tasks, md = _start(cells, seeds, "Pre-registered readings")
+    md += [
         f"Applied by code (`ndp.experiments.report.regimes`) to the deterministic success area "
         f"of seeds {' '.join(map(str, seeds))} on {', '.join(tasks)}. A reading whose arms lack "
         "seeds waits for them.",
@@ -104,11 +110,8 @@ def regimes_1m_readings(
     """(Markdown lines, CSV rows) of ``ndp-regimes-1m``'s reading 8: reading 4's rule at 1M
     env steps, and NDP against PPO-multi at each k (permutation p, one-sided of each direction
     and two-sided with Holm's correction over the three k)."""
-    r = ArmRuns(cells, seeds, CONDITIONAL)
-    tasks = list(dict.fromkeys(c.task for c in cells))
-    md = [
-        "## Pre-registered reading 8 (docs/rl-regimes.md)",
-        "",
+    r, tasks, md = _start(cells, seeds, "Pre-registered reading 8")
+    md += [
         f"Deterministic success area, seeds {' '.join(map(str, seeds))}, {', '.join(tasks)}."
         + (" One seed: a direction, not a result." if len(seeds) == 1 else ""),
         "",
@@ -288,20 +291,23 @@ def compression(r: ArmRuns, tasks: Sequence[str], rows: list[CsvRow], number: st
     return [*md, ""]
 
 
-CHANGES = (
-    ("parameter noise, k = 5", "ndp", "ndp-param-k5", "ndp-k5"),
-    ("parameter noise, k = 10", "ndp", "ndp-param-k10", "ndp-k10"),
-    ("parameter noise, k = 20", "ndp", "ndp-param-k20", "ndp-k20"),
-    ("AR(1), k = 5", "ndp", "ndp-ar1-k5", "ndp-k5"),
-    ("AR(1), k = 5", "ppo-multi", "ppo-multi-ar1-k5", "ppo-multi-k5"),
-    ("AR(1), k = 1", "ppo", "ppo-ar1", "ppo"),
-    ("AR(1), k = 10", "ndp", "ndp-ar1-k10", "ndp-k10"),
-    ("AR(1), k = 10", "ppo-multi", "ppo-multi-ar1-k10", "ppo-multi-k10"),
-    ("AR(1), k = 20", "ndp", "ndp-ar1-k20", "ndp-k20"),
-    ("AR(1), k = 20", "ppo-multi", "ppo-multi-ar1-k20", "ppo-multi-k20"),
-    ("live reward (no stale world), k = 5", "ndp", "ndp-nostale", "ndp-k5"),
-    ("live reward (no stale world), k = 5", "ppo-multi", "ppo-multi-nostale", "ppo-multi-k5"),
-    ("N 10 (ndp-settings' winner; not in reading 1's pool), k = 5", "ndp", "ndp-tuned", "ndp-k5"),
+def _change(change: str, k: int, methods: Sequence[str], suffix: str) -> list[Change]:
+    """One change at k for each of ``methods``: the arm ``<method>-<suffix>`` against the
+    method's arm at that k (``<method>-k<k>``; PPO's at k = 1 is ``ppo``)."""
+    return [(f"{change}, k = {k}", m, f"{m}-{suffix}", m if k == 1 else f"{m}-k{k}")
+            for m in methods]  # fmt: skip
+
+
+Change = tuple[str, str, str, str]
+"""(change, method, arm, its reference arm)."""
+
+CHANGES: tuple[Change, ...] = (
+    *(c for k in (5, 10, 20) for c in _change("parameter noise", k, ("ndp",), f"param-k{k}")),
+    *_change("AR(1)", 5, ("ndp", "ppo-multi"), "ar1-k5"),
+    *_change("AR(1)", 1, ("ppo",), "ar1"),
+    *(c for k in (10, 20) for c in _change("AR(1)", k, ("ndp", "ppo-multi"), f"ar1-k{k}")),
+    *_change("live reward (no stale world)", 5, ("ndp", "ppo-multi"), "nostale"),
+    *_change("N 10 (ndp-settings' winner; not in reading 1's pool)", 5, ("ndp",), "tuned"),
 )
 """Readings 5 and 6 (and the tuned arm): (change, method, arm, its reference arm)."""
 

@@ -13,19 +13,10 @@ the defaults and the deviations.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from ndp.policies.config import PolicyConfig
 from ndp.rl.dyne.config import DyneConfig
-from ndp.rl.methods import (
-    OFF_POLICY_PPO_READS,
-    Method,
-    PolicyChanges,
-    Settings,
-    networks,
-    no_dmp,
-    register_learner,
-)
+from ndp.rl.methods import Method, Settings, register_learner, with_networks
 
 DYNE_METRICS = (
     "dyne/embed_loss",
@@ -37,29 +28,19 @@ DYNE_METRICS = (
 )
 """Extra ``metrics.csv`` columns of Dyn-E runs (docs/metrics.md)."""
 
-
-def resolve_dyne(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
-    """Dyn-E: no DMP; the TD3 actor is 400-300 ReLU (the original's) unless ``hidden`` /
-    ``activation`` are given."""
-    return {**no_dmp(policy, spec), **networks(policy, (400, 300), "relu")}
-
-
 register_learner(
     Settings("dyne", DyneConfig, "", "Dyn-E settings (--algo dyne only)."),
     Method(
         "dyne",
         "dyne",
         "Dyn-E: TD3 in a learned, dynamics-aware embedding of k-action sequences",
-        resolve=resolve_dyne,
+        resolve=with_networks((400, 300), "relu"),  # the original's TD3 actor
         metrics=DYNE_METRICS,
         learner="ndp.rl.dyne:DyneLearner",  # torch and the simulators only once it trains
         hint="Try smaller --actor-lr / --critic-lr or check the task's reward.",
-        reads=("dyne", *OFF_POLICY_PPO_READS, "ppo.norm_obs"),
+        reads=("dyne", "norm_obs"),
     ),
 )
-
-if TYPE_CHECKING:
-    from ndp.schema import TaskSchema
 
 
 def __getattr__(name: str) -> Any:

@@ -17,8 +17,9 @@ class DyneConfig:
     Only read by ``--algo dyne``. Defaults follow the original code (``embedding/main.py``,
     ``rl/main_dyne.py``, ``rl/EmbeddedTD3.py`` of willwhitney/dynamics-aware-embeddings) and
     TD3 (Fujimoto et al., 2018); docs/dyne.md lists each value with its source and every
-    deviation. The discount is ``--gamma`` (per env step, shared with PPO); the TD3 actor and
-    critics use ``--hidden`` / ``--activation`` (400-300 ReLU for Dyn-E, see docs/dyne.md).
+    deviation. The discount is the run's ``--gamma`` (per env step, every method's); the TD3
+    actor and critics use ``--hidden`` / ``--activation`` (400-300 ReLU for Dyn-E, see
+    docs/dyne.md).
     """
 
     explore_steps: int | None = None

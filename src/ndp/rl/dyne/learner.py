@@ -43,7 +43,6 @@ what it trained on (clipped to +- ``clip_obs``).
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 from typing import Any
@@ -54,15 +53,13 @@ from torch import nn
 from torch.nn import functional as F
 
 from ndp.nets.mlp import MLP
-from ndp.policies import build_actor_critic
 from ndp.policies.dyne import ActionDecoder, DyneHead, SequenceEmbedding
 from ndp.rl.config import TrainConfig
 from ndp.rl.dyne import DYNE_METRICS
 from ndp.rl.dyne.config import DyneConfig
-from ndp.rl.logger import METRICS
 from ndp.rl.methods import section, with_section
 from ndp.rl.normalize import ObsNormalizer
-from ndp.rl.offpolicy.loop import Decision, LoopBudget, OffPolicyLearner, mean_of
+from ndp.rl.offpolicy.loop import Decision, LoopBudget, OffPolicyLearner
 from ndp.rl.offpolicy.state import Part
 from ndp.rl.optim import soft_update
 from ndp.rl.replay import RingReplay
@@ -71,7 +68,6 @@ from ndp.runs.session import (
     RunSession,
     TrainingDivergedError,
     checkpoint_due,
-    nonfinite_parameter,
 )
 
 DEFAULT_EXPLORE_STEPS = 50_000
@@ -80,9 +76,6 @@ a sixth of the learning study's 300k budget (the original used 100k random 4-ste
 400k env steps, for budgets of 1M-10M env steps)."""
 DYNE_EXPLORE_STEPS = {"point-mass": 5_000, "point-mass-3d": 5_000}
 """Per-task presets of ``explore_steps`` (env steps of random action sequences)."""
-
-COLUMNS = (*METRICS, *DYNE_METRICS)
-"""Columns of a Dyn-E run's ``metrics.csv``."""
 
 
 def _dyne(cfg: TrainConfig) -> DyneConfig:
@@ -316,6 +309,9 @@ class DyneLearner(OffPolicyLearner):
     """
 
     section = "dyne"
+    own_columns = DYNE_METRICS
+    critic: TwinCritic
+    actor_target: nn.Module
 
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
         cfg = resolve_dyne_config(cfg)
@@ -325,7 +321,6 @@ class DyneLearner(OffPolicyLearner):
         self._open_loop(cfg, session, LoopBudget(0, d.batch_size, d.updates_per_step))
         self.gen = torch.Generator().manual_seed(cfg.seed)
         self.n_explore = explore_iterations(cfg)
-        self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         head = self.model.head
         assert isinstance(head, DyneHead)
         self.head: DyneHead = head
@@ -334,18 +329,14 @@ class DyneLearner(OffPolicyLearner):
         self.state_dim = 2 * int(self.spec.dmp_dofs)
         self.embedding = SequenceEmbedding(self.k, self.spec.action_dim, self.state_dim, self.L)
         assert pol.hidden is not None and pol.activation is not None  # resolve_config fills them
-        self.critic = TwinCritic(self.obs_dim, self.L, tuple(pol.hidden), pol.activation)
-        self.critic_target = copy.deepcopy(self.critic)
-        self.actor_target = copy.deepcopy(self.model.actor)
-        for net in (self.critic_target, self.actor_target):
-            net.requires_grad_(False)
+        self._open_critics(TwinCritic(self.obs_dim, self.L, tuple(pol.hidden), pol.activation),
+                           actor_target=self.model.actor)  # fmt: skip
         self.actor_opt = torch.optim.Adam(self.model.actor.parameters(), lr=d.actor_lr, fused=True)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=d.critic_lr, fused=True)
-        self._critic_params = list(self.critic.parameters())
         # identity statistics: TD3 sees raw observations (clipped), as eval will; the robot
         # state of the exploration data is the measured one
         self._open_collection(dyne_replay(d.replay_size, self.obs_dim, self.L, self.k),
-                              ObsNormalizer(self.obs_dim, cfg.ppo.clip_obs, cfg.ppo.norm_obs),
+                              ObsNormalizer(self.obs_dim, cfg.clip_obs, cfg.norm_obs),
                               "measured")  # fmt: skip
         self._low = np.asarray(self.spec.action_low, dtype=np.float64)
         self._high = np.asarray(self.spec.action_high, dtype=np.float64)
@@ -356,16 +347,9 @@ class DyneLearner(OffPolicyLearner):
         self._fitted: dict[str, float] = {}  # the fit's statistics, in its iteration's row
 
     # ----------------------------------------------------------------------- state
-    def parts(self) -> dict[str, Part]:
-        """Saved under ``dyne``: the embedding, critics, targets, optimisers."""
-        return {
-            "embedding": self.embedding,
-            "critic": self.critic,
-            "critic_target": self.critic_target,
-            "actor_target": self.actor_target,
-            "actor_opt": self.actor_opt,
-            "critic_opt": self.critic_opt,
-        }
+    def extra_parts(self) -> dict[str, Part]:
+        """The embedding (saved after the shared parts)."""
+        return {"embedding": self.embedding}
 
     def extra_state(self) -> dict[str, object]:
         """The torch generator, the TD3 phase's env steps, the embedding's statistics."""
@@ -388,17 +372,6 @@ class DyneLearner(OffPolicyLearner):
         self.embedding.eval()
         self.embedding.requires_grad_(False)
         self.head.requires_grad_(False)
-
-    @property
-    def columns(self) -> tuple[str, ...]:
-        """``metrics.csv``'s columns (docs/metrics.md)."""
-        return COLUMNS
-
-    def nonfinite(self) -> str | None:
-        """The first actor or critic parameter holding NaN / Inf, else None."""
-        return nonfinite_parameter(
-            [*self.model.actor.named_parameters(), *self.critic.named_parameters()]
-        )
 
     def checkpoint_due(self, every: int, last: int) -> bool:
         """Checkpoints start once the embedding is fitted (at the end of exploration), then
@@ -509,21 +482,16 @@ class DyneLearner(OffPolicyLearner):
         return out
 
     def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
-        """Dyn-E's columns of the row: TD3's (NaN during exploration), the embedding's fit
-        (its iteration only), the replay and the gradient steps."""
+        """Dyn-E's columns of the row: the shared ones (the learning rate NaN during
+        exploration), the exploration noise and the embedding's fit (its iteration only)."""
         in_rl = self.update > self.n_explore  # the loop has counted this iteration
         m = float(self.head.max_latent) if self.embedded else math.nan
         return {
-            "charts/learning_rate": self.settings.critic_lr if in_rl else math.nan,
-            "losses/policy": mean_of(losses, "actor"),
-            "losses/value": mean_of(losses, "critic"),
+            **self.loop_metrics(losses, self.settings.critic_lr if in_rl else math.nan),
             "policy/std": self.settings.expl_noise * m if in_rl else math.nan,
             "dyne/embed_loss": self._fitted.get("embed_loss", math.nan),
             "dyne/embed_kl": self._fitted.get("embed_kl", math.nan),
             "dyne/decoder_loss": self._fitted.get("decoder_loss", math.nan),
-            "dyne/q": mean_of(losses, "q"),
-            "dyne/replay": float(self.replay.size),
-            "dyne/gradient_steps": float(self.grad_steps),
         }
 
     def close(self) -> None:

@@ -25,6 +25,7 @@ its ``end_iteration`` fits the embedding, and its ``evaluate`` waits for the fit
 from __future__ import annotations
 
 import contextlib
+import copy
 import math
 import time
 from collections.abc import Iterator
@@ -33,18 +34,27 @@ from typing import Any, Protocol
 
 import numpy as np
 import torch
+from torch import nn
 
 from ndp.chunk_info import dmp_start_keys
+from ndp.policies import build_actor_critic
 from ndp.rl import envs as rl_envs
 from ndp.rl.config import TrainConfig
+from ndp.rl.logger import METRICS
+from ndp.rl.methods import SETTINGS
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.offpolicy.replay import DecisionReplay
 from ndp.rl.offpolicy.returns import bootstrap_discount, chunk_return
-from ndp.rl.offpolicy.state import OffPolicyState
+from ndp.rl.offpolicy.state import OffPolicyState, Part
 from ndp.rl.periodic_eval import PeriodicEvaluator
 from ndp.rl.progress import episode_charts
 from ndp.rl.replay import RingReplay
-from ndp.runs.session import CountsUpdates, RunSession, TrainingDivergedError
+from ndp.runs.session import (
+    CountsUpdates,
+    RunSession,
+    TrainingDivergedError,
+    nonfinite_parameter,
+)
 
 REPLAY_COLUMNS = ("obs", "y0", "dy0", "ret", "discount", "next_obs", "next_y0", "next_dy0")
 """Replay columns the loop fills itself (a batch holds them as [B, width] tensors; ``ret``
@@ -68,6 +78,56 @@ class LoopSettings(Protocol):
     def updates_per_step(self) -> float:
         """Gradient steps per executed env step."""
         ...
+
+
+class ReplaySettings(LoopSettings, Protocol):
+    """The loop's budget and the replay's size in a learner's settings (``SACConfig``,
+    ``TD3Config``: :func:`check_learning_budget`)."""
+
+    @property
+    def buffer_size(self) -> int:
+        """Replay capacity in env steps (decisions x k)."""
+        ...
+
+
+def replay_decisions(buffer_size: int, k: int) -> int:
+    """The decisions a replay of ``buffer_size`` env steps keeps: ceil(buffer_size / k)."""
+    return -(-buffer_size // k)
+
+
+def check_learning_budget(cfg: TrainConfig, section: str) -> None:
+    """Refuse (ValueError naming the argument) a run of a learner on the decision replay (the
+    SAC family, TD3) that can take no gradient step: a replay smaller than one batch, a budget
+    that ends before the random steps and the first batch are in, or one in which
+    ``updates_per_step`` never adds up to one gradient step. ``section``: the learner's
+    settings section (``cfg.sac``: ``"sac"``; its options ``--sac-*``)."""
+    s: ReplaySettings = getattr(cfg, section)
+    opt = f"--{SETTINGS[section].flag_prefix}"
+    k, E = cfg.k, cfg.num_envs
+    capacity = replay_decisions(s.buffer_size, k)
+    first = first_learning_decision(s.random_steps, s.batch_size, capacity, k, E)
+    if first is None:
+        raise ValueError(
+            f"{section}.buffer_size: expected at least batch_size x k = {s.batch_size * k} env "
+            f"steps (the replay keeps {capacity} decision(s) of k={k}; a gradient step samples "
+            f"{s.batch_size}), got {s.buffer_size} (use a larger {opt}-buffer-size or a smaller "
+            f"{opt}-batch-size)"
+        )
+    rounds = cfg.num_updates * cfg.decisions_per_env
+    if first >= rounds:
+        need = (first + 1) * E * k
+        raise ValueError(
+            f"steps: --algo {cfg.algo} takes its first gradient step after {need:,} env steps "
+            f"({section}.random_steps={s.random_steps:,} random env steps, then a batch of "
+            f"{section}.batch_size={s.batch_size} decisions from num_envs={E} envs), but the run "
+            f"trains {rounds * E * k:,} (use more --steps, or fewer {opt}-random-steps / a "
+            f"smaller {opt}-batch-size)"
+        )
+    if s.updates_per_step * (rounds - first) * E * k < 1.0:
+        raise ValueError(
+            f"{section}.updates_per_step: expected at least one gradient step in the run's "
+            f"{(rounds - first) * E * k:,} learning env steps, got {s.updates_per_step!r}"
+        )
 
 
 @dataclass(frozen=True)
@@ -152,38 +212,65 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
     :class:`OffPolicyAlgorithm`, and names its checkpoint's parts
     (:class:`ndp.rl.offpolicy.state.OffPolicyState`).
 
+    Every off-policy learner here is an actor-critic: the actor is the run's
+    :class:`ndp.policies.ActorCritic` (``model``, built by :meth:`_open_loop`), with twin
+    critics and their target (:meth:`_open_critics`; a TD3-style learner also keeps the
+    actor's target), an actor and a critic optimiser (``actor_opt``, ``critic_opt``); the
+    checkpoint's parts, the finite check and the row's shared columns follow from them.
+
     Attributes set by the loop: ``cfg``, ``spec``, ``session``, ``run``, ``k``, ``E``, ``T``,
-    ``gamma``, ``envs``, ``obs_dim``, ``replay``, ``obs_norm`` (what the observations pass
-    through before ``act`` and the replay; by default disabled: they enter unnormalised),
+    ``gamma``, ``envs``, ``obs_dim``, ``model``, ``replay``, ``obs_norm`` (what the observations
+    pass through before ``act`` and the replay; by default disabled: they enter unnormalised),
     ``evaluator``, ``low`` / ``high`` [A] (action bounds),
     ``rng`` (numpy, seeded with the run's seed: random actions and replay batches), ``frame``,
     ``update``, ``global_step``, ``grad_steps``, ``update_debt``.
     """
 
+    own_columns: tuple[str, ...] = ()
+    """The learner's own ``metrics.csv`` columns, after :data:`ndp.rl.logger.METRICS`."""
     random_steps: int
     batch_size: int
     updates_per_step: float
+    critic: nn.Module
+    critic_target: nn.Module
+    actor_target: nn.Module | None = None
+    """The actor's target (TD3 and Dyn-E), or None (the SAC family keeps none)."""
+    actor_opt: torch.optim.Optimizer
+    critic_opt: torch.optim.Optimizer
     _critic_params: list[torch.nn.Parameter]
 
     def _open_loop(self, cfg: TrainConfig, session: RunSession, settings: LoopSettings) -> None:
-        """Resolve the task and build the training envs (before any network: the order of
-        the global RNG's draws is the learner's); the loop's budget comes from ``settings``."""
+        """Resolve the task and build the training envs, then the actor (the run's
+        ``ActorCritic``, ``model``): the order of the global RNG's draws is every learner's;
+        the loop's budget comes from ``settings``."""
         task = rl_envs.resolve_task(cfg.task, **cfg.env_options())
         self.cfg, self.spec, self.session = cfg, task.spec, session
         self.run = session.run
         self.random_steps, self.batch_size = settings.random_steps, settings.batch_size
         self.updates_per_step = settings.updates_per_step
         self.k, self.E, self.T = cfg.k, cfg.num_envs, cfg.decisions_per_env
-        self.gamma = float(cfg.ppo.gamma)
+        self.gamma = float(cfg.gamma)
         self.envs, self.obs_dim = rl_envs.run_envs(cfg, task)
+        self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
 
-    def _open_replay(self, capacity: int, dims: dict[str, int]) -> None:
-        """The replay (``capacity`` decisions; the loop's columns plus the algorithm's
-        ``dims``), then the rest of :meth:`_open_collection`."""
+    def _open_critics(self, critic: nn.Module, actor_target: nn.Module | None = None) -> None:
+        """The twin critics ``critic`` (the parameters :meth:`_critics_frozen` freezes), their
+        target (a frozen copy) and, given ``actor_target`` (TD3: the actor), its frozen
+        copy."""
+        self.critic = critic
+        self.critic_target = copy.deepcopy(critic).requires_grad_(False)
+        if actor_target is not None:
+            self.actor_target = copy.deepcopy(actor_target).requires_grad_(False)
+        self._critic_params = list(critic.parameters())
+
+    def _open_replay(self, buffer_size: int, dims: dict[str, int]) -> None:
+        """The replay (``buffer_size`` env steps: :func:`replay_decisions` decisions; the
+        loop's columns plus the algorithm's ``dims``), then the rest of
+        :meth:`_open_collection`."""
         D = int(self.spec.dmp_dofs)
         cols = {"obs": self.obs_dim, "next_obs": self.obs_dim, **dims,
                 "y0": D, "dy0": D, "next_y0": D, "next_dy0": D}  # fmt: skip
-        self._open_collection(DecisionReplay(capacity, cols))
+        self._open_collection(DecisionReplay(replay_decisions(buffer_size, self.k), cols))
 
     def _open_collection(
         self, replay: RingReplay, obs_norm: ObsNormalizer | None = None, frame: str | None = None
@@ -194,7 +281,7 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
         policy's ``dmp_state``) and the counters."""
         self.replay = replay
         if obs_norm is None:
-            obs_norm = ObsNormalizer(self.obs_dim, self.cfg.ppo.clip_obs, enabled=False)
+            obs_norm = ObsNormalizer(self.obs_dim, self.cfg.clip_obs, enabled=False)
         self.obs_norm = obs_norm
         self.evaluator = PeriodicEvaluator(self.cfg, self.spec)
         self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
@@ -210,6 +297,43 @@ class OffPolicyLearner(OffPolicyState, CountsUpdates):
         self.update_debt = 0.0
         self._tracker = rl_envs.EpisodeTracker(self.E)
         self._started = False  # the envs are reset at the first iteration, after any restore
+
+    # ----------------------------------------------------------------------- the learner
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """``metrics.csv``'s columns (docs/metrics.md): the RL run's and :attr:`own_columns`."""
+        return (*METRICS, *self.own_columns)
+
+    def nonfinite(self) -> str | None:
+        """The first actor or critic parameter holding NaN / Inf, else None."""
+        return nonfinite_parameter(
+            [*self.model.actor.named_parameters(), *self.critic.named_parameters()]
+        )
+
+    def parts(self) -> dict[str, Part]:
+        """Saved under :attr:`section`: the critics, their target, the actor's target (where
+        kept), the two optimisers, then :meth:`extra_parts`."""
+        actor = {} if self.actor_target is None else {"actor_target": self.actor_target}
+        return {"critic": self.critic, "critic_target": self.critic_target, **actor,
+                "actor_opt": self.actor_opt, "critic_opt": self.critic_opt,
+                **self.extra_parts()}  # fmt: skip
+
+    def extra_parts(self) -> dict[str, Part]:
+        """The learner's own networks and optimisers to save (none by default)."""
+        return {}
+
+    def loop_metrics(self, losses: dict[str, list[float]], lr: float) -> dict[str, float]:
+        """The row's columns every off-policy learner fills: the learning rate ``lr``, the
+        iteration's mean actor and critic losses, and its section's mean Q, replay size and
+        gradient steps (``<section>/q``, ``/replay``, ``/gradient_steps``)."""
+        return {
+            "charts/learning_rate": lr,
+            "losses/policy": mean_of(losses, "actor"),
+            "losses/value": mean_of(losses, "critic"),
+            f"{self.section}/q": mean_of(losses, "q"),
+            f"{self.section}/replay": float(self.replay.size),
+            f"{self.section}/gradient_steps": float(self.grad_steps),
+        }
 
     # ----------------------------------------------------------------------- the algorithm
     def act(

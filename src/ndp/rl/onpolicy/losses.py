@@ -181,10 +181,8 @@ def gaussian_policy_loss(
         mean: [M, k, A] sub-action means (differentiable).
         log_std: [A] (or broadcastable to ``mean``) log standard deviations (differentiable).
         z: [M, k, A] the rollout's samples.
-        old_logp: [M, k] their log-probs at collection time.
-        adv: [M, k] advantages.
-        mask: [M, k] executed sub-steps.
-        clip: epsilon.
+        old_logp, adv, mask, clip: as for :func:`policy_loss`, per sub-step (L = k; old_logp:
+            the samples' log-probs at collection time).
 
     Returns:
         ``(loss, approx_kl, clipfrac)`` as :func:`policy_loss`.

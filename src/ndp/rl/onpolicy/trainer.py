@@ -129,8 +129,8 @@ class Trainer(CountsUpdates):
         p = cfg.ppo
         # one flat buffer: one clip and one fused Adam step per mini-batch (ndp.rl.optim)
         self.opt = FlatAdam(self.model, lr=p.lr, eps=p.adam_eps)
-        self.obs_norm = ObsNormalizer(obs_dim, p.clip_obs, p.norm_obs)
-        self.ret_norm = ReturnNormalizer(cfg.num_envs, p.gamma, p.clip_reward, p.norm_return)
+        self.obs_norm = ObsNormalizer(obs_dim, cfg.clip_obs, cfg.norm_obs)
+        self.ret_norm = ReturnNormalizer(cfg.num_envs, cfg.gamma, p.clip_reward, p.norm_return)
         self.low = torch.as_tensor(self.spec.action_low, dtype=torch.float32)
         self.high = torch.as_tensor(self.spec.action_high, dtype=torch.float32)
         # low <= high: one clamp is the minimum-then-maximum clip, bit for bit (decide)
@@ -294,7 +294,7 @@ class Trainer(CountsUpdates):
         if not self._started:
             self._start()
         E, T, k, D = self.num_envs, self.T, self.k, self._y0.shape[1]
-        gamma = self.cfg.ppo.gamma
+        gamma = self.cfg.gamma
         obs_b = torch.zeros(T, E, self.obs_dim)
         y0_b = torch.zeros(T, E, D)
         dy0_b = torch.zeros(T, E, D)
@@ -384,7 +384,7 @@ class Trainer(CountsUpdates):
             fin_n = torch.from_numpy(self.obs_norm(fin.reshape(-1, self.obs_dim)))
             with torch.no_grad():
                 v_fin = self.rollout_model.value(fin_n)[:, 0].numpy()
-            r_n = bootstrap_truncated(r_n, mask, boot, v_fin, self.cfg.ppo.gamma)
+            r_n = bootstrap_truncated(r_n, mask, boot, v_fin, self.cfg.gamma)
         for key in CTRL_INFO:
             if key in infos or "final_info" in infos:
                 ctrl[key] += float(step_info(infos, done, key).sum())

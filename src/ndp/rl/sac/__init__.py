@@ -19,19 +19,7 @@ defaults.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-from ndp.policies.config import PolicyConfig
-from ndp.rl.methods import (
-    OFF_POLICY_PPO_READS,
-    Method,
-    PolicyChanges,
-    Settings,
-    networks,
-    no_dmp,
-    register_learner,
-    resolve_ndp,
-)
+from ndp.rl.methods import Method, Settings, register_learner, with_networks
 from ndp.rl.sac.config import SACConfig
 
 SAC_METRICS = (
@@ -41,49 +29,27 @@ SAC_METRICS = (
     "sac/replay",
     "sac/gradient_steps",
 )
-
-if TYPE_CHECKING:
-    from ndp.schema import TaskSchema
 """Extra ``metrics.csv`` columns of the SAC family's runs (docs/metrics.md)."""
 
-
-def _sac_networks(policy: PolicyConfig) -> PolicyChanges:
-    """SAC's networks: 256-256 ReLU (actor and each critic) unless ``hidden`` / ``activation``
-    are given."""
-    return networks(policy, (256, 256), "relu")
-
-
-def resolve_sac(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
-    """SAC: one action per decision (k = 1), no DMP, 256-256 ReLU."""
-    return {**no_dmp(policy, spec), **_sac_networks(policy), "k": 1}
-
-
-def resolve_sac_chunk(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
-    """Chunked SAC: k actions per decision (``--k``), no DMP, 256-256 ReLU."""
-    return {**no_dmp(policy, spec), **_sac_networks(policy)}
-
-
-def resolve_ndp_sac(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
-    """NDP-SAC: the NDP head's task presets (:func:`ndp.rl.methods.resolve_ndp`), 256-256
-    ReLU."""
-    return {**resolve_ndp(policy, spec), **_sac_networks(policy)}
-
+SAC_NETWORKS = ((256, 256), "relu")
+"""SAC's networks (actor and each critic) unless ``--hidden`` / ``--activation`` are given."""
 
 _SAC = "ndp.rl.sac.learner:SACLearner"
 _SAC_HINT = "Try a smaller --sac-lr or check the task's reward."
-_SAC_READS = ("sac", *OFF_POLICY_PPO_READS)
+_SAC_READS = ("sac",)  # and the run's fields; not its observation normaliser
+_SAC_NDP_METRICS = (*SAC_METRICS, "dmp/goal_norm", "dmp/weight_norm")
 register_learner(
     Settings("sac", SACConfig, "sac", "SAC, chunked SAC and NDP-SAC settings (--algo sac / "
              "sac-chunk / ndp-sac only)."),
     Method("sac", "squashed", "SAC: twin critics, automatic temperature, tanh-squashed "
-           "Gaussian, one action per env step", resolve=resolve_sac, metrics=SAC_METRICS,
-           learner=_SAC, hint=_SAC_HINT, reads=_SAC_READS),
+           "Gaussian, one action per env step", resolve=with_networks(*SAC_NETWORKS, k=1),
+           metrics=SAC_METRICS, learner=_SAC, hint=_SAC_HINT, reads=_SAC_READS),
     Method("sac-chunk", "squashed", "Chunked SAC: k actions per decision executed open-loop, "
            "a critic of the whole chunk on the k-step return (Q-chunking)",
-           resolve=resolve_sac_chunk, metrics=SAC_METRICS, learner=_SAC, hint=_SAC_HINT,
-           reads=_SAC_READS),
+           resolve=with_networks(*SAC_NETWORKS), metrics=SAC_METRICS, learner=_SAC,
+           hint=_SAC_HINT, reads=_SAC_READS),
     Method("ndp-sac", "ndp-squashed", "NDP-SAC: SAC over the DMP's goal and forcing weights "
            "(entropy over the parameters), the NDP head turning them into k actions",
-           resolve=resolve_ndp_sac, metrics=(*SAC_METRICS, "dmp/goal_norm", "dmp/weight_norm"),
+           resolve=with_networks(*SAC_NETWORKS, dmp=True), metrics=_SAC_NDP_METRICS,
            learner=_SAC, hint=_SAC_HINT, reads=_SAC_READS),
 )  # fmt: skip

@@ -1,8 +1,9 @@
 """SAC's settings (``--algo sac``, ``sac-chunk``, ``ndp-sac``): one typed config, a field of
 ``ndp.rl.config.TrainConfig`` (``TrainConfig.sac``). Defaults are SAC's standard ones (Haarnoja
 et al. 2018, as Stable-Baselines3 ships them) except the random steps (5,000 instead of SB3's
-100, "a few thousand random steps first"). The discount is ``--gamma`` (per env step, shared
-with PPO); the networks are ``--hidden`` / ``--activation`` (256-256 ReLU for these methods)."""
+100, "a few thousand random steps first"). The discount is the run's ``--gamma`` (per env step,
+every method's); the networks are ``--hidden`` / ``--activation`` (256-256 ReLU for these
+methods)."""
 
 from __future__ import annotations
 

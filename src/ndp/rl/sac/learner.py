@@ -19,7 +19,6 @@ every RL run's).
 
 from __future__ import annotations
 
-import copy
 import math
 import warnings
 from typing import Any
@@ -28,13 +27,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from ndp.policies import build_actor_critic
 from ndp.policies.squashed import SquashedGaussian, SquashedNDPHead
 from ndp.rl.config import TrainConfig
-from ndp.rl.logger import METRICS
 from ndp.rl.methods import section
 from ndp.rl.offpolicy.critics import TwinQ as TwinQ  # re-exported (its old home)
-from ndp.rl.offpolicy.loop import OffPolicyLearner, first_learning_decision, mean_of
+from ndp.rl.offpolicy.loop import OffPolicyLearner, check_learning_budget, mean_of
 from ndp.rl.offpolicy.state import Part
 from ndp.rl.sac import SAC_METRICS
 from ndp.rl.sac.config import SACConfig
@@ -48,9 +45,6 @@ from ndp.rl.sac.losses import (
 )
 from ndp.runs.checkpoint import REAL, FiniteTensor, MayLack, Spec
 from ndp.runs.session import RunSession, nonfinite_parameter
-
-COLUMNS = (*METRICS, *SAC_METRICS)
-"""Columns of a SAC-family run's ``metrics.csv``."""
 
 
 def scores_params(head: nn.Module, critic_input: str) -> bool:
@@ -74,38 +68,6 @@ def critic_input(
     return torch.maximum(torch.minimum(dist.decode(u), high), low).flatten(1)
 
 
-def check_budget(cfg: TrainConfig) -> None:
-    """Refuse (ValueError naming the argument) a SAC-family run that can take no gradient step:
-    a replay smaller than one batch, or a budget that ends before the random steps and the
-    first batch are in (or before ``updates_per_step`` adds up to one gradient step)."""
-    s, k, E = section(cfg, SACConfig), cfg.k, cfg.num_envs
-    capacity = -(-s.buffer_size // k)
-    first = first_learning_decision(s.random_steps, s.batch_size, capacity, k, E)
-    if first is None:
-        raise ValueError(
-            f"sac.buffer_size: expected at least batch_size x k = {s.batch_size * k} env steps "
-            f"(the replay keeps {capacity} decision(s) of k={k}; a gradient step samples "
-            f"{s.batch_size}), got {s.buffer_size} (use a larger --sac-buffer-size or a smaller "
-            f"--sac-batch-size)"
-        )
-    rounds = cfg.num_updates * cfg.decisions_per_env
-    budget = rounds * E * k
-    if first >= rounds:
-        need = (first + 1) * E * k
-        raise ValueError(
-            f"steps: --algo {cfg.algo} takes its first gradient step after {need:,} env steps "
-            f"(sac.random_steps={s.random_steps:,} random env steps, then a batch of "
-            f"sac.batch_size={s.batch_size} decisions from num_envs={E} envs), but the run "
-            f"trains {budget:,} (use more --steps, or fewer --sac-random-steps / a smaller "
-            f"--sac-batch-size)"
-        )
-    if s.updates_per_step * (rounds - first) * E * k < 1.0:
-        raise ValueError(
-            f"sac.updates_per_step: expected at least one gradient step in the run's "
-            f"{(rounds - first) * E * k:,} learning env steps, got {s.updates_per_step!r}"
-        )
-
-
 class SACLearner(OffPolicyLearner):
     """SAC over decisions of k env steps (see the module docstring), on the shared
     off-policy loop (:class:`ndp.rl.offpolicy.loop.OffPolicyLearner`).
@@ -116,57 +78,42 @@ class SACLearner(OffPolicyLearner):
     """
 
     section = "sac"
+    own_columns = SAC_METRICS
 
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
-        check_budget(cfg)  # before any env is built
+        check_learning_budget(cfg, self.section)  # before any env is built
         s = self.settings = section(cfg, SACConfig)
         self._open_loop(cfg, session, s)
-        self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         self.P = self.model.head.n_params // 2
         self.is_ndp = isinstance(self.model.head, SquashedNDPHead)
         self.scores_params = scores_params(self.model.head, s.critic_input)
         c_dim = self.P if self.scores_params else self.k * self.spec.action_dim
         pol = cfg.policy
         assert pol.hidden is not None and pol.activation is not None  # resolve_config fills them
-        self.critic = TwinQ(
-            self.obs_dim, c_dim, tuple(pol.hidden), pol.activation, s.critic_layer_norm
+        self._open_critics(
+            TwinQ(self.obs_dim, c_dim, tuple(pol.hidden), pol.activation, s.critic_layer_norm)
         )
-        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
         self.log_alpha = torch.tensor(math.log(s.init_alpha), requires_grad=True)
         # fused Adam: one kernel for all tensors (the per-tensor loop of the default CPU Adam
         # was a tenth of a gradient step); same numbers up to rounding
         self.actor_opt = torch.optim.Adam(self.model.actor.parameters(), lr=s.lr, fused=True)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=s.lr, fused=True)
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=s.lr)
-        self._critic_params = list(self.critic.parameters())
         self.target_entropy = float(-self.P if s.target_entropy is None else s.target_entropy)
-        self._open_replay(-(-s.buffer_size // self.k), {"u": self.P, "critic_in": c_dim})
+        self._open_replay(s.buffer_size, {"u": self.P, "critic_in": c_dim})
         self.return_peak: float | None = None
         """The largest |mean training-episode return| of any update so far (None: no episode
         has ended yet); saved with the checkpoint (critic health, :mod:`ndp.rl.sac.health`)."""
         self._q_warned = False  # the runaway is said once per session
 
     # ----------------------------------------------------------------------- protocol
-    @property
-    def columns(self) -> tuple[str, ...]:
-        """``metrics.csv``'s columns (docs/metrics.md)."""
-        return COLUMNS
-
     def nonfinite(self) -> str | None:
         """The first actor or critic parameter (or the temperature) holding NaN / Inf."""
-        named = [*self.model.actor.named_parameters(), *self.critic.named_parameters(),
-                 ("log_alpha", self.log_alpha)]  # fmt: skip
-        return nonfinite_parameter(named)
+        return super().nonfinite() or nonfinite_parameter([("log_alpha", self.log_alpha)])
 
-    def parts(self) -> dict[str, Part]:
-        """Saved under ``sac``: critics, targets, optimisers."""
-        return {
-            "critic": self.critic,
-            "critic_target": self.critic_target,
-            "actor_opt": self.actor_opt,
-            "critic_opt": self.critic_opt,
-            "alpha_opt": self.alpha_opt,
-        }
+    def extra_parts(self) -> dict[str, Part]:
+        """The temperature's optimiser (saved after the shared parts)."""
+        return {"alpha_opt": self.alpha_opt}
 
     def extra_state(self) -> dict[str, object]:
         """The temperature and the critic-health peak."""
@@ -271,14 +218,9 @@ class SACLearner(OffPolicyLearner):
         }
 
     def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
-        """SAC's columns of the row: learning rate, losses, temperature, Q, replay, steps."""
+        """SAC's columns of the row: the shared ones and the temperature's."""
         return {
-            "charts/learning_rate": self.settings.lr,
-            "losses/policy": mean_of(losses, "actor"),
-            "losses/value": mean_of(losses, "critic"),
+            **self.loop_metrics(losses, self.settings.lr),
             "sac/alpha": float(self.log_alpha.detach().exp()),
             "sac/alpha_loss": mean_of(losses, "alpha"),
-            "sac/q": mean_of(losses, "q"),
-            "sac/replay": float(self.replay.size),
-            "sac/gradient_steps": float(self.grad_steps),
         }

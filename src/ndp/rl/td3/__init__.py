@@ -15,38 +15,17 @@ has the maths, the defaults with their sources and the deviations.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-from ndp.policies.config import PolicyConfig
-from ndp.rl.methods import (
-    OFF_POLICY_PPO_READS,
-    Method,
-    PolicyChanges,
-    Settings,
-    networks,
-    no_dmp,
-    register_learner,
-)
+from ndp.rl.methods import Method, Settings, register_learner, with_networks
 from ndp.rl.td3.config import TD3Config
-
-if TYPE_CHECKING:
-    from ndp.schema import TaskSchema
 
 TD3_METRICS = ("td3/q", "td3/replay", "td3/gradient_steps", "td3/actor_updates")
 """Extra ``metrics.csv`` columns of TD3 runs (docs/metrics.md)."""
 
-
-def resolve_td3(policy: PolicyConfig, spec: TaskSchema) -> PolicyChanges:
-    """TD3: one action per decision (k = 1), no DMP, 400-300 ReLU (SB3's default ``net_arch``
-    for TD3 and the paper's) unless ``hidden`` / ``activation`` are given."""
-    return {**no_dmp(policy, spec), **networks(policy, (400, 300), "relu"), "k": 1}
-
-
 register_learner(
     Settings("td3", TD3Config, "td3", "TD3 settings (--algo td3 only)."),
     Method("td3", "squashed", "TD3: twin critics, clipped double-Q, target smoothing, delayed "
-           "actor updates, Gaussian exploration; one action per env step", resolve=resolve_td3,
+           "actor updates, Gaussian exploration; one action per env step",
+           resolve=with_networks((400, 300), "relu", k=1),  # SB3's net_arch for TD3, the paper's
            metrics=TD3_METRICS, learner="ndp.rl.td3.learner:TD3Learner",
-           hint="Try a smaller --td3-lr or check the task's reward.",
-           reads=("td3", *OFF_POLICY_PPO_READS)),
+           hint="Try a smaller --td3-lr or check the task's reward.", reads=("td3",)),
 )  # fmt: skip

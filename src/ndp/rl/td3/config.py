@@ -7,9 +7,9 @@ tau 0.005, policy delay 2, target policy noise 0.2 clipped at 0.5, one gradient 
 step. Two values are not SB3's defaults: the exploration noise, N(0, 0.1^2) on the bounded
 action (the paper's; SB3's default is no noise and its documentation's example passes
 ``NormalActionNoise(sigma=0.1)``), and the random steps, 5,000 (our SAC's convention; SB3's
-``learning_starts`` is 100). The discount is ``--gamma`` (per env step, shared with PPO); the
-networks are ``--hidden`` / ``--activation``, 400-300 ReLU for TD3 (SB3's default ``net_arch``
-for TD3 and the paper's). docs/offpolicy.md, "TD3", has the maths and the sources.
+``learning_starts`` is 100). The discount is the run's ``--gamma`` (per env step, every
+method's); the networks are ``--hidden`` / ``--activation``, 400-300 ReLU for TD3 (SB3's default
+``net_arch`` for TD3 and the paper's). docs/offpolicy.md, "TD3", has the maths and the sources.
 """
 
 from __future__ import annotations

@@ -25,20 +25,16 @@ checkpoint's ``td3`` key.
 
 from __future__ import annotations
 
-import copy
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
 
-from ndp.policies import build_actor_critic
 from ndp.policies.squashed import SquashedGaussian
 from ndp.rl.config import TrainConfig
-from ndp.rl.logger import METRICS
 from ndp.rl.methods import section
 from ndp.rl.offpolicy.critics import TwinQ
-from ndp.rl.offpolicy.loop import OffPolicyLearner, first_learning_decision, mean_of
-from ndp.rl.offpolicy.state import Part
+from ndp.rl.offpolicy.loop import OffPolicyLearner, check_learning_budget
 from ndp.rl.optim import soft_update
 from ndp.rl.td3 import TD3_METRICS
 from ndp.rl.td3.config import TD3Config
@@ -51,37 +47,10 @@ from ndp.rl.td3.losses import (
     td3_target,
 )
 from ndp.runs.checkpoint import INT, Spec
-from ndp.runs.session import RunSession, nonfinite_parameter
+from ndp.runs.session import RunSession
 
 if TYPE_CHECKING:
     from ndp.policies import ActorCritic
-
-COLUMNS = (*METRICS, *TD3_METRICS)
-"""Columns of a TD3 run's ``metrics.csv``."""
-
-
-def check_budget(cfg: TrainConfig) -> None:
-    """Refuse (ValueError naming the argument) a TD3 run that can take no gradient step: a
-    replay smaller than one batch, or a budget that ends before the random steps and the first
-    batch are in."""
-    s, k, E = section(cfg, TD3Config), cfg.k, cfg.num_envs
-    capacity = -(-s.buffer_size // k)
-    first = first_learning_decision(s.random_steps, s.batch_size, capacity, k, E)
-    if first is None:
-        raise ValueError(
-            f"td3.buffer_size: expected at least batch_size x k = {s.batch_size * k} env steps, "
-            f"got {s.buffer_size} (use a larger --td3-buffer-size or a smaller --td3-batch-size)"
-        )
-    rounds = cfg.num_updates * cfg.decisions_per_env
-    if first >= rounds:
-        need = (first + 1) * E * k
-        raise ValueError(
-            f"steps: --algo td3 takes its first gradient step after {need:,} env steps "
-            f"(td3.random_steps={s.random_steps:,}, then a batch of td3.batch_size="
-            f"{s.batch_size} decisions from num_envs={E} envs), but the run trains "
-            f"{rounds * E * k:,} (use more --steps, or fewer --td3-random-steps / a smaller "
-            f"--td3-batch-size)"
-        )
 
 
 class TD3Learner(OffPolicyLearner):
@@ -93,46 +62,24 @@ class TD3Learner(OffPolicyLearner):
     """
 
     section = "td3"
+    own_columns = TD3_METRICS
+    actor_target: ActorCritic
 
     def __init__(self, cfg: TrainConfig, session: RunSession) -> None:
-        check_budget(cfg)  # before any env is built
+        check_learning_budget(cfg, self.section)  # before any env is built
         s = self.settings = section(cfg, TD3Config)
         self._open_loop(cfg, session, s)
-        self.model = build_actor_critic(self.obs_dim, self.spec, cfg.policy)
         self.P = self.model.head.n_params // 2
         pol = cfg.policy
         assert pol.hidden is not None and pol.activation is not None  # resolve_config fills them
-        self.critic = TwinQ(self.obs_dim, self.P, tuple(pol.hidden), pol.activation)
-        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
-        self.actor_target = copy.deepcopy(self.model).requires_grad_(False)
+        self._open_critics(TwinQ(self.obs_dim, self.P, tuple(pol.hidden), pol.activation),
+                           actor_target=self.model)  # fmt: skip
         self.actor_opt = torch.optim.Adam(self.model.actor.parameters(), lr=s.lr)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=s.lr)
-        self._critic_params = list(self.critic.parameters())
-        self._open_replay(-(-s.buffer_size // self.k), {"u": self.P, "critic_in": self.P})
+        self._open_replay(s.buffer_size, {"u": self.P, "critic_in": self.P})
         self.actor_updates = 0
 
     # ----------------------------------------------------------------------- protocol
-    @property
-    def columns(self) -> tuple[str, ...]:
-        """``metrics.csv``'s columns (docs/metrics.md)."""
-        return COLUMNS
-
-    def nonfinite(self) -> str | None:
-        """The first actor or critic parameter holding NaN / Inf."""
-        return nonfinite_parameter(
-            [*self.model.actor.named_parameters(), *self.critic.named_parameters()]
-        )
-
-    def parts(self) -> dict[str, Part]:
-        """Saved under ``td3``: critics, targets, optimisers."""
-        return {
-            "critic": self.critic,
-            "critic_target": self.critic_target,
-            "actor_target": self.actor_target,
-            "actor_opt": self.actor_opt,
-            "critic_opt": self.critic_opt,
-        }
-
     def extra_state(self) -> dict[str, object]:
         """The count of actor updates."""
         return {"actor_updates": self.actor_updates}
@@ -204,13 +151,6 @@ class TD3Learner(OffPolicyLearner):
         return out
 
     def algorithm_metrics(self, losses: dict[str, list[float]]) -> dict[str, float]:
-        """TD3's columns of the row: learning rate, losses, Q, replay, step counts."""
-        return {
-            "charts/learning_rate": self.settings.lr,
-            "losses/policy": mean_of(losses, "actor"),
-            "losses/value": mean_of(losses, "critic"),
-            "td3/q": mean_of(losses, "q"),
-            "td3/replay": float(self.replay.size),
-            "td3/gradient_steps": float(self.grad_steps),
-            "td3/actor_updates": float(self.actor_updates),
-        }
+        """TD3's columns of the row: the shared ones and the count of actor updates."""
+        return {**self.loop_metrics(losses, self.settings.lr),
+                "td3/actor_updates": float(self.actor_updates)}  # fmt: skip

@@ -29,7 +29,9 @@ test: $(STAMP)
 	$(BIN)/ruff check setup.py src tests benchmarks docs/api
 	$(BIN)/ruff format --check setup.py src tests benchmarks docs/api
 	$(BIN)/mypy
-	$(BIN)/python -m pytest -q
+	# 2 pytest-xdist workers (the CI machine has 2 cores); --dist loadgroup keeps each
+	# xdist_group on one worker (tests/conftest.py: one torch thread per worker)
+	$(BIN)/python -m pytest -q -n 2 --dist loadgroup
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow

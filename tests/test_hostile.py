@@ -31,7 +31,8 @@ import pytest
 
 from ndp.cli import main as ndp_main
 
-pytestmark = pytest.mark.hostile
+# one worker under xdist (root and outcomes: the catalogue's runs, built once)
+pytestmark = [pytest.mark.hostile, pytest.mark.xdist_group("hostile")]
 
 RL = ["--task", "point-mass", "--algo", "ndp", "--steps-per-update", "256", "--minibatches", "2",
       "--vector", "sync", "--num-envs", "2", "--no-progress", "--no-tensorboard"]  # fmt: skip

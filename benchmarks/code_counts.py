@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
-PYTEST_ARGS = ("-n", "2", "--dist", "loadgroup")  # as `make test`
+PYTEST_ARGS = ("-n", "2", "--dist", "loadfile")  # as `make test`
 SRC = ROOT / "src" / "ndp"
 
 

@@ -1,6 +1,6 @@
 """Setup of the whole suite: one BLAS / torch thread per pytest-xdist worker.
 
-``make test`` runs the suite on 2 workers (``-n 2 --dist loadgroup``) on a 2-core machine; a
+``make test`` runs the suite on 2 workers (``-n 2 --dist loadfile``) on a 2-core machine; a
 worker that also ran torch (or numpy's BLAS) on 2 threads would make 4 busy threads on 2 cores.
 The variables are set before any test module imports torch (torch reads ``OMP_NUM_THREADS`` at
 import), and the training subprocesses that tests start inherit them. A test that sets torch's
@@ -8,9 +8,10 @@ threads itself (a trainer's ``threads`` setting) is followed by a reset to 1, so
 on that worker starts from one thread as it would in a fresh process. A serial run (no
 ``PYTEST_XDIST_WORKER``) is left as it was.
 
-Tests that must stay on one worker (a module-scope fixture worth running once, a shared
-resource) carry ``pytest.mark.xdist_group(name)``: ``--dist loadgroup`` sends a group to a
-single worker.
+``--dist loadfile`` keeps each test file on one worker: a module-scope fixture (a training, a
+report, the API reference build) runs once, as in a serial run. (``--dist loadgroup`` with
+``xdist_group`` marks would group finer, but pytest-xdist 3.8.0 loses the marks under pytest 9.2:
+pytest-xdist issue 1386.)
 
 At the end, the controller prints each worker's share: tests run, seconds spent in tests and the
 CPU seconds of the worker and of the subprocesses it waited for (the balance of the two).

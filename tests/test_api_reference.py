@@ -19,8 +19,6 @@ import pytest
 
 import ndp
 
-# one worker under xdist (the reference is built once (a session fixture))
-pytestmark = pytest.mark.xdist_group("api-reference")
 ROOT = Path(__file__).resolve().parents[1]
 BUILD = ROOT / "docs" / "api" / "build.py"
 SRC = Path(ndp.__file__).resolve().parents[1]  # the ndp under test (editable install or PYTHONPATH)

@@ -31,8 +31,7 @@ import pytest
 
 from ndp.cli import main as ndp_main
 
-# one worker under xdist (root and outcomes: the catalogue's runs, built once)
-pytestmark = [pytest.mark.hostile, pytest.mark.xdist_group("hostile")]
+pytestmark = pytest.mark.hostile
 
 RL = ["--task", "point-mass", "--algo", "ndp", "--steps-per-update", "256", "--minibatches", "2",
       "--vector", "sync", "--num-envs", "2", "--no-progress", "--no-tensorboard"]  # fmt: skip

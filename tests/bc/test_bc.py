@@ -12,9 +12,6 @@ from ndp.bc.demos import collect, load_demos, save_demos
 from ndp.bc.train import BCConfig, train_bc
 from ndp.cli import main as ndp_main
 
-# one worker under xdist (toy_demos: collected once)
-pytestmark = pytest.mark.xdist_group("bc")
-
 
 @pytest.fixture(scope="module")
 def toy_demos(tmp_path_factory):

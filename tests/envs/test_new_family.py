@@ -18,8 +18,6 @@ from ndp.envs import TASKS, TaskSpec, register_task  # noqa: E402
 from ndp.envs.base import NDPEnv, defer_seed  # noqa: E402
 from ndp.envs.factory import FAMILIES  # noqa: E402
 
-# one worker under xdist (slider: the family registered once)
-pytestmark = pytest.mark.xdist_group("new-family")
 STEP = 0.05  # m per unit action
 
 

@@ -19,8 +19,6 @@ from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.rl.run import train
 from ndp.runs import load_checkpoint, read_metrics
 
-# one worker under xdist (multi_run: one training, once)
-pytestmark = pytest.mark.xdist_group("chunk-basis-train")
 ZOO = Path(__file__).resolve().parents[2] / "zoo"
 K = 10  # point-mass: n_basis 6, so 7 columns need k >= 7
 TINY = PPOConfig(steps_per_update=400, minibatches=2, epochs=2, lr=1e-3)

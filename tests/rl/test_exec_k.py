@@ -30,8 +30,6 @@ from ndp.rl.run import train
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-# one worker under xdist (toy_run: one training, once)
-pytestmark = pytest.mark.xdist_group("exec-k")
 FAST = PPOConfig(steps_per_update=512, minibatches=4, lr=1e-3)
 
 

@@ -13,8 +13,6 @@ import ndp
 from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.rl.run import train
 
-# one worker under xdist (push_run: one training, once)
-pytestmark = pytest.mark.xdist_group("rl-policy")
 FAST = PPOConfig(steps_per_update=512, minibatches=4)
 
 

@@ -15,8 +15,6 @@ import pytest
 from ndp.cli import main
 from ndp.experiments.report import MissingSeedsError, report, success_at
 
-# one worker under xdist (release_report: one report, built once)
-pytestmark = pytest.mark.xdist_group("report-release")
 BUDGET = 1000
 
 

@@ -29,7 +29,10 @@ test: $(STAMP)
 	$(BIN)/ruff check setup.py src tests benchmarks docs/api
 	$(BIN)/ruff format --check setup.py src tests benchmarks docs/api
 	$(BIN)/mypy
-	$(BIN)/python -m pytest -q
+	# 2 pytest-xdist workers (the CI machine has 2 cores), one torch thread each
+	# (tests/conftest.py); --dist loadfile: a test file runs on one worker, so a module-scope
+	# fixture (a training, the API reference build) runs once
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow

@@ -12,13 +12,13 @@ What it counts, over ``src/ndp`` (the package):
   (the one ``check_int`` family);
 - ``duplicates``: the pairs the ``duplicates`` command finds (target <= 15), when that command
   is on the PATH (a tool of the development machines, not a dependency; otherwise null);
-- ``tests_seconds`` with ``--pytest``: the default test suite's wall time (target <= 720 s on
-  2 cores).
+- ``tests`` with ``--pytest``: the default test suite's wall time (target <= 720 s on 2 cores),
+  its CPU seconds, the load average before and after and each xdist worker's share.
 
 Example::
 
     python benchmarks/code_counts.py            # counts only (seconds)
-    python benchmarks/code_counts.py --pytest   # and the default suite's wall time
+    python benchmarks/code_counts.py --pytest   # and the default suite's wall / CPU time
 """
 
 from __future__ import annotations
@@ -26,7 +26,9 @@ from __future__ import annotations
 import argparse
 import ast
 import json
+import os
 import re
+import resource
 import shutil
 import subprocess
 import sys
@@ -35,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
+PYTEST_ARGS = ("-n", "2", "--dist", "loadfile")  # as `make test`
 SRC = ROOT / "src" / "ndp"
 
 
@@ -110,13 +113,24 @@ def duplicates() -> dict[str, Any] | None:
 
 
 def tests_seconds() -> dict[str, Any]:
-    """Wall time of the default suite (``python -m pytest -q``, as ``make test`` runs it)."""
+    """Wall and CPU time of the default suite as ``make test`` runs it (2 pytest-xdist workers),
+    with the load average beside: on a machine shared with other work the wall time is not the
+    quiet-machine one, the CPU seconds (the suite's processes and their subprocesses) are."""
+    load_before = os.getloadavg()
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    res = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"],
-                         cwd=ROOT, capture_output=True, text=True)  # fmt: skip
-    last = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
-    return {"seconds": round(time.perf_counter() - t0, 1), "returncode": res.returncode,
-            "summary": last}  # fmt: skip
+    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *PYTEST_ARGS]
+    res = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
+    lines = res.stdout.strip().splitlines()
+    workers = [line for line in lines if re.match(r"gw\d+: \d+ tests", line)]
+    return {"seconds": round(wall, 1), "cpu_seconds": round(cpu, 1),
+            "load_before": [round(x, 2) for x in load_before],
+            "load_after": [round(x, 2) for x in os.getloadavg()],
+            "workers": workers, "returncode": res.returncode,
+            "summary": lines[-1] if lines else ""}  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:

@@ -128,7 +128,9 @@ def _start(argv: list[str], log: Path) -> subprocess.Popen:
                             stderr=subprocess.STDOUT, env=env)  # fmt: skip
 
 
-def _wait_for(cond, proc: subprocess.Popen, log: Path, timeout: float = 60.0) -> None:
+# a bound, not a speed check: polled every 0.1 s; 60 s ran out once under a load of 10 on 2 cores
+# (the first run took 34 s of it, the second had not checkpointed when the wait gave up)
+def _wait_for(cond, proc: subprocess.Popen, log: Path, timeout: float = 180.0) -> None:
     t0 = time.time()
     while not cond():
         if proc.poll() is not None or time.time() - t0 > timeout:

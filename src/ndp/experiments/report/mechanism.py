@@ -160,6 +160,11 @@ def basis_reading(r: ArmRuns, k: int, rows: list[CsvRow]) -> list[str]:
     return md
 
 
+def _basis_row(k: int, arm: str, vs: str, **numbers: str | float) -> CsvRow:
+    """One CSV row of reading 2 at ``k``."""
+    return {"reading": "2", "task": BASIS_TASK, "k": k, "arm": arm, "vs": vs, **numbers}
+
+
 def _basis_verdicts(
     k: int,
     st: dict[str, tuple[float, float] | None],
@@ -168,83 +173,70 @@ def _basis_verdicts(
     rows: list[CsvRow],
 ) -> list[str]:
     """The registered sentences of reading 2 at ``k`` (one bullet each)."""
-    out = []
+    return [
+        _dmp_verdict(k, st, rows),
+        _restriction_verdict(k, sides, rows),
+        _ndp_verdict(k, ndp, st["dmp"], rows),
+    ]
+
+
+def _dmp_verdict(k: int, st: dict[str, tuple[float, float] | None], rows: list[CsvRow]) -> str:
+    """The dmp basis against the DCT and B-spline bases: within both spreads, below both, or
+    neither rule."""
     dmp, dct, bsp = st["dmp"], st["dct"], st["bspline"]
     if dmp is None or dct is None or bsp is None:
-        out.append("- dmp against the generic bases: waits for the dmp, dct and bspline arms.")
+        return "- dmp against the generic bases: waits for the dmp, dct and bspline arms."
+    vs = [_side(dmp, dct)[2], _side(dmp, bsp)[2]]
+    if vs == ["within", "within"]:
+        verdict = "a low-dimensional basis, not the DMP"
+    elif vs == ["below", "below"]:
+        verdict = "the DMP's span is a poor basis"
     else:
-        vs = [_side(dmp, dct)[2], _side(dmp, bsp)[2]]
-        if vs == ["within", "within"]:
-            verdict = "a low-dimensional basis, not the DMP"
-        elif vs == ["below", "below"]:
-            verdict = "the DMP's span is a poor basis"
-        else:
-            verdict = "neither rule (dmp - dct " + vs[0] + ", dmp - bspline " + vs[1] + ")"
-        out.append(f"- dmp against dct and bspline: **{verdict}**.")
-        rows.append(
-            {
-                "reading": "2",
-                "task": BASIS_TASK,
-                "k": k,
-                "arm": "dmp-basis",
-                "vs": "dct bspline",
-                "side": " ".join(vs),
-                "verdict": verdict,
-            }
-        )
+        verdict = "neither rule (dmp - dct " + vs[0] + ", dmp - bspline " + vs[1] + ")"
+    rows.append(_basis_row(k, "dmp-basis", "dct bspline", side=" ".join(vs), verdict=verdict))
+    return f"- dmp against dct and bspline: **{verdict}**."
+
+
+def _restriction_verdict(k: int, sides: dict[str, str], rows: list[CsvRow]) -> str:
+    """Every generic basis above free PPO-multi by more than the spread (helps), every one
+    below (hurts), or neither; waits while a generic basis lacks runs."""
     generic = [sides.get(basis_label(b, k)) for b in GENERIC_BASES]
     if any(s is None for s in generic):
         known = [b for b, s in zip(GENERIC_BASES, generic, strict=True) if s is not None]
         waits = ", ".join(b for b in GENERIC_BASES if b not in known)
         so_far = ", ".join(f"{b} {sides[basis_label(b, k)]}" for b in known)
-        out.append(
-            f"- restriction at this k: waits for {waits}"
-            + (f" ({so_far} so far)." if known else ".")
+        return f"- restriction at this k: waits for {waits}" + (
+            f" ({so_far} so far)." if known else "."
         )
-    else:
-        verdict = (
-            "restriction helps at large k"
-            if all(s == "above" for s in generic)
-            else "restriction hurts"
-            if all(s == "below" for s in generic)
-            else "neither (not every generic basis on one side of free PPO-multi)"
-        )
-        out.append(f"- generic bases against free PPO-multi: **{verdict}**.")
-        rows.append(
-            {
-                "reading": "2",
-                "task": BASIS_TASK,
-                "k": k,
-                "arm": "generic-bases",
-                "vs": free_label(k),
-                "side": " ".join(str(s) for s in generic),
-                "verdict": verdict,
-            }
-        )
+    verdict = (
+        "restriction helps at large k"
+        if all(s == "above" for s in generic)
+        else "restriction hurts"
+        if all(s == "below" for s in generic)
+        else "neither (not every generic basis on one side of free PPO-multi)"
+    )
+    side = " ".join(str(s) for s in generic)
+    rows.append(_basis_row(k, "generic-bases", free_label(k), side=side, verdict=verdict))
+    return f"- generic bases against free PPO-multi: **{verdict}**."
+
+
+def _ndp_verdict(
+    k: int, ndp: tuple[float, float] | None, dmp: tuple[float, float] | None, rows: list[CsvRow]
+) -> str:
+    """NDP against the dmp basis (the same span): level within the spread, or not."""
     if ndp is None or dmp is None:
-        out.append("- NDP against the dmp basis: waits for both arms.")
-    else:
-        diff, spread, side = _side(ndp, dmp)
-        verdict = (
-            "level: the DMP head loses nothing to its linear span at this k"
-            if side == "within"
-            else f"NDP {side} the dmp basis by more than the spread"
-        )
-        out.append(f"- NDP - dmp basis {diff:+.3f} (spread {spread:.3f}): **{verdict}**.")
-        rows.append(
-            {
-                "reading": "2",
-                "task": BASIS_TASK,
-                "k": k,
-                "arm": ndp_label(k),
-                "vs": basis_label("dmp", k),
-                "diff": diff,
-                "spread": spread,
-                "side": side,
-                "verdict": verdict,
-            }
-        )
-    return out
+        return "- NDP against the dmp basis: waits for both arms."
+    diff, spread, side = _side(ndp, dmp)
+    verdict = (
+        "level: the DMP head loses nothing to its linear span at this k"
+        if side == "within"
+        else f"NDP {side} the dmp basis by more than the spread"
+    )
+    rows.append(
+        _basis_row(k, ndp_label(k), basis_label("dmp", k), diff=diff, spread=spread, side=side,
+                   verdict=verdict)
+    )  # fmt: skip
+    return f"- NDP - dmp basis {diff:+.3f} (spread {spread:.3f}): **{verdict}**."
 
 
 def rewards_reading(r: ArmRuns, rows: list[CsvRow]) -> list[str]:
@@ -260,55 +252,55 @@ def rewards_reading(r: ArmRuns, rows: list[CsvRow]) -> list[str]:
     wins, complete = [], True
     for task in REWARD_TASKS:
         for v in REWARD_VARIANTS:
-            x = r.values(task, f"ndp-{v}")
-            base = {m: r.values(task, f"{m}-{v}") for m in ("ppo-multi", "ppo")}
-            if x is None or any(b is None for b in base.values()):
+            row = _reward_cell(r, task, v)
+            if row is None:
                 complete = False
                 md.append(f"| {task} | {v} | waits | | | | | |")
                 continue
-            means = {m: float(b.mean()) for m, b in base.items() if b is not None}
-            best = max(means, key=lambda m: (means[m], m == "ppo-multi"))
-            y = base[best]
-            assert y is not None
-            p = stats.probability_of_improvement(x[:, None], y[:, None])
-            lo, hi = stats.probability_of_improvement_ci(x[:, None], y[:, None])
-            win = p >= IMPROVEMENT_RULE
+            rows.append(row)
+            p, win = float(row["p_improvement"]), row["verdict"] == "should win here"
             if win:
                 wins.append((p, task, v))
             md.append(
-                f"| {task} | {v} | {x.mean():.3f} | {means['ppo-multi']:.3f} | {means['ppo']:.3f} "
-                f"| {best} | {p:.2f} [{lo:.2f}, {hi:.2f}] | {'yes' if win else 'no'} |"
+                f"| {task} | {v} | {row['mean']:.3f} | {row['ppo_multi_mean']:.3f} | "
+                f"{row['ppo_mean']:.3f} | {str(row['vs']).removesuffix('-' + v)} | {p:.2f} "
+                f"[{row['ci_low']:.2f}, {row['ci_high']:.2f}] | {'yes' if win else 'no'} |"
             )
-            rows.append(
-                {
-                    "reading": "3",
-                    "task": task,
-                    "reward": v,
-                    "arm": f"ndp-{v}",
-                    "vs": f"{best}-{v}",
-                    "mean": float(x.mean()),
-                    "vs_mean": means[best],
-                    "p_improvement": p,
-                    "ci_low": lo,
-                    "ci_high": hi,
-                    "verdict": "should win here" if win else "no",
-                }
-            )
-    md.append("")
+    return [*md, "", _rewards_answer(wins, complete), ""]
+
+
+def _reward_cell(r: ArmRuns, task: str, v: str) -> CsvRow | None:
+    """Reading 3's row of one (task, variant): NDP against the baseline with the higher mean
+    (a tie: PPO-multi), P(improvement) with its interval and the verdict; None while an arm
+    lacks seeds."""
+    x = r.values(task, f"ndp-{v}")
+    base = {m: r.values(task, f"{m}-{v}") for m in ("ppo-multi", "ppo")}
+    ys = {m: b for m, b in base.items() if b is not None}
+    if x is None or len(ys) < len(base):
+        return None
+    means = {m: float(b.mean()) for m, b in ys.items()}
+    best = max(means, key=lambda m: (means[m], m == "ppo-multi"))
+    p = stats.probability_of_improvement(x[:, None], ys[best][:, None])
+    lo, hi = stats.probability_of_improvement_ci(x[:, None], ys[best][:, None])
+    return {"reading": "3", "task": task, "reward": v, "arm": f"ndp-{v}", "vs": f"{best}-{v}",
+            "mean": float(x.mean()), "vs_mean": means[best], "ppo_multi_mean": means["ppo-multi"],
+            "ppo_mean": means["ppo"], "p_improvement": p, "ci_low": lo, "ci_high": hi,
+            "verdict": "should win here" if p >= IMPROVEMENT_RULE else "no"}  # fmt: skip
+
+
+def _rewards_answer(wins: list[tuple[float, str, str]], complete: bool) -> str:
+    """Reading 3's sentence: the cells that reach the rule, or the registered negative answer."""
     if wins:
         cells = "; ".join(f"{t} {v} ({p:.2f})" for p, t, v in sorted(wins, reverse=True))
-        md.append(
+        return (
             f"NDP **should win here** (P(improvement) >= {IMPROVEMENT_RULE}): {cells}. By the "
             "registered rule these cells run 10 seeds (tested then: NDP - PPO-multi and NDP - "
             "PPO on that cell, Holm over the two), and the best of them 1M env steps."
         )
-    elif complete:
-        md.append(
+    if complete:
+        return (
             f"No cell reaches {IMPROVEMENT_RULE}: by the registered rule, neither a sparse success "
             "reward nor a priced smoothness makes the DMP action space pay off on these tasks at "
             "300k env steps (3 seeds)."
         )
-    else:
-        md.append("No cell reaches the rule yet; the cells that wait may.")
-    md.append("")
-    return md
+    return "No cell reaches the rule yet; the cells that wait may."

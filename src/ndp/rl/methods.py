@@ -213,6 +213,15 @@ one of them registers without importing torch (``tests/rl/test_rl_methods.py`` c
 list against ``HEAD_BUILDERS``)."""
 
 
+def normalises_obs(algo: str) -> bool:
+    """Whether method ``algo``'s learner feeds its policy normalised observations (it reads
+    ``norm_obs``: the PPO trainer, Dyn-E); the SAC family and TD3 train on the raw observations,
+    so a policy loaded from their runs must not normalise (nor clip) them either. An unknown
+    method: True (the run's ``norm_obs`` decides)."""
+    m = METHODS.get(algo)
+    return m is None or "norm_obs" in m.reads
+
+
 def register_method(method: Method) -> Method:
     """Add a method (its head must be registered); returns it. A built-in head
     (:data:`BUILTIN_HEADS`) is taken on its name, so registering imports no torch; any other

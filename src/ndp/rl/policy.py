@@ -52,7 +52,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-import ndp.rl.methods  # noqa: F401  (registers every method's head, e.g. VICES's hold)
+import ndp.rl.methods  # registers every method's head (e.g. VICES's hold); normalises_obs
 from ndp import zoo
 from ndp.act_inputs import ObsRange, RobotState, check_act_inputs, obs_range_of
 from ndp.checks import check_flag, check_int, install_hint
@@ -339,7 +339,10 @@ def _build(
                 f"{source}: obs_norm.{key}: expected {obs_dim} finite values, got shape "
                 f"{list(v.shape)}"
             )
-    obs_norm = ObsNormalizer(obs_dim, cfg.clip_obs, cfg.norm_obs)
+    # as the learner fed its policy: SAC / TD3 train on raw observations (their config's
+    # norm_obs is not read), so their loaded policy passes them through unchanged too
+    normalise = cfg.norm_obs and ndp.rl.methods.normalises_obs(cfg.algo)
+    obs_norm = ObsNormalizer(obs_dim, cfg.clip_obs, normalise)
     obs_norm.load_state_dict(obs_norm_state)
     return Policy(cfg, spec, model, obs_norm)
 

@@ -291,6 +291,13 @@ def test_the_three_methods_are_listed_and_ndp_sac_trains_resumes_and_exports(tmp
     a1 = onnx.act(obs, state)
     a2 = torch_pol.act(obs, state, deterministic=True)
     assert a1.shape == (5, 4) and np.allclose(a1, a2, atol=1e-4)
+    # SAC trains on raw observations: the loaded policy neither normalises nor clips them (an
+    # input 50 away from the origin reaches the network as it is, as in training)
+    assert not torch_pol.obs_norm.enabled
+    far = np.full(39, 50.0, dtype=np.float32)
+    assert np.array_equal(torch_pol.obs_norm(far), far)
+    a3 = onnx.act(far, state)
+    assert np.allclose(a3, torch_pol.act(far, state, deterministic=True), atol=1e-4)
 
 
 @pytest.mark.slow

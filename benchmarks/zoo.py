@@ -58,20 +58,102 @@ def find_run(runs: list[Path], task: str, method: str, seed: int) -> Path | None
     return None
 
 
-def pick_best(runs: list[Path], task: str, method: str, seeds: list[int], episodes: int) -> Any:
-    """(seed, run, selection success) of the best finished run, or None when none finished."""
-    from ndp.experiments.report import det_success
-    from ndp.experiments.study import is_finished
+SELECTIONS = ("checkpoint", "final-eval")
+"""How the seed of a task x method is chosen: ``checkpoint``: the final checkpoint's
+deterministic success over ``--select-episodes`` episodes (seeds 10,000 on; needs every seed's
+checkpoint); ``final-eval``: the run's last periodic deterministic evaluation in its
+metrics.csv (the final policy's success at any step on the study's fixed evaluation seeds; ties: the higher
+deterministic success area), which archived runs (metrics only) keep."""
 
-    best = None
+
+def pick_best(
+    runs: list[Path], task: str, method: str, seeds: list[int], episodes: int,
+    select: str = "checkpoint",
+) -> Any:  # fmt: skip
+    """(seed, run, selection success) of the best finished run by ``select`` (SELECTIONS;
+    ties: the lower seed), or None when none finished."""
+    from ndp.experiments.report import det_success
+    from ndp.experiments.rows import det_numbers
+    from ndp.experiments.study import is_finished
+    from ndp.runs import read_metrics
+
+    best, best_key = None, None
     for seed in seeds:
         run = find_run(runs, task, method, seed)
         if run is None or not is_finished(run, kind="rl"):
             continue
-        s = det_success(run, episodes)
-        if best is None or s > best[2]:
-            best = (seed, run, s)
+        if select == "final-eval":
+            d = det_numbers(read_metrics(run))
+            key = (d["det_final"], d["det_area"])
+        else:
+            key = (det_success(run, episodes), 0.0)
+        if best_key is None or key > best_key:
+            best, best_key = (seed, run, float(key[0])), key
     return best
+
+
+TIMING_COLUMNS = ("charts/env_steps_per_s",)
+"""Metrics columns that measure wall-clock speed (with every ``time/*`` column): the only ones
+a re-run of the same command at the same commit may change."""
+
+
+def learning_rows(run: Path) -> list[dict[str, str]]:
+    """The run's metrics.csv rows without the wall-clock columns."""
+    import csv
+
+    with (run / "metrics.csv").open(newline="") as f:
+        return [
+            {k: v for k, v in row.items() if not k.startswith("time/") and k not in TIMING_COLUMNS}
+            for row in csv.DictReader(f)
+        ]
+
+
+def retrain_command(run: Path, into: Path) -> str:
+    """The command that trains ``run`` again into ``into/<run name>``, from its first session's
+    recorded command line, with the commit to check out."""
+    import shlex
+
+    from ndp.provenance import portable_command
+    from ndp.runs.layout import provenance_sessions
+
+    first = (provenance_sessions(run) or [None])[0]
+    if not isinstance(first, dict) or not isinstance(first.get("argv"), list):
+        return f"(no provenance.json in {run}: its command is not recorded)"
+    argv = [str(a) for a in first["argv"]]
+    i = argv.index("--run-dir") if "--run-dir" in argv else None
+    if i is not None:
+        argv[i + 1] = str(into / run.name)
+    rest = argv[argv.index("rl") :] if "rl" in argv else argv[1:]
+    return f"git checkout {str(first.get('commit'))[:7]} && " + shlex.join(
+        ["ndp", *portable_command(rest)]
+    )
+
+
+def exportable(run: Path, retrained: Path | None) -> tuple[Path, bool]:
+    """The run to export for the chosen ``run``: itself when it holds its checkpoint, else its
+    re-run ``retrained/<name>`` when that finished with the same learning metrics (every
+    metrics.csv column but wall-clock ones equal, row by row: the same policy); (run, whether
+    it is a verified re-run). Raises SystemExit naming the re-run command otherwise."""
+    from ndp.experiments.study import is_finished
+
+    if (run / "checkpoint.pt").is_file():
+        return run, False
+    where = retrained / run.name if retrained is not None else None
+    if (
+        where is None
+        or not (where / "checkpoint.pt").is_file()
+        or not is_finished(where, kind="rl")
+    ):
+        raise SystemExit(
+            f"zoo: {run} holds no checkpoint (an archived run); train it again with "
+            f"--retrained DIR: {retrain_command(run, retrained or Path('RETRAINED'))}"
+        )
+    if learning_rows(where) != learning_rows(run):
+        raise SystemExit(
+            f"zoo: {where} does not reproduce {run} (their metrics.csv differ outside the "
+            "wall-clock columns); it is not the study's policy, so it is not published"
+        )
+    return where, True
 
 
 def det_areas(runs: list[Path], task: str, method: str, seeds: list[int]) -> dict[int, float]:
@@ -97,17 +179,19 @@ def det_areas(runs: list[Path], task: str, method: str, seeds: list[int]) -> dic
 
 
 def choose_methods(
-    runs: list[Path], task: str, methods: list[str], seeds: list[int], always: list[str]
-) -> tuple[list[str], dict[str, Any]]:
+    runs: list[Path], task: str, methods: list[str], seeds: list[int], always: list[str],
+    arms: dict[str, str] | None = None,
+) -> tuple[list[str], dict[str, Any]]:  # fmt: skip
     """The methods published for ``task`` under the best-method rule: the one with the highest
     mean deterministic success area over ``seeds`` among ``methods`` that have every seed
     (ties: the earlier in ``methods``), then those of ``always`` that have runs; and the
-    context of the choice (each candidate's per-seed areas, mean and IQM)."""
+    context of the choice (each candidate's per-seed areas, mean and IQM). ``arms``: a
+    method's run label where it differs from its name."""
     from ndp.experiments.report import stats
 
     context: dict[str, Any] = {}
     for m in methods:
-        areas = det_areas(runs, task, m, seeds)
+        areas = det_areas(runs, task, (arms or {}).get(m, m), seeds)
         if areas:
             v = list(areas.values())
             context[m] = {"det_area": areas, "mean": float(sum(v) / len(v)),
@@ -133,7 +217,13 @@ def main(argv: list[str] | None = None) -> int:
         "OUT/zoo.json and each policy.json",
     )
     p.add_argument("--tasks", nargs="+", default=list(TASKS))
-    p.add_argument("--methods", nargs="+", default=list(METHODS))
+    p.add_argument(
+        "--methods",
+        nargs="+",
+        default=list(METHODS),
+        help="methods: run labels (RUNS/<task>-<label>-s<seed>), or NAME=LABEL to publish the "
+        "runs of arm LABEL as <task>-NAME (ndp=ndp-nostale)",
+    )
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     p.add_argument(
         "--rule",
@@ -150,6 +240,21 @@ def main(argv: list[str] | None = None) -> int:
         metavar="METHOD",
         help="with --rule best-method: methods published on every task beside the best one",
     )
+    p.add_argument(
+        "--select",
+        choices=SELECTIONS,
+        default="checkpoint",
+        help="how a task x method's seed is chosen: checkpoint (its final checkpoint over "
+        "--select-episodes episodes) or final-eval (the run's last periodic deterministic "
+        "evaluation, kept by archived runs)",
+    )
+    p.add_argument(
+        "--retrained",
+        metavar="DIR",
+        help="where a chosen run without its checkpoint (archived) was trained again by the "
+        "same command at the same commit; its re-run is published only if its metrics equal "
+        "the archived run's",
+    )
     p.add_argument("--select-episodes", type=int, default=20)
     p.add_argument("--episodes", type=int, default=50)
     p.add_argument(
@@ -163,6 +268,11 @@ def main(argv: list[str] | None = None) -> int:
         "directories are removed); without it such a grid is refused",
     )
     args = p.parse_args(argv)
+    bad = [m for m in args.methods if m.count("=") > 1 or m.startswith("=") or m.endswith("=")]
+    if bad:
+        p.error(f"--methods: expected NAME or NAME=LABEL, got {' '.join(bad)}")
+    arms = dict(m.split("=", 1) if "=" in m else (m, m) for m in args.methods)
+    args.methods = list(arms)
     if args.cards:
         index = Path(args.out) / "zoo.json"
         if not index.is_file():
@@ -185,6 +295,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         p.error(f"--tasks: {exc}")
     runs, out = [Path(r) for r in args.runs_dir], Path(args.out)
+    retrained = Path(args.retrained) if args.retrained else None
+    if retrained is not None and not retrained.is_dir():
+        p.error(f"--retrained: {retrained} is not a directory")
     for r in runs:
         if not r.is_dir():
             p.error(f"--runs-dir: {r} is not a directory")
@@ -202,7 +315,10 @@ def main(argv: list[str] | None = None) -> int:
             "to drop them"
         )
     found = [
-        (t, m) for t, m in sorted(grid) for r in runs if any(r.glob(f"{t}-{m}-s*/metrics.csv"))
+        (t, m)
+        for t, m in sorted(grid)
+        for r in runs
+        if any(r.glob(f"{t}-{arms[m]}-s*/metrics.csv"))
     ]
     if not found:
         p.error(
@@ -212,7 +328,7 @@ def main(argv: list[str] | None = None) -> int:
 
     plan = {}
     for task in args.tasks:
-        publish, context = choose_methods(runs, task, args.methods, args.seeds, args.always)
+        publish, context = choose_methods(runs, task, args.methods, args.seeds, args.always, arms)
         plan[task] = (list(args.methods) if args.rule == "every-method" else publish, context)
     dropped = [
         r["policy"]
@@ -230,7 +346,7 @@ def main(argv: list[str] | None = None) -> int:
 
     torch.set_num_threads(1)
     from ndp.io import atomic_write_text
-    from ndp.provenance import git_commit
+    from ndp.provenance import git_commit, portable_path
     from ndp.rl.evaluate import evaluate_policy
     from ndp.rl.policy import export_policy, load_policy
     from ndp.runs import run_commits
@@ -241,7 +357,9 @@ def main(argv: list[str] | None = None) -> int:
     for task in args.tasks:
         publish, context = plan[task]
         for method in publish:
-            best = pick_best(runs, task, method, args.seeds, args.select_episodes)
+            best = pick_best(
+                runs, task, arms[method], args.seeds, args.select_episodes, args.select
+            )
             if best is None:
                 kept = [r for r in earlier if (r["task"], r["method"]) == (task, method)]
                 kept = [r for r in kept if (out / r["policy"]).is_dir()]
@@ -256,7 +374,8 @@ def main(argv: list[str] | None = None) -> int:
             name = f"{task}-{method}"
             tmp = out / f".{name}.tmp"
             shutil.rmtree(tmp, ignore_errors=True)
-            export_policy(run, tmp)
+            source, rerun = exportable(run, retrained)
+            export_policy(source, tmp)
             ev = evaluate_policy(load_policy(tmp), args.episodes, True, PUBLISH_SEED)
             final = out / name
             old = out / f".{name}.old"
@@ -265,12 +384,16 @@ def main(argv: list[str] | None = None) -> int:
             tmp.rename(final)
             shutil.rmtree(old, ignore_errors=True)
             cfg = json.loads((run / "config.json").read_text())
-            row = {"policy": name, "task": task, "method": method, "seed": seed,
-                   "source_run": str(run), "trained_at": run_commits(run),
+            row = {"policy": name, "task": task, "method": method, "arm": arms[method],
+                   "seed": seed, "source_run": portable_path(run),
+                   "trained_at": run_commits(source), "selection": args.select,
                    "steps": cfg.get("steps"), "k": cfg.get("policy", {}).get("k"),
                    "selection_success": sel, "success": ev["success_any"],
                    "success_final": ev["success_final"],
                    "episode_return": ev["episode_return"]}  # fmt: skip
+            if rerun:
+                row["retrained_run"] = portable_path(source)
+                row["reproduces_source"] = True
             if method in context:
                 row["seed_context"] = {"seeds": args.seeds, **context[method],
                                        "candidates": {m: round(c["mean"], 4)
@@ -284,7 +407,8 @@ def main(argv: list[str] | None = None) -> int:
     cmd = "python benchmarks/zoo.py " + " ".join(argv if argv is not None else sys.argv[1:])
     meta = {"command": cmd, "commit": git_commit(), "date": time.strftime("%Y-%m-%d"),
             "select_episodes": args.select_episodes, "episodes": args.episodes,
-            "min_success": args.min_success, "rule": args.rule, "policies": rows,
+            "min_success": args.min_success, "rule": args.rule, "select": args.select,
+            "policies": rows,
             "not_published": left_out}  # fmt: skip
     atomic_write_text(out / "zoo.json", json.dumps(meta, indent=2) + "\n")
     md = zoo_readme(meta)
@@ -314,8 +438,7 @@ def zoo_readme(meta: dict[str, Any]) -> str:
         )
         + _rule_text(meta)
         + (
-            f"Each is the seed with the best deterministic success over "
-            f"{meta['select_episodes']} episodes (seeds {SELECT_SEED:,} on) of its task x method; "
+            f"Each is the seed with {_selection_text(meta)} of its task x method; "
             f"**success** is measured again from the export over {meta['episodes']} other "
             f"episodes (seeds {PUBLISH_SEED:,} on), deterministic, success at any step; its 95% "
             "interval (Wilson) is in the card."
@@ -337,6 +460,19 @@ def zoo_readme(meta: dict[str, Any]) -> str:
         md += ["", f"Not published (no seed reached {meta['min_success']:.2f} in the "
                "selection): " + "; ".join(left_out) + "."]  # fmt: skip
     return "\n".join(md) + "\n"
+
+
+def _selection_text(meta: dict[str, Any]) -> str:
+    """How the index ``meta`` chose each policy's seed, in words."""
+    if meta.get("select") == "final-eval":
+        return (
+            "the best final deterministic evaluation in its run's metrics (the final policy on "
+            "the study's fixed evaluation episodes; ties: the higher success area)"
+        )
+    return (
+        f"the best deterministic success over {meta['select_episodes']} episodes (seeds "
+        f"{SELECT_SEED:,} on)"
+    )
 
 
 def _rule_text(meta: dict[str, Any]) -> str:
@@ -379,10 +515,15 @@ def card_evaluation(row: dict[str, Any], meta: dict[str, Any]) -> dict[str, Any]
         "episode_return": row.get("episode_return"),
         "command": meta["command"],
         "protocol": (
-            f"The policy is the seed with the best deterministic success over "
-            f"{meta['select_episodes']} episodes (seeds {SELECT_SEED:,} on: "
-            f"{row['selection_success']:.2f}) among its study's runs ({row.get('source_run')}); "
-            "the success above is measured again from the export on other episodes, so it is "
+            f"The policy is the seed with {_selection_text(meta)} "
+            f"({row['selection_success']:.2f}) among its study's runs ({row.get('source_run')}"
+            + (
+                f"; trained again by the same command at the same commit into "
+                f"{row['retrained_run']}, whose metrics equal the study run's"
+                if row.get("reproduces_source")
+                else ""
+            )
+            + "); the success above is measured again from the export on other episodes, so it is "
             "not the maximum it was selected by. " + seed_context_text(row)
         ).strip(),
         "zoo": True,

@@ -35,6 +35,23 @@ def test_the_index_lists_exactly_the_published_directories():
     assert (ROOT / "zoo").resolve() == ZOO.resolve()
 
 
+@pytest.mark.parametrize("name", POLICIES)
+def test_every_zoo_card_shows_command_commit_steps_and_a_measured_evaluation(name):
+    import re
+
+    card = (ZOO / name / "README.md").read_text()
+    head = card.split("---")[1]
+    fields = dict(re.findall(r"^([a-z_0-9]+): (.*)$", head, flags=re.M))
+    assert fields["command"].startswith('"ndp rl train '), fields["command"]
+    assert re.fullmatch(r'"[0-9a-f]{7,40}"', fields["training_commits"]), fields
+    assert int(fields["budget_env_steps"]) > 0
+    assert 0.0 <= float(fields["success_rate"]) <= 1.0 and int(fields["episodes"]) >= 50
+    assert "not recorded" not in head, head
+    row = next(r for r in META["policies"] if r["policy"] == name)
+    # the policy is a seed of a multi-seed study, said on the card
+    assert row["seed_context"]["seeds"] and f"Seed {row['seed']} of " in card
+
+
 def test_zoo_names_load_and_unknown_names_are_one_line_with_close_names():
     pol = ndp.load_policy("zoo:push-v3-ndp")
     assert pol.cfg.task == "push-v3" and pol.cfg.algo == "ndp"
@@ -161,6 +178,56 @@ def test_the_best_method_rule_picks_the_highest_mean_area_and_needs_every_seed(t
     chosen, _ = zoo.choose_methods([a, b], "throw", ["ppo", "ndp"], [0], [])
     assert chosen == ["ppo"]
     assert zoo.choose_methods([a], "push-v3", ["ndp"], [0], ["ndp"]) == ([], {})
+
+
+def test_final_eval_selection_and_a_rerun_published_only_when_it_reproduces(tmp_path):
+    zoo = _zoo_script()
+    a, again = tmp_path / "a", tmp_path / "again"
+    # final evaluations 0.6 / 0.6 / 0.2: seeds 0 and 1 tie, seed 1's area is higher
+    _fake_run(a, "push-v3-ndp-nostale-s0", [0.0, 0.6])
+    _fake_run(a, "push-v3-ndp-nostale-s1", [0.4, 0.6])
+    _fake_run(a, "push-v3-ndp-nostale-s2", [1.0, 0.2])
+    seed, run, sel = zoo.pick_best([a], "push-v3", "ndp-nostale", [0, 1, 2], 20, "final-eval")
+    assert (seed, run.name, sel) == (1, "push-v3-ndp-nostale-s1", pytest.approx(0.6))
+    # an archived run (no checkpoint): refused with the command that trains it again
+    prov = [{"argv": ["/x/cli.py", "rl", "train", "--task", "push-v3", "--seed", "1",
+                      "--run-dir", str(run)], "commit": "7b7d5e46d0"}]  # fmt: skip
+    (run / "provenance.json").write_text(json.dumps(prov))
+    with pytest.raises(SystemExit) as exc:
+        zoo.exportable(run, again)
+    msg = str(exc.value)
+    assert "holds no checkpoint" in msg and "git checkout 7b7d5e4 && ndp rl train" in msg, msg
+    assert "--run-dir .../again/push-v3-ndp-nostale-s1" in msg  # no machine path
+    # a re-run whose learning metrics differ is not the study's policy
+    _fake_run(again, run.name, [0.4, 0.7])
+    (again / run.name / "checkpoint.pt").write_bytes(b"")
+    with pytest.raises(SystemExit, match="does not reproduce"):
+        zoo.exportable(run, again)
+    # the same rows up to the wall-clock columns: published from the re-run
+    for d, secs in ((run, "1.5"), (again / run.name, "2.5")):
+        lines = (d / "metrics.csv").read_text().splitlines()
+        lines = [lines[0] + ",time/update_s,charts/env_steps_per_s"]
+        lines += [f"{i + 1},{(i + 1) * 10},{v},{secs},{secs}" for i, v in enumerate([0.4, 0.6])]
+        (d / "metrics.csv").write_text("\n".join(lines) + "\n")
+    assert zoo.exportable(run, again) == (again / run.name, True)
+    # a run with its checkpoint is exported as it is
+    (run / "checkpoint.pt").write_bytes(b"")
+    assert zoo.exportable(run, None) == (run, False)
+
+
+def test_method_names_map_to_run_labels(tmp_path, capsys):
+    zoo = _zoo_script()
+    a = tmp_path / "a"
+    _fake_run(a, "throw-ndp-nostale-s0", [0.2, 0.4])
+    _fake_run(a, "throw-ppo-s0", [0.5, 0.5])
+    arms = {"ndp": "ndp-nostale", "ppo": "ppo"}
+    chosen, ctx = zoo.choose_methods([a], "throw", ["ndp", "ppo"], [0], ["ndp"], arms)
+    assert chosen == ["ppo", "ndp"] and ctx["ndp"]["mean"] == pytest.approx(0.3)
+    with pytest.raises(SystemExit) as exc:
+        zoo.main(["--runs-dir", str(a), "--out", str(tmp_path / "z"), "--methods", "ndp=",
+                  "--tasks", "throw"])  # fmt: skip
+    assert exc.value.code == 2
+    assert "--methods: expected NAME or NAME=LABEL, got ndp=" in capsys.readouterr().err
 
 
 WHEEL_SCRIPT = r"""

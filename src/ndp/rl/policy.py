@@ -54,7 +54,13 @@ import torch
 
 import ndp.rl.methods  # registers every method's head (e.g. VICES's hold); normalises_obs
 from ndp import zoo
-from ndp.act_inputs import ActInfo, ObsRange, check_act_inputs, obs_range_of
+from ndp.act_inputs import (  # RobotState: named by the docstrings
+    ActInfo,
+    ObsRange,
+    RobotState,  # noqa: F401
+    check_act_inputs,
+    obs_range_of,
+)
 from ndp.checks import check_flag, check_int, install_hint
 from ndp.chunk_info import dmp_start_keys
 from ndp.hub import download, is_hub_ref

@@ -13,7 +13,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeAlias
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -38,6 +38,12 @@ class RobotState:
     dy0: Any = None
     """Velocity [D] / [E, D] per second; None: at rest (zeros), allowed only for a policy whose
     DMP starts at rest (``dmp_velocity == "zero"``)."""
+
+
+ActInfo: TypeAlias = Mapping[str, object] | RobotState | None
+"""The robot state ``act`` takes beside the observation (``Policy.act``, ``OnnxPolicy.act``):
+the chunked env's info, a mapping with the policy's ``state_keys``, a :class:`RobotState`, or
+None for a policy without a DMP."""
 
 
 @dataclass

@@ -309,21 +309,17 @@ class CloningRecipe:
     ``ndp rl train --resume`` fine-tunes (:meth:`CloningLearner.state_dict`)."""
 
     def __init__(self, cfg: BCConfig, demos: Demos, spec: TaskSpec, rl_cfg: TrainConfig) -> None:
-        from pathlib import Path
-
-        from ndp.rl.config import TrainConfig
         from ndp.runs.driver import RunPlan
 
         self.cfg, self.demos, self.spec, self.rl_cfg = cfg, demos, spec, rl_cfg
-        self.plan = RunPlan(
-            run_dir=Path(cfg.run_dir),
+        self.plan = RunPlan.of_config(
+            rl_cfg,
+            rl_cfg.to_dict(),
+            cfg.epochs,
+            run_dir=cfg.run_dir,
+            seed=cfg.seed,
             kind="rl",  # the run is an RL run at update 0 (see the module docstring)
             unit="epoch",
-            seed=int(cfg.seed),
-            budget=int(cfg.epochs),
-            config=rl_cfg,
-            config_dict=rl_cfg.to_dict(),
-            config_from_dict=TrainConfig.from_dict,
             threads=int(cfg.threads),
             hint="Try a lower --lr.",
             resumable=False,  # ndp il bc has no --resume

@@ -474,18 +474,15 @@ class ImitationRecipe:
         device: torch.device,
     ) -> None:
         self.cfg, self.splits, self.device = cfg, splits, device
-        self.plan = RunPlan(
-            run_dir=Path(cfg.run_dir),
+        self.plan = RunPlan.of_config(
+            cfg,
+            cfg.as_dict(),
+            cfg.epochs,
             kind="il",
             unit="epoch",
-            seed=int(cfg.seed),
-            budget=int(cfg.epochs),
-            config=cfg,
-            config_dict=cfg.as_dict(),
-            config_from_dict=TrainConfig.from_dict,
+            hint="Try a lower --lr.",
             safe_on_resume=tuple(SAFE_ON_RESUME),
             threads=None,  # train() set them before the data was loaded
-            hint="Try a lower --lr.",
         )
         self.t_run = time.perf_counter()
 

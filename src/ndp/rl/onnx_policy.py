@@ -8,7 +8,6 @@ is loaded. The export itself (the graph from a torch policy) is :mod:`ndp.rl.onn
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -16,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ndp.act_inputs import ObsRange, RobotState, check_act_inputs, obs_range_of
+from ndp.act_inputs import ActInfo, ObsRange, check_act_inputs, obs_range_of
 from ndp.checks import check_flag, install_hint
 
 ONNX_FORMAT = "ndp-policy-onnx"
@@ -147,12 +146,7 @@ class OnnxPolicy:
         )
         """The task facts the export records (:class:`OnnxSpec`)."""
 
-    def act(
-        self,
-        obs: np.ndarray,
-        info: Mapping[str, object] | RobotState | None = None,
-        deterministic: bool = True,
-    ) -> np.ndarray:
+    def act(self, obs: np.ndarray, info: ActInfo = None, deterministic: bool = True) -> np.ndarray:
         """The deterministic decision: [k, A] for obs [O], [E, k, A] for obs [E, O].
 
         Takes what ``Policy.act`` takes (the chunked env's info, a mapping with

@@ -54,7 +54,13 @@ import torch
 
 import ndp.rl.methods  # registers every method's head (e.g. VICES's hold); normalises_obs
 from ndp import zoo
-from ndp.act_inputs import ObsRange, RobotState, check_act_inputs, obs_range_of
+from ndp.act_inputs import (  # RobotState: named by the docstrings
+    ActInfo,
+    ObsRange,
+    RobotState,  # noqa: F401
+    check_act_inputs,
+    obs_range_of,
+)
 from ndp.checks import check_flag, check_int, install_hint
 from ndp.chunk_info import dmp_start_keys
 from ndp.hub import download, is_hub_ref
@@ -163,12 +169,7 @@ class Policy:
             check_int("seed", seed, 0)
             self._generator = torch.Generator().manual_seed(int(seed))
 
-    def act(
-        self,
-        obs: np.ndarray,
-        info: Mapping[str, object] | RobotState | None = None,
-        deterministic: bool = True,
-    ) -> np.ndarray:
+    def act(self, obs: np.ndarray, info: ActInfo = None, deterministic: bool = True) -> np.ndarray:
         """The k sub-actions of one decision (``exec_k`` of them for an :meth:`at_exec_k` copy),
         within the task's action bounds.
 

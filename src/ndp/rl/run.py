@@ -133,15 +133,13 @@ class RLRecipe:
     def __init__(self, cfg: TrainConfig) -> None:
         self.cfg = cfg
         self.method = METHODS[cfg.algo]
-        self.plan = RunPlan(
-            run_dir=Path(cfg.run_dir or "."),
+        self.plan = RunPlan.of_config(
+            cfg,
+            cfg.to_dict(),
+            cfg.num_updates,
+            run_dir=cfg.run_dir or ".",
             kind="rl",
             unit="update",
-            seed=int(cfg.seed),
-            budget=int(cfg.num_updates),
-            config=cfg,
-            config_dict=cfg.to_dict(),
-            config_from_dict=TrainConfig.from_dict,
             safe_on_resume=tuple(SAFE_ON_RESUME),
             threads=int(cfg.torch_threads),
             hint=self.method.hint,

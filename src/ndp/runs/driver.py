@@ -99,6 +99,23 @@ class RunPlan:
     extra: dict[str, Any] = field(default_factory=dict)
     """Kind-specific facts a recipe keeps beside the plan (not read by the driver)."""
 
+    @classmethod
+    def of_config(
+        cls, config: Any, config_dict: dict[str, Any], budget: int, **fields: Any
+    ) -> RunPlan:
+        """The plan of a typed config that holds its ``run_dir`` and ``seed`` and reads
+        ``config_dict`` back with its class's ``from_dict`` (the RL, IL and cloning runs');
+        ``fields``: the plan's other fields (``run_dir`` and ``seed`` override the config's)."""
+        fields = {"run_dir": config.run_dir, "seed": config.seed, **fields}
+        fields["run_dir"], fields["seed"] = Path(fields["run_dir"]), int(fields["seed"])
+        return cls(
+            budget=int(budget),
+            config=config,
+            config_dict=config_dict,
+            config_from_dict=type(config).from_dict,
+            **fields,
+        )
+
 
 class Recipe(Protocol[L, S]):
     """What one kind of run supplies to :func:`run` (see the module docstring)."""

@@ -62,8 +62,8 @@ SELECTIONS = ("checkpoint", "final-eval")
 """How the seed of a task x method is chosen: ``checkpoint``: the final checkpoint's
 deterministic success over ``--select-episodes`` episodes (seeds 10,000 on; needs every seed's
 checkpoint); ``final-eval``: the run's last periodic deterministic evaluation in its
-metrics.csv (the final policy's success at any step on the study's fixed evaluation seeds; ties: the higher
-deterministic success area), which archived runs (metrics only) keep."""
+metrics.csv (the final policy's success at any step on the study's fixed evaluation seeds;
+ties: the higher deterministic success area), which archived runs (metrics only) keep."""
 
 
 def pick_best(

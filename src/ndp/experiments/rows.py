@@ -29,6 +29,7 @@ from ndp.io import atomic_write_text
 
 if TYPE_CHECKING:
     from ndp.experiments.report.cells import Cell
+    from ndp.experiments.report.fresh import FreshEval
     from ndp.runs.session import Manifest
 
 
@@ -215,27 +216,52 @@ def bc_numbers(info: RunInfo) -> dict[str, Any]:
 
 
 DET_EVAL_FILE = "eval-det-e{episodes}.json"
-"""Per-run cache of the report's deterministic evaluation (``ndp rl eval``, episode seeds from
-``ndp.rl.config.EVAL_SEED``)."""
+"""Per-run cache of the report's deterministic evaluation on the default seeds (``ndp rl eval``,
+episode seeds from ``ndp.rl.config.EVAL_SEED``). On other seeds the report reads and writes the
+file of ``ndp rl eval --mode deterministic --save`` (:data:`ndp.rl.evaluate.EVAL_FILE`)."""
 
 
-def det_success(path: Path, episodes: int, compute: bool = True) -> float:
-    """Success (any step) of the run's deterministic policy over ``episodes`` fresh episodes.
+def det_eval_name(episodes: int, seed: int) -> str:
+    """The file in a run that holds its deterministic success over ``episodes`` episodes from
+    reset seed ``seed``: :data:`DET_EVAL_FILE` on the default seed, else the file of ``ndp rl eval
+    --mode deterministic --save`` (``eval-det-e<episodes>-s<seed>.json``)."""
+    from ndp.rl.config import EVAL_SEED  # (the run-kind table loads no config)
 
-    Cached in ``<run>/eval-det-e<episodes>.json`` (atomic), so a report is cheap to redo. A run
+    if seed == EVAL_SEED:
+        return DET_EVAL_FILE.format(episodes=episodes)
+    from ndp.rl.evaluate import EVAL_FILE  # (torch only where a run is evaluated)
+
+    return EVAL_FILE.format(mode="det", episodes=episodes, seed=seed, exec_k="")
+
+
+def det_success(path: Path, episodes: int, compute: bool = True, seed: int | None = None) -> float:
+    """Success (any step) of the run's deterministic policy over ``episodes`` fresh episodes
+    from reset seed ``seed`` (None: ``ndp.rl.config.EVAL_SEED``).
+
+    Cached in the run (:func:`det_eval_name`, atomic), so a report is cheap to redo:
+    ``eval-det-e<episodes>.json`` (:func:`ndp.rl.evaluate.evaluate`'s dict) on the default seed,
+    else ``eval-det-e<episodes>-s<seed>.json`` as :func:`ndp.rl.evaluate.save_evaluation`
+    writes it (``ndp rl eval --save``: one writer, so either command reads the other's). A run
     that ``ndp rl eval`` cannot act with (``compute`` False: the Stable-Baselines3 runs, which
-    write the file themselves when they evaluate, :mod:`ndp.sb3.runs`) gives NaN
+    write ``eval-det-e<N>.json`` themselves when they evaluate, :mod:`ndp.sb3.runs`) gives NaN
     without the file.
     """
-    cache = path / DET_EVAL_FILE.format(episodes=episodes)
+    from ndp.rl.config import EVAL_SEED
+
+    first = EVAL_SEED if seed is None else seed
+    cache = path / det_eval_name(episodes, first)
     data = _json(cache)
     if data is None and not compute:
         return math.nan
     if data is None:
-        from ndp.rl.evaluate import evaluate
+        from ndp.rl.evaluate import evaluate, save_evaluation
 
-        data = evaluate(path, episodes=episodes, deterministic=True)
-        atomic_write_text(cache, json.dumps(data) + "\n")
+        if first == EVAL_SEED:
+            data = evaluate(path, episodes=episodes, deterministic=True)
+            atomic_write_text(cache, json.dumps(data) + "\n")
+        else:
+            data = evaluate(path, episodes=episodes, deterministic=True, seed=first)
+            save_evaluation(path, data, first)
     return float(data["success_any"])
 
 
@@ -246,8 +272,9 @@ class ReportRow:
     table: str
     """The table its runs join: ``"success"`` (RL), ``"imitation"`` or ``"cloning"``; runs of
     kinds with the same table are compared with each other (ours and the SB3 reference)."""
-    numbers: Callable[[RunInfo, Sequence[int], int, bool], dict[str, Any]]
-    """``(run, budgets in env steps, deterministic-evaluation episodes, evaluable) -> numbers``
+    numbers: Callable[[RunInfo, Sequence[int], FreshEval, bool], dict[str, Any]]
+    """``(run, budgets in env steps, the report's deterministic evaluation, evaluable) ->
+    numbers``
     (keys: the second element of :attr:`columns`' pairs, plus curves); ``evaluable``: whether
     ``ndp rl eval`` can act with the run (:attr:`ndp.experiments.run_kinds.RunKind.evaluable`)."""
     columns: Callable[[Sequence[int]], list[tuple[str, str]]] = field(default=lambda b: [])
@@ -256,10 +283,14 @@ class ReportRow:
 
 
 def _success_numbers(
-    info: RunInfo, budgets: Sequence[int], eval_episodes: int, evaluable: bool
+    info: RunInfo, budgets: Sequence[int], fresh: FreshEval, evaluable: bool
 ) -> dict[str, Any]:
     out = rl_numbers(info, budgets)
-    out["det"] = det_success(info.path, eval_episodes, evaluable) if eval_episodes else math.nan
+    out["det"] = (
+        det_success(info.path, fresh.episodes, evaluable, fresh.seed)
+        if fresh.episodes
+        else math.nan
+    )
     return out
 
 
@@ -282,14 +313,14 @@ SUCCESS_ROW = ReportRow("success", _success_numbers, _success_columns)
 
 IMITATION_ROW = ReportRow(
     "imitation",
-    lambda info, budgets, episodes, evaluable: il_numbers(info),
+    lambda info, budgets, fresh, evaluable: il_numbers(info),
     lambda budgets: [("test_mse_px2", "mse"), ("test_dtw_px", "dtw")],
 )
 """Digit-writing runs: test error."""
 
 CLONING_ROW = ReportRow(
     "cloning",
-    lambda info, budgets, episodes, evaluable: bc_numbers(info),
+    lambda info, budgets, fresh, evaluable: bc_numbers(info),
     lambda budgets: [
         ("success", "success"),
         ("fit_val_loss", "val_loss"),

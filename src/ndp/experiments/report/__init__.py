@@ -57,6 +57,7 @@ from ndp.experiments.report.cells import (
     split_tables,
 )
 from ndp.experiments.report.csvs import csv_rows, write_csv
+from ndp.experiments.report.fresh import FreshEval
 from ndp.experiments.report.markdown import markdown, with_bc_table
 from ndp.experiments.report.paths import check_report_stem, report_stem, with_ext
 from ndp.experiments.report.plots import plot_all
@@ -88,6 +89,7 @@ __all__ = [
     "DET_KEYS",
     "LOST",
     "Cell",
+    "FreshEval",
     "MissingSeedsError",
     "RunInfo",
     "bc_numbers",
@@ -117,16 +119,18 @@ def load_cells(
     tasks: Sequence[str] | None = None,
     methods: Sequence[str] | None = None,
     eval_episodes: int = 0,
+    eval_seed: int | None = None,
 ) -> tuple[list[Cell], list[int]]:
     """The cells of the finished runs under ``run_dirs`` with their numbers (success at each
     of ``budgets`` env steps, area, final success, ...), and the seeds every cell should hold:
-    the first steps of :func:`report`, for a table of one's own (docs/architecture.md)."""
-    check_args(budgets, eval_episodes, seeds)
+    the first steps of :func:`report`, for a table of one's own (docs/architecture.md);
+    ``eval_episodes`` and ``eval_seed`` as :func:`report`'s."""
+    fresh = check_args(budgets, eval_episodes, seeds, eval_seed)
     infos = [i for i in (run_info(d) for d in find_run_dirs(run_dirs)) if i is not None]
     if not infos:
         raise ValueError(f"run_dirs: no runs found in {', '.join(map(str, run_dirs))}")
     cells, expected = build_cells(infos, seeds, tasks, methods)
-    compute_numbers(cells, [int(b) for b in budgets], eval_episodes)
+    compute_numbers(cells, [int(b) for b in budgets], fresh)
     return cells, expected
 
 
@@ -146,6 +150,7 @@ def report(
     compare: Sequence[str] = (),
     compare_pooled: bool = False,
     compare_holm: str = "all",
+    eval_seed: int | None = None,
 ) -> ReportResult:
     """Write ``<out>.md``, ``<out>.csv`` and ``<out>-<task>.png`` (see the module doc).
 
@@ -165,7 +170,10 @@ def report(
 
     ``budgets``: env steps at which to give the success (default: a quarter, half and all of
     the largest budget). ``eval_episodes`` > 0 adds the success of each finished RL run's
-    deterministic policy over that many fresh episodes (:func:`det_success`, cached per run).
+    deterministic policy over that many fresh episodes (:func:`det_success`, cached per run),
+    reset seeds ``eval_seed`` on (None: :data:`ndp.rl.config.EVAL_SEED`, the first of the
+    periodic evaluation's fixed seeds; e.g. ``FRESH_EVAL_SEED`` = 20,000 re-scores final
+    policies on seeds disjoint from them, in the file ``ndp rl eval --save`` writes).
     Returns the numbers (and the paths written).
 
     Raises:
@@ -174,33 +182,33 @@ def report(
     """
     out = report_stem(out)
     check_report_stem(out)  # before reading any run
-    check_args(budgets, eval_episodes, seeds)
+    fresh = check_args(budgets, eval_episodes, seeds, eval_seed)
     pairs = family.parse_pairs(compare)
     sc = scope(run_dirs, study, tasks, methods)
     cells, expected = build_cells(sc.infos, seeds, sc.tasks, sc.methods, sc.arm_tasks)
     family.check_pairs(pairs, [c.label for c in cells])
     if any(c.missing for c in cells) and not allow_missing:
         raise MissingSeedsError(missing_message(cells, expected))
-    return _write(cells, expected, sc, out, command, title, plots, eval_episodes, budgets,
+    return _write(cells, expected, sc, out, command, title, plots, fresh, budgets,
                   pairs, compare_pooled, compare_holm)  # fmt: skip
 
 
 def _write(
     cells: list[Cell], expected: list[int], sc: Scope, out: Path, command: str, title: str,
-    plots: bool, eval_episodes: int, budgets: Sequence[float] | None,
+    plots: bool, fresh: FreshEval, budgets: Sequence[float] | None,
     pairs: Sequence[tuple[str, str]], pooled: bool, holm_over: str = "all",
 ) -> ReportResult:  # fmt: skip
     """The numbers of the cells, then every output of :func:`report` (its return value)."""
     tables = split_tables(cells)
     rl_cells, il_cells, bc_cells = tables["success"], tables["imitation"], tables["cloning"]
-    at_steps = report_budgets(budgets, rl_cells, eval_episodes)
-    compute_numbers(cells, at_steps, eval_episodes)
+    at_steps = report_budgets(budgets, rl_cells)
+    compute_numbers(cells, at_steps, fresh)
     prov = provenance(command, [i for c in cells for i in c.runs.values()])
     check_output_path(out, "out")
     pngs = plot_all(rl_cells, il_cells, out, prov) if plots else []
     rows = csv_rows(rl_cells, [*il_cells, *bc_cells], at_steps, expected, prov)
     write_csv(with_ext(out, ".csv"), rows)
-    md = markdown(title, rl_cells, il_cells, at_steps, expected, prov, pngs, out, eval_episodes)
+    md = markdown(title, rl_cells, il_cells, at_steps, expected, prov, pngs, out, fresh)
     with_bc_table(md, bc_cells)
     pngs, extra_csv = study_sections(md, pngs, tables, sc, expected, out, prov, plots)
     extra_csv += _family_section(md, rl_cells, expected, pairs, pooled, out, prov, holm_over)

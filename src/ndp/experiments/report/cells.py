@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ndp.experiments.report.fresh import FreshEval
 from ndp.experiments.rows import RunInfo
 from ndp.experiments.run_kinds import run_kind
 
@@ -155,13 +156,16 @@ def split_tables(cells: Sequence[Cell]) -> dict[str, list[Cell]]:
     return tables
 
 
-def compute_numbers(cells: Sequence[Cell], budgets: Sequence[int], eval_episodes: int = 0) -> None:
+def compute_numbers(
+    cells: Sequence[Cell], budgets: Sequence[int], eval_episodes: int | FreshEval = 0
+) -> None:
     """Fill each cell's :attr:`Cell.numbers`: per finished run, the numbers of its kind's
     report row (RL: success at each of ``budgets`` env steps, area, final, ...; with
-    ``eval_episodes`` > 0 the deterministic success over that many fresh episodes)."""
+    ``eval_episodes`` the deterministic success of its final policy: a :class:`FreshEval`, or
+    a number of episodes from the default seed, as before; 0: none)."""
+    fresh = eval_episodes if isinstance(eval_episodes, FreshEval) else FreshEval(eval_episodes)
     for c in cells:
         kind = run_kind(c.kind)
         c.numbers = {
-            s: kind.report.numbers(i, budgets, eval_episodes, kind.evaluable)
-            for s, i in c.runs.items()
+            s: kind.report.numbers(i, budgets, fresh, kind.evaluable) for s, i in c.runs.items()
         }

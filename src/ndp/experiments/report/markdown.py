@@ -12,6 +12,7 @@ import numpy as np
 
 from ndp.experiments.report.cells import Cell, fmt_stat
 from ndp.experiments.report.conditions import metrics_of
+from ndp.experiments.report.fresh import NO_FRESH_EVAL, PERIODIC_EVAL_EPISODES, FreshEval
 from ndp.experiments.report.paths import with_ext
 from ndp.experiments.report.provenance import ReportProvenance, commits_text, provenance_lines
 from ndp.experiments.rows import DET_KEYS, has_det
@@ -54,14 +55,15 @@ def markdown(
     prov: ReportProvenance,
     pngs: Sequence[Path],
     out: Path,
-    eval_episodes: int = 0,
+    fresh: FreshEval = NO_FRESH_EVAL,
 ) -> list[str]:
     """The report's Markdown lines: header, success table and summary over tasks (RL cells),
-    imitation table, figures and the CSV's name (the sections go in later)."""
+    imitation table, figures and the CSV's name (the sections go in later); ``fresh``: the
+    report's own deterministic evaluation (a column where it has episodes)."""
     md = header_lines(title, prov, expected, [*rl_cells, *il_cells])
     md += short_of_budget(rl_cells)
     if rl_cells:
-        md += success_table(rl_cells, budgets, eval_episodes)
+        md += success_table(rl_cells, budgets, fresh)
         md += over_tasks(rl_cells)
     if il_cells:
         md += imitation_table(il_cells)
@@ -114,7 +116,18 @@ def _det_note(rl_cells: Sequence[Cell]) -> list[str]:
     ]
 
 
-def _success_note(eval_episodes: int) -> str:
+def fresh_seeds_note(fresh: FreshEval) -> str:
+    """The seeds of the report's own evaluation and whether they overlap the periodic
+    evaluation's fixed ones (``seeds 20,000 to 20,099, disjoint from ...``)."""
+    periodic = f"{EVAL_SEED:,} to {EVAL_SEED + PERIODIC_EVAL_EPISODES - 1:,}"
+    return f"seeds {fresh.seed:,} to {fresh.last_seed:,}, " + (
+        f"overlapping the periodic evaluation's fixed seeds ({periodic} by default)"
+        if fresh.overlaps_periodic()
+        else f"disjoint from the periodic evaluation's fixed seeds ({periodic} by default)"
+    )
+
+
+def _success_note(fresh: FreshEval) -> str:
     """What the success columns are."""
     return (
         "Success: `charts/success_any` of the training episodes. Success @ b: mean over the "
@@ -123,19 +136,26 @@ def _success_note(eval_episodes: int) -> str:
         "budget; final: last 10% of updates; final (final step): the same for "
         "`charts/success_final`, success at the episode's last step (the release's metric); "
         "live return: `charts/episode_return_live` over the last 10% of updates."
-        + (
-            f" Deterministic: success (any step) of the trained policy's mode over "
-            f"{eval_episodes} fresh episodes per run (`ndp rl eval`, seeds from {EVAL_SEED:,}; "
-            "Stable-Baselines3 runs: their own evaluation at the end of training, the same "
-            "seeds, `ndp.sb3.runs`)."
-            if eval_episodes
-            else ""
-        )
+        + (_fresh_note(fresh) if fresh.episodes else "")
+    )
+
+
+def _fresh_note(fresh: FreshEval) -> str:
+    """What the report's own deterministic column is, on which seeds."""
+    sb3 = (
+        "their own evaluation at the end of training, the same seeds, `ndp.sb3.runs`"
+        if fresh.seed == EVAL_SEED
+        else f"`-` (they evaluate themselves on seeds from {EVAL_SEED:,} only, `ndp.sb3.runs`)"
+    )
+    return (
+        f" Deterministic: success (any step) of the trained policy's mode over "
+        f"{fresh.episodes} fresh episodes per run (`ndp rl eval`, {fresh_seeds_note(fresh)}; "
+        f"Stable-Baselines3 runs: {sb3})."
     )
 
 
 def success_table(
-    rl_cells: Sequence[Cell], budgets: Sequence[int], eval_episodes: int = 0
+    rl_cells: Sequence[Cell], budgets: Sequence[int], fresh: FreshEval = NO_FRESH_EVAL
 ) -> list[str]:
     """The RL table: one row per task x method, success at each budget, area, final success,
     live return (and the deterministic columns where runs have them), with its notes."""
@@ -143,21 +163,21 @@ def success_table(
     det = has_det(rl_cells)
     md = _det_note(rl_cells)
     md += [
-        _success_note(eval_episodes),
+        _success_note(fresh),
         "",
         "| task | method | n | "
         + ("det. area | det. final | det. final (final step) | " if det else "")
         + " | ".join(heads)
         + " | success area | final success | final success (final step) | final live return |"
-        + (" deterministic success |" if eval_episodes else ""),
-        "|---" * (7 + 3 * det + len(heads) + bool(eval_episodes)) + "|",
+        + (" deterministic success |" if fresh.episodes else ""),
+        "|---" * (7 + 3 * det + len(heads) + bool(fresh.episodes)) + "|",
     ]
     for c in rl_cells:
         vals = [fmt_stat(*c.stat(k)) for k in DET_KEYS] if det else []
         vals += [fmt_stat(*c.stat(f"at:{b}")) for b in budgets]
         vals += [fmt_stat(*c.stat(k)) for k in ("area", "final", "final_last")]
         vals += [fmt_stat(*c.stat("return"), 1)]
-        vals += [fmt_stat(*c.stat("det"))] if eval_episodes else []
+        vals += [fmt_stat(*c.stat("det"))] if fresh.episodes else []
         n = c.n_seeds_cell()
         md.append(f"| {c.task} | {c.label} | {n} | " + " | ".join(vals) + " |")
     md.append("")

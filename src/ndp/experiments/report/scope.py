@@ -11,10 +11,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ndp.checks import check_int
 from ndp.experiments.report.cells import Cell, CsvRow
 from ndp.experiments.report.conditions import conditions_section, pairwise_section
 from ndp.experiments.report.csvs import write_csv
+from ndp.experiments.report.fresh import FreshEval, fresh_eval
 from ndp.experiments.report.provenance import ReportProvenance, figure_foot, stamp
 from ndp.experiments.report.runs import find_run_dirs, run_info
 from ndp.experiments.report.selection import selection_section
@@ -85,9 +85,7 @@ def scope(
     return Scope(conditions, selection, infos, tasks, methods, arm_tasks, readings, not_run)
 
 
-def report_budgets(
-    budgets: Sequence[float] | None, rl_cells: Sequence[Cell], eval_episodes: int
-) -> list[int]:
+def report_budgets(budgets: Sequence[float] | None, rl_cells: Sequence[Cell]) -> list[int]:
     """The env steps the success table reports at (``budgets``, else a quarter, half and all
     of the largest run's budget); ``budgets`` checked by :func:`check_args`."""
     top = max((i.steps for c in rl_cells for i in c.runs.values()), default=0)
@@ -95,16 +93,21 @@ def report_budgets(
 
 
 def check_args(
-    budgets: Sequence[float] | None, eval_episodes: int, seeds: Sequence[int] | None
-) -> None:
-    """The report's own arguments, before any run is read (ValueError naming the argument)."""
+    budgets: Sequence[float] | None,
+    eval_episodes: int,
+    seeds: Sequence[int] | None,
+    eval_seed: int | None = None,
+) -> FreshEval:
+    """The report's own arguments, before any run is read (ValueError naming the argument);
+    returns its deterministic evaluation (:func:`ndp.experiments.report.fresh.fresh_eval`)."""
     for b in budgets or ():
         if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b <= 0:
             raise ValueError(f"budgets: expected env steps > 0, got {b!r}")
-    check_int("eval_episodes", eval_episodes, 0)
+    fresh = fresh_eval(eval_episodes, eval_seed)
     bad = [x for x in seeds or () if isinstance(x, bool) or not isinstance(x, int) or x < 0]
     if bad:
         raise ValueError(f"seeds: expected integers >= 0, got {bad}")
+    return fresh
 
 
 def study_sections(

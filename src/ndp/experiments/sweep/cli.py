@@ -178,12 +178,12 @@ def report_parser() -> argparse.ArgumentParser:
         help="mark cells with missing seeds instead of refusing",
     )
     _report_output_options(p)
+    _report_eval_options(p)
     return p
 
 
-def _report_output_options(p: argparse.ArgumentParser) -> None:
-    """``ndp report``'s options on what the report shows and writes (title, plots, study, tests)."""
-    p.add_argument("--title", default=None, help="the table's title (default: the study's)")
+def _report_eval_options(p: argparse.ArgumentParser) -> None:
+    """``ndp report``'s own deterministic evaluation of each finished RL run's final policy."""
     p.add_argument(
         "--eval-episodes",
         type=int,
@@ -192,6 +192,21 @@ def _report_output_options(p: argparse.ArgumentParser) -> None:
         help="add each finished RL run's deterministic success over N fresh episodes "
         "(ndp rl eval; cached in the run as eval-det-eN.json; default 0: off)",
     )
+    p.add_argument(
+        "--eval-seed",
+        type=int,
+        default=None,
+        metavar="S",
+        help="with --eval-episodes N: episode seeds S .. S+N-1 (default 10,000, the periodic "
+        "evaluation's fixed seeds; e.g. 20000: disjoint from them), read from or written to "
+        "the run as eval-det-eN-sS.json, the file of ndp rl eval --episodes N --seed S "
+        "--mode deterministic --save",
+    )
+
+
+def _report_output_options(p: argparse.ArgumentParser) -> None:
+    """``ndp report``'s options on what the report shows and writes (title, plots, study, tests)."""
+    p.add_argument("--title", default=None, help="the table's title (default: the study's)")
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.add_argument(
         "--overview",
@@ -526,6 +541,7 @@ def report_command(argv: list[str]) -> int:
     from ndp.experiments.report import report
     from ndp.experiments.studies import get_study
 
+    _check_eval_options(args)
     out = args.out or Path(args.run_dirs[0]) / "report"
     command = "ndp report " + shlex.join(portable_command(argv))
     if args.overview:
@@ -542,6 +558,7 @@ def report_command(argv: list[str]) -> int:
         title=args.title or (get_study(args.study).title if args.study else "Report"),
         plots=not args.no_plots,
         eval_episodes=args.eval_episodes,
+        eval_seed=args.eval_seed,
         study=args.study,
         compare=args.compare,
         compare_pooled=args.compare_pooled,
@@ -556,6 +573,22 @@ def report_command(argv: list[str]) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def _check_eval_options(args: argparse.Namespace) -> None:
+    """``--eval-episodes`` and ``--eval-seed`` checked before any run is read (one line naming
+    the option)."""
+    if args.eval_episodes < 0:
+        raise ValueError(f"--eval-episodes: expected an integer >= 0, got {args.eval_episodes}")
+    if args.eval_seed is None:
+        return
+    if args.eval_episodes == 0:
+        raise ValueError(
+            f"--eval-seed: needs --eval-episodes N > 0 (the report's own evaluation), got "
+            f"--eval-seed {args.eval_seed} alone"
+        )
+    if args.eval_seed < 0:
+        raise ValueError(f"--eval-seed: expected a seed >= 0, got {args.eval_seed}")
 
 
 def _overview(args: argparse.Namespace, out: Path, command: str) -> int:

@@ -18,15 +18,16 @@ pytest.importorskip("huggingface_hub")
 from ndp.cli import main
 from ndp.hub import download, parse_hub_ref
 from ndp.rl.hub import push_policy as push
+from policy_fixtures import fixture_policy
 
 COMMIT = "0123456789abcdef0123456789abcdef01234567"
 
 
 def _cache(tmp_path: Path, repo: str = "me/throw") -> Path:
-    """A Hub cache holding ``repo`` at ``main``: the zoo's Throw policy exported into it."""
+    """A Hub cache holding ``repo`` at ``main``: the Throw fixture policy exported into it."""
     import ndp
 
-    export = ndp.load_policy("zoo:throw-ndp").export(tmp_path / "export")
+    export = ndp.load_policy(fixture_policy("throw-ndp")).export(tmp_path / "export")
     cache = tmp_path / "hf-cache"
     org, name = repo.split("/")
     snap = cache / f"models--{org}--{name}" / "snapshots" / COMMIT
@@ -47,14 +48,14 @@ def test_hub_addresses_are_parsed_or_refused():
 
 def test_load_policy_from_the_hub_offline_acts_as_the_original(tmp_path):
     """HF_HUB_OFFLINE=1 with a pre-populated cache: ndp.load_policy('hf://me/throw') is the
-    zoo's policy (same actions); a repository that is not cached is one line."""
+    exported policy (same actions); a repository that is not cached is one line."""
     cache = _cache(tmp_path)
     code = (
         "import json, numpy as np, ndp\n"
         "hub = ndp.load_policy('hf://me/throw')\n"
-        "zoo = ndp.load_policy('zoo:throw-ndp')\n"
-        "env = zoo.make_env(); obs, info = env.reset(seed=2); env.close()\n"
-        "same = bool(np.allclose(hub.act(obs, info), zoo.act(obs, info), atol=1e-6))\n"
+        f"src = ndp.load_policy({str(fixture_policy('throw-ndp'))!r})\n"
+        "env = src.make_env(); obs, info = env.reset(seed=2); env.close()\n"
+        "same = bool(np.allclose(hub.act(obs, info), src.act(obs, info), atol=1e-6))\n"
         "try:\n"
         "    ndp.load_policy('hf://me/absent'); err = ''\n"
         "except ValueError as e:\n"

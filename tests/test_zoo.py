@@ -58,7 +58,8 @@ def test_zoo_names_load_and_unknown_names_are_one_line_with_close_names():
     pol = ndp.load_policy("zoo:push-v3-ndp")
     assert pol.cfg.task == "push-v3" and pol.cfg.algo == "ndp"
     assert ndp.zoo.path("zoo:push-v3-ndp") == ndp.zoo.path("push-v3-ndp") == ZOO / "push-v3-ndp"
-    assert ndp.zoo.info("throw-ndp")["success"] == 0.94
+    row = next(r for r in ndp.zoo.index()["policies"] if r["policy"] == "throw-ndp")
+    assert ndp.zoo.info("throw-ndp") == row and 0.0 <= row["success"] <= 1.0
     for bad, close in (("zoo:push-v3-npd", "push-v3-ndp"), ("zoo:trow-ppo", "throw-ppo")):
         with pytest.raises(ValueError) as exc:
             ndp.load_policy(bad)
@@ -239,12 +240,12 @@ sys.path.insert(0, SITE)  # the unpacked wheel, ahead of any other ndp
 import ndp
 
 assert ndp.__file__.startswith(SITE), ndp.__file__
-assert len(ndp.zoo.list()) == N_POLICIES
+assert len(ndp.zoo.list()) == N_POLICIES == len(ndp.zoo.index()["policies"])
 pol = ndp.load_policy("zoo:push-v3-ndp")
 import numpy as np
 
 act = pol.act(np.zeros(39), ndp.RobotState(np.zeros(4), np.zeros(4)))
-assert act.shape == (5, 4)
+assert act.shape == (pol.exec_k, 4), act.shape
 assert ndp.zoo.card("throw-ndp").startswith("---")
 print("WHEEL OK", str(ndp.zoo.path("push-v3-ndp")))
 """

@@ -18,8 +18,8 @@ from ndp.policies.heads import ChunkBasisHead
 from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.rl.run import train
 from ndp.runs import load_checkpoint, read_metrics
+from policy_fixtures import fixture_policy
 
-ZOO = Path(__file__).resolve().parents[2] / "zoo"
 K = 10  # point-mass: n_basis 6, so 7 columns need k >= 7
 TINY = PPOConfig(minibatches=2, epochs=2, lr=1e-3)  # with steps_per_update=400
 
@@ -166,7 +166,7 @@ def test_fit_basis_refuses_runs_it_cannot_pool(multi_run, tmp_path):
     from ndp.rl.fit_basis import fit_basis
 
     with pytest.raises(ValueError, match=r"^run_dirs: .*push-v3-ndp is a ndp run; expected ppo"):
-        fit_basis([ZOO / "push-v3-ndp"], tmp_path / "b.npz")
+        fit_basis([fixture_policy("push-v3-ndp")], tmp_path / "b.npz")
     other = tmp_path / "k5"
     _train(other, steps=100, k=5)
     with pytest.raises(ValueError, match=r"has \(task, k, DoF count\) \('point-mass', 5, 2\)"):

@@ -7,10 +7,11 @@ import pytest
 
 import ndp
 from ndp.rl.evaluate import check_env_task, env_task, run_episode
+from policy_fixtures import fixture_policy
 
 
 def test_a_reach_policy_in_the_push_env_is_refused_unless_forced():
-    pol = ndp.load_policy("zoo:reach-v3-ndp")
+    pol = ndp.load_policy(fixture_policy("reach-v3-ndp"))
     push = ndp.make_env("push-v3", k=pol.cfg.k, horizon=10)
     try:
         assert env_task(push) == "push-v3"

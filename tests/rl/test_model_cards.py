@@ -11,6 +11,7 @@ import pytest
 import ndp
 from ndp.experiments.report.stats import wilson_interval
 from ndp.rl.card import NOT_RECORDED, card_fields, model_card, to_yaml
+from policy_fixtures import fixture_index, fixture_names, fixture_policy, fixture_row
 
 yaml = pytest.importorskip("yaml")
 
@@ -62,14 +63,17 @@ def test_wilson_interval_against_hand_computed_values():
             wilson_interval(*bad)
 
 
-@pytest.mark.parametrize("name", ndp.zoo.list())
-def test_every_zoo_card_has_the_required_front_matter_and_the_published_numbers(name):
-    data = front_matter(ndp.zoo.card(name))
+@pytest.mark.parametrize("name", fixture_names())
+def test_every_fixture_card_has_the_required_front_matter_and_the_published_numbers(name):
+    """The fixtures (the zoo's exports as they were, with its index of then): every card's
+    numbers are its index row's; an export that predates recorded commands says so."""
+    d = fixture_policy(name)
+    data = front_matter((d / "README.md").read_text())
     assert [k for k in REQUIRED if k not in data] == []
     assert data["license"] == "mit" and data["library_name"] == "neural-dynamic-policies"
     assert "reinforcement-learning" in data["tags"]
-    row, index = ndp.zoo.info(name), ndp.zoo.index()
-    meta = json.loads((ndp.zoo.path(name) / "policy.json").read_text())
+    row, index = fixture_row(name), fixture_index()
+    meta = json.loads((d / "policy.json").read_text())
     assert data["task"] == meta["task"] and data["method"] == meta["algo"] == row["method"]
     assert data["success_rate"] == pytest.approx(row["success"])
     assert data["episodes"] == index["episodes"] == 50
@@ -78,8 +82,42 @@ def test_every_zoo_card_has_the_required_front_matter_and_the_published_numbers(
     assert data["budget_env_steps"] == row["steps"] == meta["config"]["steps"]
     assert data["seeds"] == [row["seed"]]
     assert data["commit"] == meta["commit"]
-    assert data["command"] == NOT_RECORDED  # the zoo's exports predate recorded commands
+    assert data["command"] == NOT_RECORDED  # these exports predate recorded commands
     assert data["training_commits"] == (row["trained_at"] or NOT_RECORDED)
+    assert data["evaluation_command"] == index["command"]
+    result = data["model-index"][0]["results"][0]
+    assert result["metrics"][0]["type"] == "success_rate"
+    assert result["metrics"][0]["value"] == pytest.approx(row["success"])
+    assert data["model-index"][0]["name"] == name
+
+
+@pytest.mark.parametrize("name", ndp.zoo.list())
+def test_every_zoo_card_has_the_required_front_matter_and_the_published_numbers(name):
+    """Whatever the zoo holds: each card's numbers are zoo.json's (success, episodes, its
+    Wilson interval, seed, evaluation command), its training record the export's."""
+    data = front_matter(ndp.zoo.card(name))
+    assert [k for k in REQUIRED if k not in data] == []
+    assert data["license"] == "mit" and data["library_name"] == "neural-dynamic-policies"
+    assert "reinforcement-learning" in data["tags"]
+    row, index = ndp.zoo.info(name), ndp.zoo.index()
+    meta = json.loads((ndp.zoo.path(name) / "policy.json").read_text())
+    assert data["task"] == meta["task"] and data["method"] == meta["algo"] == row["method"]
+    assert 0.0 <= row["success"] <= 1.0
+    assert data["success_rate"] == pytest.approx(row["success"])
+    n = index["episodes"]
+    assert data["episodes"] == n and n >= 1
+    lo, hi = wilson_interval(round(row["success"] * n), n)
+    assert data["success_rate_ci95"] == [pytest.approx(lo, abs=1e-4), pytest.approx(hi, abs=1e-4)]
+    training = meta.get("training") or {}
+    trained = training.get("env_steps_trained")
+    steps = trained if isinstance(trained, int) else meta["config"]["steps"]
+    assert data["budget_env_steps"] == steps and row["steps"] == meta["config"]["steps"]
+    assert data["seeds"] == [row["seed"]]
+    assert data["commit"] == meta["commit"]
+    commands = training.get("commands") or []
+    assert data["command"] == (commands[0] if len(commands) == 1 else commands or NOT_RECORDED)
+    commits = training.get("commits") or row["trained_at"]
+    assert data["training_commits"] == ([str(c) for c in commits] or NOT_RECORDED)
     assert data["evaluation_command"] == index["command"]
     result = data["model-index"][0]["results"][0]
     assert result["metrics"][0]["type"] == "success_rate"
@@ -90,7 +128,7 @@ def test_every_zoo_card_has_the_required_front_matter_and_the_published_numbers(
 def test_an_export_card_says_not_recorded_and_reports_a_cached_evaluation(tmp_path):
     from ndp.rl.policy import cached_evaluation
 
-    meta = json.loads((ndp.zoo.path("throw-ndp") / "policy.json").read_text())
+    meta = json.loads((fixture_policy("throw-ndp") / "policy.json").read_text())
     bare = front_matter(model_card(meta, None, "mine"))
     assert [k for k in REQUIRED if k not in bare] == []
     for key in ("success_rate", "success_rate_ci95", "episodes", "command"):
@@ -150,8 +188,8 @@ def test_every_export_writes_a_card_and_a_re_export_keeps_its_results(tmp_path):
 
     import ndp
 
-    src = ndp.load_policy("zoo:push-v3-ndp")
-    zoo_card = (ndp.zoo.path("push-v3-ndp") / "README.md").read_text()
+    src = ndp.load_policy(fixture_policy("push-v3-ndp"))
+    zoo_card = (fixture_policy("push-v3-ndp") / "README.md").read_text()
     assert "success_rate: 0.8" in zoo_card
     again = src.export(tmp_path / "again")
     card = (again / "README.md").read_text()
@@ -168,25 +206,35 @@ def test_every_export_writes_a_card_and_a_re_export_keeps_its_results(tmp_path):
         assert "pypi.org" not in text
 
 
-@pytest.mark.parametrize("name", ndp.zoo.list())
-def test_every_zoo_policy_has_its_hub_eval_results_with_the_cards_number(name):
+def _check_eval_results(folder, row: dict, index: dict) -> None:
     yaml = pytest.importorskip("yaml")
-    row = ndp.zoo.info(name)
-    task = json.loads((ndp.zoo.path(name) / "policy.json").read_text())["task"]  # VICES: torque
-    files = list((ndp.zoo.path(name) / ".eval_results").glob("*.yaml"))
+    task = json.loads((folder / "policy.json").read_text())["task"]  # VICES: torque
+    files = list((folder / ".eval_results").glob("*.yaml"))
     assert [f.name for f in files] == [f"{task}.yaml"]
     (entry,) = yaml.safe_load(files[0].read_text())
     assert entry["dataset"] == {"id": f"ndp/{task}", "task_id": "success_any_deterministic"}
     assert entry["value"] == pytest.approx(row["success"])
-    assert entry["date"] == ndp.zoo.index()["date"]
-    assert "50 episodes" in entry["notes"] and "Wilson" in entry["notes"]
+    assert entry["date"] == index["date"]
+    assert f"{index['episodes']} episodes" in entry["notes"] and "Wilson" in entry["notes"]
+
+
+@pytest.mark.parametrize("name", ndp.zoo.list())
+def test_every_zoo_policy_has_its_hub_eval_results_with_the_cards_number(name):
+    _check_eval_results(ndp.zoo.path(name), ndp.zoo.info(name), ndp.zoo.index())
+
+
+@pytest.mark.parametrize("name", fixture_names())
+def test_every_fixture_policy_has_its_hub_eval_results_with_the_cards_number(name):
+    index = fixture_index()
+    assert index["episodes"] == 50  # as the fixtures were published
+    _check_eval_results(fixture_policy(name), fixture_row(name), index)
 
 
 def test_an_export_without_results_writes_no_eval_results_and_a_measured_one_does(tmp_path):
     yaml = pytest.importorskip("yaml")
     from ndp.rl.card import EVAL_RESULTS_DIR, eval_results, write_card
 
-    meta = json.loads((ndp.zoo.path("throw-ndp") / "policy.json").read_text())
+    meta = json.loads((fixture_policy("throw-ndp") / "policy.json").read_text())
     assert eval_results(meta, None) == {}
     out = tmp_path / "exp"
     out.mkdir()
@@ -206,7 +254,7 @@ def test_an_export_never_overwrites_a_file_nor_lands_in_a_run_folder(tmp_path, f
     """A folder holding a README.md (a user's project), an earlier card's .eval_results/, or a
     training run (checkpoint, metrics, config): refused before anything is written, naming
     out_dir; the files there are unchanged."""
-    src = ndp.load_policy("zoo:push-v3-ndp")
+    src = ndp.load_policy(fixture_policy("push-v3-ndp"))
     for name, text in (("README.md", "mine\n"), ("checkpoint.pt", "ckpt"),
                        ("metrics.csv", "update\n"), ("config.json", "{}\n")):  # fmt: skip
         out = tmp_path / f"{fmt}-{name}"
@@ -232,7 +280,7 @@ def test_a_card_names_the_files_its_folder_holds_and_the_graphs_dtypes(tmp_path,
     graph's real input dtype (float32: feeding float64 is onnxruntime's INVALID_ARGUMENT)."""
     import re
 
-    out = ndp.load_policy("zoo:push-v3-ndp").export(tmp_path / fmt, format=fmt)
+    out = ndp.load_policy(fixture_policy("push-v3-ndp")).export(tmp_path / fmt, format=fmt)
     card = (out / "README.md").read_text()
     files_line = next(line for line in card.splitlines() if line.startswith("Files:"))
     named = set(re.findall(r"`([\w.]+\.(?:onnx|json|safetensors))`", files_line))

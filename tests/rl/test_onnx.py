@@ -18,14 +18,15 @@ from ndp.rl.envs import resolve_task
 from ndp.rl.normalize import ObsNormalizer
 from ndp.rl.onnx_export import DecisionModule, OnnxPolicy, onnx_metadata, probe_inputs
 from ndp.rl.policy import Policy
+from policy_fixtures import FIXTURES
 
 onnx = pytest.importorskip("onnx")
 ort = pytest.importorskip("onnxruntime")
 
-ZOO = Path(__file__).resolve().parents[2] / "zoo"
-# every method in the zoo: NDP from the measured (Meta-World) and the commanded (Jaco) state,
-# PPO, PPO-multi, VICES (impedance actions), Dyn-E (decoded action sequences)
-ZOO_POLICIES = [
+# every method of the trained fixtures (tests/fixtures/policies: the zoo's exports as they were
+# when these tests were written): NDP from the measured (Meta-World) and the commanded (Jaco)
+# state, PPO, PPO-multi, VICES (impedance actions), Dyn-E (decoded action sequences)
+TRAINED = [
     "push-v3-ndp",
     "push-v3-ppo",
     "push-v3-ppo-multi",
@@ -75,9 +76,9 @@ def _check_graph(path: Path, policy: Policy) -> None:
     assert meta["uses_robot_state"] == policy.model.head.needs_robot_state
 
 
-@pytest.mark.parametrize("name", ZOO_POLICIES)
-def test_zoo_policy_runs_as_one_onnx_graph(name, tmp_path):
-    policy = ndp.load_policy(ZOO / name)
+@pytest.mark.parametrize("name", TRAINED)
+def test_trained_policy_runs_as_one_onnx_graph(name, tmp_path):
+    policy = ndp.load_policy(FIXTURES / name)
     out = policy.export(tmp_path / "onnx", format="onnx")
     path = out / "policy.onnx"
     _check_graph(path, policy)
@@ -104,7 +105,7 @@ def test_zoo_policy_runs_as_one_onnx_graph(name, tmp_path):
 
 def _fresh(task: str, algo: str, seed: int = 0, **policy_kw) -> Policy:
     """An untrained policy with random actor weights (far from the near-zero init) and
-    normaliser statistics: heads and options the zoo does not hold."""
+    normaliser statistics: heads and options the trained fixtures do not hold."""
     cfg = resolve_config(
         TrainConfig(task=task, algo=algo, policy=PolicyConfig.from_dict(policy_kw))
     )
@@ -148,7 +149,7 @@ FRESH = {
 
 
 @pytest.mark.parametrize("name", list(FRESH))
-def test_heads_not_in_the_zoo_export_too(name, tmp_path):
+def test_heads_not_in_the_fixtures_export_too(name, tmp_path):
     task, algo, kw = FRESH[name]
     policy = _fresh(task, algo, **kw)
     out = policy.export(tmp_path / "onnx", format="onnx")
@@ -170,7 +171,7 @@ def test_cli_writes_onnx_and_keeps_an_existing_file(tmp_path, capsys):
     from ndp.cli import main as ndp_main
 
     out = tmp_path / "cli"
-    argv = ["rl", "export", str(ZOO / "push-v3-ppo-multi"), str(out), "--format", "onnx"]
+    argv = ["rl", "export", str(FIXTURES / "push-v3-ppo-multi"), str(out), "--format", "onnx"]
     assert ndp_main(argv) == 0
     line = capsys.readouterr().out.strip().splitlines()[-1]
     assert json.loads(line) == {"export": str(out), "format": "onnx"}
@@ -210,13 +211,13 @@ def test_a_graph_that_does_not_reproduce_the_policy_is_refused_naming_the_method
             tmp_path / "y", format="onnx"
         )
     with pytest.raises(ValueError, match="format: expected one of safetensors, onnx"):
-        ndp.export_policy(ZOO / "push-v3-ppo", tmp_path / "z", format="tflite")
+        ndp.export_policy(FIXTURES / "push-v3-ppo", tmp_path / "z", format="tflite")
 
 
 def test_decision_module_passes_torch_export():
     """The first stage of torch's dynamo-based ONNX exporter (torch.export) records the whole
     decision of an NDP policy with a dynamic batch."""
-    policy = ndp.load_policy(ZOO / "push-v3-ndp")
+    policy = ndp.load_policy(FIXTURES / "push-v3-ndp")
     module = DecisionModule(policy).eval()
     batch = torch.export.Dim("E")
     args = probe_inputs(policy, 3)
@@ -236,7 +237,7 @@ def test_load_policy_loads_an_onnx_export_with_the_same_calling_convention(tmp_p
     from ndp.rl.evaluate import evaluate
     from ndp.rl.onnx_export import OnnxPolicy
 
-    torch_pol = ndp.load_policy("zoo:throw-ndp")
+    torch_pol = ndp.load_policy(FIXTURES / "throw-ndp")
     out = torch_pol.export(tmp_path / "onnx", format="onnx")
     for where in (out, out / "policy.onnx"):
         pol = ndp.load_policy(where)
@@ -273,7 +274,7 @@ def test_the_graph_takes_float32_inputs(tmp_path):
     computes in float64 inside), and the wrapper accepts any real dtype."""
     import ndp
 
-    pol = ndp.load_policy("zoo:push-v3-ppo-multi")
+    pol = ndp.load_policy(FIXTURES / "push-v3-ppo-multi")
     out = pol.export(tmp_path / "o", format="onnx")
     model = onnx.load(str(out / "policy.onnx"))
     assert [i.type.tensor_type.elem_type for i in model.graph.input] == [onnx.TensorProto.FLOAT] * 3
@@ -294,7 +295,7 @@ def test_torch_and_onnx_refuse_and_warn_on_bad_observations_with_the_same_words(
 
     import ndp
 
-    torch_pol = ndp.load_policy("zoo:throw-ndp")
+    torch_pol = ndp.load_policy(FIXTURES / "throw-ndp")
     onnx_pol = ndp.load_policy(torch_pol.export(tmp_path / "onnx", format="onnx"))
     env = torch_pol.make_env()
     obs, info = env.reset(seed=1)

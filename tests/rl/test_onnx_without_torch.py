@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import ndp
+from policy_fixtures import fixture_policy
 
 pytest.importorskip("onnxruntime")
 
@@ -32,7 +33,7 @@ print(type(pol).__name__, a.shape, pol.spec.task, pol.spec.k, len(pol.spec.dof_n
 
 
 def test_load_policy_of_an_onnx_folder_needs_no_torch(tmp_path):
-    out = ndp.load_policy("zoo:push-v3-ndp").export(tmp_path / "onnx", format="onnx")
+    out = ndp.load_policy(fixture_policy("push-v3-ndp")).export(tmp_path / "onnx", format="onnx")
     res = subprocess.run([sys.executable, "-c", BLOCK, str(out)], capture_output=True, text=True,
                          timeout=120)  # fmt: skip
     assert res.returncode == 0, res.stderr
@@ -40,7 +41,7 @@ def test_load_policy_of_an_onnx_folder_needs_no_torch(tmp_path):
 
 
 def test_onnx_policy_spec_agrees_with_the_torch_policy(tmp_path):
-    src = ndp.load_policy("zoo:push-v3-ndp")
+    src = ndp.load_policy(fixture_policy("push-v3-ndp"))
     pol = ndp.load_policy(src.export(tmp_path / "onnx", format="onnx"))
     assert pol.spec.obs_dim == src.spec.obs_dim and pol.spec.dmp_dofs == src.spec.dmp_dofs
     assert pol.spec.dof_names == tuple(src.spec.dof_names) and pol.spec.k == 5

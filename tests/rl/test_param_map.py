@@ -14,6 +14,7 @@ from ndp.cli import main as ndp_main
 from ndp.experiments.diagnose import main as diagnose_main
 from ndp.rl.config import TrainConfig, resolve_config, unused_head_options
 from ndp.runs import load_checkpoint, read_metrics
+from policy_fixtures import fixture_policy
 
 TRAIN = ["--steps-per-update", "512", "--minibatches", "4", "--vector", "sync",
          "--no-progress", "--no-tensorboard"]  # fmt: skip
@@ -86,12 +87,13 @@ def _diagnose(argv, capsys):
 @pytest.mark.filterwarnings("ignore:Constant")
 def test_rl_diagnose_jacobian_reads_fresh_and_trained_policies(tmp_path, capsys):
     png = tmp_path / "spectra.png"
-    argv = ["--jacobian", "zoo:push-v3-ndp", "--task", "push-v3", "--set", "param_map=whitened"]
+    push = str(fixture_policy("push-v3-ndp"))
+    argv = ["--jacobian", push, "--task", "push-v3", "--set", "param_map=whitened"]
     out = _diagnose([*argv, "--episodes", "1", "--png", str(png)], capsys)
     trained, white = out["jacobian"]
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out["png"] == str(png)
-    # the zoo policy: the map at raw = 0 (condition 168.4 over 16 directions), the fresh network
-    # near it, the trained policy's tanh slopes make it worse (its map's own is unchanged)
+    # the trained fixture: the map at raw = 0 (condition 168.4 over 16 directions), the fresh
+    # network near it, the trained policy's tanh slopes make it worse (its map's own is unchanged)
     assert trained["raw0"]["rank"] == 16 and abs(trained["raw0"]["condition"] - 168.437) < 0.01
     assert abs(trained["init"]["condition"]["median"] - 168.44) < 0.5
     t = trained["trained"]

@@ -1,7 +1,8 @@
 """Trained policies act without the simulators: load + act(obs, robot_state) on the core install.
 
-The reference actions (tests/data/zoo_reference_actions.npz) were recorded from every zoo
-policy, on real observations and robot states of its env, with the loader as it was before
+The reference actions (tests/data/zoo_reference_actions.npz) were recorded from every policy
+the zoo held then, now the fixtures tests/fixtures/policies (the zoo is regenerated with other
+weights), on real observations and robot states of its env, with the loader as it was before
 exports recorded their task spec (the task table built the head then). On one machine both
 paths must give the same actions bit for bit: the env path (the task table) in this process,
 and the recorded spec in a process where importing gymnasium, mujoco, metaworld or dm_control
@@ -25,6 +26,7 @@ import pytest
 
 import ndp
 from ndp.schema import PolicySpec, check_record, spec_record
+from policy_fixtures import fixture_names, fixture_policy
 
 ROOT = Path(__file__).resolve().parents[2]
 SRC = Path(ndp.__file__).resolve().parents[1]
@@ -56,10 +58,9 @@ import ndp
 assert ndp.__file__.startswith(SRC), ndp.__file__
 ref = np.load(REF)
 out, arrays = {}, {}
-for name in ndp.zoo.list():
+for name, path in POLICIES.items():
     key = name.replace("-", "_")
-    # push-v3-ndp through the checkout's zoo/ path, the others by their zoo name
-    pol = ndp.load_policy(ZOO_PUSH if name == "push-v3-ndp" else "zoo:" + name)
+    pol = ndp.load_policy(path)
     assert pol.simulator_free, type(pol.spec)
     obs, y0, dy0 = ref[key + "__obs"], ref[key + "__y0"], ref[key + "__dy0"]
     ky, kdy = pol.state_keys
@@ -92,22 +93,22 @@ print("RESULT " + json.dumps(out))
 
 
 def _old_export(tmp_path: Path) -> Path:
-    """zoo/push-v3-ndp as exports were before ``"spec"`` (the field removed)."""
+    """The push-v3-ndp fixture as exports were before ``"spec"`` (the field removed)."""
     old = tmp_path / "old-push"
-    shutil.copytree(ndp.zoo.path("push-v3-ndp"), old)
+    shutil.copytree(fixture_policy("push-v3-ndp"), old)
     meta = json.loads((old / "policy.json").read_text())
     meta.pop("spec")
     (old / "policy.json").write_text(json.dumps(meta))
     return old
 
 
-def test_zoo_policies_act_without_the_simulators_bit_identical(tmp_path):
+def test_fixture_policies_act_without_the_simulators_bit_identical(tmp_path):
     script = BLOCKED_SCRIPT
     for name, value in {
         "SIMULATORS": repr(SIMULATORS),
         "SRC": repr(str(SRC)),
         "REF": repr(str(REF)),
-        "ZOO_PUSH": repr(str(ROOT / "zoo" / "push-v3-ndp")),
+        "POLICIES": repr({name: str(fixture_policy(name)) for name in fixture_names()}),
         "OLD_EXPORT": repr(str(_old_export(tmp_path))),
         "ACTIONS": repr(str(tmp_path / "actions.npz")),
     }.items():
@@ -127,7 +128,7 @@ def test_zoo_policies_act_without_the_simulators_bit_identical(tmp_path):
     assert "needs the simulators, the [envs] extra" in out.pop("make_env_error")
     old = out.pop("old_export_error")
     assert "records no task spec" in old and "[envs]" in old and "\n" not in old
-    assert sorted(out) == sorted(ndp.zoo.list()) and len(out) == 17
+    assert sorted(out) == fixture_names() and len(out) == 17
     got = np.load(tmp_path / "actions.npz")
     for name in out:
         key = name.replace("-", "_")
@@ -148,10 +149,10 @@ def _close(a: np.ndarray, b: np.ndarray, name: str) -> None:
 
 
 def _env_path_actions(name: str, ref: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The zoo policy ``name`` loaded through the task table (simulators importable), acting
+    """The fixture policy ``name`` loaded through the task table (simulators importable), acting
     on the recorded observations and robot states as the blocked process does."""
     pytest.importorskip("metaworld")
-    pol = ndp.load_policy("zoo:" + name)
+    pol = ndp.load_policy(fixture_policy(name))
     assert not pol.simulator_free
     det, sto = [], []
     for i in range(len(ref["obs"])):
@@ -173,12 +174,12 @@ def test_the_env_path_gives_the_recorded_actions(name):
     pytest.importorskip("metaworld")
     from ndp.envs import TaskSpec
 
-    pol = ndp.load_policy(f"zoo:{name}")
+    pol = ndp.load_policy(fixture_policy(name))
     assert isinstance(pol.spec, TaskSpec) and not pol.simulator_free
     # the recorded spec is the task table's row
     assert (
         spec_record(pol.spec)
-        == json.loads((ndp.zoo.path(name) / "policy.json").read_text())["spec"]
+        == json.loads((fixture_policy(name) / "policy.json").read_text())["spec"]
     )
     ref = _reference(name)
     ky, kdy = pol.state_keys
@@ -199,7 +200,7 @@ def test_an_export_without_the_spec_still_loads_with_the_simulators(tmp_path):
 
 def test_export_records_the_spec_training_and_a_card(tmp_path):
     pytest.importorskip("metaworld")
-    out = ndp.export_policy("zoo:throw-ndp", tmp_path / "again")
+    out = ndp.export_policy(fixture_policy("throw-ndp"), tmp_path / "again")
     meta = json.loads((out / "policy.json").read_text())
     pol = ndp.load_policy(out)
     assert meta["spec"] == spec_record(pol.spec) and meta["spec"]["dmp_dofs"] == 7
@@ -213,7 +214,8 @@ def test_export_records_the_spec_training_and_a_card(tmp_path):
 
 
 def test_robot_state_forms_and_refusals():
-    pol = ndp.load_policy("zoo:throw-ndp")  # commanded frame, DMP at rest (dmp_velocity zero)
+    # commanded frame, DMP at rest (dmp_velocity zero)
+    pol = ndp.load_policy(fixture_policy("throw-ndp"))
     ref = _reference("throw-ndp")
     obs, y0, dy0 = ref["obs"][0], ref["y0"][0], ref["dy0"][0]
     want = pol.act(obs, ndp.RobotState(y0, dy0))
@@ -226,19 +228,19 @@ def test_robot_state_forms_and_refusals():
         pol.act(obs, ndp.RobotState(y0[:4], dy0))
     with pytest.raises(ValueError, match="got list"):
         pol.act(obs, [y0, dy0])
-    push = ndp.load_policy("zoo:push-v3-ndp")  # measured frame with its velocity
+    push = ndp.load_policy(fixture_policy("push-v3-ndp"))  # measured frame with its velocity
     p = _reference("push-v3-ndp")
     with pytest.raises(ValueError, match="dy0 is None, but this policy's DMP starts with"):
         push.act(p["obs"][0], ndp.RobotState(p["y0"][0]))
     # heads without a DMP ignore the state: act(obs) works
-    ppo = ndp.load_policy("zoo:soccer-v3-ppo")
+    ppo = ndp.load_policy(fixture_policy("soccer-v3-ppo"))
     assert not ppo.needs_robot_state and push.needs_robot_state
     s = _reference("soccer-v3-ppo")
     _close(ppo.act(s["obs"][0]), s["det"][0], "soccer-v3-ppo")
 
 
 def test_recorded_spec_is_checked_field_by_field():
-    rec = json.loads((ndp.zoo.path("push-v3-ndp") / "policy.json").read_text())["spec"]
+    rec = json.loads((fixture_policy("push-v3-ndp") / "policy.json").read_text())["spec"]
     spec = PolicySpec.from_record(rec)
     assert spec.controller is not None and spec.dmp_dofs == 4
     cases = [
@@ -251,7 +253,7 @@ def test_recorded_spec_is_checked_field_by_field():
     for bad, msg in cases:
         with pytest.raises(ValueError, match=msg):
             PolicySpec.from_record(bad, "spec")
-    torque = json.loads((ndp.zoo.path("throw-vices") / "policy.json").read_text())["spec"]
+    torque = json.loads((fixture_policy("throw-vices") / "policy.json").read_text())["spec"]
     tspec = PolicySpec.from_record(torque)
     assert tspec.actuation == "torque" and tspec.controller is None
     with pytest.raises(ValueError, match="torque-actuated"):

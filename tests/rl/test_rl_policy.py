@@ -12,6 +12,7 @@ import pytest
 import ndp
 from ndp.rl.config import PPOConfig, TrainConfig
 from ndp.rl.run import train
+from policy_fixtures import fixture_policy
 
 FAST = PPOConfig(minibatches=4)  # with steps_per_update=512
 
@@ -95,7 +96,7 @@ def test_export_loads_in_a_fresh_process_without_unpickling(push_run, tmp_path):
 
 def test_act_refuses_a_deterministic_flag_that_is_not_a_bool():
     """A string such as "no" is truthy: it would silently act with the mode."""
-    policy = ndp.load_policy("zoo:reach-v3-ndp")
+    policy = ndp.load_policy(fixture_policy("reach-v3-ndp"))
     env = policy.make_env()
     obs, info = env.reset(seed=0)
     with pytest.raises(ValueError, match=r"^deterministic: expected True or False, got 'no'"):

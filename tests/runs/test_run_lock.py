@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from ndp.runs import lock
+from policy_fixtures import fixture_policy
 
 ENV = {**os.environ, "MUJOCO_GL": "egl", "OMP_NUM_THREADS": "1"}
 
@@ -176,7 +177,7 @@ def test_two_exports_into_one_folder_one_is_refused(tmp_path):
         import ndp
 
         with pytest.raises(lock.RunBusyError, match=r"out_dir: .* is being written now by pid"):
-            ndp.load_policy("zoo:push-v3-ndp").export(out)
+            ndp.load_policy(fixture_policy("push-v3-ndp")).export(out)
         assert not out.exists()
     finally:
         proc.kill()

@@ -113,7 +113,7 @@ def retrain_command(run: Path, into: Path) -> str:
     recorded command line, with the commit to check out."""
     import shlex
 
-    from ndp.provenance import portable_command
+    from ndp.provenance import user_command
     from ndp.runs.layout import provenance_sessions
 
     first = (provenance_sessions(run) or [None])[0]
@@ -123,10 +123,7 @@ def retrain_command(run: Path, into: Path) -> str:
     i = argv.index("--run-dir") if "--run-dir" in argv else None
     if i is not None:
         argv[i + 1] = str(into / run.name)
-    rest = argv[argv.index("rl") :] if "rl" in argv else argv[1:]
-    return f"git checkout {str(first.get('commit'))[:7]} && " + shlex.join(
-        ["ndp", *portable_command(rest)]
-    )
+    return f"git checkout {str(first.get('commit'))[:7]} && " + shlex.join(user_command(argv))
 
 
 def exportable(run: Path, retrained: Path | None) -> tuple[Path, bool]:
@@ -346,7 +343,7 @@ def main(argv: list[str] | None = None) -> int:
 
     torch.set_num_threads(1)
     from ndp.io import atomic_write_text
-    from ndp.provenance import git_commit, portable_path
+    from ndp.provenance import git_commit, portable_command, portable_path
     from ndp.rl.evaluate import evaluate_policy
     from ndp.rl.policy import export_policy, load_policy
     from ndp.runs import run_commits
@@ -404,7 +401,10 @@ def main(argv: list[str] | None = None) -> int:
                   f"{ev['success_any']:.2f}", flush=True)  # fmt: skip
     if not any(not r.get("carried_over") for r in rows) and not left_out:
         raise SystemExit(f"zoo: no finished runs of this grid in {runs}; nothing written")
-    cmd = "python benchmarks/zoo.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    import shlex
+
+    given = list(argv if argv is not None else sys.argv[1:])
+    cmd = "python benchmarks/zoo.py " + shlex.join(portable_command(given))
     meta = {"command": cmd, "commit": git_commit(), "date": time.strftime("%Y-%m-%d"),
             "select_episodes": args.select_episodes, "episodes": args.episodes,
             "min_success": args.min_success, "rule": args.rule, "select": args.select,

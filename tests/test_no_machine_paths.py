@@ -7,7 +7,7 @@ import os
 import re
 from pathlib import Path
 
-from ndp.provenance import portable_command, portable_path
+from ndp.provenance import portable_command, portable_path, user_command
 
 ROOT = Path(__file__).resolve().parents[1]
 MACHINE = re.compile(rb"/(work|home|root|Users)/")
@@ -35,3 +35,15 @@ def test_portable_paths(tmp_path, monkeypatch):
     assert portable_path("/elsewhere/deep/runs/x") == ".../runs/x"
     cmd = ["ndp", "report", str(work / "runs" / "s"), "--out=" + str(work / "main" / "o")]
     assert portable_command(cmd) == ["ndp", "report", "../runs/s", "--out=o"]
+
+
+def test_a_recorded_command_reads_as_a_user_types_it():
+    # the entry point under a venv, the module run with python -m, the package's __main__
+    for head in ("/w/.venv/bin/ndp", "/w/wt/rg/src/ndp/cli.py", "/site/ndp/__main__.py"):
+        assert user_command([head, "rl", "train", "--seed", "1"]) == [
+            "ndp", "rl", "train", "--seed", "1",
+        ]  # fmt: skip
+    # anything else keeps its program (made portable): a script is not the ndp command
+    assert user_command(["/w/benchmarks/zoo.py", "--out", "zoo"])[0] == ".../benchmarks/zoo.py"
+    assert user_command(["/w/src/other/cli.py", "x"])[0] != "ndp"
+    assert user_command([]) == []

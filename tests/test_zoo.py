@@ -45,7 +45,7 @@ def test_every_zoo_card_shows_command_commit_steps_and_a_measured_evaluation(nam
     head = card.split("---")[1]
     fields = dict(re.findall(r"^([a-z_0-9]+): (.*)$", head, flags=re.M))
     assert fields["command"].startswith('"ndp rl train '), fields["command"]
-    assert re.fullmatch(r'"[0-9a-f]{7,40}"', fields["training_commits"]), fields
+    assert re.fullmatch(r'\["[0-9a-f]{7,40}"\]', fields["training_commits"]), fields
     assert int(fields["budget_env_steps"]) > 0
     assert 0.0 <= float(fields["success_rate"]) <= 1.0 and int(fields["episodes"]) >= 50
     assert "not recorded" not in head, head
@@ -193,7 +193,7 @@ def test_final_eval_selection_and_a_rerun_published_only_when_it_reproduces(tmp_
     seed, run, sel = zoo.pick_best([a], "push-v3", "ndp-nostale", [0, 1, 2], 20, "final-eval")
     assert (seed, run.name, sel) == (1, "push-v3-ndp-nostale-s1", pytest.approx(0.6))
     # an archived run (no checkpoint): refused with the command that trains it again
-    prov = [{"argv": ["/x/cli.py", "rl", "train", "--task", "push-v3", "--seed", "1",
+    prov = [{"argv": ["/x/src/ndp/cli.py", "rl", "train", "--task", "push-v3", "--seed", "1",
                       "--run-dir", str(run)], "commit": "7b7d5e46d0"}]  # fmt: skip
     (run / "provenance.json").write_text(json.dumps(prov))
     with pytest.raises(SystemExit) as exc:

@@ -171,6 +171,20 @@ def portable_path(path: str | Path) -> str:
     return ".../" + "/".join(p.parts[-2:])
 
 
+def user_command(argv: list[str]) -> list[str]:
+    """A recorded command line as a user types it: the program, when it is the ``ndp`` entry
+    point under any path (``.venv/bin/ndp``) or the module run as ``python -m ndp.cli`` /
+    ``python -m ndp`` (whose ``sys.argv[0]`` is the module's file), becomes ``ndp``; every
+    absolute path argument is made :func:`portable_path`."""
+    if argv:
+        head = Path(argv[0])
+        if head.name == "ndp" or (
+            head.parent.name == "ndp" and head.name in ("cli.py", "__main__.py")
+        ):
+            argv = ["ndp", *argv[1:]]
+    return portable_command(argv)
+
+
 def portable_command(argv: list[str]) -> list[str]:
     """A command line with every absolute path argument made :func:`portable_path`."""
     out = []

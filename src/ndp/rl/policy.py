@@ -66,7 +66,7 @@ from ndp.chunk_info import dmp_start_keys
 from ndp.hub import download, is_hub_ref
 from ndp.io import atomic_write_bytes, atomic_write_text, check_output_path
 from ndp.policies import ActorCritic, build_actor_critic
-from ndp.provenance import git_commit, installed_versions, portable_command, portable_path
+from ndp.provenance import git_commit, installed_versions, portable_path, user_command
 from ndp.rl.card import CardEvaluation, check_export_dir, write_card
 from ndp.rl.config import EVAL_SEED, TrainConfig, load_config
 from ndp.rl.exec_k import at_exec_k
@@ -495,7 +495,7 @@ def run_training(run_dir: Path) -> dict[str, Any] | None:
     if not sessions:
         return None
     commands = [
-        shlex.join(portable_command([str(a) for a in e["argv"]]))
+        shlex.join(user_command([str(a) for a in e["argv"]]))
         for e in sessions
         if isinstance(e, dict) and isinstance(e.get("argv"), list)
     ]

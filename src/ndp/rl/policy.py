@@ -544,10 +544,7 @@ def read_export_meta(path: Path) -> dict[str, Any]:
         if isinstance(v, bool) or not isinstance(v, types):
             names = " or ".join(t.__name__ for t in types)
             raise ValueError(f"{path}: field {key!r}: expected {names}, got {type(v).__name__}")
-    if meta["obs_dim"] < 1:
-        raise ValueError(
-            f"{path}: field 'obs_dim': expected an integer >= 1, got {meta['obs_dim']}"
-        )
+    check_int(f"{path}: field 'obs_dim'", meta["obs_dim"], 1)
     for key in ("mean", "var", "count"):
         if key not in meta["obs_norm"]:
             raise ValueError(f"{path}: field 'obs_norm.{key}' is missing")

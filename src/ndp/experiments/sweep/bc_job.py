@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from ndp.bc.demos import Demos, collect, load_demos, save_demos
+from ndp.checks import check_int
 from ndp.experiments.run_kinds import BC_DEMOS_EPISODES as DEMOS_EPISODES
 from ndp.io import atomic_write_text
 from ndp.runs import read_metrics
@@ -128,10 +129,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--eval-episodes", type=int, default=EVAL_EPISODES)
     args = p.parse_args(argv[:cut])
     for name in ("demos_episodes", "eval_episodes"):
-        if getattr(args, name) < 1:
-            p.error(
-                f"--{name.replace('_', '-')}: expected an integer >= 1, got {getattr(args, name)}"
-            )
+        try:
+            check_int(f"--{name.replace('_', '-')}", getattr(args, name), 1)
+        except ValueError as exc:
+            p.error(str(exc))
     import torch
 
     torch.set_num_threads(1)

@@ -578,8 +578,7 @@ def report_command(argv: list[str]) -> int:
 def _check_eval_options(args: argparse.Namespace) -> None:
     """``--eval-episodes`` and ``--eval-seed`` checked before any run is read (one line naming
     the option)."""
-    if args.eval_episodes < 0:
-        raise ValueError(f"--eval-episodes: expected an integer >= 0, got {args.eval_episodes}")
+    check_int("--eval-episodes", args.eval_episodes, 0)
     if args.eval_seed is None:
         return
     if args.eval_episodes == 0:

@@ -325,3 +325,26 @@ def test_card_and_progress_report_the_env_steps_trained_not_the_request(tmp_path
     assert "budget_env_steps: 512" in card
     with TrainProgress(tmp_path / "p", ["update", "global_step"], cfg, 0, 0, False) as prog:
         assert prog.bar.total == 512
+
+
+def test_a_card_lists_the_training_command_every_setting_and_the_citation():
+    from ndp.rl.card import BIBTEX, hyperparameters
+
+    meta = json.loads((fixture_policy("throw-ndp") / "policy.json").read_text())
+    meta["training"] = {"commands": ["ndp rl train --task throw --algo ndp --seed 0"],
+                        "commits": ["abc1234"], "env_steps_trained": 300_000}  # fmt: skip
+    card = model_card(meta)
+    training = card.split("## Training")[1].split("## Citation")[0]
+    assert "```bash\nndp rl train --task throw --algo ndp --seed 0\n```" in training
+    assert "Commits: abc1234; trained: 300,000 env steps." in training
+    rows = hyperparameters(meta["config"])
+    # every leaf of the resolved config, nested sections dotted, each a row of the table
+    assert ("policy.k", meta["config"]["policy"]["k"]) in rows
+    assert len(rows) >= 20 and len({k for k, _ in rows}) == len(rows)
+    for key, value in rows:
+        assert f"| `{key}` | `{json.dumps(value)}` |" in training
+    assert "```bibtex\n" + BIBTEX + "\n```" in card and "@inproceedings{bahl2020ndp," in BIBTEX
+    assert "https://github.com/shikharbahl/neural-dynamic-policies" in card
+    # an export without a recorded command says so instead of an empty block
+    meta["training"] = {}
+    assert "Command: not recorded" in model_card(meta).split("## Training")[1]

@@ -389,11 +389,84 @@ def model_card(
             "without unpickling anything."
         ),
         "",
-        "Neural Dynamic Policies: Shikhar Bahl, Mustafa Mukadam, Abhinav Gupta, Deepak Pathak. "
-        "Neural Dynamic Policies for End-to-End Sensorimotor Learning. NeurIPS 2020.",
-        "",
+        *_training_section(fields, cfg),
+        *_citation_section(),
     ]
     return "\n".join(lines)
+
+
+BIBTEX = """@inproceedings{bahl2020ndp,
+  title     = {Neural Dynamic Policies for End-to-End Sensorimotor Learning},
+  author    = {Bahl, Shikhar and Mukadam, Mustafa and Gupta, Abhinav and Pathak, Deepak},
+  booktitle = {Advances in Neural Information Processing Systems},
+  volume    = {33},
+  year      = {2020},
+  url       = {https://arxiv.org/abs/2012.02788}
+}"""
+"""The method's paper (CITATION.cff's preferred citation), as every card cites it."""
+
+LINKS = (
+    ("Paper", "https://arxiv.org/abs/2012.02788"),
+    ("The authors' code (2021)", "https://github.com/shikharbahl/neural-dynamic-policies"),
+)
+"""The card's links (pyproject's [project.urls]; this package's own repository address is
+added there when it is published)."""
+
+
+def hyperparameters(cfg: Mapping[str, Any], prefix: str = "") -> list[tuple[str, object]]:
+    """The resolved training config as (dotted key, value) rows, leaves only, in its order
+    (nested sections flattened: ``policy.ndp.n_basis``); empty sections are left out."""
+    rows: list[tuple[str, object]] = []
+    for key, value in cfg.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            rows += hyperparameters(value, name + ".")
+        else:
+            rows.append((name, value))
+    return rows
+
+
+def _training_section(fields: Mapping[str, Any], cfg: Mapping[str, Any]) -> list[str]:
+    """The card's "Training": the command, the commits, the trained steps and every setting."""
+    command = fields["command"]
+    commands = command if isinstance(command, list) else [command]
+    lines = ["## Training", ""]
+    if command == NOT_RECORDED:
+        lines += ["Command: not recorded (the export predates recorded commands).", ""]
+    else:
+        lines += ["```bash", *(str(c) for c in commands), "```", ""]
+    lines += [
+        f"Commits: {_seq(fields['training_commits'])}; trained: {_budget(fields)}.",
+        "",
+    ]
+    rows = hyperparameters(cfg)
+    if rows:
+        lines += [
+            "<details><summary>Hyperparameters (the resolved config, policy.json)</summary>",
+            "",
+            "| setting | value |",
+            "|---|---|",
+            *(f"| `{k}` | `{json.dumps(v)}` |" for k, v in rows),
+            "",
+            "</details>",
+            "",
+        ]
+    return lines
+
+
+def _citation_section() -> list[str]:
+    """The card's "Citation": the paper's BibTeX and the links."""
+    return [
+        "## Citation",
+        "",
+        "```bibtex",
+        BIBTEX,
+        "```",
+        "",
+        "Links: " + "; ".join(f"[{t}]({u})" for t, u in LINKS) + ". This package: not on PyPI "
+        "yet; its repository address is added to its metadata when it is published.",
+        "",
+    ]
 
 
 def _seq(v: object) -> str:

@@ -252,6 +252,12 @@ def main(argv: list[str] | None = None) -> int:
         "same command at the same commit; its re-run is published only if its metrics equal "
         "the archived run's",
     )
+    p.add_argument(
+        "--replay",
+        action="store_true",
+        help="also record each policy's first published episode as <policy>/replay.gif "
+        "(160 px, real time; the card shows it)",
+    )
     p.add_argument("--select-episodes", type=int, default=20)
     p.add_argument("--episodes", type=int, default=50)
     p.add_argument(
@@ -344,7 +350,8 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(1)
     from ndp.io import atomic_write_text
     from ndp.provenance import git_commit, portable_command, portable_path
-    from ndp.rl.evaluate import evaluate_policy
+    from ndp.rl.card import REPLAY_NAME
+    from ndp.rl.evaluate import evaluate_policy, render
     from ndp.rl.policy import export_policy, load_policy
     from ndp.runs import run_commits
 
@@ -374,6 +381,8 @@ def main(argv: list[str] | None = None) -> int:
             source, rerun = exportable(run, retrained)
             export_policy(source, tmp)
             ev = evaluate_policy(load_policy(tmp), args.episodes, True, PUBLISH_SEED)
+            if args.replay:  # the first published episode, as the card shows it
+                render(tmp, tmp / REPLAY_NAME, seed=PUBLISH_SEED, width=160, height=160)
             final = out / name
             old = out / f".{name}.old"
             if final.exists():

@@ -348,3 +348,15 @@ def test_a_card_lists_the_training_command_every_setting_and_the_citation():
     # an export without a recorded command says so instead of an empty block
     meta["training"] = {}
     assert "Command: not recorded" in model_card(meta).split("## Training")[1]
+
+
+def test_a_card_shows_the_replay_beside_it_only_when_the_folder_holds_one(tmp_path):
+    from ndp.rl.card import REPLAY_NAME, write_card
+
+    meta = json.loads((fixture_policy("throw-ndp") / "policy.json").read_text())
+    write_card(tmp_path, meta, None)
+    assert REPLAY_NAME not in (tmp_path / "README.md").read_text()
+    (tmp_path / REPLAY_NAME).write_bytes(b"GIF89a")
+    write_card(tmp_path, meta, None)
+    result = (tmp_path / "README.md").read_text().split("## Result")[1].split("## Use")[0]
+    assert f"![one episode, deterministic actions]({REPLAY_NAME})" in result

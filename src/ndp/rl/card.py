@@ -272,7 +272,9 @@ def write_card(
     results file of an earlier card is replaced, never left beside a card without results);
     ``date``: when the results were measured (ISO; default today)."""
     out = Path(out)
-    atomic_write_text(out / "README.md", model_card(meta, evaluation, out.name, onnx=onnx))
+    replay = REPLAY_NAME if (out / REPLAY_NAME).is_file() else None
+    card = model_card(meta, evaluation, out.name, onnx=onnx, replay=replay)
+    atomic_write_text(out / "README.md", card)
     files = eval_results(meta, evaluation, date or dt.date.today().isoformat())
     folder = out / EVAL_RESULTS_DIR
     if folder.is_dir():
@@ -323,14 +325,21 @@ def _scalar(v: object) -> str:
     return json.dumps(str(v), ensure_ascii=False)
 
 
+REPLAY_NAME = "replay.gif"
+"""A recorded episode beside a card (``ndp rl render POLICY --out POLICY/replay.gif``; the
+zoo's with ``benchmarks/zoo.py --replay``), shown by the card when the folder holds it."""
+
+
 def model_card(
     meta: dict[str, Any],
     evaluation: CardEvaluation | None = None,
     name: str | None = None,
     onnx: bool = False,
+    replay: str | None = None,
 ) -> str:
     """The ``README.md`` of an export: front matter (:func:`card_fields`) and a short text
-    (``onnx``: of an ONNX export, whose use differs)."""
+    (``onnx``: of an ONNX export, whose use differs; ``replay``: the file name of a recorded
+    episode beside the card, shown under the result)."""
     fields = card_fields(meta, evaluation, name)
     name = name or f"{meta['task']}-{meta['algo']}"
     cfg = meta.get("config", {})
@@ -351,6 +360,15 @@ def model_card(
         "",
         _result_text(fields, evaluation),
         "",
+        *(
+            [
+                f"![one episode, deterministic actions]({replay}) (`{replay}`: one episode, "
+                "deterministic actions, in real time)",
+                "",
+            ]
+            if replay
+            else []
+        ),
         "## Use",
         "",
         *(_onnx_use(name) if onnx else _torch_use(name, evaluation)),

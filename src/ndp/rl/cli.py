@@ -176,7 +176,11 @@ def _add_render(rl_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     """``ndp rl render RUN_DIR``: an mp4 of a trained run (or two, side by side)."""
     rd = rl_sub.add_parser("render", help="render a trained run to mp4")
     rd.add_argument("run_dir", metavar="RUN_DIR")
-    rd.add_argument("--out", default=None, help="mp4 path (default RUN_DIR/video.mp4)")
+    rd.add_argument(
+        "--out",
+        default=None,
+        help="mp4 path, or a looping GIF: PATH.gif (default RUN_DIR/video.mp4)",
+    )
     rd.add_argument("--episodes", type=int, default=1, help="episodes to record (default 1)")
     rd.add_argument("--seed", type=int, default=EVAL_SEED, help="first episode seed")
     rd.add_argument("--stochastic", action="store_true", help="sample actions (default: mean)")

@@ -14,7 +14,7 @@ import numpy as np
 from ndp import zoo
 from ndp.checks import check_int
 from ndp.envs.base import check_render_size
-from ndp.envs.render import check_video_size, write_mp4
+from ndp.envs.render import GIF_MAX_FPS, check_video_size, write_gif, write_mp4
 from ndp.hub import is_hub_ref, parse_hub_ref
 from ndp.io import atomic_write_text, check_output_path
 from ndp.provenance import git_commit
@@ -274,12 +274,13 @@ def render(
     overwrite: bool = False,
 ) -> dict[str, object]:
     """Render ``episodes`` episodes of a trained policy to one mp4 (every env step is a frame;
-    in real time, at most 60 frames per second: finer steps are subsampled).
+    in real time, at most 60 frames per second: finer steps are subsampled), or to a looping
+    GIF where ``out`` ends in ``.gif`` (at most 25 frames per second).
 
     Args:
         run_dir: a training run directory.
-        out: mp4 path (default ``run_dir/video.mp4``; for ``"zoo:<name>"``, ``./<name>/video.mp4``,
-            never the installed package's folder).
+        out: mp4 or ``.gif`` path (default ``run_dir/video.mp4``; for ``"zoo:<name>"``,
+            ``./<name>/video.mp4``, never the installed package's folder).
         episodes: episodes to record back to back.
         deterministic: act with the mode.
         seed: first episode seed.
@@ -316,9 +317,11 @@ def render(
             )
         result["success_any_compare"] = float(np.mean([r["success_any"] for r in rows_b]))
         frames = side_by_side(frames, frames_b)
-    stride, fps = video_rate(float(pol.spec.control_dt))  # the finer row at exec_k
+    gif = target.suffix.lower() == ".gif"
+    max_fps = GIF_MAX_FPS if gif else 60
+    stride, fps = video_rate(float(pol.spec.control_dt), max_fps)  # the finer row at exec_k
     frames = frames[::stride]
-    write_mp4(frames, target, fps=fps)
+    (write_gif if gif else write_mp4)(frames, target, fps=fps)
     return {
         "path": str(target),
         "frames": len(frames),

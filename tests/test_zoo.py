@@ -39,8 +39,6 @@ def test_the_index_lists_exactly_the_published_directories():
 def test_every_zoo_card_shows_command_commit_steps_and_a_measured_evaluation(name):
     import re
 
-    if META.get("select") is None:  # TEMPORARY until the zoo is regenerated this session
-        pytest.skip("the zoo predates provenance-complete cards")
     card = (ZOO / name / "README.md").read_text()
     head = card.split("---")[1]
     fields = dict(re.findall(r"^([a-z_0-9]+): (.*)$", head, flags=re.M))

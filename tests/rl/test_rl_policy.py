@@ -125,3 +125,18 @@ def test_make_env_and_bad_paths(tmp_path):
     assert ndp.DMPLayer.__name__ == "DMPLayer"
     with pytest.raises(AttributeError):
         _ = ndp.nope
+
+
+def test_cli_export_with_a_replay_records_it_and_the_card_shows_it(push_run, tmp_path, capsys):
+    from PIL import Image
+
+    from ndp.cli import main
+
+    out = tmp_path / "export"
+    assert main(["rl", "export", str(push_run), str(out), "--replay"]) == 0
+    printed = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert printed["replay"] == str(out / "replay.gif")
+    with Image.open(out / "replay.gif") as im:
+        assert im.size == (160, 160) and im.n_frames > 10
+    assert "![one episode, deterministic actions](replay.gif)" in (out / "README.md").read_text()
+    assert ndp.load_policy(out).cfg.task == "push-v3"  # the export itself is as without it

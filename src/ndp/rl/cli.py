@@ -17,6 +17,7 @@ import argparse
 import dataclasses
 import json
 import sys
+from pathlib import Path
 from typing import Annotated
 
 from ndp.rl.config import EVAL_SEED, FRESH_EVAL_SEED, TrainConfig
@@ -126,6 +127,12 @@ def _add_export(rl_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
         "(default); onnx: policy.onnx, the whole deterministic decision (normaliser, actor, "
         "head, DMP, action bounds) as one graph with inputs obs, y0, dy0 and output actions "
         "(needs the [onnx] extra; docs/policies.md, 'Export formats')",
+    )
+    ex.add_argument(
+        "--replay",
+        action="store_true",
+        help="also record one deterministic episode of the policy (episode seed 10,000, 160 px, "
+        "real time) as OUT_DIR/replay.gif, which the card shows (needs the simulators)",
     )
     ex.set_defaults(func=_cmd_export)
 
@@ -579,8 +586,14 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 def _cmd_export(args: argparse.Namespace) -> int:
     from ndp.rl.policy import export_policy
 
+    replay = None
+    if args.replay:  # recorded first, into the new folder, so that the card shows it
+        from ndp.rl.card import REPLAY_NAME
+        from ndp.rl.evaluate import render
+
+        replay = render(args.run_dir, Path(args.out) / REPLAY_NAME, width=160, height=160)["path"]
     out = export_policy(args.run_dir, args.out, format=args.format)
-    print(json.dumps({"export": str(out), "format": args.format}))
+    print(json.dumps({"export": str(out), "format": args.format, "replay": replay}))
     return 0
 
 

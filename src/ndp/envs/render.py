@@ -31,6 +31,21 @@ def check_video_size(name: str, value: int) -> int:
     return int(value)
 
 
+def check_frames(frames: Sequence[np.ndarray]) -> tuple[int, ...]:
+    """The shape of ``frames``, which must be at least one [H, W, 3] uint8 frame, all of one
+    size (ValueError, one line naming ``frames``, otherwise)."""
+    if len(frames) == 0:
+        raise ValueError("frames: expected at least one frame, got none")
+    shape = np.asarray(frames[0]).shape
+    for f in frames:
+        f = np.asarray(f)
+        if f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3 or f.shape != shape:
+            raise ValueError(
+                f"frames: expected [H, W, 3] uint8 frames of shape {shape}, got {f.dtype} {f.shape}"
+            )
+    return tuple(shape)
+
+
 def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> Path:
     """Write RGB frames to an H.264 mp4.
 
@@ -49,15 +64,7 @@ def write_mp4(frames: Sequence[np.ndarray], path: str | Path, fps: int = 25) -> 
     """
     import imageio.v2 as imageio
 
-    if len(frames) == 0:
-        raise ValueError("frames: expected at least one frame, got none")
-    shape = np.asarray(frames[0]).shape
-    for f in frames:
-        f = np.asarray(f)
-        if f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3 or f.shape != shape:
-            raise ValueError(
-                f"frames: expected [H, W, 3] uint8 frames of shape {shape}, got {f.dtype} {f.shape}"
-            )
+    shape = check_frames(frames)
     check_video_size("height", shape[0])
     check_video_size("width", shape[1])
     path = check_output_path(path, "path")
@@ -105,17 +112,9 @@ def write_gif(frames: Sequence[np.ndarray], path: str | Path, fps: int = GIF_MAX
     """
     from PIL import Image
 
-    if len(frames) == 0:
-        raise ValueError("frames: expected at least one frame, got none")
+    check_frames(frames)
     if isinstance(fps, bool) or not isinstance(fps, int) or not 1 <= fps <= GIF_MAX_FPS:
         raise ValueError(f"fps: expected an integer in 1..{GIF_MAX_FPS}, got {fps!r}")
-    shape = np.asarray(frames[0]).shape
-    for f in frames:
-        f = np.asarray(f)
-        if f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3 or f.shape != shape:
-            raise ValueError(
-                f"frames: expected [H, W, 3] uint8 frames of shape {shape}, got {f.dtype} {f.shape}"
-            )
     strip = np.concatenate([np.asarray(frames[i]) for i in (0, len(frames) // 2, -1)], axis=1)
     palette = Image.fromarray(strip).quantize(colors=64, method=Image.Quantize.MEDIANCUT)
     images = [

@@ -360,15 +360,7 @@ def model_card(
         "",
         _result_text(fields, evaluation),
         "",
-        *(
-            [
-                f"![one episode, deterministic actions]({replay}) (`{replay}`: one episode, "
-                "deterministic actions, in real time)",
-                "",
-            ]
-            if replay
-            else []
-        ),
+        *_replay_lines(replay),
         "## Use",
         "",
         *(_onnx_use(name) if onnx else _torch_use(name, evaluation)),
@@ -483,6 +475,17 @@ def _citation_section() -> list[str]:
         "",
         "Links: " + "; ".join(f"[{t}]({u})" for t, u in LINKS) + ". This package: not on PyPI "
         "yet; its repository address is added to its metadata when it is published.",
+        "",
+    ]
+
+
+def _replay_lines(replay: str | None) -> list[str]:
+    """The card's line showing the recorded episode ``replay`` beside it (none without one)."""
+    if not replay:
+        return []
+    return [
+        f"![one episode, deterministic actions]({replay}) (`{replay}`: one episode, "
+        "deterministic actions, in real time)",
         "",
     ]
 

@@ -30,7 +30,7 @@ CORE = {"torch", "numpy", "safetensors"}
 # Packages only an extra installs (import names); the core must run with all of them absent.
 BLOCKED = (
     "gymnasium mujoco metaworld dm_control scipy matplotlib tensorboard tqdm tyro imageio "
-    "imageio_ffmpeg sklearn stable_baselines3 ray yaml onnx onnxruntime rliable arch"
+    "imageio_ffmpeg PIL sklearn stable_baselines3 ray yaml onnx onnxruntime rliable arch"
 ).split()
 
 BARE_SCRIPT = r"""

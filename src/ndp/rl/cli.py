@@ -593,7 +593,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
         replay = render(args.run_dir, Path(args.out) / REPLAY_NAME, width=160, height=160)["path"]
     out = export_policy(args.run_dir, args.out, format=args.format)
-    print(json.dumps({"export": str(out), "format": args.format, "replay": replay}))
+    printed = {"export": str(out), "format": args.format}
+    print(json.dumps({**printed, "replay": replay} if replay else printed))
     return 0
 
 

@@ -140,3 +140,12 @@ def test_cli_export_with_a_replay_records_it_and_the_card_shows_it(push_run, tmp
         assert im.size == (160, 160) and im.n_frames > 10
     assert "![one episode, deterministic actions](replay.gif)" in (out / "README.md").read_text()
     assert ndp.load_policy(out).cfg.task == "push-v3"  # the export itself is as without it
+
+
+def test_cli_export_with_a_replay_refused_before_it_records_anything(push_run, capsys):
+    from ndp.cli import main
+
+    # the run's own folder: the export's refusal comes before the replay is recorded
+    assert main(["rl", "export", str(push_run), str(push_run), "--replay"]) != 0
+    assert "is a training run's folder" in capsys.readouterr().err
+    assert not (push_run / "replay.gif").exists()

@@ -588,9 +588,14 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     replay = None
     if args.replay:  # recorded first, into the new folder, so that the card shows it
-        from ndp.rl.card import REPLAY_NAME
+        from ndp.rl.card import REPLAY_NAME, check_export_dir
         from ndp.rl.evaluate import render
 
+        # the export's own refusals before anything is written (a run's folder, its files)
+        written = (
+            ("policy.onnx",) if args.format == "onnx" else ("policy.safetensors", "policy.json")
+        )
+        check_export_dir(Path(args.out), written)
         replay = render(args.run_dir, Path(args.out) / REPLAY_NAME, width=160, height=160)["path"]
     out = export_policy(args.run_dir, args.out, format=args.format)
     printed = {"export": str(out), "format": args.format}

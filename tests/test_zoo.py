@@ -150,8 +150,15 @@ def _fake_run(root: Path, name: str, evals: list[float]) -> None:
                 "budget": 100, "unit": "env_steps", "done": 100, "finished": True,
                 "reason": "budget"}  # fmt: skip
     (d / "run.json").write_text(json.dumps(manifest))
-    lines = ["update,global_step,eval/success_any"]
-    lines += [f"{i + 1},{(i + 1) * 10},{v}" for i, v in enumerate(evals)]
+    _write_metrics(d, evals)
+
+
+def _write_metrics(d: Path, evals: list[float], seconds: str | None = None) -> None:
+    """``d``'s metrics.csv: one row per evaluation; ``seconds``: also the wall-clock columns."""
+    timing = ",time/update_s,charts/env_steps_per_s" if seconds is not None else ""
+    lines = ["update,global_step,eval/success_any" + timing]
+    cells = f",{seconds},{seconds}" if seconds is not None else ""
+    lines += [f"{i + 1},{(i + 1) * 10},{v}{cells}" for i, v in enumerate(evals)]
     (d / "metrics.csv").write_text("\n".join(lines) + "\n")
 
 
@@ -207,10 +214,7 @@ def test_final_eval_selection_and_a_rerun_published_only_when_it_reproduces(tmp_
         zoo.exportable(run, again)
     # the same rows up to the wall-clock columns: published from the re-run
     for d, secs in ((run, "1.5"), (again / run.name, "2.5")):
-        lines = (d / "metrics.csv").read_text().splitlines()
-        lines = [lines[0] + ",time/update_s,charts/env_steps_per_s"]
-        lines += [f"{i + 1},{(i + 1) * 10},{v},{secs},{secs}" for i, v in enumerate([0.4, 0.6])]
-        (d / "metrics.csv").write_text("\n".join(lines) + "\n")
+        _write_metrics(d, [0.4, 0.6], secs)
     assert zoo.exportable(run, again) == (again / run.name, True)
     # a run with its checkpoint is exported as it is
     (run / "checkpoint.pt").write_bytes(b"")

@@ -159,6 +159,16 @@ def check_positive(name: str, value: object) -> float:
     return float(value)
 
 
+def check_unit_interval(name: str, value: object) -> None:
+    """``value`` is a number in [0, 1] (a discount, GAE's lambda).
+
+    Raises:
+        ValueError: ``"<name>: expected a number in [0, 1], got <value!r>"``.
+    """
+    if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
+        raise ValueError(f"{name}: expected a number in [0, 1], got {value!r}")
+
+
 def install_hint(extra: str) -> str:
     """The install line for an optional extra, as a user can run it: the package is not on
     PyPI yet, so from a clone of the repository, pinned by its constraints file."""

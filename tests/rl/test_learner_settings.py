@@ -95,3 +95,26 @@ def test_the_registry_and_the_config_import_no_torch():
         "assert {'dyne', 'sac'} <= set(ndp.rl.methods.SETTINGS)"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_ppo_settings_live_with_the_on_policy_learner_and_saved_configs_round_trip(tmp_path):
+    """PPOConfig is defined in ndp.rl.onpolicy.config (its learner's package) and re-exported
+    by ndp.rl.config; the section keeps its name, its place and its config.json key "ppo"."""
+    import json
+
+    from ndp.rl.config import PPOConfig as Reexported
+    from ndp.rl.onpolicy.config import PPOConfig
+
+    assert Reexported is PPOConfig and PPOConfig.__module__ == "ndp.rl.onpolicy.config"
+    assert "ppo" not in SETTINGS  # a reserved section of the run, not a registered one
+    cfg = TrainConfig(task="point-mass", algo="ndp", ppo=PPOConfig(lr=1e-3, clip=0.2))
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(cfg.to_dict()))
+    saved = json.loads(path.read_text())
+    assert saved["ppo"]["lr"] == 1e-3 and saved["ppo"]["clip"] == 0.2
+    back = TrainConfig.from_dict(saved)
+    assert back == cfg and type(back.ppo) is PPOConfig
+    # a config.json written before the run fields left "ppo" still loads
+    old = {**saved, "ppo": {**saved["ppo"], "gamma": 0.9}}
+    del old["gamma"]
+    assert TrainConfig.from_dict(old) == dataclasses.replace(cfg, gamma=0.9)

@@ -3,7 +3,8 @@
 A run is one :class:`TrainConfig`: the run's own fields (:class:`RunConfig`: task, method,
 budget, envs, and what every learner reads: the discount ``gamma``, the update's size
 ``steps_per_update``, the observation normaliser), a :class:`PPOConfig` (the shared on-policy
-trainer's settings, read by the on-policy methods only), a :class:`ndp.policies.PolicyConfig`
+trainer's settings, read by the on-policy methods only; defined with its learner in
+:mod:`ndp.rl.onpolicy.config` and re-exported here), a :class:`ndp.policies.PolicyConfig`
 and one settings section per registered learner (``ndp.rl.methods.register_learner``; this
 module names none of them). ``TrainConfig`` is
 built here from :class:`RunConfig` (the run's own fields) and the registered sections, once,
@@ -31,9 +32,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, TypedDict, cast
 
-from ndp.checks import check_choice, check_int, check_positive, plain_numbers
+from ndp.checks import (
+    check_choice,
+    check_int,
+    check_positive,
+    check_unit_interval,
+    plain_numbers,
+)
 from ndp.policies.config import PolicyConfig
 from ndp.rl.methods import METHOD_RUN_FIELDS, METHODS, SETTINGS, Method, settings_sections
+from ndp.rl.onpolicy.config import PPOConfig as PPOConfig  # re-exported: its old home
 from ndp.runs.cli import cli
 from ndp.runs.tracking import check_track
 
@@ -94,76 +102,6 @@ SAFE_ON_RESUME = (
 """TrainConfig fields a resume may change: they change neither the numbers nor the history
 (``steps`` extends or shortens the budget; ``device`` moves the update, which changes float
 rounding only; the periodic evaluation draws nothing from the training stream)."""
-
-
-def _check_unit_interval(name: str, value: object) -> None:
-    """``value`` is a number in [0, 1] (a discount, GAE's lambda).
-
-    Raises:
-        ValueError: ``"<name>: expected a number in [0, 1], got <value!r>"``.
-    """
-    if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
-        raise ValueError(f"{name}: expected a number in [0, 1], got {value!r}")
-
-
-@dataclass(frozen=True)
-class PPOConfig:
-    """PPO with GAE; defaults from the paper's supplement. Only the on-policy methods read this
-    section; the discount, the update's size and the observation normaliser are the run's
-    (:class:`RunConfig`), read by every learner."""
-
-    lr: float = 3e-4
-    """Adam learning rate."""
-    adam_eps: float = 1e-5
-    """Adam epsilon."""
-    gae_lambda: float = 0.95
-    """GAE lambda per env step (sub-step)."""
-    ent_coef: float = 0.0
-    """Entropy bonus coefficient."""
-    vf_coef: float = 0.5
-    """Value loss coefficient."""
-    max_grad_norm: float = 0.5
-    """Global gradient-norm clip."""
-    epochs: int = 10
-    """Passes over each rollout."""
-    minibatches: int = 32
-    """Mini-batches per epoch (over decisions; each decision carries its k sub-steps)."""
-    clip: float = 0.1
-    """PPO ratio clip epsilon."""
-    clip_value_loss: bool = False
-    """Clip the value update around the rollout's values with ``clip`` (the release's PPO code
-    base does; the supplement does not list it and SB3 does not use it; it slows learning)."""
-    norm_return: bool = True
-    """Scale rewards by the running std of the discounted return."""
-    norm_adv: bool = True
-    """Normalise advantages (to mean 0, std 1 over executed sub-steps)."""
-    adv_norm_scope: str = "rollout"
-    """Where advantages are normalised: over the whole 'rollout' or per 'minibatch' (SB3)."""
-    clip_reward: float = 10.0
-    """Clip normalised rewards to +- this."""
-    anneal_lr: bool = False
-    """Decay the learning rate linearly to 0 over the run."""
-
-    def __post_init__(self) -> None:
-        plain_numbers(self)
-        for name in (
-            "lr",
-            "adam_eps",
-            "vf_coef",
-            "max_grad_norm",
-            "clip",
-            "clip_reward",
-        ):
-            check_positive(name, getattr(self, name))
-        _check_unit_interval("gae_lambda", self.gae_lambda)
-        if not (isinstance(self.ent_coef, (int, float)) and self.ent_coef >= 0):
-            raise ValueError(f"ent_coef: expected a number >= 0, got {self.ent_coef!r}")
-        for name in ("epochs", "minibatches"):
-            check_int(name, getattr(self, name), 1)
-        if self.adv_norm_scope not in ("rollout", "minibatch"):
-            raise ValueError(
-                f"adv_norm_scope: expected 'rollout' or 'minibatch', got {self.adv_norm_scope!r}"
-            )
 
 
 @dataclass(frozen=True)
@@ -290,7 +228,7 @@ class RunConfig:
             raise ValueError(f"task: expected a task name, got {self.task!r}")
         check_int("steps", self.steps, 1)
         check_int("steps_per_update", self.steps_per_update, 1)
-        _check_unit_interval("gamma", self.gamma)
+        check_unit_interval("gamma", self.gamma)
         check_positive("clip_obs", self.clip_obs)
         check_int("seed", self.seed, 0)
         check_int("num_envs", self.num_envs, 1)

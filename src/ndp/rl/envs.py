@@ -139,7 +139,12 @@ def make_vector_env(
         return WorkerVectorEnv(fns, spec.obs_dim, k, spec.action_dim, spec.dmp_dofs, workers)
     if kind == "async":
         return AsyncChunkedVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
-    return SyncChunkedVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
+    import torch
+
+    threads = torch.get_num_threads()  # the factories set 1 (meant for worker processes)
+    envs = SyncChunkedVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
+    torch.set_num_threads(threads)  # the trainer's --torch-threads, in this process
+    return envs
 
 
 VECTOR_KINDS = ("auto", "sync", "workers", "async")

@@ -405,3 +405,28 @@ def test_the_critic_probe_reads_the_run_critic_as_trained(tmp_path, algo, sac):
     assert -1.0 <= out["feature_cos"] <= 1.0 and out["feature_norm"] > 0
     with pytest.raises(SystemExit, match=r"run_dir: checkpoint: no such file"):
         mod.probe(tmp_path / "nothing-here")
+
+
+def test_torch_threads_reach_the_update_of_a_sync_run(tmp_path, monkeypatch):
+    """``--torch-threads 2`` with ``--vector sync``: the env factories (one torch thread, for
+    worker processes) run in the trainer's process and no longer reset it to 1."""
+    seen = []
+    from ndp.rl.sac.learner import SACLearner
+
+    step = SACLearner.gradient_step
+
+    def spy(self, b):
+        seen.append(torch.get_num_threads())
+        return step(self, b)
+
+    monkeypatch.setattr(SACLearner, "gradient_step", spy)
+    before = torch.get_num_threads()
+    try:
+        opened = _open(tmp_path, "sac", steps=200, torch_threads=2, sac={"batch_size": 8})
+        try:
+            opened.train(1)
+        finally:
+            opened.close()
+    finally:
+        torch.set_num_threads(before)
+    assert seen and set(seen) == {2}

@@ -188,13 +188,14 @@ class RunConfig:
     memory) or 'async' (gymnasium's AsyncVectorEnv, one subprocess per env). Same numbers.
     'overlap' (opt-in, an even num_envs): two env groups (halves), all in worker processes
     (env_workers split between them); the on-policy trainer (PPO, PPO-multi, NDP, VICES)
-    computes one group's decision while the other group steps. Its rollout is the 'sync' one
-    for the same seed (same noise draws, rewards, episodes) except through the observation
-    normaliser: a first-half env's decision sees the statistics before the second half's
-    latest observations (docs/rl.md); other learners step both groups at once (no overlap).
-    Not with noise='ar1'."""
+    computes one group's decision while the other group steps. With norm_obs=False its rollout
+    is the 'sync' one bit for bit; with the normaliser it differs only through it (a first-half
+    env's decision is normalised before the second half's latest observations are merged;
+    docs/rl.md). Other learners step both groups at once (no overlap). Not with
+    noise='ar1'."""
     env_workers: int | None = None
-    """Worker processes of the 'workers' / 'auto' vector env; None: one per core (<= num_envs)."""
+    """Worker processes of the 'workers' / 'auto' vector env (of 'overlap': split between its two
+    groups, at least one each); None: one per core (<= num_envs)."""
     stale_world: bool = True
     """Stale-world reward rule during the k sub-steps (NDP and PPO-multi; no effect for k = 1)."""
     horizon: int | None = None
@@ -350,8 +351,9 @@ class RunConfig:
             )
         if self.vector == "overlap" and self.policy.noise == "ar1":
             raise ValueError(
-                "vector: 'overlap' draws each group's fresh AR(1) carries out of the 'sync' "
-                "order and is not built for noise='ar1': use vector='auto'"
+                "vector: 'overlap' is not built for noise='ar1' (an ended episode's fresh carry is "
+                "drawn between two decisions of all envs, an order two groups cannot keep): use "
+                "vector='auto'"
             )
         if self.env_workers is not None:
             check_int("env_workers", self.env_workers, 1)

@@ -146,7 +146,7 @@ def make_vector_env(
             k,
             spec.action_dim,
             spec.dmp_dofs,
-            None if env_workers is None else workers,
+            env_workers,
         )
     if kind == "workers":
         spec = task.spec

@@ -169,3 +169,30 @@ def test_overlap_run_resumes_from_its_checkpoint(tmp_path):
     ms = load_checkpoint(tmp_path / "s", kind="rl")["model"]
     for key in ms:
         torch.testing.assert_close(mo[key], ms[key], rtol=0, atol=0, msg=key)
+
+
+def test_overlap_divergence_while_a_group_steps_stops_and_closes(tmp_path):
+    """A decision that fails while the other group's step is in flight raises the divergence,
+    and the run closes (the in-flight step's reply is drained, the workers stop)."""
+    from ndp.rl.onpolicy.trainer import TrainingDivergedError
+
+    opened = open_run(_cfg(tmp_path, "o", vector="overlap"))
+    tr = opened.learner
+    calls = {"n": 0}
+    real = tr.decide
+
+    def failing(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 4:  # group B's decision 1, while group A steps its decision 1
+            raise tr._diverged("non-finite actions (test)")
+        return real(*args, **kwargs)
+
+    tr.decide = failing
+    try:
+        with pytest.raises(TrainingDivergedError, match="non-finite actions"):
+            tr.collect()
+    finally:
+        opened.close()
+    envs = tr.envs
+    assert isinstance(envs, OverlapVectorEnv)
+    assert all(not p.is_alive() for g in envs.groups for p in g._procs)

@@ -13,6 +13,9 @@ mini-batches, 10 epochs, [100, 100] tanh, observation and return normalisation):
   process and N - 1 workers) and,
   as ``<method>-sync``, in one process; setup (process start) excluded; the run's rollout and
   update times are reported apart (seconds per update);
+- ``ppo-overlap`` / ``ppo-multi-overlap`` / ``ndp-overlap`` / ``vices-overlap`` (not in the
+  default set: ``--methods``): the same runs with ``vector='overlap'``: two env groups, all
+  envs in workers, one group's decision computed while the other group steps;
 - ``vices`` / ``vices-sync``: ``ndp rl train --algo vices`` likewise (PPO on the torque-actuated
   variant of the task, the impedance controller at every simulator step), against
   ``raw-1-vices``: the torque-actuated env stepped in one process as ``raw-1``;
@@ -291,6 +294,8 @@ def measure(
         return {"wall": bench_sb3(task, steps, num_envs, seed, method == "sb3-subproc")}
     if method.endswith("-sync"):
         return bench_ours(task, method.removesuffix("-sync"), steps, num_envs, seed, "sync")
+    if method.endswith("-overlap"):
+        return bench_ours(task, method.removesuffix("-overlap"), steps, num_envs, seed, "overlap")
     return bench_ours(task, method, steps, num_envs, seed, "auto")
 
 
@@ -306,7 +311,8 @@ def main(argv: list[str] | None = None) -> int:
         "--methods",
         nargs="+",
         default=None,
-        help="subset of: raw-1 raw-N ppo ppo-multi ndp dyne <m>-sync vices vices-sync "
+        help="subset of: raw-1 raw-N ppo ppo-multi ndp dyne <m>-sync <m>-overlap (ppo, "
+        "ppo-multi, ndp, vices) vices vices-sync "
         "raw-1-vices sb3-dummy sb3-subproc sac sac-chunk ndp-sac sb3-sac; EnvPool rows "
         "<m>-envpool[-sync] and raw-1-envpool raw-N-envpool (live reward), with their metaworld "
         "comparison <m>-live[-sync]",
@@ -356,7 +362,8 @@ def main(argv: list[str] | None = None) -> int:
                 res[m]["vs_raw-1-vices"] = res[m]["wall"] / res["raw-1-vices"]["wall"]
         if "raw-N" in res:
             for m, v in res.items():
-                if "update_s" in v and m.removesuffix("-sync") in ("ppo", "ppo-multi", "ndp"):
+                on_policy = m.removesuffix("-sync").removesuffix("-overlap")
+                if "update_s" in v and on_policy in ("ppo", "ppo-multi", "ndp"):
                     v["ceiling"] = STEPS_PER_UPDATE / (
                         STEPS_PER_UPDATE / res["raw-N"]["wall"] + v["update_s"]
                     )

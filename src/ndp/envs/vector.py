@@ -395,6 +395,13 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env with its [k, A] actions (``actions`` [E, k, A])."""
+        self.step_async(actions)
+        return self.step_wait()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        """Start a step of every env (``actions`` [E, k, A]); :meth:`step_wait` returns it. With
+        ``main_steps=False`` this returns at once and the workers step while the caller works;
+        else the main process's slice is stepped here first."""
         if self._closed:
             raise WorkerError("step: the vector env is closed")
         a = self._a
@@ -412,6 +419,13 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
                 except WorkerError:
                     pass
                 raise
+
+    def step_wait(
+        self,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Wait for the step :meth:`step_async` started; returns it as :meth:`step` does
+        (copies: the next step may start at once)."""
+        a = self._a
         self._gather("step")
         term, trunc = a["terminated"].copy(), a["truncated"].copy()
         return (a["obs"].copy(), a["reward"].copy(), term, trunc, self._infos(term | trunc))
@@ -447,3 +461,145 @@ class WorkerVectorEnv(gym.vector.VectorEnv):
             self.close()
         except Exception:
             pass
+
+
+StepResult = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]
+"""One vector step's (observations, rewards, terminated, truncated, infos)."""
+
+
+def concat_steps(parts: Sequence[StepResult]) -> StepResult:
+    """The step of the envs of ``parts`` (consecutive env groups, each a same-step-autoreset
+    :class:`WorkerVectorEnv`'s step) as one vector env's: arrays concatenated along the env
+    axis; ``final_info`` / ``final_obs`` when an episode ended in any group (a group without
+    one contributes zero rows / None, which no reader looks at: only the ended envs' rows are
+    read)."""
+    obs = np.concatenate([p[0] for p in parts])
+    rew = np.concatenate([p[1] for p in parts])
+    term = np.concatenate([p[2] for p in parts])
+    trunc = np.concatenate([p[3] for p in parts])
+    infos: dict[str, Any] = {
+        key: np.concatenate([p[4][key] for p in parts])
+        for key in parts[0][4]
+        if key not in ("final_info", "final_obs")
+    }
+    ended = [p for p in parts if "final_info" in p[4]]
+    if ended:
+        ref = ended[0][4]["final_info"]
+        fin: dict[str, Any] = {}
+        for key, val in ref.items():
+            rows = []
+            for p in parts:
+                own = p[4].get("final_info")
+                rows.append(
+                    own[key]
+                    if own is not None
+                    else np.zeros((len(p[1]), *val.shape[1:]), dtype=val.dtype)
+                )
+            fin[key] = np.concatenate(rows)
+        infos["final_info"] = fin
+        fobs = np.empty(len(rew), dtype=object)
+        lo = 0
+        for p in parts:
+            n = len(p[1])
+            if "final_obs" in p[4]:
+                fobs[lo : lo + n] = p[4]["final_obs"]
+            lo += n
+        infos["final_obs"] = fobs
+    return obs, rew, term, trunc, infos
+
+
+class OverlapVectorEnv(gym.vector.VectorEnv):
+    """``num_envs`` chunked envs in two groups (the first and the second half), each a
+    :class:`WorkerVectorEnv` whose envs all step in worker processes: the on-policy trainer
+    steps one group while it computes the other group's decision (``vector='overlap'``,
+    :meth:`ndp.rl.onpolicy.trainer.Trainer.collect`).
+
+    As a vector env (:meth:`reset`, :meth:`step`) it steps both groups at once and returns the
+    same arrays as :class:`WorkerVectorEnv` over the same factories (tested); :attr:`groups`
+    are the two halves for the interleaved rollout.
+
+    Args:
+        env_fns: one picklable factory per env (an even number, at least 2).
+        obs_dim, k, action_dim, dof: as :class:`WorkerVectorEnv`'s.
+        workers: worker processes in all (None: one per core); each group gets half (at
+            least one).
+        context: multiprocessing start method.
+    """
+
+    def __init__(
+        self,
+        env_fns: Sequence[Callable[[], gym.Env]],
+        obs_dim: int,
+        k: int,
+        action_dim: int,
+        dof: int,
+        workers: int | None = None,
+        context: str = "spawn",
+    ) -> None:
+        n = len(env_fns)
+        if n < 2 or n % 2:
+            raise ValueError(f"num_envs: the overlapped vector env needs an even number >= 2, "
+                             f"got {n}")  # fmt: skip
+        h = n // 2
+        w = default_workers(n) if workers is None else int(workers)
+        per = max(1, w // 2)
+        self.num_envs = n
+        self.bounds = ((0, h), (h, n))
+        """The groups' env ranges [lo, hi)."""
+        self.groups: list[WorkerVectorEnv] = []
+        """The two groups (env rows ``bounds[g]``)."""
+        try:
+            for lo, hi in self.bounds:
+                self.groups.append(
+                    WorkerVectorEnv(
+                        env_fns[lo:hi],
+                        obs_dim,
+                        k,
+                        action_dim,
+                        dof,
+                        min(per, h),
+                        main_steps=False,
+                        context=context,
+                    )
+                )
+        except BaseException:
+            self.close()
+            raise
+        g0 = self.groups[0]
+        self.single_observation_space = g0.single_observation_space
+        self.single_action_space = g0.single_action_space
+        self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, n)
+        self.action_space = gym.vector.utils.batch_space(self.single_action_space, n)
+        self.metadata = {"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP}
+
+    def reset(
+        self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset every env; ``seed``: one per env, or an int (env i gets seed + i)."""
+        if seed is None:
+            parts = [g.reset() for g in self.groups]
+        else:
+            seeds = (
+                [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else list(seed)
+            )
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"seed: expected {self.num_envs} seeds, got {len(seeds)}")
+            parts = [
+                g.reset(seed=seeds[lo:hi])
+                for g, (lo, hi) in zip(self.groups, self.bounds, strict=True)
+            ]
+        obs = np.concatenate([p[0] for p in parts])
+        infos = {key: np.concatenate([p[1][key] for p in parts]) for key in parts[0][1]}
+        return obs, infos
+
+    def step(self, actions: np.ndarray) -> StepResult:
+        """Step both groups at once (``actions`` [E, k, A])."""
+        acts = np.asarray(actions, dtype=np.float64)
+        for g, (lo, hi) in zip(self.groups, self.bounds, strict=True):
+            g.step_async(acts[lo:hi])
+        return concat_steps([g.step_wait() for g in self.groups])
+
+    def close(self, **kwargs: object) -> None:
+        """Stop both groups' workers (idempotent)."""
+        for g in self.groups:
+            g.close()

@@ -75,7 +75,9 @@ class PolicyDistribution(Protocol):
     per_decision: bool
     """True when there is one log-prob per decision (L = 1), False for one per sub-action."""
 
-    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor: ...
+    def sample(
+        self, generator: torch.Generator | None = None, noise: torch.Tensor | None = None
+    ) -> torch.Tensor: ...
     def mode(self) -> torch.Tensor: ...
     def log_prob(self, z: torch.Tensor) -> torch.Tensor: ...
     def entropy(self) -> torch.Tensor: ...
@@ -83,11 +85,16 @@ class PolicyDistribution(Protocol):
 
 
 def gaussian_draw(
-    mean: torch.Tensor, log_std: torch.Tensor, generator: torch.Generator | None = None
+    mean: torch.Tensor,
+    log_std: torch.Tensor,
+    generator: torch.Generator | None = None,
+    noise: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """``mean + exp(log_std) * N(0, I)`` [shape of ``mean``], reparameterised (the gradient
-    reaches ``mean`` and ``log_std``; ``log_std`` broadcasts)."""
-    noise = torch.randn(mean.shape, generator=generator, dtype=mean.dtype, device=mean.device)
+    reaches ``mean`` and ``log_std``; ``log_std`` broadcasts). ``noise``: the N(0, I) draw
+    itself, drawn by the caller (e.g. for more rows at once); None: drawn here."""
+    if noise is None:
+        noise = torch.randn(mean.shape, generator=generator, dtype=mean.dtype, device=mean.device)
     return mean + noise * log_std.exp()
 
 
@@ -99,9 +106,12 @@ class _DiagGaussian:
         self.mean = mean
         self.log_std = log_std
 
-    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
-        """Draw ``z`` [shape of ``mean``] (no gradient)."""
-        return gaussian_draw(self.mean, self.log_std, generator).detach()
+    def sample(
+        self, generator: torch.Generator | None = None, noise: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """Draw ``z`` [shape of ``mean``] (no gradient); ``noise``: the standard normal draw
+        [shape of ``mean``] to use (None: drawn here)."""
+        return gaussian_draw(self.mean, self.log_std, generator, noise).detach()
 
     def mode(self) -> torch.Tensor:
         """The means [shape of ``mean``]."""
@@ -213,11 +223,19 @@ class AR1SubActionGaussian:
         """The unit noise ``e`` [B, k, A] of sub-actions ``z`` under the current parameters."""
         return (z - self.mean) * torch.exp(-self.log_std)
 
-    def sample(self, generator: torch.Generator | None = None) -> torch.Tensor:
-        """Draw sub-actions [B, k, A] (no gradient)."""
-        xi = torch.randn(
-            self.mean.shape, generator=generator, dtype=self.mean.dtype, device=self.mean.device
-        )
+    def sample(
+        self, generator: torch.Generator | None = None, noise: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """Draw sub-actions [B, k, A] (no gradient); ``noise``: the innovations ``xi``
+        [B, k, A] to use (None: drawn here)."""
+        xi = noise
+        if xi is None:
+            xi = torch.randn(
+                self.mean.shape,
+                generator=generator,
+                dtype=self.mean.dtype,
+                device=self.mean.device,
+            )
         e = torch.empty_like(xi)
         prev = self.carry
         for j in range(xi.shape[1]):

@@ -123,9 +123,17 @@ class RunConfig:
     vector: str = "auto"
     """Vector env: 'auto' (env workers when 2+ cores are free, else sync), 'sync' (one process;
     debugging and determinism), 'workers' (env_workers subprocesses, several envs each, shared
-    memory) or 'async' (gymnasium's AsyncVectorEnv, one subprocess per env). Same numbers."""
+    memory) or 'async' (gymnasium's AsyncVectorEnv, one subprocess per env). Same numbers.
+    'overlap' (opt-in, an even num_envs): two env groups (halves), all in worker processes
+    (env_workers split between them); the on-policy trainer (PPO, PPO-multi, NDP, VICES)
+    computes one group's decision while the other group steps. With norm_obs=False its rollout
+    is the 'sync' one bit for bit; with the normaliser it differs only through it (a first-half
+    env's decision is normalised before the second half's latest observations are merged;
+    docs/rl.md). Other learners step both groups at once (no overlap). Not with
+    noise='ar1'."""
     env_workers: int | None = None
-    """Worker processes of the 'workers' / 'auto' vector env; None: one per core (<= num_envs)."""
+    """Worker processes of the 'workers' / 'auto' vector env (of 'overlap': split between its two
+    groups, at least one each); None: one per core (<= num_envs)."""
     stale_world: bool = True
     """Stale-world reward rule during the k sub-steps (NDP and PPO-multi; no effect for k = 1)."""
     horizon: int | None = None
@@ -269,9 +277,21 @@ class RunConfig:
                 f"execution='first-held', got execution={self.execution!r}"
             )
         _check_device(self.device)
-        if self.vector not in ("auto", "sync", "workers", "async"):
+        if self.vector not in ("auto", "sync", "workers", "async", "overlap"):
             raise ValueError(
-                f"vector: expected 'auto', 'sync', 'workers' or 'async', got {self.vector!r}"
+                "vector: expected 'auto', 'sync', 'workers', 'async' or 'overlap', "
+                f"got {self.vector!r}"
+            )
+        if self.vector == "overlap" and (self.num_envs < 2 or self.num_envs % 2):
+            raise ValueError(
+                "vector: 'overlap' steps two equal env groups and needs an even num_envs >= 2, "
+                f"got num_envs={self.num_envs}"
+            )
+        if self.vector == "overlap" and self.policy.noise == "ar1":
+            raise ValueError(
+                "vector: 'overlap' is not built for noise='ar1' (an ended episode's fresh carry is "
+                "drawn between two decisions of all envs, an order two groups cannot keep): use "
+                "vector='auto'"
             )
         if self.env_workers is not None:
             check_int("env_workers", self.env_workers, 1)

@@ -14,7 +14,10 @@ observation and info are the reset ones and the finished step's info is under
   several envs each and shared-memory arrays (same numbers as sync, both cores busy);
 - ``"async"``: gymnasium's ``AsyncVectorEnv``, one subprocess per env (likewise);
 - ``"auto"``: ``workers`` with one worker per core when this process may use two or more cores
-  and there are two or more envs, else ``sync``.
+  and there are two or more envs, else ``sync``;
+- ``"overlap"``: :class:`ndp.envs.vector.OverlapVectorEnv`, two env groups (halves) all in
+  worker processes (``env_workers`` split between them): the on-policy trainer computes one
+  group's decision while the other group steps (an even ``num_envs``).
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from ndp.envs.rewards import check_reward, check_smooth_lambda
 from ndp.envs.spec import TaskSpec
 from ndp.envs.vector import (
     AsyncChunkedVectorEnv,
+    OverlapVectorEnv,
     SyncChunkedVectorEnv,
     WorkerVectorEnv,
     default_workers,
@@ -134,6 +138,16 @@ def make_vector_env(
         for _ in range(num_envs)
     ]
     kind, workers = resolve_vector(vector, num_envs, env_workers)
+    if kind == "overlap":
+        spec = task.spec
+        return OverlapVectorEnv(
+            fns,
+            spec.obs_dim,
+            k,
+            spec.action_dim,
+            spec.dmp_dofs,
+            env_workers,
+        )
     if kind == "workers":
         spec = task.spec
         return WorkerVectorEnv(fns, spec.obs_dim, k, spec.action_dim, spec.dmp_dofs, workers)
@@ -147,7 +161,7 @@ def make_vector_env(
     return envs
 
 
-VECTOR_KINDS = ("auto", "sync", "workers", "async")
+VECTOR_KINDS = ("auto", "sync", "workers", "async", "overlap")
 """Accepted values of ``vector``."""
 
 

@@ -20,6 +20,7 @@ import copy
 import itertools
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -27,6 +28,7 @@ import numpy as np
 import torch
 
 from ndp.envs.base import CTRL_INFO
+from ndp.envs.vector import OverlapVectorEnv, concat_steps
 from ndp.policies import build_actor_critic
 from ndp.policies.distributions import (
     AR1SubActionGaussian,
@@ -147,6 +149,8 @@ class Trainer(CountsUpdates):
         self._rho = float(cfg.policy.noise_corr) if cfg.policy.noise == "ar1" else None
         self._carry: torch.Tensor | None = None
         self._started = False  # the envs are reset at the first update, after any restore
+        # two env groups in alternation (vector='overlap'; any other vector env: both at once)
+        self._overlap = isinstance(self.envs, OverlapVectorEnv)
         self._release_ratio = cfg.first_held_ratio == "release"
         if self._release_ratio:
             self._check_release_ratio(obs_dim)
@@ -188,11 +192,19 @@ class Trainer(CountsUpdates):
         assert carry is not None
         return correlate(dist, carry, self._rho)
 
-    def decide(self, obs_n: torch.Tensor, y0: torch.Tensor, dy0: torch.Tensor) -> Decision:
+    def decide(
+        self,
+        obs_n: torch.Tensor,
+        y0: torch.Tensor,
+        dy0: torch.Tensor,
+        noise: Callable[[torch.Tensor], torch.Tensor] | None = None,
+    ) -> Decision:
         """One rollout decision for E envs (no gradient): the exploration distribution
         (continuing the AR(1) carry, if any), a sample ``z``, its log-prob, the values [E, k] and
         the k actions [E, k, A] inside the action bounds. ``obs_n`` [E, O] is the normalised
-        observation, ``y0`` / ``dy0`` [E, D] the robot state the decision starts from.
+        observation, ``y0`` / ``dy0`` [E, D] the robot state the decision starts from;
+        ``noise``: given the distribution's mode, the standard normal draw to sample with
+        (None: the distribution draws it).
 
         Raises:
             TrainingDivergedError: a non-finite DMP input or action.
@@ -204,7 +216,7 @@ class Trainer(CountsUpdates):
                 msg = f"non-finite DMP input during the rollout ({exc})"
                 raise self._diverged(msg) from None
             dist = self._explore(dist, self._carry)
-            z = dist.sample()
+            z = dist.sample() if noise is None else dist.sample(noise=noise(dist.mode()))
             logp = dist.log_prob(z)
             values = self.rollout_model.value(obs_n)
             act = dist.actions(z)
@@ -290,89 +302,143 @@ class Trainer(CountsUpdates):
 
     # ----------------------------------------------------------------------- rollout
     def collect(self) -> dict[str, Any]:
-        """Run T decisions in every env; returns the rollout (tensors / arrays) and stats."""
+        """Run T decisions in every env; returns the rollout (tensors / arrays) and stats.
+
+        With ``vector='overlap'`` the decisions of the two env groups alternate with their
+        steps (:meth:`_collect_overlap`)."""
         if not self._started:
             self._start()
-        E, T, k, D = self.num_envs, self.T, self.k, self._y0.shape[1]
-        gamma = self.cfg.gamma
-        obs_b = torch.zeros(T, E, self.obs_dim)
-        y0_b = torch.zeros(T, E, D)
-        dy0_b = torch.zeros(T, E, D)
-        z_b: torch.Tensor | None = None
-        logp_b: torch.Tensor | None = None
-        carry_b = None if self._carry is None else torch.zeros(T, E, self._carry.shape[1])
-        val_b = np.zeros((T, E, k))
-        rew_b = np.zeros((T, E, k))
-        mask_b = np.zeros((T, E, k))
-        end_b = np.zeros((T, E))
-        episodes: list[tuple[float, float, float, float, float]] = []
-        goal_norms: list[torch.Tensor] = []  # the head's diagnostics [E] per decision
-        weight_norms: list[torch.Tensor] = []
-        ctrl = dict.fromkeys(CTRL_INFO, 0.0)
-        executed = 0
-        per_decision = False
+        buf = _Rollout(self.T, self.num_envs, self.k, self.obs_dim, self._y0.shape[1])
+        if self._overlap:
+            self._collect_overlap(buf)
+        else:
+            for t in range(self.T):
+                obs_n = torch.from_numpy(self.obs_norm(self._obs, update=True))
+                y0 = torch.as_tensor(self._y0, dtype=torch.float32)
+                dy0 = torch.as_tensor(self._dy0, dtype=torch.float32)
+                carry = self._carry
+                d = self.decide(obs_n, y0, dy0)
+                buf.record(t, slice(None), obs_n, y0, dy0, carry, d)
+                step = self.envs.step(d.act.numpy())
+                buf.add_step(t, *self._after_step(step, buf, self.obs_norm, d.dist, d.z))
+        return self._finish(buf)
+
+    def _collect_overlap(self, buf: _Rollout) -> None:
+        """T decisions in every env, the two env groups of the ``OverlapVectorEnv`` in
+        alternation: group B's decision t is computed while group A steps t, group A's decision
+        t + 1 while group B steps t.
+
+        Same rollout as the serial loop of :meth:`collect` except through the observation
+        normaliser: each decision's noise is the serial draw for all E envs (drawn at group A's
+        decision, group B's rows kept); each group's call is on E rows (its own, and the other
+        group's current ones as filler, discarded), so that its rows are the serial call's bit
+        for bit (a float32 matrix product of E/2 rows rounds differently); the step's
+        bookkeeping runs over all E envs in the serial order, its truncation bootstrap with the
+        statistics after decision t. The normaliser is updated with each group's observations
+        at that group's decision: group A's decision t + 1 is normalised before group B's
+        observations of t + 1 are merged, and every merge is of E/2 rows (equal to one E-row
+        merge up to rounding). With ``norm_obs=False`` the rollout is the serial one."""
+        envs = self.envs
+        assert isinstance(envs, OverlapVectorEnv)  # run_envs with vector='overlap'
+        E, T, O = self.num_envs, self.T, self.obs_dim
+        (ga, gb), h = envs.groups, envs.bounds[0][1]
+        eps: list[torch.Tensor] = []  # the decision's noise for all E envs
+
+        def draw_all(mode: torch.Tensor) -> torch.Tensor:  # the serial loop's draw
+            eps[:] = [torch.randn(mode.shape, dtype=mode.dtype, device=mode.device)]
+            return eps[0]
+
+        def draw_kept(mode: torch.Tensor) -> torch.Tensor:
+            return eps[0]
+
+        def decide(
+            t: int, rows: slice, other: slice, obs: np.ndarray, y0_np: np.ndarray,
+            dy0_np: np.ndarray, draw: Callable[[torch.Tensor], torch.Tensor],
+        ) -> np.ndarray:  # fmt: skip
+            obs_n = np.empty((E, O), dtype=np.float32)
+            obs_n[rows] = self.obs_norm(obs, update=True)
+            obs_n[other] = self.obs_norm(self._obs[other])
+            y0_full, dy0_full = self._y0.copy(), self._dy0.copy()
+            y0_full[rows], dy0_full[rows] = y0_np, dy0_np
+            obs_t = torch.from_numpy(obs_n)
+            y0 = torch.as_tensor(y0_full, dtype=torch.float32)
+            dy0 = torch.as_tensor(dy0_full, dtype=torch.float32)
+            d = self.decide(obs_t, y0, dy0, noise=draw)
+            buf.record(t, rows, obs_t, y0, dy0, None, d)
+            return d.act[rows].numpy()
+
+        a_rows, b_rows = slice(0, h), slice(h, E)
+        act = decide(0, a_rows, b_rows, self._obs[a_rows], self._y0[a_rows], self._dy0[a_rows],
+                     draw_all)  # fmt: skip
+        ga.step_async(act)
         for t in range(T):
-            obs_n = torch.from_numpy(self.obs_norm(self._obs, update=True))
-            y0 = torch.as_tensor(self._y0, dtype=torch.float32)
-            dy0 = torch.as_tensor(self._dy0, dtype=torch.float32)
-            carry = self._carry
-            dist, aux, z, logp, values, act = self.decide(obs_n, y0, dy0)
-            per_decision = bool(dist.per_decision)
-            if z_b is None or logp_b is None:  # (both None until the first decision)
-                z_b = torch.zeros((T, E, *z.shape[1:]))
-                logp_b = torch.zeros((T, E, logp.shape[1]))
-            obs_b[t], y0_b[t], dy0_b[t], z_b[t], logp_b[t] = obs_n, y0, dy0, z, logp
-            if carry_b is not None and carry is not None:
-                carry_b[t] = carry
-            val_b[t] = values.numpy()
-            if "goal_norm" in aux:
-                goal_norms.append(aux["goal_norm"])
-                weight_norms.append(aux["weight_norm"])
+            act = decide(t, b_rows, a_rows, self._obs[b_rows], self._y0[b_rows],
+                         self._dy0[b_rows], draw_kept)  # fmt: skip
+            gb.step_async(act)
+            step_a = ga.step_wait()
+            norm_t = self._norm_snapshot()  # the statistics after decision t (all E envs)
+            if t + 1 < T:
+                y0_a, dy0_a = decision_start(step_a[4], h, self._dmp_frame)
+                obs_a = np.asarray(step_a[0], dtype=np.float64).reshape(h, O)
+                act = decide(t + 1, a_rows, b_rows, obs_a, y0_a, dy0_a, draw_all)
+                ga.step_async(act)
+            step = concat_steps([step_a, gb.step_wait()])
+            buf.add_step(t, *self._after_step(step, buf, norm_t, None, None))
 
-            r_n, mask, done = self._step_envs(act, dist, z, ctrl, episodes)
-            rew_b[t], mask_b[t], end_b[t] = r_n, mask, done
-            executed += int(mask.sum())
+    def _norm_snapshot(self) -> ObsNormalizer:
+        """The observation normaliser as it is now (later updates leave it unchanged: they
+        rebind the statistics' arrays)."""
+        snap = copy.copy(self.obs_norm)
+        snap.rms = copy.copy(self.obs_norm.rms)
+        return snap
 
+    def _finish(self, buf: _Rollout) -> dict[str, Any]:
+        """The rollout's batch: GAE over the T decisions (bootstrapped from the last
+        observations' values) and the flattened buffers."""
+        E, T, k, D = self.num_envs, self.T, self.k, buf.y0.shape[2]
         with torch.no_grad():
             last_obs = torch.from_numpy(self.obs_norm(self._obs))
             last_v = self.rollout_model.value(last_obs)[:, 0].numpy()
-        adv, ret = gae_substeps(rew_b, val_b, mask_b, end_b, last_v, gamma, self.cfg.ppo.gae_lambda)
+        adv, ret = gae_substeps(
+            buf.rew, buf.val, buf.mask, buf.end, last_v, self.cfg.gamma, self.cfg.ppo.gae_lambda
+        )
+        z_b, logp_b, carry_b = buf.z, buf.logp, buf.carry
         assert z_b is not None and logp_b is not None
         n = T * E
         return {
-            "obs": obs_b.reshape(n, self.obs_dim),
-            "y0": y0_b.reshape(n, D),
-            "dy0": dy0_b.reshape(n, D),
+            "obs": buf.obs.reshape(n, self.obs_dim),
+            "y0": buf.y0.reshape(n, D),
+            "dy0": buf.dy0.reshape(n, D),
             "z": z_b.reshape(n, *z_b.shape[2:]),
             "logp": logp_b.reshape(n, -1),
-            "values": torch.as_tensor(val_b.reshape(n, k), dtype=torch.float32),
+            "values": torch.as_tensor(buf.val.reshape(n, k), dtype=torch.float32),
             "adv": torch.as_tensor(adv.reshape(n, k), dtype=torch.float32),
             "returns": torch.as_tensor(ret.reshape(n, k), dtype=torch.float32),
-            "mask": torch.as_tensor(mask_b.reshape(n, k), dtype=torch.float32),
-            "episodes": episodes,
-            "executed": executed,
-            "goal_norm": mean_of_means(goal_norms),
-            "weight_norm": mean_of_means(weight_norms),
-            "ctrl": ctrl,
-            "per_decision": per_decision,
+            "mask": torch.as_tensor(buf.mask.reshape(n, k), dtype=torch.float32),
+            "episodes": buf.episodes,
+            "executed": buf.executed,
+            "goal_norm": mean_of_means(buf.norm_rows("goal_norm")),
+            "weight_norm": mean_of_means(buf.norm_rows("weight_norm")),
+            "ctrl": buf.ctrl,
+            "per_decision": buf.per_decision,
             "carry": None if carry_b is None else carry_b.reshape(n, -1),
         }
 
-    def _step_envs(
+    def _after_step(
         self,
-        act: torch.Tensor,
-        dist: PolicyDistribution,
-        z: torch.Tensor,
-        ctrl: dict[str, float],
-        episodes: list[tuple[float, float, float, float, float]],
+        step: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]],
+        buf: _Rollout,
+        obs_norm: ObsNormalizer,
+        dist: PolicyDistribution | None,
+        z: torch.Tensor | None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Execute one decision's actions [E, k, A] in every env: returns the normalised
-        sub-step rewards (truncated episodes bootstrapped from their final observation), the
-        executed-step mask [E, k] and the episode ends [E]; adds the controller counters to
-        ``ctrl``, finished episodes to ``episodes``, continues the AR(1) carry and moves the
-        envs' observation and robot state on."""
+        """Book one decision's vector step over every env: returns the normalised sub-step
+        rewards (truncated episodes bootstrapped from their final observation, normalised by
+        ``obs_norm``), the executed-step mask [E, k] and the episode ends [E]; adds the
+        controller counters and finished episodes to ``buf``, continues the AR(1) carry (from
+        ``dist`` and ``z``) and moves the envs' observation and robot state on."""
         E, k = self.num_envs, self.k
-        next_obs, _, term, trunc, infos = self.envs.step(act.numpy())
+        next_obs, _, term, trunc, infos = step
         term = np.asarray(term, dtype=bool)
         trunc = np.asarray(trunc, dtype=bool)
         done = term | trunc
@@ -381,17 +447,17 @@ class Trainer(CountsUpdates):
         boot = trunc & ~term
         if boot.any():  # bootstrap truncated episodes from their final observation
             fin = np.stack([np.asarray(o, dtype=np.float64) for o in infos["final_obs"][boot]])
-            fin_n = torch.from_numpy(self.obs_norm(fin.reshape(-1, self.obs_dim)))
+            fin_n = torch.from_numpy(obs_norm(fin.reshape(-1, self.obs_dim)))
             with torch.no_grad():
                 v_fin = self.rollout_model.value(fin_n)[:, 0].numpy()
             r_n = bootstrap_truncated(r_n, mask, boot, v_fin, self.cfg.gamma)
         for key in CTRL_INFO:
             if key in infos or "final_info" in infos:
-                ctrl[key] += float(step_info(infos, done, key).sum())
+                buf.ctrl[key] += float(step_info(infos, done, key).sum())
 
-        self._episodes.add(infos, done, sub_r, live, mask, episodes)
+        self._episodes.add(infos, done, sub_r, live, mask, buf.episodes)
         if self._carry is not None:  # continue the noise; a new episode starts afresh
-            assert isinstance(dist, AR1SubActionGaussian)  # _explore with a carry
+            assert isinstance(dist, AR1SubActionGaussian) and z is not None  # with a carry
             self._carry = dist.last_noise(z)
             if done.any():
                 fresh = torch.from_numpy(done)
@@ -559,6 +625,67 @@ class Trainer(CountsUpdates):
         self.envs.close()
         self.evaluator.close()
         self.session.close()
+
+
+class _Rollout:
+    """One rollout's buffers, filled decision by decision (rows: all envs, or one group's)."""
+
+    def __init__(self, T: int, E: int, k: int, obs_dim: int, D: int) -> None:
+        self.T, self.E = T, E
+        self.obs = torch.zeros(T, E, obs_dim)
+        self.y0 = torch.zeros(T, E, D)
+        self.dy0 = torch.zeros(T, E, D)
+        self.z: torch.Tensor | None = None  # sized at the first decision
+        self.logp: torch.Tensor | None = None
+        self.carry: torch.Tensor | None = None
+        self.val = np.zeros((T, E, k))
+        self.rew = np.zeros((T, E, k))
+        self.mask = np.zeros((T, E, k))
+        self.end = np.zeros((T, E))
+        self.aux: dict[str, torch.Tensor] = {}  # the head's diagnostics [T, E]
+        self.episodes: list[tuple[float, float, float, float, float]] = []
+        self.ctrl = dict.fromkeys(CTRL_INFO, 0.0)
+        self.executed = 0
+        self.per_decision = False
+
+    def record(
+        self,
+        t: int,
+        rows: slice,
+        obs_n: torch.Tensor,
+        y0: torch.Tensor,
+        dy0: torch.Tensor,
+        carry: torch.Tensor | None,
+        d: Decision,
+    ) -> None:
+        """Store decision ``t``'s inputs and :class:`Decision` (all E envs' rows) for the envs
+        ``rows``."""
+        T, E = self.T, self.E
+        self.per_decision = bool(d.dist.per_decision)
+        if self.z is None or self.logp is None:  # (both None until the first decision)
+            self.z = torch.zeros((T, E, *d.z.shape[1:]))
+            self.logp = torch.zeros((T, E, d.logp.shape[1]))
+        self.obs[t, rows], self.y0[t, rows], self.dy0[t, rows] = obs_n[rows], y0[rows], dy0[rows]
+        self.z[t, rows], self.logp[t, rows] = d.z[rows], d.logp[rows]
+        if carry is not None:
+            if self.carry is None:
+                self.carry = torch.zeros(T, E, carry.shape[1])
+            self.carry[t, rows] = carry[rows]
+        self.val[t, rows] = d.values[rows].numpy()
+        for key in ("goal_norm", "weight_norm"):
+            if key in d.aux:
+                if key not in self.aux:
+                    self.aux[key] = torch.zeros(T, E, dtype=d.aux[key].dtype)
+                self.aux[key][t, rows] = d.aux[key][rows]
+
+    def add_step(self, t: int, r_n: np.ndarray, mask: np.ndarray, done: np.ndarray) -> None:
+        """Store decision ``t``'s step over every env: rewards, mask, ends."""
+        self.rew[t], self.mask[t], self.end[t] = r_n, mask, done
+        self.executed += int(mask.sum())
+
+    def norm_rows(self, key: str) -> list[torch.Tensor]:
+        """The head's diagnostic ``key`` per decision ([E] rows; none without it)."""
+        return list(self.aux[key]) if key in self.aux else []
 
 
 def mean_of_means(rows: list[torch.Tensor]) -> float:

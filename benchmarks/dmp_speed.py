@@ -48,6 +48,11 @@ SHAPES = {
 }
 
 
+FAST_OVER_MATMUL = {"imitation": 1.5, "rl": 1.5}
+"""The fast path's targets as a multiple of the matmul floor (issue "speed, part 3"); 3 for the
+other shapes."""
+
+
 def _inputs(b, d, n, device, dtype):
     gen = torch.Generator().manual_seed(0)
     ts = [
@@ -195,7 +200,9 @@ def main(argv=None) -> int:
         "threads": torch.get_num_threads(),
         "targets": {
             "loop_over_fast_imitation": ">= 30",
-            "fast_over_matmul": "<= 3",
+            "fast_over_matmul_imitation": "<= 1.5 (issue 'speed, part 3')",
+            "fast_over_matmul_rl": "<= 1.5 (issue 'speed, part 3')",
+            "fast_over_matmul (other shapes)": "<= 3",
             "check_cost": "<= 1.2",
         },
         "shapes": {},
@@ -207,7 +214,10 @@ def main(argv=None) -> int:
     s = results["shapes"]
     results["targets_met"] = {
         "loop_over_fast_imitation": s.get("imitation", {}).get("loop_over_fast", 0) >= 30,
-        **{f"fast_over_matmul_{k}": v["fast_over_matmul"] <= 3 for k, v in s.items()},
+        **{
+            f"fast_over_matmul_{k}": v["fast_over_matmul"] <= FAST_OVER_MATMUL.get(k, 3.0)
+            for k, v in s.items()
+        },
     }
     if "check_cost" in s:
         results["targets_met"]["check_cost"] = s["check_cost"]["check_cost"] <= 1.2

@@ -109,10 +109,14 @@ def _make_chunked(
     render_mode: str | None = None,
     execution: str = "all",
 ) -> ChunkedEnv:
-    """Env-worker entry: one chunked env (torch kept to one thread in worker processes)."""
-    import torch
+    """Env-worker entry: one chunked env (torch kept to one thread in worker processes; in
+    the trainer's own process its ``--torch-threads`` stay)."""
+    import multiprocessing
 
-    torch.set_num_threads(1)
+    if multiprocessing.parent_process() is not None:
+        import torch
+
+        torch.set_num_threads(1)
     env = make(horizon=horizon, render_mode=render_mode)
     return ChunkedEnv(env, k, stale_world=stale_world, execution=execution)
 
@@ -153,12 +157,7 @@ def make_vector_env(
         return WorkerVectorEnv(fns, spec.obs_dim, k, spec.action_dim, spec.dmp_dofs, workers)
     if kind == "async":
         return AsyncChunkedVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
-    import torch
-
-    threads = torch.get_num_threads()  # the factories set 1 (meant for worker processes)
-    envs = SyncChunkedVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
-    torch.set_num_threads(threads)  # the trainer's --torch-threads, in this process
-    return envs
+    return SyncChunkedVectorEnv(fns, autoreset_mode=AutoresetMode.SAME_STEP)
 
 
 VECTOR_KINDS = ("auto", "sync", "workers", "async", "overlap")

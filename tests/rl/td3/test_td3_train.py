@@ -92,3 +92,40 @@ def test_options_of_td3_given_to_another_method_are_named():
     cfg = TrainConfig(task="point-mass", algo="sac", td3=TD3Config(lr=3e-4))
     assert unused_method_options(cfg) == ["td3.lr=0.0003"]
     assert unused_method_options(TrainConfig(task="point-mass", algo="td3", td3=TD3Config())) == []
+
+
+def _widest_ratio(module) -> float:
+    """max over linear layers of max|w| * sqrt(fan_in): <= 1 under PyTorch's default init."""
+    import torch
+
+    return max(
+        float(m.weight.detach().abs().max()) * m.in_features**0.5
+        for m in module.modules()
+        if isinstance(m, torch.nn.Linear)
+    )
+
+
+def test_td3_init_torch_gives_every_linear_layer_pytorchs_default_and_its_targets_copy_it(
+    tmp_path,
+):
+    import torch
+
+    from ndp.rl.config import TrainConfig, resolve_config
+    from ndp.rl.run import RLRecipe
+    from ndp.rl.td3.config import TD3Config
+    from ndp.runs.driver import Run
+
+    def opened(init: str) -> Run:
+        cfg = TrainConfig(task="point-mass", algo="td3", num_envs=1, vector="sync",
+                          run_dir=str(tmp_path / init), td3=TD3Config(init=init))  # fmt: skip
+        return Run(RLRecipe(resolve_config(cfg)))
+
+    with opened("orthogonal") as ortho, opened("torch") as plain:
+        a, b = ortho.learner, plain.learner
+        assert _widest_ratio(b.model.actor) <= 1 + 1e-6 and _widest_ratio(b.critic) <= 1 + 1e-6
+        assert _widest_ratio(a.critic) > 1.0  # orthogonal, gain sqrt(2) for ReLU: wider
+        for live, target in ((b.model, b.actor_target), (b.critic, b.critic_target)):
+            for p, q in zip(live.parameters(), target.parameters(), strict=True):
+                assert torch.equal(p, q)
+    with pytest.raises(ValueError, match=r"^init: expected 'orthogonal' or 'torch', got 'x'$"):
+        TD3Config(init="x")  # type: ignore[arg-type]

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Literal
 
 from ndp.checks import check_int, check_positive, plain_numbers
 from ndp.runs.cli import cli
@@ -55,6 +55,11 @@ class TD3Config:
     target_noise_clip: Annotated[float, cli(name="td3-target-noise-clip")] = 0.5
     """TD3: the smoothing noise is clipped to +- this before it is added (and the sum to
     [-1, 1]). SB3 / the paper: 0.5."""
+    init: Annotated[Literal["orthogonal", "torch"], cli(name="td3-init")] = "orthogonal"
+    """TD3: initialisation of the actor's and the critics' linear layers. orthogonal: every
+    learner's (``ndp.nets.mlp.MLP``: hidden gain sqrt(2) for ReLU, the actor's output 0.01, the
+    critics' 1); torch: PyTorch's ``nn.Linear`` default (uniform in +-1/sqrt(fan_in)), what
+    SB3's TD3 uses (docs/offpolicy.md, "TD3": the saturation check)."""
 
     def __post_init__(self) -> None:
         plain_numbers(self)  # numpy scalars -> Python numbers; NaN, a non-bool flag refused
@@ -67,5 +72,7 @@ class TD3Config:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")
+        if self.init not in ("orthogonal", "torch"):
+            raise ValueError(f"init: expected 'orthogonal' or 'torch', got {self.init!r}")
         if not (isinstance(self.tau, (int, float)) and 0 < self.tau <= 1):
             raise ValueError(f"tau: expected a number in (0, 1], got {self.tau!r}")

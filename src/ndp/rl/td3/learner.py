@@ -53,6 +53,16 @@ if TYPE_CHECKING:
     from ndp.policies import ActorCritic
 
 
+def torch_default_init(*modules: torch.nn.Module) -> None:
+    """Re-initialise every ``nn.Linear`` in ``modules`` with PyTorch's default
+    (``reset_parameters``: weights and biases uniform in +-1/sqrt(fan_in)), drawing from the
+    global generator in module order."""
+    for module in modules:
+        for m in module.modules():
+            if isinstance(m, torch.nn.Linear):
+                m.reset_parameters()
+
+
 class TD3Learner(OffPolicyLearner):
     """TD3 (see the module docstring).
 
@@ -72,8 +82,10 @@ class TD3Learner(OffPolicyLearner):
         self.P = self.model.head.n_params // 2
         pol = cfg.policy
         assert pol.hidden is not None and pol.activation is not None  # resolve_config fills them
-        self._open_critics(TwinQ(self.obs_dim, self.P, tuple(pol.hidden), pol.activation),
-                           actor_target=self.model)  # fmt: skip
+        critic = TwinQ(self.obs_dim, self.P, tuple(pol.hidden), pol.activation)
+        if s.init == "torch":  # before the targets copy them
+            torch_default_init(self.model.actor, critic)
+        self._open_critics(critic, actor_target=self.model)
         self.actor_opt = torch.optim.Adam(self.model.actor.parameters(), lr=s.lr)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=s.lr)
         self._open_replay(s.buffer_size, {"u": self.P, "critic_in": self.P})

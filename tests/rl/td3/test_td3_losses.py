@@ -56,7 +56,7 @@ def test_defaults_are_sb3s_and_bad_values_name_the_field():
     c = TD3Config()
     assert (c.lr, c.batch_size, c.buffer_size, c.tau) == (1e-3, 256, 1_000_000, 0.005)
     assert (c.policy_delay, c.target_noise, c.target_noise_clip) == (2, 0.2, 0.5)
-    assert (c.expl_noise, c.random_steps) == (0.1, 5000)
+    assert (c.expl_noise, c.random_steps, c.init) == (0.1, 5000, "torch")
     for kw, msg in (({"tau": 0.0}, "tau: expected a number in (0, 1]"),
                     ({"policy_delay": 0}, "policy_delay: expected an integer >= 1"),
                     ({"target_noise": -0.1}, "target_noise: expected a finite number >= 0"),

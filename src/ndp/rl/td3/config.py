@@ -55,11 +55,12 @@ class TD3Config:
     target_noise_clip: Annotated[float, cli(name="td3-target-noise-clip")] = 0.5
     """TD3: the smoothing noise is clipped to +- this before it is added (and the sum to
     [-1, 1]). SB3 / the paper: 0.5."""
-    init: Annotated[Literal["orthogonal", "torch"], cli(name="td3-init")] = "orthogonal"
-    """TD3: initialisation of the actor's and the critics' linear layers. orthogonal: every
-    learner's (``ndp.nets.mlp.MLP``: hidden gain sqrt(2) for ReLU, the actor's output 0.01, the
-    critics' 1); torch: PyTorch's ``nn.Linear`` default (uniform in +-1/sqrt(fan_in)), what
-    SB3's TD3 uses (docs/offpolicy.md, "TD3": the saturation check)."""
+    init: Annotated[Literal["orthogonal", "torch"], cli(name="td3-init")] = "torch"
+    """TD3: initialisation of the actor's and the critics' linear layers. torch: PyTorch's
+    ``nn.Linear`` default (uniform in +-1/sqrt(fan_in)), what SB3's TD3 and the paper's code
+    use; orthogonal: the other learners' (``ndp.nets.mlp.MLP``: hidden gain sqrt(2) for ReLU,
+    the actor's output 0.01, the critics' 1), TD3's only one in the first check (035f40e),
+    where two of three push-v3 runs saturated the actor at once (docs/offpolicy.md, "TD3")."""
 
     def __post_init__(self) -> None:
         plain_numbers(self)  # numpy scalars -> Python numbers; NaN, a non-bool flag refused

@@ -61,7 +61,8 @@ def test_help_lists_the_td3_options(capsys):
     assert ndp_main(["rl", "train", "--help"]) == 0
     text = capsys.readouterr().out
     for flag in ("--td3-lr", "--td3-batch-size", "--td3-policy-delay", "--td3-target-noise",
-                 "--td3-target-noise-clip", "--td3-expl-noise", "--td3-random-steps"):  # fmt: skip
+                 "--td3-target-noise-clip", "--td3-expl-noise", "--td3-random-steps",
+                 "--td3-init"):  # fmt: skip
         assert flag in text, flag
     assert "TD3 settings (--algo td3 only)." in text
 

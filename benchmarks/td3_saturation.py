@@ -44,7 +44,8 @@ def train(run: Path, init: str, seed: int, steps: int, task: str) -> None:
         return
     cmd = [sys.executable, "-m", "ndp.cli", "rl", "train", "--task", task, "--algo", "td3",
            "--seed", str(seed), "--steps", str(steps), "--num-envs", "4", "--vector", "sync",
-           "--td3-init", init, "--no-progress", "--no-tensorboard", "--eval-every", "0"]  # fmt: skip
+           "--td3-init", init, "--no-progress", "--no-tensorboard",
+           "--eval-every", "0"]  # fmt: skip
     cmd += ["--resume", str(run)] if run.is_dir() else ["--run-dir", str(run)]
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
@@ -100,8 +101,8 @@ def main(argv: list[str] | None = None) -> int:
     for init in INITS:
         per = {str(s): score(runs[(init, s)], args.task, args.episodes) for s in args.seeds}
         keys = next(iter(per.values())).keys()
-        out[init] = {"runs": per,
-                     "mean": {k: float(np.mean([r[k] for r in per.values()])) for k in keys}}  # fmt: skip
+        mean = {k: float(np.mean([r[k] for r in per.values()])) for k in keys}
+        out[init] = {"runs": per, "mean": mean}
     print(json.dumps(out, indent=1))
     return 0
 

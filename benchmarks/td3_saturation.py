@@ -10,7 +10,7 @@ short TD3 runs with each (``--td3-init orthogonal`` / ``torch``, everything else
 settings) on the same seeds, and scores each final actor on fresh episodes:
 
 * ``saturated``: the fraction of the deterministic action's entries with |a| > 0.99;
-* ``return`` and ``success_any``: of the deterministic policy (``ndp rl eval``);
+* ``return`` and ``success_any``: of the deterministic policy on the same episodes;
 * ``train_return_last``: the training episodes' return in the last metrics row.
 
 Runs go to ``--runs-dir`` (resumable: a finished run is scored again, not retrained), two

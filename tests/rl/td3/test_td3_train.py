@@ -128,5 +128,5 @@ def test_td3_init_torch_gives_every_linear_layer_pytorchs_default_and_its_target
         for live, target in ((b.model, b.actor_target), (b.critic, b.critic_target)):
             for p, q in zip(live.parameters(), target.parameters(), strict=True):
                 assert torch.equal(p, q)
-    with pytest.raises(ValueError, match=r"^init: expected 'orthogonal' or 'torch', got 'x'$"):
+    with pytest.raises(ValueError, match=r"^init: expected one of orthogonal, torch, got 'x'$"):
         TD3Config(init="x")  # type: ignore[arg-type]

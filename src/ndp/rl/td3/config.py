@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass
 from typing import Annotated, Literal
 
-from ndp.checks import check_int, check_positive, plain_numbers
+from ndp.checks import check_choice, check_int, check_positive, plain_numbers
 from ndp.runs.cli import cli
 
 
@@ -73,7 +73,6 @@ class TD3Config:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")
-        if self.init not in ("orthogonal", "torch"):
-            raise ValueError(f"init: expected 'orthogonal' or 'torch', got {self.init!r}")
+        check_choice("init", self.init, ("orthogonal", "torch"))
         if not (isinstance(self.tau, (int, float)) and 0 < self.tau <= 1):
             raise ValueError(f"tau: expected a number in (0, 1], got {self.tau!r}")

@@ -19,10 +19,10 @@ deterministically: its action is the head's mean through tanh (the head's log st
 which is also the head's mode, so ``ndp rl eval / render / export`` and ``ndp.load_policy`` act
 as TD3 does without noise. The critics score the bounded action p in [-1, 1]^P (SB3's
 normalised action). The actor's and the critics' linear layers start from PyTorch's default
-initialisation (``--td3-init torch``, SB3's; ``orthogonal``: the other learners'). Observations
-are not normalised (identity statistics are saved as every RL
-run's). The twin critics, the targets, the optimisers and the replay are saved under the
-checkpoint's ``td3`` key.
+initialisation (``--td3-init torch``, SB3's; ``orthogonal``: the other learners').
+Observations are not normalised (identity statistics are saved as every RL run's). The twin
+critics, the targets, the optimisers and the replay are saved under the checkpoint's ``td3``
+key.
 """
 
 from __future__ import annotations

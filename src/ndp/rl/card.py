@@ -24,6 +24,7 @@ from typing import Any, TypedDict
 
 import numpy as np
 
+from ndp.checks import check_int
 from ndp.io import atomic_write_text
 from ndp.policies.config import DMP_HEADS
 from ndp.rl.methods import METHODS
@@ -105,8 +106,7 @@ def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, floa
     Raises:
         ValueError: ``n < 1`` or ``successes`` outside ``0..n``.
     """
-    if isinstance(n, bool) or int(n) != n or n < 1:
-        raise ValueError(f"n: expected an integer >= 1, got {n!r}")
+    n = check_int("n", n, 1)
     if isinstance(successes, bool) or int(successes) != successes or not 0 <= successes <= n:
         raise ValueError(f"successes: expected an integer in 0..{n}, got {successes!r}")
     p = successes / n

@@ -16,10 +16,16 @@ settings) on the same seeds, and scores each final actor on fresh episodes:
 Runs go to ``--runs-dir`` (resumable: a finished run is scored again, not retrained), two
 at a time, one torch thread each. Prints one JSON object: per init the runs and their means.
 
-Example (docs/offpolicy.md, "TD3")::
+With ``--score RUN [RUN ...]`` it trains nothing and scores those runs' final actors the same
+way (any TD3 run, e.g. the check's own; a folder without a ``config.json`` is refused); it
+prints ``{RUN as given: score}``.
+
+Examples (docs/offpolicy.md, "TD3")::
 
     MUJOCO_GL=egl python benchmarks/td3_saturation.py --runs-dir runs/td3_saturation \\
         --steps 20000 --seeds 0 1 2
+    MUJOCO_GL=egl python benchmarks/td3_saturation.py --score \\
+        runs/td3_vs_sb3_init/push-v3-td3-s0 runs/td3_vs_sb3_300k/push-v3-td3-s0
 """
 
 from __future__ import annotations
@@ -81,7 +87,9 @@ def score(run: Path, task: str, episodes: int) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--runs-dir", required=True, help="folder of the runs (made if missing)")
+    ap.add_argument("--runs-dir", help="folder of the runs (made if missing)")
+    ap.add_argument("--score", nargs="+", metavar="RUN", type=Path,
+                    help="train nothing: score these finished TD3 runs")  # fmt: skip
     ap.add_argument("--task", default="push-v3")
     ap.add_argument("--steps", type=int, default=20_000, help="env steps per run")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
@@ -90,6 +98,15 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.steps < 1 or args.episodes < 1 or args.jobs < 1:
         ap.error("--steps, --episodes and --jobs: expected integers >= 1")
+    if args.score:
+        missing = [str(run) for run in args.score if not (run / "config.json").is_file()]
+        if missing:
+            ap.error(f"--score: expected run folders (with config.json), got {', '.join(missing)}")
+        scores = {str(run): score(run, args.task, args.episodes) for run in args.score}
+        print(json.dumps(scores, indent=1))
+        return 0
+    if args.runs_dir is None:
+        ap.error("--runs-dir: required unless --score names runs")
     root = Path(args.runs_dir)
     root.mkdir(parents=True, exist_ok=True)
     cells = [(init, s) for s in args.seeds for init in INITS]
